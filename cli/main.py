@@ -1,0 +1,52 @@
+"""The ``dwell`` command: one group, one module per subcommand.
+
+Exit status: 0 success, 2 bad input or usage (one line on stderr, nothing written), 1 an
+internal error (a bug: the traceback is shown), 130 interrupted.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import click
+
+from cli.errors import USER_ERRORS, user_error_line
+from cli.lazy import LazyGroup
+
+COMMANDS = {
+    "demo": "cli.demo:demo",
+    "analyze": "cli.analyze:analyze",
+    "curvature": "cli.curvature:curvature",
+    "bench": "cli.bench:bench",
+    "atlas": "cli.atlas:atlas",
+    "query": "cli.query:query",
+    "report": "cli.report:report",
+}
+
+
+@click.group(cls=LazyGroup, lazy=COMMANDS, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(package_name="dwell-atlas")
+def dwell() -> None:
+    """Design six-bar dwell mechanisms from an atlas of four-bar coupler curves."""
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point: run ``dwell`` and map errors to exit statuses (never a traceback for input)."""
+    try:
+        dwell.main(args=argv, prog_name="dwell", standalone_mode=False)
+    except click.exceptions.Exit as exc:
+        return exc.exit_code
+    except click.exceptions.Abort:
+        click.echo("dwell: interrupted", err=True)
+        return 130
+    except KeyboardInterrupt:
+        click.echo("dwell: interrupted", err=True)
+        return 130
+    except USER_ERRORS as exc:
+        click.echo(f"dwell: error: {user_error_line(exc)}", err=True)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

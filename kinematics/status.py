@@ -1,0 +1,105 @@
+"""Status flags, assembly branches and the one exception for geometry that cannot assemble.
+
+Every numeric kernel in ``kinematics/`` and ``synth/`` reports degenerate geometry through a
+``Status`` array of the broadcast shape instead of NaN or inf. Flags combine (``IntFlag``): a
+toggle position may also put the pole at infinity, for instance.
+"""
+
+from __future__ import annotations
+
+import enum
+from typing import Literal
+
+import numpy as np
+
+__all__ = [
+    "AssemblyError",
+    "Branch",
+    "OnDegenerate",
+    "Status",
+    "check_on_degenerate",
+    "describe_status",
+    "raise_on_flags",
+]
+
+
+class Status(enum.IntFlag):
+    """Why a value at one (linkage, crank angle[, ray]) is not an ordinary finite answer.
+
+    Values that carry a flag are finite placeholders (0 or the last safe value), never NaN/inf.
+    """
+
+    OK = 0
+    NOT_ASSEMBLABLE = 1 << 0  #: the loop cannot close at this input (|cos| > 1)
+    TOGGLE = 1 << 1  #: coupler and rocker (or rod and slider guide) aligned: sin(θ−γ) = 0
+    POLE_AT_INFINITY = 1 << 2  #: θ′ = 0, the coupler is momentarily translating
+    INFLECTION_CIRCLE_COLLAPSED = 1 << 3  #: |Z2| = 0, the inflection circle has no diameter
+    CIRCLE_POINT_AT_INFINITY = 1 << 4  #: the ray meets the cubic only at infinity: a straight "arc"
+    RAY_ALONG_POLE_TANGENT = 1 << 5  #: R2 = 0: the ray is the pole tangent
+    CENTER_POINT_AT_INFINITY = 1 << 6  #: the circle point lies on the inflection circle
+    AT_INFINITY = 1 << 7  #: any other point at infinity (e.g. a coupler point 1e6 cranks away)
+
+
+#: Human-readable reasons, used by the CLI and by stability summaries.
+_REASONS: dict[Status, str] = {
+    Status.NOT_ASSEMBLABLE: "linkage cannot assemble at this crank angle",
+    Status.TOGGLE: "toggle position (coupler and rocker aligned), derivatives undefined",
+    Status.POLE_AT_INFINITY: "pole at infinity (coupler momentarily translating, theta' = 0)",
+    Status.INFLECTION_CIRCLE_COLLAPSED: "inflection circle collapsed (|Z2| = 0)",
+    Status.CIRCLE_POINT_AT_INFINITY: "circle point at infinity on this ray (straight path)",
+    Status.RAY_ALONG_POLE_TANGENT: "ray along the pole tangent (R2 = 0)",
+    Status.CENTER_POINT_AT_INFINITY: "centre point at infinity (circle point on the inflection circle)",
+    Status.AT_INFINITY: "point at infinity",
+}
+
+
+def describe_status(flags: int) -> list[str]:
+    """Names of the individual flags set in ``flags`` (empty for OK)."""
+    return [f.name.lower() for f in Status if f and (int(flags) & f)]
+
+
+def reason(flag: Status) -> str:
+    """One-line explanation of a single flag."""
+    return _REASONS[flag]
+
+
+class Branch(enum.IntEnum):
+    """Assembly branch of a four-bar (and of any RRR dyad built the same way).
+
+    ``LEFT`` (+1) puts the coupler–rocker joint B to the left of the directed line A→B0,
+    ``RIGHT`` (−1) to the right. Stored as the small integer in the database.
+    """
+
+    LEFT = 1
+    RIGHT = -1
+
+
+class AssemblyError(ValueError):
+    """Input that cannot be assembled, or lengths that make no linkage.
+
+    The message names the violated condition, e.g. ``"four-bar cannot assemble at crank
+    angle 200°: |R| = 3.1 > b + c = 3"``.
+    """
+
+
+OnDegenerate = Literal["flag", "raise"]
+_ON_DEGENERATE = ("flag", "raise")
+
+
+def check_on_degenerate(on_degenerate: str) -> OnDegenerate:
+    """Validate the keyword-only ``on_degenerate`` choice once, with the list of options."""
+    if on_degenerate not in _ON_DEGENERATE:
+        raise ValueError(
+            f"on_degenerate must be one of {', '.join(map(repr, _ON_DEGENERATE))}, "
+            f"not {on_degenerate!r}"
+        )
+    return on_degenerate  # type: ignore[return-value]
+
+
+def raise_on_flags(status: np.ndarray, where: str, flags: Status = Status.NOT_ASSEMBLABLE) -> None:
+    """Raise :class:`AssemblyError` if any element of ``status`` carries one of ``flags``."""
+    bad = (np.asarray(status) & int(flags)) != 0
+    if np.any(bad):
+        first = Status(int(np.asarray(status)[bad].flat[0]) & int(flags))
+        names = ", ".join(n.replace("_", " ") for n in describe_status(first))
+        raise AssemblyError(f"{where}: {names} at {int(np.count_nonzero(bad))} position(s)")
