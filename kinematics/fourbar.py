@@ -39,6 +39,8 @@ __all__ = [
 
 #: |sin(θ−γ)| below this is a toggle: the derivative system is singular there.
 TOGGLE_EPS = 1e-12
+#: |A − B0| below this times (b + c): the crank pin sits on the rocker pivot, θ is undetermined.
+COINCIDENT_EPS = 1e-12
 #: Elements per chunk: keeps every temporary inside the L2 cache (measured: 16384 is ~2.5x
 #: faster than whole-array evaluation at 36 M positions).
 _CHUNK = 16384
@@ -317,7 +319,10 @@ def _solve_chunk(a, b, c, d, phi, branch, order, e_theta, status, derivs) -> Non
     r = np.sqrt(r2)
     # Heron form of 4·b²r²·sin²β: exact zero at a toggle, negative when the loop cannot close.
     heron = (r + (c - b)) * ((c + b) - r) * (r + (b - c)) * (r + (b + c))
-    bad = heron < 0
+    # A on B0 (r → 0, a = d at φ = 0) leaves θ undetermined: counted as not assemblable.
+    on_pivot = r <= COINCIDENT_EPS * (b + c)
+    bad = (heron < 0) | on_pivot
+    r = np.where(on_pivot, 1.0, r)
     inv_2br = 0.5 / (b * r)
     cb = (r2 + (b * b - c * c)) * inv_2br
     sb = np.sqrt(np.maximum(heron, 0.0)) * (branch * inv_2br)

@@ -38,8 +38,9 @@ def emit_motion(
     if plot is not None:
         phi = table.columns[0].values
         lo, hi = float(phi.min()), float(phi.max())
-        if hi - lo < 2 * PLOT_STEP_DEG:
-            lo, hi = lo, lo + 360.0 - PLOT_STEP_DEG
+        step = float(np.min(np.diff(phi))) if phi.size > 1 else 360.0
+        if hi - lo + step >= 360.0 - 1e-9:  # a whole turn (or a single angle): plot the turn
+            hi = lo + 360.0
         dense = evaluate(np.arange(lo, hi + PLOT_STEP_DEG / 2, PLOT_STEP_DEG))
     drawing = sketch() if draw is not None else None
 
