@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import sys
+
 import click
 
 from kinematics.status import AssemblyError
@@ -11,12 +13,26 @@ class InputError(Exception):
     """A problem with what the user typed or pointed at (a file, a database)."""
 
 
-#: Caught by :func:`cli.main.main`; extend here when a layer adds its own error type.
+#: Always the user's: bad options, linkages that cannot assemble, bad files.
 USER_ERRORS: tuple[type[BaseException], ...] = (click.ClickException, AssemblyError, InputError)
+
+#: Error types of layers that are imported only when a command needs them, by module.
+_LAZY_USER_ERRORS = {"db.engine": "AtlasError"}
+
+
+def is_user_error(exc: BaseException) -> bool:
+    """True for errors caused by input, including those of lazily imported layers."""
+    if isinstance(exc, USER_ERRORS):
+        return True
+    for module, name in _LAZY_USER_ERRORS.items():
+        mod = sys.modules.get(module)
+        if mod is not None and isinstance(exc, getattr(mod, name)):
+            return True
+    return False
 
 
 def user_error_line(exc: BaseException) -> str:
-    """One line naming the problem (click's usage errors name the option)."""
+    """One line naming the problem (click's usage errors name the command)."""
     if isinstance(exc, click.ClickException):
         msg = exc.format_message()
         ctx = getattr(exc, "ctx", None)

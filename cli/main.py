@@ -10,7 +10,7 @@ import sys
 
 import click
 
-from cli.errors import USER_ERRORS, user_error_line
+from cli.errors import is_user_error, user_error_line
 from cli.lazy import LazyGroup
 
 COMMANDS = {
@@ -42,7 +42,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         click.echo("dwell: interrupted", err=True)
         return 130
-    except USER_ERRORS as exc:
+    except Exception as exc:
+        if not is_user_error(exc):
+            raise
         click.echo(f"dwell: error: {user_error_line(exc)}", err=True)
         return 2
     return 0

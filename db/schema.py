@@ -1,0 +1,171 @@
+"""The atlas schema (SQLAlchemy 2.x typed declarative models). Models only.
+
+Units inside the database: lengths in crank lengths (crank = 1), angles in radians, points in
+the four-bar's fixed frame (A0 = (0, 0), B0 = (d, 0)) unless a column says otherwise.
+
+Every float column is NOT NULL and checked to lie in [−1e300, 1e300]: this rejects NaN
+(stored as NULL by SQLite, ordered above every number by PostgreSQL) and ±inf on both
+dialects, so no NaN or inf can ever be stored, whatever the writer does.
+"""
+
+from __future__ import annotations
+
+from sqlalchemy import CheckConstraint, Float, ForeignKey, Index, Integer, String, Text, UniqueConstraint
+from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
+
+__all__ = ["SCHEMA_VERSION", "APPLICATION", "Base", "Meta", "Build", "Shard", "Linkage", "Segment", "Dwell"]
+
+#: Bumped whenever a table or column changes meaning; an atlas of a newer version is refused.
+SCHEMA_VERSION = 1
+#: Written to the meta table so that a foreign SQLite file is recognised as such.
+APPLICATION = "dwell-atlas"
+
+_FINITE = "BETWEEN -1e300 AND 1e300"
+
+
+def _finite_checks(table: str, *columns: str) -> tuple[CheckConstraint, ...]:
+    return tuple(CheckConstraint(f"{c} {_FINITE}", name=f"ck_{table}_{c}_finite") for c in columns)
+
+
+def _finite_or_null_checks(table: str, *columns: str) -> tuple[CheckConstraint, ...]:
+    # optional geometry (a line has no radius): NULL allowed, but never NaN/inf
+    return tuple(
+        CheckConstraint(f"{c} IS NULL OR {c} {_FINITE}", name=f"ck_{table}_{c}_finite") for c in columns
+    )
+
+
+class Base(DeclarativeBase):
+    pass
+
+
+class Meta(Base):
+    """Key/value facts about the database itself: ``application``, ``schema_version``."""
+
+    __tablename__ = "meta"
+    key: Mapped[str] = mapped_column(String(64), primary_key=True)
+    value: Mapped[str] = mapped_column(Text)
+
+
+class Build(Base):
+    """One atlas build: its full sweep spec (JSON), code and schema version, status."""
+
+    __tablename__ = "build"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    spec_json: Mapped[str] = mapped_column(Text)
+    spec_digest: Mapped[str] = mapped_column(String(64), unique=True)
+    code_version: Mapped[str] = mapped_column(String(64))
+    schema_version: Mapped[int] = mapped_column(Integer)
+    status: Mapped[str] = mapped_column(String(16))  # building | complete
+    n_shards: Mapped[int] = mapped_column(Integer)
+    created_at: Mapped[str] = mapped_column(String(32))
+    finished_at: Mapped[str | None] = mapped_column(String(32), nullable=True)
+    __table_args__ = (CheckConstraint("status IN ('building', 'complete')", name="ck_build_status"),)
+
+
+class Shard(Base):
+    """A shard written in full (its linkages and segments commit in the same transaction).
+
+    Resume = build the shards that have no row here.
+    """
+
+    __tablename__ = "shard"
+    build_id: Mapped[int] = mapped_column(ForeignKey("build.id"), primary_key=True)
+    shard_index: Mapped[int] = mapped_column(Integer, primary_key=True)
+    n_linkages: Mapped[int] = mapped_column(Integer)
+    n_segments: Mapped[int] = mapped_column(Integer)
+    skipped_json: Mapped[str] = mapped_column(Text)  #: {"reason": count} of degenerate cases
+    seconds: Mapped[float] = mapped_column(Float)
+    __table_args__ = _finite_checks("shard", "seconds")
+
+
+class Linkage(Base):
+    """A crank-normalised four-bar (a = 1) on one assembly branch."""
+
+    __tablename__ = "linkage"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    build_id: Mapped[int] = mapped_column(ForeignKey("build.id"))
+    shard_index: Mapped[int] = mapped_column(Integer)
+    sweep_index: Mapped[int] = mapped_column(Integer)  #: position in the sweep, for canonical order
+    b: Mapped[float] = mapped_column(Float)
+    c: Mapped[float] = mapped_column(Float)
+    d: Mapped[float] = mapped_column(Float)
+    branch: Mapped[int] = mapped_column(Integer)
+    grashof: Mapped[int] = mapped_column(Integer)  #: kinematics.GrashofType value
+    transmission_min: Mapped[float] = mapped_column(Float)  #: rad, over the turn, folded to [0, π/2]
+    transmission_max: Mapped[float] = mapped_column(Float)
+    __table_args__ = (
+        UniqueConstraint("build_id", "sweep_index", "branch", name="uq_linkage_sweep"),
+        CheckConstraint("branch IN (1, -1)", name="ck_linkage_branch"),
+        *_finite_checks("linkage", "b", "c", "d", "transmission_min", "transmission_max"),
+        # resume deletes a half-written shard's rows by (build, shard)
+        Index("ix_linkage_build_shard", "build_id", "shard_index"),
+    )
+
+
+class Segment(Base):
+    """A nearly straight (``line``, ``double_line``) or nearly circular (``arc``) stretch of a
+    coupler curve, found from the curvature invariants at crank angle ``phi_gen``.
+
+    Lines: point (``px``, ``py``) and direction angle ``direction``. Arcs: centre (``cx``,
+    ``cy``) and ``radius``. Double lines: also the second line (``p2x``, ``p2y``,
+    ``direction2``) and the lines' intersection (``ix``, ``iy``), the RPR pivot for two dwells.
+    """
+
+    __tablename__ = "segment"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    linkage_id: Mapped[int] = mapped_column(ForeignKey("linkage.id"))
+    kind: Mapped[str] = mapped_column(String(12))
+    phi_gen: Mapped[float] = mapped_column(Float)  #: generating crank angle (rad)
+    phi_gen2: Mapped[float | None] = mapped_column(Float, nullable=True)  #: double Ball point: second angle
+    ray: Mapped[float | None] = mapped_column(Float, nullable=True)  #: line-scan ray angle (rad, fixed frame)
+    u: Mapped[float] = mapped_column(Float)  #: coupler point, coupler frame
+    v: Mapped[float] = mapped_column(Float)
+    px: Mapped[float | None] = mapped_column(Float, nullable=True)
+    py: Mapped[float | None] = mapped_column(Float, nullable=True)
+    direction: Mapped[float | None] = mapped_column(Float, nullable=True)
+    p2x: Mapped[float | None] = mapped_column(Float, nullable=True)
+    p2y: Mapped[float | None] = mapped_column(Float, nullable=True)
+    direction2: Mapped[float | None] = mapped_column(Float, nullable=True)
+    ix: Mapped[float | None] = mapped_column(Float, nullable=True)
+    iy: Mapped[float | None] = mapped_column(Float, nullable=True)
+    cx: Mapped[float | None] = mapped_column(Float, nullable=True)
+    cy: Mapped[float | None] = mapped_column(Float, nullable=True)
+    radius: Mapped[float | None] = mapped_column(Float, nullable=True)
+    transmission_min: Mapped[float] = mapped_column(Float)  #: rad, over the widest dwell interval
+    transmission_max: Mapped[float] = mapped_column(Float)
+    __table_args__ = (
+        CheckConstraint("kind IN ('line', 'arc', 'double_line')", name="ck_segment_kind"),
+        *_finite_checks("segment", "phi_gen", "u", "v", "transmission_min", "transmission_max"),
+        *_finite_or_null_checks(
+            "segment", "phi_gen2", "ray", "px", "py", "direction", "p2x", "p2y", "direction2", "ix", "iy", "cx", "cy", "radius"
+        ),
+        Index("ix_segment_linkage", "linkage_id"),
+    )
+
+
+class Dwell(Base):
+    """The dwell interval of a segment at one tolerance level (band half-width, crank lengths).
+
+    ``part`` is 0, or 1 for the second line of a double Ball point. ``kind`` repeats the
+    segment's kind so that the query's index covers its filter.
+    """
+
+    __tablename__ = "dwell"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    segment_id: Mapped[int] = mapped_column(ForeignKey("segment.id"))
+    kind: Mapped[str] = mapped_column(String(12))
+    level: Mapped[int] = mapped_column(Integer)
+    tolerance: Mapped[float] = mapped_column(Float)
+    part: Mapped[int] = mapped_column(Integer)
+    phi_start: Mapped[float] = mapped_column(Float)  #: rad; the interval runs counter-clockwise
+    phi_end: Mapped[float] = mapped_column(Float)
+    dwell_angle: Mapped[float] = mapped_column(Float)  #: rad, phi_end − phi_start
+    max_deviation: Mapped[float] = mapped_column(Float)  #: crank lengths, from the fitted line/circle
+    __table_args__ = (
+        CheckConstraint("part IN (0, 1)", name="ck_dwell_part"),
+        CheckConstraint("dwell_angle > 0", name="ck_dwell_positive"),
+        *_finite_checks("dwell", "tolerance", "phi_start", "phi_end", "dwell_angle", "max_deviation"),
+        # dwell query: WHERE kind = ? AND level = ? AND dwell_angle BETWEEN ? AND ?
+        Index("ix_dwell_query", "kind", "level", "dwell_angle"),
+        Index("ix_dwell_segment", "segment_id"),
+    )
