@@ -61,7 +61,7 @@ class MotionTable:
     def to_text(self, digits: int = 7) -> str:
         """A fixed-width table; the header shows each column's name and unit."""
         heads = [f"{c.name}[{c.unit}]" if c.unit else c.name for c in self.columns]
-        cells = [[_fmt(v, digits) for v in col.values] for col in self.columns]
+        cells = [[_fmt(v, digits, _scale(col.values)) for v in col.values] for col in self.columns]
         widths = [max(len(h), *(len(x) for x in cs)) for h, cs in zip(heads, cells)]
         lines = ["  ".join(h.rjust(w) for h, w in zip(heads, widths))]
         for i in range(len(cells[0])):
@@ -69,10 +69,17 @@ class MotionTable:
         return "\n".join(lines)
 
 
-def _fmt(value: float, digits: int) -> str:
+def _scale(values: np.ndarray) -> float:
+    finite = np.abs(values[np.isfinite(values)])
+    return float(finite.max()) if finite.size else 0.0
+
+
+def _fmt(value: float, digits: int, scale: float = 0.0) -> str:
     if not math.isfinite(value):
         return "-"
-    if value == 0:
+    # rounding noise of an exact zero (a velocity at a dead centre) reads as 0 in the table;
+    # JSON keeps the computed value
+    if abs(value) <= 1e-12 * scale or value == 0:
         return "0"
     return f"{value:.{digits}g}"
 
