@@ -13,6 +13,7 @@ from kinematics.timing import crank_speed
 __all__ = [
     "crank_angle_options",
     "crank_angles_deg",
+    "fourbar_options",
     "output_options",
     "positive",
     "speed_options",
@@ -42,6 +43,15 @@ def finite(ctx: click.Context, param: click.Parameter, value: float | None) -> f
         raise click.BadParameter(f"must be a finite number, got {value:g}", ctx, param)
     return value
 
+
+fourbar_options = _stack(
+    click.option("--a", type=float, required=True, callback=positive, help="Crank length A0-A."),
+    click.option("--b", type=float, required=True, callback=positive, help="Coupler length A-B."),
+    click.option("--c", type=float, required=True, callback=positive, help="Rocker length B0-B."),
+    click.option("--d", type=float, required=True, callback=positive, help="Ground length A0-B0."),
+    click.option("--branch", type=click.Choice(["1", "-1"]), default="1", show_default=True,
+                 help="Assembly branch: 1 puts B left of the line A->B0, -1 right."),
+)
 
 crank_angle_options = _stack(
     click.option("--phi", type=float, default=None, callback=finite, help="One crank angle [deg]."),

@@ -38,6 +38,12 @@ class Status(enum.IntFlag):
     RAY_ALONG_POLE_TANGENT = 1 << 5  #: R2 = 0: the ray is the pole tangent
     CENTER_POINT_AT_INFINITY = 1 << 6  #: the circle point lies on the inflection circle
     AT_INFINITY = 1 << 7  #: any other point at infinity (e.g. a coupler point 1e6 cranks away)
+    #: the point is the pole itself, where its path has a cusp (ray along the pole normal, Ball's
+    #: point at a rocker dead-centre); needs uint16 status arrays (``synth/``)
+    AT_POLE = 1 << 8
+    #: the loop is too ill-conditioned here for the curvature invariants (near a toggle, or a
+    #: coupler or rocker tiny against the other links): see ``synth.pole.MAX_CONDITION``
+    ILL_CONDITIONED = 1 << 9
 
 
 #: Human-readable reasons, used by the CLI and by stability summaries.
@@ -50,6 +56,8 @@ _REASONS: dict[Status, str] = {
     Status.RAY_ALONG_POLE_TANGENT: "ray along the pole tangent (R2 = 0)",
     Status.CENTER_POINT_AT_INFINITY: "centre point at infinity (circle point on the inflection circle)",
     Status.AT_INFINITY: "point at infinity",
+    Status.AT_POLE: "point at the pole (its path has a cusp there: no tangent, no curvature)",
+    Status.ILL_CONDITIONED: "loop too ill-conditioned for curvature invariants (near a toggle or extreme link ratio)",
 }
 
 

@@ -6,7 +6,8 @@ import click
 import numpy as np
 
 from cli.analyze.emit import emit_motion
-from cli.options import crank_angle_options, crank_angles_deg, output_options, positive, speed_from_options, speed_options
+from cli.analyze.fourbar_stats import run_stats, stats_options
+from cli.options import crank_angle_options, crank_angles_deg, fourbar_options, output_options, speed_from_options, speed_options
 from kinematics.fourbar import GrashofType, check_lengths, crank_range, fourbar_motion, grashof_type, rocker_limits, transmission_angle
 from kinematics.timing import time_derivatives
 from report.drawing import Sketch
@@ -14,20 +15,20 @@ from report.motion_table import Column, MotionTable
 
 
 @click.command("fourbar")
-@click.option("--a", type=float, required=True, callback=positive, help="Crank length A0-A.")
-@click.option("--b", type=float, required=True, callback=positive, help="Coupler length A-B.")
-@click.option("--c", type=float, required=True, callback=positive, help="Rocker length B0-B.")
-@click.option("--d", type=float, required=True, callback=positive, help="Ground length A0-B0.")
-@click.option("--branch", type=click.Choice(["1", "-1"]), default="1", show_default=True,
-              help="Assembly branch: 1 puts B left of the line A->B0, -1 right.")
+@fourbar_options
 @click.option("--point", nargs=2, type=float, default=None, metavar="U V",
               help="Coupler point in the coupler frame (origin A, x-axis along A->B).")
 @crank_angle_options
 @speed_options
 @output_options
-def fourbar(a, b, c, d, branch, point, phi, phi_from, phi_to, phi_step, rpm, omega, cw, crank_alpha, as_json, plot, draw, units):
+@stats_options
+def fourbar(a, b, c, d, branch, point, phi, phi_from, phi_to, phi_step, rpm, omega, cw, crank_alpha, as_json, plot, draw, units,
+            stats, crank_lengths, rpms, phases, clutch, cv_bounds):
     """Analyse a four-bar: ground pivots A0=(0,0), B0=(d,0); crank angle CCW from +x."""
     check_lengths(a=a, b=b, c=c, d=d)
+    if stats:
+        return run_stats(a, b, c, d, int(branch), stats, crank_lengths, rpms, as_json, plot, rpm=rpm, phases=phases,
+                         clutch=clutch, cv_bounds=cv_bounds, units=units)
     if point is not None and not np.all(np.isfinite(point)):
         raise click.BadParameter("--point must be two finite numbers")
     br = int(branch)

@@ -1,0 +1,209 @@
+"""The pole (instant centre) of the coupler motion and its derivatives: the instantaneous
+invariants every other curvature quantity is built from.
+
+All quantities are derivatives with respect to the crank angle φ (curvature.md §1–2); points
+are complex numbers in the fixed frame (A0 = 0, B0 = d on the +x axis). Kernels broadcast
+like :func:`kinematics.fourbar.fourbar_motion` and never return NaN/inf: degenerate instants
+carry :class:`~kinematics.status.Status` flags in a ``uint16`` status array (``synth/`` uses
+the ``AT_POLE`` bit, which does not fit the four-bar's ``uint8``) and finite placeholders (0).
+
+Relative thresholds
+-------------------
+Every threshold is relative, so that a linkage and its scaled copy get the same flags:
+
+* ``FAR``: a point farther than ``FAR · L`` from the crank pin, L = max(a, b, c, d), is "at
+  infinity".
+* ``POLE_FAR``: the pole is at infinity beyond ``POLE_FAR · L``, i.e. |θ′| < a/(POLE_FAR·L).
+  The relative error of θ′ grows like ε_mach/|θ′|, so the pole's absolute error grows like
+  ε_mach·a²/(L·θ′²); circle and centre points near the linkage are reached from the pole
+  along rays and inherit it. Measured (``dwell bench stability``): with the bound at 1e6·L,
+  centre points near the linkage reached from a pole 1e5 cranks away were off by 7e-7 of a
+  crank; with 1e3·L the worst is ~3e-8 (change-point linkages near ``MAX_CONDITION``).
+* ``MAX_CONDITION``: the loop's condition number L/(min(b, c)·|sin(θ − γ)|) above it is
+  flagged ``ILL_CONDITIONED``. The invariants need θ‴, and the float64 loop loses digits near
+  a toggle (|R| ≈ b ± c cancels) and when the coupler or rocker is tiny against the other
+  links. Measured on ``dwell bench stability`` (link ratios 1e-3…1e3, change points, 1e-9 rad
+  from toggles; 4 × 100 000 cases): with 100 the unflagged poles, inflection circles, Ball
+  points and circle points stay within ~1e-9 of a crank; 300 lets 2e-7 through. The
+  four-bar kernel's own ``TOGGLE_EPS`` only guards its division.
+* ``COLLAPSE``: |Z2| ≤ COLLAPSE·a·(1 + |θ′|) is a collapsed inflection circle (θ′ = 1 and
+  θ″ = 0 at once); below it the direction of the pole normal is lost to rounding.
+* ``RAY_EPS``: a ray within this angle (rad) of the pole tangent or normal meets the cubic of
+  stationary curvature at the pole (line scanning; Ball's point at a rocker dead-centre).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from kinematics.fourbar import FourBarMotion
+from kinematics.status import Status, check_on_degenerate, raise_on_flags
+
+__all__ = ["COLLAPSE", "FAR", "MAX_CONDITION", "POLE_FAR", "RAY_EPS", "Pole", "loop_condition", "pole"]
+
+#: Distances beyond ``FAR`` × linkage size count as infinite (see module notes).
+FAR = 1e6
+#: A pole farther than ``POLE_FAR`` × linkage size from the crank pin is at infinity (see module notes).
+POLE_FAR = 1e3
+#: Condition number L/(min(b, c)·|sin(θ − γ)|) above which an instant is ``ILL_CONDITIONED``.
+MAX_CONDITION = 100.0
+#: Relative size of |Z2| below which the inflection circle has collapsed (see module notes).
+COLLAPSE = 1e-7
+#: Angle (rad) from the pole tangent or normal below which a ray is degenerate.
+RAY_EPS = 1e-9
+
+#: Every flag: ``on_degenerate="raise"`` raises on any of them.
+ANY_FLAG = Status(sum(int(f) for f in Status))
+#: Instant flags after which no curvature quantity at that instant is meaningful.
+INVALID = int(Status.NOT_ASSEMBLABLE | Status.TOGGLE | Status.ILL_CONDITIONED | Status.POLE_AT_INFINITY
+              | Status.INFLECTION_CIRCLE_COLLAPSED)
+
+F64 = NDArray[np.float64]
+C128 = NDArray[np.complex128]
+U16 = NDArray[np.uint16]
+
+
+@dataclass(frozen=True, slots=True)
+class Pole:
+    """Instant centre and the pole derivatives Z2, Z3 at each (linkage, crank angle).
+
+    Arrays have the motion's broadcast shape. Lengths are in the linkage's unit; derivatives
+    are per radian of crank angle.
+
+    Attributes
+    ----------
+    point : complex128
+        Pole I (instant centre of the coupler), fixed frame.
+    crank_pin : complex128
+        Crank pin A = a·e^{iφ} (origin of the coupler frame).
+    e_theta : complex128
+        Coupler phasor e^{iθ} (x-axis of the coupler frame).
+    dtheta : (θ′, θ″, θ‴), float64
+        Coupler angle derivatives w.r.t. φ (rad/rad).
+    z2, z3 : complex128
+        Second and third φ-derivatives of the coupler point that coincides with the pole
+        ("pole acceleration and jerk"), length/rad² and length/rad³.
+    size : float64
+        Linkage size L = max(a, b, c, d), broadcastable to the motion's shape: the length
+        scale of the relative thresholds.
+    status : uint16
+        :class:`Status` flags: those of the motion, plus ``POLE_AT_INFINITY``,
+        ``INFLECTION_CIRCLE_COLLAPSED`` and ``ILL_CONDITIONED`` (``MAX_CONDITION``).
+        Where the pole is at infinity or the motion is flagged, ``point``, ``z2`` and ``z3``
+        are 0 placeholders.
+    """
+
+    point: C128
+    crank_pin: C128
+    e_theta: C128
+    dtheta: tuple[F64, F64, F64]
+    z2: C128
+    z3: C128
+    size: F64
+    status: U16
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return self.point.shape
+
+    @property
+    def ok(self) -> NDArray[np.bool_]:
+        return self.status == Status.OK
+
+    @property
+    def normal(self) -> C128:
+        """Unit pole normal Z2/|Z2|: from the pole towards the inflection pole (1 where collapsed)."""
+        mag = np.abs(self.z2)
+        return np.divide(self.z2, mag, out=np.ones_like(self.z2), where=mag > 0)
+
+    @property
+    def tangent(self) -> C128:
+        """Unit pole tangent: direction in which the pole moves along the fixed centrode as φ grows.
+
+        From I′ = i·Z2/θ′ (differentiate I = A + i·A′/θ′), so tangent = i·sign(θ′)·normal.
+        """
+        return 1j * np.where(self.dtheta[0] < 0, -1.0, 1.0) * self.normal
+
+    def to_coupler(self, z: ArrayLike) -> C128:
+        """Fixed-frame points z → coupler frame p = e^{−iθ}(z − A) (origin A, x-axis A→B)."""
+        return np.conj(self.e_theta) * (np.asarray(z, np.complex128) - self.crank_pin)
+
+    def to_fixed(self, p: ArrayLike) -> C128:
+        """Coupler-frame points p → fixed frame z = A + e^{iθ}p."""
+        return self.crank_pin + self.e_theta * np.asarray(p, np.complex128)
+
+
+def loop_condition(motion: FourBarMotion) -> F64:
+    """Condition number L/(min(b, c)·|sin(θ − γ)|) of the loop at each position, motion's shape.
+
+    L = max(a, b, c, d); ≥ 1, and the largest float at an exact toggle (never inf). It grows
+    as the coupler and rocker align and as either of them gets small against the linkage:
+    both make the coupler angle's derivatives lose digits.
+    """
+    size = np.maximum(np.maximum(motion.a, motion.b), np.maximum(motion.c, motion.d))
+    lever = np.minimum(motion.b, motion.c) * np.abs(motion.sin_theta_gamma)
+    with np.errstate(divide="ignore", over="ignore"):
+        return np.minimum(size / lever, np.finfo(float).max)
+
+
+def pole(motion: FourBarMotion, *, on_degenerate: str = "flag") -> Pole:
+    """Pole, pole derivatives and degeneracy flags of a four-bar's coupler motion.
+
+    Parameters
+    ----------
+    motion : FourBarMotion
+        From :func:`kinematics.fourbar.fourbar_motion` with ``order=3``.
+    on_degenerate : {"flag", "raise"}
+        ``"raise"`` raises :class:`~kinematics.status.AssemblyError` if any instant is flagged.
+
+    Returns
+    -------
+    Pole
+        Arrays of ``motion.shape``.
+
+    Notes
+    -----
+    With E = a·e^{iφ} (so A′ = iE, A″ = −E, A‴ = −iE), the pole offset from the crank pin
+    w_P = i·A′/θ′ and the pole derivatives of curvature.md §2 simplify to
+
+    .. math::
+
+        w_P = -E/θ', \\quad I = A + w_P,\\quad
+        Z_2 = -E\\,\\bigl(1 - θ' + iθ''/θ'\\bigr),\\quad
+        Z_3 = -E\\,\\bigl(-3θ'' + i(1 + θ'''/θ' - θ'^2)\\bigr),
+
+    which avoids forming the large w_P twice when θ′ is small.
+
+    References
+    ----------
+    ``shared/design/curvature.md`` §2 (pole, Z2, Z3), checked against 40-digit arithmetic in
+    ``tests/synth/test_accuracy.py``.
+    """
+    mode = check_on_degenerate(on_degenerate)
+    if len(motion.dtheta) < 3:
+        raise ValueError("pole needs a motion computed with order=3")
+    t1, t2, t3 = (np.asarray(x, float) for x in motion.dtheta)
+    a = np.asarray(motion.a, float)
+    size = np.maximum(np.maximum(a, motion.b), np.maximum(motion.c, motion.d))
+    E = motion.A
+    status = motion.status.astype(np.uint16)
+    ill = (loop_condition(motion) > MAX_CONDITION) & (status == 0)
+    status |= np.where(ill, np.uint16(Status.ILL_CONDITIONED), np.uint16(0))
+    far = (np.abs(t1) * (POLE_FAR * size) <= a) & (status == 0)
+    status |= np.where(far, np.uint16(Status.POLE_AT_INFINITY), np.uint16(0))
+    bad = status != 0
+    inv_t1 = np.divide(1.0, t1, out=np.zeros_like(t1 * E.real), where=~bad)
+    z2 = -E * ((1.0 - t1) + 1j * (t2 * inv_t1))
+    z3 = -E * (-3.0 * t2 + 1j * (1.0 + t3 * inv_t1 - t1 * t1))
+    collapsed = (np.abs(z2) <= COLLAPSE * a * (1.0 + np.abs(t1))) & ~bad
+    status |= np.where(collapsed, np.uint16(Status.INFLECTION_CIRCLE_COLLAPSED), np.uint16(0))
+    point = np.where(bad, 0j, E * (1.0 - inv_t1))
+    z2 = np.where(bad, 0j, z2)
+    z3 = np.where(bad, 0j, z3)
+    out = Pole(point, E, motion.e_theta, (t1, t2, t3), z2, z3, np.asarray(size, float), status)
+    if mode == "raise":
+        raise_on_flags(status, "pole of the coupler motion", ANY_FLAG)
+    return out
