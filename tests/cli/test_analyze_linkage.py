@@ -1,0 +1,158 @@
+"""``dwell analyze linkage``: JSON values against the kernels, files, exit codes, one-line errors."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cli.main import main
+from kinematics.assur import assemble, configurations, linkage_from_text, linkage_motion
+from kinematics.fourbar import fourbar_motion, rocker_limits
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "linkages"
+
+
+def run(capsys, *args):
+    code = main(["analyze", "linkage", *map(str, args)])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_fourbar_json_matches_the_closed_form(capsys):
+    code, out, err = run(capsys, EXAMPLES / "fourbar.toml", "--rpm", "120", "--cw", "--json")
+    assert code == 0, err
+    doc = json.loads(out)
+    rows = doc["positions"]
+    assert [r["input_deg"] for r in rows] == [30.0 * k for k in range(12)]
+    w = -4 * math.pi
+    for row in rows:
+        m = fourbar_motion(50, 80, 80, 100, math.radians(row["input_deg"]), 1)
+        assert row["theta_rocker_deg"] == pytest.approx(math.degrees(float(m.gamma)), abs=1e-10)
+        assert row["omega_rocker_rad_s"] == pytest.approx(float(m.dgamma[0]) * w, abs=1e-11)
+        assert row["alpha_coupler_rad_s2"] == pytest.approx(float(m.dtheta[1]) * w * w, abs=1e-10)
+        z = m.coupler_point(40, 30, order=2)
+        assert row["Px_mm"] == pytest.approx(float(z[0].real), abs=1e-11)
+        assert row["vPy_mm_s"] == pytest.approx(float(z[1].imag) * w, abs=1e-10)
+    mech = doc["mechanism"]
+    assert mech["dof"] == 1 and mech["groups"] == ["RRR dyad (coupler-rocker)"] and mech["configurations_at_first_position"] == 2
+    assert doc["summary"]["loop_closure_max"] < 1e-12
+
+
+def test_limits_in_json_and_text(capsys):
+    code, out, err = run(capsys, EXAMPLES / "fourbar.toml", "--limits", "--json")
+    assert code == 0, err
+    lim = json.loads(out)["summary"]["limits"]
+    ref = rocker_limits(50, 80, 80, 100)
+    assert lim["swing_deg"] == pytest.approx(math.degrees(ref.swing), abs=1e-8)
+    assert lim["time_ratio"] == pytest.approx(ref.time_ratio, abs=1e-9)
+    kinds = {p["kind"]: p for p in lim["positions"]}
+    assert kinds["min"]["input_deg"] == pytest.approx(math.degrees(ref.phi_extended), abs=1e-8)
+    code, out, err = run(capsys, EXAMPLES / "shaper.toml", "--limits")
+    assert code == 0, err
+    assert "limit positions of s5 (slide)" in out and "stroke: 180" in out and "time ratio: 1.48" in out
+
+
+def test_all_configurations_of_the_class3_sixbar(capsys):
+    code, out, err = run(capsys, EXAMPLES / "class3_sixbar.toml", "--input", "0", "--all-configurations", "--json")
+    assert code == 0, err
+    doc = json.loads(out)
+    rows = doc["configurations"]
+    assert [r["configuration"] for r in rows] == [1, 2, 3, 4, 5, 6]
+    assert all(r["loop_closure_mm"] < 1e-12 for r in rows)
+    assert len({round(r["theta_ternary_deg"], 6) for r in rows}) == 6
+    code, out, err = run(capsys, EXAMPLES / "eightbar.toml", "--from", "0", "--to", "60", "--step", "30", "--all-configurations")
+    assert code == 0, err
+    assert "configurations: 36" in out
+
+
+def test_configuration_is_followed_over_the_sweep(capsys):
+    path = EXAMPLES / "class3_sixbar.toml"
+    code, out, err = run(capsys, path, "--configuration", "4", "--step", "45", "--json")
+    assert code == 0, err
+    rows = json.loads(out)["positions"]
+    lk = linkage_from_text(path.read_text())
+    start = configurations(lk, [0.0])[3]
+    phi = np.radians([r["input_deg"] for r in rows])
+    asm = assemble(lk, phi[:, None], start)
+    m = linkage_motion(lk, asm, rates=[2 * math.pi])
+    assert [r["theta_ternary_deg"] for r in rows] == pytest.approx(np.degrees(asm.theta[:, 2]).tolist(), abs=1e-10)
+    assert [r["omega_leg2_rad_s"] for r in rows] == pytest.approx(m.omega[:, 4].tolist(), abs=1e-10)
+
+
+def test_slide_input_and_speed(capsys):
+    code, out, err = run(capsys, EXAMPLES / "hydraulic_boom.toml", "--speed", "50", "--json")
+    assert code == 0, err
+    rows = json.loads(out)["positions"]
+    assert rows[0]["input_mm"] == 160 and rows[-1]["input_mm"] == 300 and len(rows) == 13
+    assert all(r["v_s_mm_s"] == pytest.approx(50.0, abs=1e-9) for r in rows)
+
+
+def test_text_tables_plot_drawing_animation(tmp_path, capsys):
+    plot, draw, anim, svg = tmp_path / "m.png", tmp_path / "d.svg", tmp_path / "a.html", tmp_path / "a.svg"
+    code, out, err = run(capsys, EXAMPLES / "shaper.toml", "--from", "0", "--to", "90", "--step", "45",
+                         "--plot", plot, "--draw", draw, "--animate", anim)
+    assert code == 0, err
+    assert "positions:" in out and "velocities:" in out and "accelerations:" in out
+    assert "v_s5[mm/s]" in out and len([ln for ln in out.splitlines() if ln.strip().startswith(("0 ", "45 ", "90 "))]) == 9
+    assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert b"<svg" in draw.read_bytes()[:2000]
+    html = anim.read_text()
+    assert "<svg" in html and "<script>" in html and "src=" not in html and "https://" not in html
+    code, out, err = run(capsys, EXAMPLES / "class3_sliders.toml", "--input", "10", "--animate", svg)
+    assert code == 0, err
+    text = svg.read_text()
+    assert text.startswith("<svg") and "<animate" in text
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["missing.toml"], "does not exist"),
+        (["{bad}"], "not valid TOML"),
+        (["{dof}"], "degree(s) of freedom"),
+        (["{fourbar}", "--configuration", "3"], "configuration 3 does not exist"),
+        (["{fourbar}", "--input", "10", "--input", "20"], "--input"),
+        (["{fourbar}", "--output", "nope", "--limits"], "no link or prismatic pair named 'nope'"),
+        (["{fourbar}", "--step", "0"], "--step must be > 0"),
+        (["{fourbar}", "--from", "90", "--to", "10"], "must not be below"),
+        (["{fourbar}", "--plot", "x.txt"], "--plot"),
+        (["{fourbar}", "--animate", "x.png"], "--animate"),
+        (["{fourbar}", "--bogus"], "No such option"),
+        (["{triple}"], "cannot assemble"),
+        (["{triple}", "--limits", "--input", "0"], "give --from/--to"),
+        (["{fourbar}", "--all-configurations", "--limits"], "leave out --all-configurations"),
+        (["{fourbar}", "--configuration", "0"], "--configuration"),
+    ],
+)
+def test_bad_input_exits_2_with_one_line(tmp_path, capsys, args, message):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[links.a\n")
+    dof = tmp_path / "dof.toml"
+    dof.write_text((EXAMPLES / "fourbar.toml").read_text().replace('[[inputs]]\njoint = "A"\nlink = "crank"\nvalue = 50\n', ""))
+    triple = tmp_path / "triple.toml"
+    triple.write_text('[ground]\nA = [0, 0]\nD = [3, 0]\n[links.crank]\njoints = ["A", "B"]\nlength = 2\n'
+                      '[links.coupler]\njoints = ["B", "C"]\nlength = 2\n[links.rocker]\njoints = ["D", "C"]\nlength = 2\n'
+                      '[[inputs]]\njoint = "A"\nlink = "crank"\n')
+    names = {"{bad}": bad, "{dof}": dof, "{fourbar}": EXAMPLES / "fourbar.toml", "{triple}": triple}
+    args = [str(names.get(a, a)) for a in args]
+    plot = tmp_path / "never.png"
+    code, out, err = run(capsys, *args, "--plot", plot) if "--plot" not in args else run(capsys, *args)
+    assert code == 2, (out, err)
+    assert message in err and err.count("\n") == 1 and err.startswith("dwell: error:")
+    assert not plot.exists()  # nothing written on bad input
+
+
+def test_json_document_from_a_json_file(tmp_path, capsys):
+    import tomllib
+
+    path = tmp_path / "scotch.json"
+    path.write_text(json.dumps(tomllib.loads((EXAMPLES / "scotch_yoke.toml").read_text())))
+    code, out, err = run(capsys, path, "--input", "60", "--json")
+    assert code == 0, err
+    row = json.loads(out)["positions"][0]
+    assert row["s_x_mm"] == pytest.approx(40 * math.cos(math.radians(60)), abs=1e-12)
+    assert row["v_x_mm_s"] == pytest.approx(-40 * math.sin(math.radians(60)) * 2 * math.pi, abs=1e-10)

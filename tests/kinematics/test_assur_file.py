@@ -1,0 +1,146 @@
+"""Description files: parsing, every validation error names what is wrong, degrees of freedom."""
+
+from __future__ import annotations
+
+import json
+import tomllib
+
+import pytest
+
+from assur_builders import EXAMPLES
+from kinematics.assur import LinkageFileError, decompose, linkage_from_mapping, linkage_from_text
+from kinematics.status import AssemblyError
+
+FOURBAR = {
+    "ground": {"A": [0, 0], "D": [100, 0]},
+    "links": {"crank": {"joints": ["A", "B"], "length": 50}, "coupler": {"joints": ["B", "C"], "length": 80},
+              "rocker": {"joints": ["D", "C"], "length": 80}},
+    "inputs": [{"joint": "A", "link": "crank"}],
+}
+
+
+def _with(**changes):
+    doc = json.loads(json.dumps(FOURBAR))
+    for path, value in changes.items():
+        node = doc
+        keys = path.split("__")
+        for k in keys[:-1]:
+            node = node[int(k)] if isinstance(node, list) else node[k]
+        if value is None:
+            del node[keys[-1]]
+        else:
+            node[keys[-1]] = value
+    return doc
+
+
+@pytest.mark.parametrize("name", sorted(p.name for p in EXAMPLES.glob("*.toml")))
+def test_every_example_parses_and_decomposes(name):
+    lk = linkage_from_text((EXAMPLES / name).read_text())
+    assert lk.dof == len(lk.inputs)
+    groups = decompose(lk).groups
+    assert groups and all(g.kind in ("RRR", "RRP", "RPR", "PRP", "RPP", "triad") for g in groups)
+
+
+def test_json_and_toml_describe_the_same_linkage():
+    text = (EXAMPLES / "shaper.toml").read_text()
+    a = linkage_from_text(text)
+    b = linkage_from_text(json.dumps(tomllib.loads(text)), "json")
+    assert a == b
+
+
+def test_structure_and_units():
+    lk = linkage_from_mapping(FOURBAR)
+    assert lk.dof == 1 and len(lk.pairs) == 4 and lk.units == "mm"
+    assert [l.name for l in lk.links] == ["ground", "crank", "coupler", "rocker"]
+    assert lk.links[1].points == {"A": 0j, "B": 50 + 0j}
+
+
+@pytest.mark.parametrize(
+    "doc, message",
+    [
+        (_with(links__crank__length=-5), "link 'crank': 'length' must be > 0"),
+        (_with(links__crank__length="x"), "link 'crank' 'length' must be a finite number"),
+        (_with(links__crank__lenght=5), "link 'crank': unknown key 'lenght'"),
+        (_with(links__crank__joints=["A"]), "link 'crank': 'joints' must name two joints"),
+        (_with(links__crank__joints=["A", "A"]), "names 'A' twice"),
+        (_with(links__crank={"joints": ["A", "B"]}), "'joints' needs 'length'"),
+        (_with(links__coupler__points={"B": [0, 0]}), "point 'B' is already placed by 'joints'"),
+        (_with(ground__D=[1, "y"]), "ground point 'D' y must be a finite number"),
+        (_with(ground__D=[1]), "ground point 'D' must be [x, y]"),
+        (_with(links__ground={"joints": ["A", "B"], "length": 1}), "reserved"),
+        (_with(inputs=[{"joint": "Q", "link": "crank"}]), "input at joint 'Q': no joint of that name"),
+        (_with(inputs=[{"joint": "A", "link": "rocker"}]), "link 'rocker' is not at that joint"),
+        (_with(inputs=[{"joint": "A", "link": "nope"}]), "no link named 'nope'"),
+        (_with(inputs=[]), "1 degree(s) of freedom"),
+        (_with(inputs=[{"joint": "A", "link": "crank"}, {"joint": "D", "link": "rocker"}]), "1 degree(s) of freedom .* but 2 inputs: remove an input"),
+        (_with(links__rocker__joints=["D", "E"]), "3 degree(s) of freedom .* every degree of freedom needs"),
+        (_with(links__extra={"joints": ["X", "Y"], "length": 3}), "link 'extra' shares no joint"),
+        (_with(links__x1={"joints": ["P", "Q"], "length": 3}, links__x2={"joints": ["Q", "R"], "length": 3},
+               links__x3={"joints": ["R", "P"], "length": 3}), "'x1', 'x2', 'x3' are not connected to the ground"),
+        (_with(links__crank__points={"C": [1, 1]}), "links 'crank' and 'coupler' are joined twice"),
+        (_with(links__coupler__length=1e-15), "link .coupler.: joints .B. and .C. are at the same point"),
+        (_with(output={"link": "ground"}), "the ground does not move"),
+        (_with(output={"joint": "s"}), "no prismatic pair named 's'"),
+        (_with(output={"link": "rocker", "joint": "s"}), "give exactly one of"),
+        (_with(prismatic=[{"name": "C", "guide": "ground", "block": "rocker", "through": [0, 0], "angle": 0}]), "already a point name"),
+        (_with(prismatic=[{"name": "s", "guide": "ground", "block": "ground", "through": [0, 0], "angle": 0}]), "guide and block are the same link"),
+        (_with(prismatic=[{"name": "s", "guide": "ground", "block": "rocker", "through": [0, 0]}]), "give exactly one of 'angle'"),
+        (_with(prismatic=[{"name": "s", "guide": "ground", "block": "rocker", "through": "Z", "angle": 0}]), "link 'ground' has no point 'Z'"),
+        (_with(prismatic=[{"guide": "ground", "block": "rocker", "through": [0, 0], "angle": 0}]), "'name' (a string) is required"),
+        (_with(links__coupler__length=0.5, links__coupler__joints=["B", "C"], ground__D=[100, 0]), None),
+        ({"links": {}}, "at least one moving link"),
+        ([1, 2], "table/object at the top level"),
+    ],
+)
+def test_validation_messages(doc, message):
+    if message is None:  # lengths that cannot assemble still make a valid description
+        linkage_from_mapping(doc)
+        return
+    pattern = message.replace("(", r"\(").replace(")", r"\)").replace("[", r"\[").replace("]", r"\]").replace(r"\(s\)", r"\(s\)")
+    with pytest.raises(LinkageFileError, match=pattern):
+        linkage_from_mapping(doc)
+
+
+def test_errors_are_assembly_errors_and_one_line():
+    with pytest.raises(AssemblyError) as info:
+        linkage_from_text("name = 'x'\n[links.a\n")
+    assert "not valid TOML" in str(info.value) and "\n" not in str(info.value)
+    with pytest.raises(LinkageFileError, match="not valid JSON"):
+        linkage_from_text("{", "json")
+
+
+def test_decomposition_errors():
+    ppp = {
+        "ground": {},
+        "links": {"s1": {}, "s2": {}},
+        "prismatic": [
+            {"name": "p1", "guide": "ground", "block": "s1", "through": [0, 0], "angle": 0},
+            {"name": "p2", "guide": "s1", "block": "s2", "through": [0, 0], "angle": 90},
+            {"name": "p3", "guide": "ground", "block": "s2", "through": [0, 0], "angle": 45},
+        ],
+    }
+    with pytest.raises(LinkageFileError, match="PPP"):
+        decompose(linkage_from_mapping(ppp))
+    # a class IV group: a closed loop a-b-c-d hung from the crank (at a) and the ground (at c)
+    class4 = {
+        "ground": {"O": [0, 0], "G": [10, 0]},
+        "links": {
+            "crank": {"joints": ["O", "A"], "length": 1},
+            "a": {"points": {"A": [0, 0], "P": [3, 0], "S": [0, 3]}},
+            "b": {"joints": ["P", "Q"], "length": 3},
+            "c": {"points": {"Q": [0, 0], "R": [3, 0], "G": [1, 1]}},
+            "d": {"joints": ["R", "S"], "length": 3},
+        },
+        "inputs": [{"joint": "O", "link": "crank"}],
+    }
+    lk = linkage_from_mapping(class4)
+    assert lk.dof == 1
+    with pytest.raises(LinkageFileError, match="class IV"):
+        decompose(lk)
+
+
+def test_actuator_input_fuses_two_moving_links():
+    lk = linkage_from_text((EXAMPLES / "hydraulic_boom.toml").read_text())
+    dec = decompose(lk)
+    assert [g.kind for g in dec.groups] == ["RRR"]
+    assert dec.body_name(lk, dec.groups[0].bodies[1]) == "cylinder+rod"
