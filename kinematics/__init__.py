@@ -11,6 +11,7 @@ from kinematics.fourbar import (
     rocker_limits,
     transmission_angle,
 )
+from kinematics.fourbar_stats import CvMinimum, OutputSpeedStats, minimise_cv, output_speed_stats
 from kinematics.shaper import ShaperMotion, check_shaper, shaper_limits, shaper_motion
 from kinematics.slider_crank import (
     SliderBranch,
@@ -30,8 +31,10 @@ from kinematics.timing import crank_speed, time_derivatives
 __all__ = [
     "AssemblyError",
     "Branch",
+    "CvMinimum",
     "FourBarMotion",
     "GrashofType",
+    "OutputSpeedStats",
     "RockerLimits",
     "ShaperMotion",
     "SliderBranch",
@@ -47,6 +50,8 @@ __all__ = [
     "describe_status",
     "fourbar_motion",
     "grashof_type",
+    "minimise_cv",
+    "output_speed_stats",
     "rocker_limits",
     "shaper_limits",
     "shaper_motion",
