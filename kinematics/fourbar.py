@@ -13,6 +13,7 @@ never return NaN/inf: positions that cannot assemble or derivatives at a toggle 
 from __future__ import annotations
 
 import enum
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -264,9 +265,9 @@ def fourbar_motion(
     if order not in (0, 1, 2, 3):
         raise ValueError(f"order must be 0, 1, 2 or 3, not {order!r}")
     arrays = [np.asarray(x, dtype=float) for x in (a, b, c, d, phi, branch)]
-    shape = np.broadcast_shapes(*(x.shape for x in arrays))
+    shape = np.broadcast(*arrays).shape  # far cheaper than np.broadcast_shapes for small calls
     ndim = len(shape)
-    arrays = [x.reshape((1,) * (ndim - x.ndim) + x.shape) for x in arrays]
+    arrays = [x if x.ndim == ndim else x.reshape((1,) * (ndim - x.ndim) + x.shape) for x in arrays]
 
     e_theta = np.empty(shape, np.complex128)
     status = np.empty(shape, np.uint8)
@@ -276,7 +277,7 @@ def fourbar_motion(
     if ndim == 0:
         _solve_chunk(*arrays, order, e_theta[...], status[...], [g[...] for g in derivs])
     else:
-        inner = max(1, int(np.prod(shape[1:], dtype=np.int64)))
+        inner = max(1, math.prod(shape[1:]))
         step = max(1, _CHUNK // inner)
         for i in range(0, shape[0], step):
             sl = slice(i, i + step)

@@ -20,6 +20,8 @@ from kinematics.fourbar import fourbar_motion
 #: Linkages per call when streaming a large sweep (what an atlas shard does): the output of
 #: one call stays small enough that its pages are reused instead of faulted in afresh.
 STREAM_BATCH = 2048
+#: Each timed run covers at least this many positions, so that a 0.1 ms call is not timed alone.
+MIN_POSITIONS_PER_RUN = 200_000
 
 
 def _sweep(n: int, seed: int) -> tuple[np.ndarray, ...]:
@@ -32,12 +34,14 @@ def _sweep(n: int, seed: int) -> tuple[np.ndarray, ...]:
     return np.ones((n, 1)), b[:, None], c[:, None], d[:, None]
 
 
-def _best_time(fn, repeat: int) -> float:
+def _best_time(fn, repeat: int, loops: int = 1) -> float:
+    """Best over ``repeat`` runs of the mean time of ``loops`` calls (timeit's method)."""
     best = float("inf")
     for _ in range(repeat):
         t = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t)
+        for _ in range(loops):
+            fn()
+        best = min(best, (time.perf_counter() - t) / loops)
     return best
 
 
@@ -85,17 +89,19 @@ def kinematics(sizes: str, angles: int, repeat: int, seed: int) -> None:
         positions = n * angles
         # warm-up, then the single call over the whole n × M block
         fourbar_motion(a[:1], b[:1], c[:1], d[:1], phi, 1, order=3)
-        t_single = _best_time(lambda: fourbar_motion(a, b, c, d, phi, 1, order=3), repeat)
+        loops = max(1, MIN_POSITIONS_PER_RUN // positions)  # small n: many calls per timed run
+        t_single = _best_time(lambda: fourbar_motion(a, b, c, d, phi, 1, order=3), repeat, loops)
 
         def streamed():
             for i in range(0, n, STREAM_BATCH):
                 s = slice(i, i + STREAM_BATCH)
                 fourbar_motion(a[s], b[s], c[s], d[s], phi, 1, order=3)
 
-        t_stream = _best_time(streamed, repeat)
+        t_stream = _best_time(streamed, repeat, loops)
         results.append({
             "n": n,
             "positions": positions,
+            "calls_per_timed_run": loops,
             "single_call_s": t_single,
             "single_call_positions_per_s": positions / t_single,
             "streamed_s": t_stream,
