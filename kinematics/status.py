@@ -34,9 +34,9 @@ class Status(enum.IntFlag):
     TOGGLE = 1 << 1  #: coupler and rocker (or rod and slider guide) aligned: sin(θ−γ) = 0
     POLE_AT_INFINITY = 1 << 2  #: θ′ = 0, the coupler is momentarily translating
     INFLECTION_CIRCLE_COLLAPSED = 1 << 3  #: |Z2| = 0, the inflection circle has no diameter
-    CIRCLE_POINT_AT_INFINITY = 1 << 4  #: the ray meets the cubic only at infinity: a straight "arc"
+    CIRCLE_POINT_AT_INFINITY = 1 << 4  #: the ray meets the cubic at infinity (a straight "arc"), or too near it to place to 1e-9
     RAY_ALONG_POLE_TANGENT = 1 << 5  #: R2 = 0: the ray is the pole tangent
-    CENTER_POINT_AT_INFINITY = 1 << 6  #: the circle point lies on the inflection circle
+    CENTER_POINT_AT_INFINITY = 1 << 6  #: the circle point lies on (or within rounding of) the inflection circle
     AT_INFINITY = 1 << 7  #: any other point at infinity (e.g. a coupler point 1e6 cranks away)
     #: the point is the pole itself, where its path has a cusp (ray along the pole normal, Ball's
     #: point at a rocker dead-centre); needs uint16 status arrays (``synth/``)
@@ -52,9 +52,11 @@ _REASONS: dict[Status, str] = {
     Status.TOGGLE: "toggle position (coupler and rocker aligned), derivatives undefined",
     Status.POLE_AT_INFINITY: "pole at infinity (coupler momentarily translating, theta' = 0)",
     Status.INFLECTION_CIRCLE_COLLAPSED: "inflection circle collapsed (|Z2| = 0)",
-    Status.CIRCLE_POINT_AT_INFINITY: "circle point at infinity on this ray (straight path)",
+    Status.CIRCLE_POINT_AT_INFINITY: "circle point at infinity on this ray (straight path), or within rounding of it: "
+    "not placeable to 1e-9 at this instant",
     Status.RAY_ALONG_POLE_TANGENT: "ray along the pole tangent (R2 = 0)",
-    Status.CENTER_POINT_AT_INFINITY: "centre point at infinity (circle point on the inflection circle)",
+    Status.CENTER_POINT_AT_INFINITY: "centre point at infinity (circle point on the inflection circle), or within "
+    "rounding of it: not placeable to 1e-9 at this instant",
     Status.AT_INFINITY: "point at infinity",
     Status.AT_POLE: "point at the pole (its path has a cusp there: no tangent, no curvature)",
     Status.ILL_CONDITIONED: "loop too ill-conditioned for curvature invariants (near a toggle or extreme link ratio)",

@@ -13,12 +13,12 @@ coupler point near the linkage and of one 1e6 crank lengths away. Case families:
 * ``near_translation``: crank-rockers within 1e-9 rad of θ′ = 0 (pole at infinity);
 * ``crank_rocker``: ordinary crank-rockers (the rays and far points are the adversaries).
 
-The summary counts flags per reason for every kind of result, checks that no value is NaN or
-inf (flagged or not), counts exceptions by type (and, in ``on_degenerate="raise"`` mode on
-the first cases, that only the documented ``AssemblyError`` escapes), and gives the largest
-residual of the unflagged results against the extended-precision reference: a distance over
-max(crank, distance of the point from the crank pin), see
-:func:`cli.bench.reference.residuals`.
+The summary counts flags per reason for every kind of result (and items and flagged items per
+family), checks that no value is NaN or inf (flagged or not), counts exceptions by type (and,
+in ``on_degenerate="raise"`` mode on the first cases, that only the documented
+``AssemblyError`` escapes), and gives the largest residual of the unflagged results against
+the extended-precision reference: a distance over max(crank, distance of the point from the
+crank pin), see :func:`cli.bench.reference.residuals`.
 """
 
 from __future__ import annotations
@@ -179,6 +179,7 @@ def stability_summary(n: int, seed: int = 0) -> dict:
     cases = make_cases(n, seed)
     kinds = ("pole", "inflection_circle", "ball_point", "line_scan", "euler_savary")
     flagged = {k: {} for k in kinds}
+    by_family = {f: {"items": dict.fromkeys(kinds, 0), "flagged": dict.fromkeys(kinds, 0)} for f in FAMILIES}
     items = dict.fromkeys(kinds, 0)
     unflagged = dict.fromkeys(kinds, 0)
     worst = {k: 0.0 for k in ("pole", "inflection_circle", "ball_point", "circle_point", "center_point", "euler_savary")}
@@ -203,6 +204,11 @@ def stability_summary(n: int, seed: int = 0) -> dict:
             status = np.asarray(results[kind].status)
             items[kind] += status.size
             unflagged[kind] += int(np.count_nonzero(status == 0))
+            per_case = status.reshape(status.shape[0], -1)
+            for k, f in enumerate(FAMILIES):
+                rows = per_case[batch["family"] == k]
+                by_family[f]["items"][kind] += rows.size
+                by_family[f]["flagged"][kind] += int(np.count_nonzero(rows))
             for flag in Status:
                 if flag:
                     hits = int(np.count_nonzero(status & flag))
@@ -223,6 +229,7 @@ def stability_summary(n: int, seed: int = 0) -> dict:
         "items": items,
         "unflagged": unflagged,
         "flagged": flagged,
+        "by_family": by_family,
         "nonfinite_values": nonfinite,
         "exceptions": exceptions,
         "raise_mode": raising,

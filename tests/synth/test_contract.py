@@ -92,6 +92,7 @@ def test_flagged_instants_carry_zero_placeholders():
     circle, ball, scan = inflection_circle(pl), ball_point(pl), line_scan(pl, 0.3)
     assert pl.point[1] == 0 and circle.diameter[1] == 0 and ball.uv[1] == 0 and scan.circle_point[1] == 0
     assert scan.status[1] & Status.NOT_ASSEMBLABLE
+    assert all(e[1] == 0 and e[0] > 0 for e in pl.dtheta_error)
 
 
 def test_results_are_frozen_and_slotted():
@@ -182,6 +183,27 @@ def test_rays_along_the_pole_tangent_and_normal_are_flagged():
     assert scan.status[2] & Status.RAY_ALONG_POLE_TANGENT
     assert scan.status[3] == 0
     assert np.all(scan.radius[:3] == 0) and np.all(scan.circle_point[:3] == pl.point)
+
+
+def test_rays_along_the_asymptotes_are_skips_in_every_layout():
+    """A ray with Re(ūV) = 0 meets the cubic at infinity and one with Re(ūW) = 0 has its centre
+    point there: each is flagged, keeps the other point of its pair, radius 0, and one instant
+    gives what a batch gives (the accuracy flags are decided after the scan, on candidates)."""
+    pl = _pole_at(1.3)
+    t1, t2 = pl.dtheta[0], pl.dtheta[1]
+    w = t1 * pl.z3 - 3 * t2 * pl.z2
+    v = w - 3j * t1**2 * pl.z2
+    alpha = np.array([np.angle(v) + np.pi / 2, np.angle(w) + np.pi / 2, 0.7])
+    batch = line_scan(pl, alpha)
+    assert batch.status[0] == Status.CIRCLE_POINT_AT_INFINITY
+    assert batch.circle_point[0] == pl.point and batch.center_point[0] != pl.point
+    assert batch.status[1] == Status.CENTER_POINT_AT_INFINITY
+    assert batch.center_point[1] == pl.point and batch.circle_point[1] != pl.point
+    assert np.all(batch.radius[:2] == 0) and batch.status[2] == 0 and batch.radius[2] > 0
+    for k, angle in enumerate(alpha):
+        one = line_scan(pl, angle)
+        for name in ("status", "circle_point", "circle_point_uv", "center_point", "radius"):
+            assert getattr(one, name) == getattr(batch, name)[k], name
 
 
 def test_pole_at_infinity_is_flagged_near_a_zero_of_theta_prime():
