@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from cli.bench import reference
@@ -48,12 +48,18 @@ def test_any_linkage_gives_finite_values_and_flags_it_cannot_answer(a, b, c, d, 
 @SETTINGS
 @given(st.floats(1.2, 6), st.floats(1.2, 6), st.floats(1.2, 6), angle, branch, angle,
        st.floats(1e-3, 1e3))
+@example(b=1.4, c=1.2, d=1.2, phi=0.0, br=1, alpha=0.0, s=0.001)  # exactly at a toggle
 def test_scaling_the_linkage_scales_the_geometry(b, c, d, phi, br, alpha, s):
     base = _evaluate(1.0, b, c, d, phi, br, alpha)
     scaled = _evaluate(s, s * b, s * c, s * d, phi, br, alpha)
+    # exactly at a toggle (|R| = |b ± c|) rounding of the scaled lengths may tip the loop
+    # either way: "toggle" in one copy and "cannot assemble" in the other are both right
+    edge = int(Status.TOGGLE | Status.NOT_ASSEMBLABLE | Status.ILL_CONDITIONED)
+    ignore = int(Status.CENTER_POINT_AT_INFINITY)
+    if int(base[0].status) & edge and int(scaled[0].status) & edge:
+        ignore |= edge
     for (r1, r2) in zip(base, scaled):
-        assert int(np.asarray(r1.status).flat[0]) & ~int(Status.CENTER_POINT_AT_INFINITY) == \
-            int(np.asarray(r2.status).flat[0]) & ~int(Status.CENTER_POINT_AT_INFINITY)
+        assert int(np.asarray(r1.status).flat[0]) & ~ignore == int(np.asarray(r2.status).flat[0]) & ~ignore
     pl, circle, ball, scan, _ = base
     pl_s, circle_s, ball_s, scan_s, _ = scaled
     if pl.status == 0:
