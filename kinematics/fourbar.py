@@ -318,16 +318,17 @@ def _solve_chunk(a, b, c, d, phi, branch, order, e_theta, status, derivs) -> Non
     rx, ry = d - acp, -asp
     r2 = rx * rx + ry * ry
     r = np.sqrt(r2)
+    c_b, b_c = c - b, b + c  # per linkage; r + (b − c) is r − (c − b) exactly
     # Heron form of 4·b²r²·sin²β: exact zero at a toggle, negative when the loop cannot close.
     # Kept factored: the expanded ((b+c)² − r²)(r² − (b−c)²) measured up to 1.5x larger
     # derivative errors on crank-rockers and near change points (against longdouble).
-    heron = (r + (c - b)) * ((c + b) - r) * (r + (b - c)) * (r + (b + c))
+    heron = (r + c_b) * (b_c - r) * (r - c_b) * (r + b_c)
     # A on B0 (r → 0, a = d at φ = 0) leaves θ undetermined: counted as not assemblable.
-    on_pivot = r <= COINCIDENT_EPS * (b + c)
+    on_pivot = r <= COINCIDENT_EPS * b_c
     bad = (heron < 0) | on_pivot
     r = np.where(on_pivot, 1.0, r)
     inv_2br = 0.5 / (b * r)
-    cb = (r2 + (b * b - c * c)) * inv_2br
+    cb = (r2 - c_b * b_c) * inv_2br  # b² − c² = −(c − b)(b + c), without cancellation
     sb = np.sqrt(np.maximum(heron, 0.0)) * (branch * inv_2br)
     inv_r = 1.0 / r
     ct = (rx * cb - ry * sb) * inv_r
@@ -342,7 +343,7 @@ def _solve_chunk(a, b, c, d, phi, branch, order, e_theta, status, derivs) -> Non
     cg = (b * ct - rx) * inv_c
     sg = (b * st - ry) * inv_c
     # x = −Re(Q e^{−iγ})/(b sin(θ−γ)) = Re(Q e^{−iγ})·c/(b·s); a toggle gets a finite 0.
-    inv_s = np.divide(1.0, s, out=np.zeros_like(s), where=~toggle)
+    inv_s = 1.0 / np.where(toggle, np.inf, s)
     kt = (c / b) * inv_s
     kg = inv_s
 
