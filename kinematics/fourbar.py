@@ -23,7 +23,9 @@ from kinematics.status import (
     AssemblyError,
     Branch,
     Status,
+    assembly_status,
     check_on_degenerate,
+    first_flagged,
 )
 
 __all__ = [
@@ -292,11 +294,10 @@ def fourbar_motion(
 
 def _raise_first_violation(motion: FourBarMotion, order: int) -> None:
     """Raise :class:`AssemblyError` naming the first position that cannot be evaluated."""
-    flags = Status.NOT_ASSEMBLABLE | (Status.TOGGLE if order else Status.OK)
-    bad = np.flatnonzero((motion.status & flags).ravel())
-    if bad.size == 0:
+    found = first_flagged(motion.status, Status.NOT_ASSEMBLABLE | (Status.TOGGLE if order else Status.OK))
+    if found is None:
         return
-    i = np.unravel_index(bad[0], motion.shape)
+    i, count = found
     pick = lambda x: float(np.broadcast_to(x, motion.shape)[i])  # noqa: E731
     a, b, c, d, phi = (pick(x) for x in (motion.a, motion.b, motion.c, motion.d, motion.phi))
     where = f"four-bar a={a:g} b={b:g} c={c:g} d={d:g} at crank angle {np.degrees(phi):g} deg"
@@ -306,7 +307,7 @@ def _raise_first_violation(motion: FourBarMotion, order: int) -> None:
         reach = ", ".join(f"[{np.degrees(lo):.4g}, {np.degrees(hi):.4g}]" for lo, hi in ranges) or "none"
         raise AssemblyError(
             f"{where} cannot assemble: |A-B0| = {r:.6g} is outside [|b-c|, b+c] = "
-            f"[{abs(b - c):g}, {b + c:g}] (reachable crank angles [deg]: {reach}; {bad.size} position(s) affected)"
+            f"[{abs(b - c):g}, {b + c:g}] (reachable crank angles [deg]: {reach}; {count} position(s) affected)"
         )
     raise AssemblyError(f"{where}: coupler and rocker are aligned (toggle), so velocities are undefined")
 
@@ -336,7 +337,7 @@ def _solve_chunk(a, b, c, d, phi, branch, order, e_theta, status, derivs) -> Non
     e_theta.real, e_theta.imag = ct, st
     s = r * sb  # = −c·sin(θ − γ)
     toggle = np.abs(s) < TOGGLE_EPS * c
-    status[...] = np.where(bad, np.uint8(Status.NOT_ASSEMBLABLE), toggle.view(np.uint8) << 1)  # 2 = TOGGLE
+    status[...] = assembly_status(bad, toggle)
     if order == 0:
         return
     inv_c = 1.0 / c

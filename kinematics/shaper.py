@@ -27,7 +27,7 @@ from kinematics.slider_crank import (
     check_slider_branch,
     slider_limits_from,
 )
-from kinematics.status import AssemblyError, Status, check_on_degenerate
+from kinematics.status import AssemblyError, Status, assembly_status, check_on_degenerate, first_flagged
 
 __all__ = [
     "ShaperMotion",
@@ -238,7 +238,7 @@ def shaper_motion(
     sin4 = np.clip(q4 / l4, -1.0, 1.0)
     cos4 = branch * np.sqrt(np.maximum(root4, 0.0)) / l4
     toggle = ~bad & (np.abs(cos4) < TOGGLE_EPS)
-    status = (bad * np.uint8(Status.NOT_ASSEMBLABLE) | toggle * np.uint8(Status.TOGGLE)).astype(np.uint8)
+    status = assembly_status(bad, toggle)
     phi4 = np.arctan2(sin4, cos4)
     s5 = l3 * cos3 + l4 * cos4
 
@@ -278,26 +278,25 @@ def shaper_motion(
 
 def _raise_first_violation(motion: ShaperMotion, order: int) -> None:
     """Raise :class:`AssemblyError` naming the condition broken at the first bad position."""
-    flags = Status.NOT_ASSEMBLABLE | (Status.TOGGLE if order else Status.OK)
-    bad = np.flatnonzero(motion.status & flags)
-    if bad.size == 0:
+    found = first_flagged(motion.status, Status.NOT_ASSEMBLABLE | (Status.TOGGLE if order else Status.OK))
+    if found is None:
         return
-    i = np.unravel_index(bad[0], motion.shape)
+    i, count = found
     l1, l3, l4, h, e, phi1, s2, phi3 = (
         float(x[i]) for x in (motion.l1, motion.l3, motion.l4, motion.h, motion.e, motion.phi1, motion.s2, motion.phi3)
     )
     where = f"shaper l1={l1:g} l3={l3:g} l4={l4:g} h={h:g} e={e:g} at crank angle {np.degrees(phi1):g} deg"
-    count = f"({bad.size} position(s) affected)"
+    affected = f"({count} position(s) affected)"
     if not motion.status[i] & Status.NOT_ASSEMBLABLE:
         raise AssemblyError(f"{where}: link 4 is perpendicular to the slider line (cos phi4 = 0), velocities undefined")
     if s2 <= TOGGLE_EPS * (l1 + h):
-        raise AssemblyError(f"{where} cannot assemble: B lies on the rod pivot C (l1 = h), the rod angle is undefined {count}")
+        raise AssemblyError(f"{where} cannot assemble: B lies on the rod pivot C (l1 = h), the rod angle is undefined {affected}")
     if s2 > l3:
-        raise AssemblyError(f"{where} cannot assemble: s2 = |CB| = {s2:.6g} > l3 = {l3:g}, block 2 is off the rod {count}")
+        raise AssemblyError(f"{where} cannot assemble: s2 = |CB| = {s2:.6g} > l3 = {l3:g}, block 2 is off the rod {affected}")
     q4 = h - e - l3 * np.sin(phi3)
     raise AssemblyError(
         f"{where} cannot assemble: |h - e - l3 sin(phi3)| = {abs(q4):.6g} > l4 = {l4:g}, link 4 cannot reach "
-        f"the slider line {count}"
+        f"the slider line {affected}"
     )
 
 

@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kinematics.fourbar import TOGGLE_EPS, check_lengths
-from kinematics.status import AssemblyError, Status, check_on_degenerate
+from kinematics.status import AssemblyError, Status, assembly_status, check_on_degenerate, first_flagged
 
 __all__ = [
     "SliderBranch",
@@ -194,7 +194,7 @@ def slider_crank_motion(
     sin2 = -np.clip(q / l2, -1.0, 1.0)
     cos2 = branch * np.sqrt(np.maximum(root, 0.0)) / l2
     toggle = ~bad & (np.abs(cos2) < TOGGLE_EPS)
-    status = (bad * np.uint8(Status.NOT_ASSEMBLABLE) | toggle * np.uint8(Status.TOGGLE)).astype(np.uint8)
+    status = assembly_status(bad, toggle)
 
     ca, sa = np.cos(alpha), np.sin(alpha)
     phi2 = np.arctan2(sin2 * ca + cos2 * sa, cos2 * ca - sin2 * sa)
@@ -221,11 +221,10 @@ def slider_crank_motion(
 
 def _raise_first_violation(motion: SliderCrankMotion, order: int) -> None:
     """Raise :class:`AssemblyError` naming the first position that cannot be evaluated."""
-    flags = Status.NOT_ASSEMBLABLE | (Status.TOGGLE if order else Status.OK)
-    bad = np.flatnonzero(motion.status & flags)
-    if bad.size == 0:
+    found = first_flagged(motion.status, Status.NOT_ASSEMBLABLE | (Status.TOGGLE if order else Status.OK))
+    if found is None:
         return
-    i = np.unravel_index(bad[0], motion.shape)
+    i, count = found
     l1, l2, e, alpha, phi1 = (float(x[i]) for x in (motion.l1, motion.l2, motion.e, motion.guide_angle, motion.phi1))
     q = e + l1 * np.sin(phi1 - alpha)
     where = f"slider-crank l1={l1:g} l2={l2:g} e={e:g} at crank angle {np.degrees(phi1):g} deg"
@@ -234,7 +233,7 @@ def _raise_first_violation(motion: SliderCrankMotion, order: int) -> None:
         raise AssemblyError(
             f"{where} cannot assemble: |e + l1 sin(phi1)| = {abs(q):.6g} > l2 = {l2:g}, the rod cannot "
             f"reach the guide (a full turn needs l1 + |e| <= l2; reachable crank angles [deg]: {reach}; "
-            f"{bad.size} position(s) affected)"
+            f"{count} position(s) affected)"
         )
     raise AssemblyError(
         f"{where}: the rod is perpendicular to the guide (cos phi2 = 0, l1 + |e| = l2), "

@@ -11,14 +11,17 @@ import enum
 from typing import Literal
 
 import numpy as np
+from numpy.typing import NDArray
 
 __all__ = [
     "AssemblyError",
     "Branch",
     "OnDegenerate",
     "Status",
+    "assembly_status",
     "check_on_degenerate",
     "describe_status",
+    "first_flagged",
     "raise_on_flags",
 ]
 
@@ -106,10 +109,25 @@ def check_on_degenerate(on_degenerate: str) -> OnDegenerate:
     return on_degenerate  # type: ignore[return-value]
 
 
+def assembly_status(bad: np.ndarray, toggle: np.ndarray) -> NDArray[np.uint8]:
+    """Status of a loop solve: NOT_ASSEMBLABLE where ``bad``, else TOGGLE where ``toggle``."""
+    return np.where(bad, np.uint8(Status.NOT_ASSEMBLABLE), np.asarray(toggle, bool).view(np.uint8) << 1)
+
+
+def first_flagged(status: np.ndarray, flags: int) -> tuple[tuple[int, ...], int] | None:
+    """Index of the first element of ``status`` carrying one of ``flags`` and how many do,
+    or None when none does (for error messages that name the offending position)."""
+    status = np.asarray(status)
+    bad = np.flatnonzero((status & int(flags)).ravel())
+    if bad.size == 0:
+        return None
+    return tuple(int(k) for k in np.unravel_index(bad[0], status.shape)), int(bad.size)
+
+
 def raise_on_flags(status: np.ndarray, where: str, flags: Status = Status.NOT_ASSEMBLABLE) -> None:
     """Raise :class:`AssemblyError` if any element of ``status`` carries one of ``flags``."""
-    bad = (np.asarray(status) & int(flags)) != 0
-    if np.any(bad):
-        first = Status(int(np.asarray(status)[bad].flat[0]) & int(flags))
-        names = ", ".join(n.replace("_", " ") for n in describe_status(first))
-        raise AssemblyError(f"{where}: {names} at {int(np.count_nonzero(bad))} position(s)")
+    found = first_flagged(status, flags)
+    if found is not None:
+        index, count = found
+        names = ", ".join(n.replace("_", " ") for n in describe_status(int(np.asarray(status)[index]) & int(flags)))
+        raise AssemblyError(f"{where}: {names} at {count} position(s)")
