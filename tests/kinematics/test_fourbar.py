@@ -81,12 +81,13 @@ def test_parallelogram_translates_coupler():
     np.testing.assert_allclose(m.dgamma[0], 1.0, atol=1e-12)
 
 
-def test_right_angle_position():
-    # a=3, d=4 and φ = 90°: |A B0| = 5; with b = 4, c = 3 the triangle A B B0 is 3-4-5.
-    m = fourbar_motion(3.0, 4.0, 3.0, 4.0, math.pi / 2, branch=1, order=0)
-    B = complex(m.B)
-    assert abs(B - 4.0j * 0 - complex(4.0 - 0.0, 0.0) - 3.0 * m.e_gamma) < 1e-14
-    assert abs(abs(B - 3.0j) - 4.0) < 1e-14 and abs(abs(B - 4.0) - 3.0) < 1e-14
+@pytest.mark.parametrize("branch, B_expected", [(1, 4.0 + 3.0j), (-1, 1.12 - 0.84j)])
+def test_right_angle_position(branch, B_expected):
+    # a=3, d=4 and φ = 90°: A = 3i, |A B0| = 5; with b = 4, c = 3 the angle at B is right.
+    # cos β = 0.8, sin β = ±0.6 and e^{iθ} = (0.8 − 0.6i)(0.8 ± 0.6i): B = A + 4·e^{iθ}.
+    m = fourbar_motion(3.0, 4.0, 3.0, 4.0, math.pi / 2, branch=branch, order=0)
+    assert abs(complex(m.B) - B_expected) < 1e-14
+    assert abs(m.sin_theta_gamma) == pytest.approx(1.0, abs=1e-14)  # right angle at B
 
 
 @pytest.mark.parametrize(
