@@ -1,0 +1,794 @@
+"""Dwell segments of coupler curves: candidates from curvature theory, measured on the exact path.
+
+Candidates (curvature.md §2) for each linkage (crank a = 1):
+
+* **line**: Ball's point at every crank step (four-point contact with its tangent line);
+* **arc**: the circle point on each scan ray through the pole at every crank step (four
+  infinitesimally close positions on its osculating circle, centred at the conjugate centre
+  point);
+* **double_line**: every double Ball point (Ball's point at two crank angles), both stretches.
+
+Each candidate is measured on its exact path z(φ) = A(φ) + e^{iθ(φ)}·p (curvature.md §3): at
+every tolerance level ε (band half-width, crank lengths) its **dwell interval** is the largest
+crank interval around the generating angle on which z stays within ε of a line (or circle)
+*fitted to that interval* — an approximately minimum-zone fit (a Lawson-iterated Chebyshev fit,
+linearised about the current geometry), which for a path deviating like Δφ⁴ from its osculating
+circle gives dwells about 8^{1/4} ≈ 1.7× longer than the osculating circle does. The interval
+ends are refined by bisection on the exact path to ``END_TOLERANCE``.
+
+Only what can pass is evaluated (the build's cost is dominated by candidates that cannot):
+
+1. every candidate whose deviation from its osculating line/circle exceeds ``prune_factor``·ε_max
+   at both crank offsets ±min_dwell/2 is dropped: any interval of length ≥ min_dwell around
+   the generating angle contains one of them (two path points per candidate);
+2. the survivors' osculating runs give a score; only local maxima over neighbouring crank steps
+   (and rays) are kept — neighbours are near-duplicates;
+3. the rest are fitted and measured at every level, and a final pass removes segments of one
+   linkage whose coupler points and intervals nearly coincide.
+
+Pure: arrays in, a frozen struct of arrays out, skipped cases counted by reason.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from kinematics.fourbar import fourbar_motion, transmission_angle
+from kinematics.status import Status
+from synth.ball import ball_point
+from synth.double_ball import double_ball_points
+from synth.line_scan import line_scan
+from synth.pole import pole
+
+__all__ = ["END_TOLERANCE", "KINDS", "FoundSegments", "SegmentSearch", "find_segments", "path_deviation"]
+
+F64 = NDArray[np.float64]
+C128 = NDArray[np.complex128]
+I64 = NDArray[np.int64]
+
+#: Segment kinds, in their canonical order.
+KINDS = ("line", "arc", "double_line")
+_LINE, _ARC = 0, 1
+#: Interval ends are bisected on the exact path until their bracket is below this (rad): 0.001°.
+END_TOLERANCE = math.radians(1e-3)
+#: Path samples a minimum-zone fit uses, spread evenly over its interval (ends included).
+FIT_SAMPLES = 21
+_FIT_SPREAD = np.linspace(0.0, 1.0, FIT_SAMPLES)
+#: Further offsets (multiples of min_dwell/2) at which the local-best score looks at the path.
+_SCORE_OFFSETS = (2, 4)
+#: Margin on the predicted length of the next fit's interval (see ``_measure``).
+_GROWTH_SAFETY = 0.98
+#: Linkages per block of the candidate search (bounds the memory of the pruning stage).
+_BLOCK = 8
+
+
+@dataclass(frozen=True, slots=True)
+class SegmentSearch:
+    """How candidates are generated and measured (angles in degrees, lengths in crank lengths).
+
+    ``prune_factor`` is the slack between the osculating deviation and the band when pruning
+    (a minimum-zone band is at best ~8× narrower than the osculating deviation of a Δφ⁴
+    stretch; 10 leaves room for asymmetric stretches). ``fine_per_step`` path samples per
+    crank step locate the interval ends before bisection.
+    """
+
+    crank_step_deg: float = 2.0
+    rays: int = 36
+    tolerances: tuple[float, ...] = (1e-4, 1e-3, 1e-2)
+    min_dwell_deg: float = 20.0
+    prune_factor: float = 10.0
+    fine_per_step: int = 2
+    lawson_iterations: int = 10
+    window_tries: int = 5
+    double_ball_samples: int = 1024
+    merge_reach: int = 1
+
+    @classmethod
+    def from_spec(cls, spec: Any) -> SegmentSearch:
+        """The search an :class:`atlas.sweep.SweepSpec` asks for."""
+        return cls(
+            crank_step_deg=float(spec.crank_step_deg),
+            rays=int(spec.rays),
+            tolerances=tuple(float(t) for t in spec.tolerances),
+            min_dwell_deg=float(spec.min_dwell_deg),
+        )
+
+    @property
+    def steps(self) -> int:
+        """Crank steps per turn (the step is rounded so that they tile the turn)."""
+        return max(8, round(360.0 / self.crank_step_deg))
+
+
+@dataclass(frozen=True, slots=True)
+class FoundSegments:
+    """Measured segments of a batch of linkages, struct of arrays (one row per segment).
+
+    ``linkage`` indexes the input batch; ``kind`` indexes :data:`KINDS`. Per segment: the
+    generating angle(s) (rad), scan ray angle (arcs; 0 otherwise), coupler point ``uv``, the
+    osculating geometry — line ``point`` + unit ``direction`` (lines; for double lines also
+    ``point2``/``direction2`` and their ``intersection``) or circle ``center`` + ``radius``
+    (arcs) — and the four-bar transmission-angle range over the widest dwell (rad, folded to
+    [0, π/2]). Per segment, level and part (``[:, level, part]``): ``has_dwell``, the interval
+    ``phi_start`` < ``phi_end`` (rad, ``phi_start`` in [0, 2π)), ``max_deviation`` from the
+    fitted geometry, which is ``fit_point`` + ``fit_direction`` (lines) or ``fit_point`` +
+    ``fit_radius`` (arcs).
+    """
+
+    linkage: I64
+    kind: I64
+    phi_gen: F64
+    phi_gen2: F64
+    ray: F64
+    uv: C128
+    point: C128
+    direction: C128
+    point2: C128
+    direction2: C128
+    intersection: C128
+    center: C128
+    radius: F64
+    transmission_min: F64
+    transmission_max: F64
+    tolerances: tuple[float, ...]
+    has_dwell: NDArray[np.bool_]
+    phi_start: F64
+    phi_end: F64
+    max_deviation: F64
+    fit_point: C128
+    fit_direction: C128
+    fit_radius: F64
+    skipped: dict[str, int] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return int(self.linkage.size)
+
+    def rows(self, linkage_ids: I64, per_linkage: int, per_segment: int) -> tuple[list[dict], list[dict]]:
+        """Segment and dwell rows for the database (see ``db.schema``), ids from ``linkage_ids``."""
+        segments: list[dict] = []
+        dwells: list[dict] = []
+        ordinal = _ordinals(self.linkage)
+        for i in range(len(self)):
+            kind = KINDS[int(self.kind[i])]
+            sid = int(linkage_ids[self.linkage[i]]) * per_linkage + int(ordinal[i])
+            row: dict[str, Any] = dict.fromkeys(
+                ("phi_gen2", "ray", "px", "py", "direction", "p2x", "p2y", "direction2", "ix", "iy", "cx", "cy", "radius")
+            )
+            row.update(
+                id=sid,
+                linkage_id=int(linkage_ids[self.linkage[i]]),
+                kind=kind,
+                phi_gen=float(self.phi_gen[i]),
+                u=float(self.uv[i].real),
+                v=float(self.uv[i].imag),
+                transmission_min=float(self.transmission_min[i]),
+                transmission_max=float(self.transmission_max[i]),
+            )
+            if kind == "arc":
+                row.update(ray=float(self.ray[i]), cx=float(self.center[i].real), cy=float(self.center[i].imag),
+                           radius=float(self.radius[i]))
+            else:
+                row.update(px=float(self.point[i].real), py=float(self.point[i].imag),
+                           direction=float(np.angle(self.direction[i])))
+            if kind == "double_line":
+                row.update(phi_gen2=float(self.phi_gen2[i]), p2x=float(self.point2[i].real),
+                           p2y=float(self.point2[i].imag), direction2=float(np.angle(self.direction2[i])),
+                           ix=float(self.intersection[i].real), iy=float(self.intersection[i].imag))
+            segments.append(row)
+            for level, tol in enumerate(self.tolerances):
+                for part in range(2 if kind == "double_line" else 1):
+                    if not self.has_dwell[i, level, part]:
+                        continue
+                    p = self.fit_point[i, level, part]
+                    start, end = float(self.phi_start[i, level, part]), float(self.phi_end[i, level, part])
+                    dwells.append(
+                        {
+                            "id": sid * per_segment + 2 * level + part,
+                            "segment_id": sid,
+                            "kind": kind,
+                            "level": level,
+                            "tolerance": float(tol),
+                            "part": part,
+                            "phi_start": start,
+                            "phi_end": end,
+                            "dwell_angle": end - start,
+                            "max_deviation": float(self.max_deviation[i, level, part]),
+                            "x": float(p.real),
+                            "y": float(p.imag),
+                            "direction": None if kind == "arc" else float(np.angle(self.fit_direction[i, level, part])),
+                            "radius": float(self.fit_radius[i, level, part]) if kind == "arc" else None,
+                        }
+                    )
+        return segments, dwells
+
+
+def _ordinals(linkage: I64) -> I64:
+    """Position of each segment within its linkage (segments arrive grouped in canonical order)."""
+    out = np.zeros(linkage.size, dtype=np.int64)
+    if linkage.size:
+        start = np.r_[0, np.flatnonzero(np.diff(linkage)) + 1]
+        counts = np.diff(np.r_[start, linkage.size])
+        out = np.arange(linkage.size) - np.repeat(start, counts)
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# deviation from a line or a circle: the one definition used by the search and the tests
+
+
+def path_deviation(z: C128, kind: NDArray[np.integer] | int, point: C128, direction: C128, radius: F64) -> F64:
+    """Signed distance of path points ``z`` from a line (``kind`` 0: through ``point`` along
+    unit ``direction``, positive to its left) or a circle (``kind`` 1: centre ``point``,
+    ``radius``, positive outside). Arguments broadcast."""
+    kind = np.asarray(kind)
+    if kind.size and np.all(kind == kind.flat[0]):  # one kind: compute only its distance
+        if kind.flat[0] == _LINE:
+            return np.broadcast_to(np.imag(np.conj(direction) * (z - point)), np.broadcast_shapes(np.shape(z), kind.shape, np.shape(point), np.shape(direction)))
+        return np.broadcast_to(np.abs(z - point) - radius, np.broadcast_shapes(np.shape(z), kind.shape, np.shape(point), np.shape(radius)))
+    line = np.imag(np.conj(direction) * (z - point))
+    circle = np.abs(z - point) - radius
+    return np.where(kind == _LINE, line, circle)
+
+
+# --------------------------------------------------------------------------------------------
+# stage 1–2: candidates on the crank grid, pruned and reduced to local bests
+
+
+@dataclass(frozen=True, slots=True)
+class _Candidates:
+    """Flat candidate list: linkage index, kind, fine-grid centre index, generating angle, ray,
+    coupler point, osculating geometry, half-window (fine samples) for the measurement, and
+    the partner index of a double Ball point's other stretch (−1 otherwise)."""
+
+    linkage: I64
+    kind: I64
+    center: I64
+    phi: F64
+    ray: F64
+    uv: C128
+    point: C128
+    direction: C128
+    radius: F64
+    window: I64
+    partner: I64
+
+
+def _run_lengths(inside: NDArray[np.bool_], centre: int) -> tuple[I64, I64]:
+    """Samples inside the band contiguous with ``centre`` on the left and right (last axis)."""
+    left = np.cumprod(inside[..., centre::-1], axis=-1).sum(axis=-1) - 1
+    right = np.cumprod(inside[..., centre:], axis=-1).sum(axis=-1) - 1
+    return left.astype(np.int64), right.astype(np.int64)
+
+
+def _local_best(score: F64, cyclic_axes: tuple[int, ...], reach: int = 1) -> NDArray[np.bool_]:
+    """Cells ≥ every neighbour within ``reach`` cells along each of the last axes (ties go to
+    the first cell in index order). ``score`` = −inf marks pruned cells, never kept."""
+    keep = score > -np.inf
+    ndim = score.ndim
+    axes = tuple(range(1, ndim))
+    for shift in np.ndindex(*(2 * reach + 1,) * len(axes)):
+        offs = tuple(s - reach for s in shift)
+        if not any(offs):
+            continue
+        moved = score
+        valid = np.ones(score.shape, bool)
+        for ax, off in zip(axes, offs):
+            if off == 0:
+                continue
+            moved = np.roll(moved, -off, axis=ax)  # neighbour at index + off
+            if ax not in cyclic_axes:
+                edge = [slice(None)] * ndim
+                edge[ax] = slice(-off, None) if off > 0 else slice(0, -off)
+                v = np.ones(score.shape, bool)
+                v[tuple(edge)] = False
+                valid &= v
+        later = next(o for o in offs if o) > 0  # neighbour comes after this cell in index order
+        beats = (moved > score) if later else (moved >= score)
+        keep &= ~(beats & valid)
+    return keep
+
+
+def _grid_candidates(b: F64, c: F64, d: F64, br: I64, search: SegmentSearch, skipped: Counter) -> _Candidates:
+    m = search.steps
+    step = 2 * np.pi / m
+    phi = np.arange(m) * step
+    alpha = np.arange(search.rays) * (np.pi / search.rays)
+    eps_max = search.tolerances[-1]
+    band = search.prune_factor * eps_max
+    half = max(1, int(math.floor(math.radians(search.min_dwell_deg) / 2 / step)))
+    # stage 2 looks up to half a turn each way (a dwell longer than that is not a dwell)
+    reach = m // 2
+    offsets = np.arange(-reach, reach + 1)
+    min_extent = math.radians(search.min_dwell_deg) / step - 2.0  # samples (sampling slack)
+    fine = search.fine_per_step
+    out: list[tuple] = []
+
+    for lo in range(0, b.size, _BLOCK):
+        s = slice(lo, lo + _BLOCK)
+        n = b[s].size
+        motion = fourbar_motion(1.0, b[s, None, None], c[s, None, None], d[s, None, None], phi[:, None], br[s, None, None])
+        pl = pole(motion)
+        A = np.broadcast_to(motion.A, motion.shape)[..., 0]  # (n, m): A does not depend on the linkage
+        E = motion.e_theta[..., 0]
+        ball = ball_point(pl)
+        pairs = line_scan(pl, alpha)
+        for flags in (ball.status[..., 0], pairs.status):
+            for f in Status:
+                cnt = int(np.count_nonzero(flags & f))
+                if cnt:
+                    skipped[f"candidate skipped: {f.name.lower().replace('_', ' ')}"] += cnt
+        # --- lines: Ball points, grid (n, m)
+        kinds = [
+            (_LINE, ball.uv[..., 0], ball.point[..., 0], ball.tangent[..., 0], np.zeros((n, m)), ball.status[..., 0] == 0,
+             np.zeros((n, m))),
+            (_ARC, pairs.circle_point_uv, pairs.center_point, np.ones_like(pairs.center_point), pairs.radius,
+             pairs.status == 0, np.broadcast_to(alpha, pairs.radius.shape)),
+        ]
+        for kind, uv, point, direction, radius, ok, ray in kinds:
+            shape = uv.shape  # (n, m) or (n, m, K)
+            extra = (None,) * (len(shape) - 2)
+            rows = np.arange(n)[(slice(None), None) + extra]
+            j = np.arange(m)[(None, slice(None)) + extra]
+
+            def deviation(offset: NDArray[np.int64]) -> F64:
+                idx = (j + offset) % m
+                z = A[rows, idx] + E[rows, idx] * uv
+                return path_deviation(z, kind, point, direction, radius)
+
+            near_minus, near_plus = np.abs(deviation(-half)), np.abs(deviation(half))
+            alive = ok & ((near_minus <= band) | (near_plus <= band))
+            skipped["candidate pruned: cannot reach the minimum dwell"] += int(np.count_nonzero(ok & ~alive))
+            # Score for the local-best choice: how closely the path follows its osculating
+            # line/circle at ±min_dwell/2 · (1, 2, 4), each offset weighted by 1/k⁴ (a Δφ⁴
+            # stretch deviates k⁴ times more at k times the offset). Ten path points per
+            # candidate instead of a whole run.
+            score = near_minus + near_plus
+            for k in _SCORE_OFFSETS:
+                score = score + (np.abs(deviation(-k * half)) + np.abs(deviation(k * half))) / k**4
+            score = np.where(alive, -score, -np.inf)
+            best = _local_best(score, cyclic_axes=(1, 2), reach=search.merge_reach)
+            skipped["candidate merged: a neighbour is better"] += int(np.count_nonzero(alive & ~best))
+            # the local bests' osculating runs within the pruning band: the minimum-dwell check
+            # and the window the measurement needs
+            cell = np.flatnonzero(best)
+            ci = np.unravel_index(cell, shape)
+            idx = (ci[1][:, None] + offsets) % m
+            z = A[ci[0][:, None], idx] + E[ci[0][:, None], idx] * uv[ci][:, None]
+            dev = path_deviation(z, kind, point[ci][:, None], direction[ci][:, None], radius[ci][:, None])
+            left, right = _run_lengths(np.abs(dev) <= band, reach)
+            whole = (left == reach) & (right == reach)
+            long_enough = (left + right >= min_extent) & ~whole
+            skipped["candidate skipped: path within tolerance over the whole turn"] += int(np.count_nonzero(whole))
+            skipped["candidate pruned: cannot reach the minimum dwell"] += int(np.count_nonzero(~long_enough & ~whole))
+            window = (np.maximum(left, right) + 2) * fine
+            best.flat[cell[~long_enough]] = False
+            window = window[long_enough]
+            cell = np.flatnonzero(best)
+            ci = np.unravel_index(cell, shape)
+            out.append(
+                (
+                    ci[0] + lo,
+                    np.full(cell.size, kind),
+                    ci[1] * fine,
+                    phi[ci[1]],
+                    ray[ci],
+                    uv[ci],
+                    point[ci],
+                    direction[ci],
+                    radius[ci],
+                    window,
+                )
+            )
+    if not out:
+        empty = (np.zeros(0, np.int64),) * 3 + (np.zeros(0),) * 2 + (np.zeros(0, complex),) * 3 + (np.zeros(0), np.zeros(0, np.int64))
+        return _Candidates(*empty, partner=np.zeros(0, np.int64))
+    cols = [np.concatenate([o[k] for o in out]) for k in range(10)]
+    return _Candidates(*cols, partner=np.full(cols[0].size, -1, dtype=np.int64))
+
+
+def _double_candidates(b: F64, c: F64, d: F64, br: I64, search: SegmentSearch, skipped: Counter) -> _Candidates:
+    found = double_ball_points(1.0, b, c, d, br, samples=search.double_ball_samples)
+    k = len(found)
+    for name, counts in (("false crossing", found.false_crossings), ("unconverged", found.unconverged)):
+        if int(counts.sum()):
+            skipped[f"double Ball point skipped: {name}"] += int(counts.sum())
+    fine_step = 2 * np.pi / (search.steps * search.fine_per_step)
+    window = np.full(2 * k, search.steps * search.fine_per_step // 2, dtype=np.int64)
+    phi = np.r_[found.phi1, found.phi2]
+    return _Candidates(
+        linkage=np.r_[found.linkage_index, found.linkage_index].astype(np.int64),
+        kind=np.full(2 * k, _LINE, dtype=np.int64),
+        center=np.rint(phi / fine_step).astype(np.int64),
+        phi=phi,
+        ray=np.zeros(2 * k),
+        uv=np.r_[found.uv, found.uv],
+        point=np.r_[found.point1, found.point2],
+        direction=np.r_[found.tangent1, found.tangent2],
+        radius=np.zeros(2 * k),
+        window=window,
+        partner=np.r_[np.arange(k, 2 * k), np.arange(k)].astype(np.int64),
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# stage 3: minimum-zone fits and dwell intervals on the exact path
+
+
+def _lawson(J: F64, r0: F64, iterations: int) -> tuple[F64, F64]:
+    """Approximate Chebyshev (minimax) solution of r0 ≈ J·x, batched over the first axis
+    (Lawson's iteratively reweighted least squares; J: (n, samples, p)). Returns the best x
+    seen and its max |r0 − J·x|."""
+    n, size, p = J.shape
+    cols = [J[..., k] for k in range(p)]
+    w = np.full((n, size), 1.0 / size)
+    best_x = np.zeros((n, p))
+    best_h = np.abs(r0).max(axis=1)
+    M = np.empty((n, p, p))
+    rhs = np.empty((n, p))
+    for _ in range(iterations):
+        for i in range(p):
+            wi = w * cols[i]
+            rhs[:, i] = (wi * r0).sum(axis=1)
+            for k in range(i, p):
+                M[:, i, k] = M[:, k, i] = (wi * cols[k]).sum(axis=1)
+        # ridge: pins unused parameters (a line's third) and keeps near-singular fits finite
+        trace = np.maximum(np.trace(M, axis1=1, axis2=2), 1e-300)
+        M[:, range(p), range(p)] += 1e-13 * trace[:, None]
+        x = np.linalg.solve(M, rhs[..., None])[..., 0]
+        res = r0.copy()
+        for i in range(p):
+            res -= x[:, i : i + 1] * cols[i]
+        res = np.abs(res)
+        h = res.max(axis=1)
+        better = h < best_h
+        best_x[better] = x[better]
+        best_h = np.where(better, h, best_h)
+        w = w * res
+        total = w.sum(axis=1, keepdims=True)
+        w = np.where(total > 0, w / np.where(total > 0, total, 1.0), 1.0 / size)
+    return best_x, best_h
+
+
+def _fit(z: C128, kind: I64, point: C128, direction: C128, radius: F64, iterations: int):
+    """Minimum-zone line/circle through path samples ``z`` (n, samples), starting from the given one.
+
+    Linearised about the current geometry: a line moves by δo along its normal and turns by
+    δβ; a circle's centre moves by δc and its radius by δρ (first order in the change, which
+    is of the order of the band over the stretch)."""
+    r0 = path_deviation(z, kind[:, None], point[:, None], direction[:, None], radius[:, None])
+    rel = z - point[:, None]
+    # lines: r ≈ r0 − δo − δβ·s (s along the line, scaled to O(1) for conditioning)
+    s = np.real(np.conj(direction[:, None]) * rel)
+    scale = np.maximum(np.abs(s).max(axis=1), 1e-12)
+    e = rel / np.maximum(np.abs(rel), 1e-300)
+    is_line = (kind == _LINE)[:, None]
+    # a line has two parameters: its third column is zero and the ridge pins that coefficient
+    J = np.stack(
+        np.broadcast_arrays(
+            np.where(is_line, 1.0, e.real),
+            np.where(is_line, s / scale[:, None], e.imag),
+            np.where(is_line, 0.0, 1.0),
+        ),
+        axis=-1,
+    )
+    x, _ = _lawson(J, r0, iterations)
+    line = kind == _LINE
+    normal = 1j * direction
+    new_point = np.where(line, point + normal * x[:, 0], point + x[:, 0] + 1j * x[:, 1])
+    new_direction = np.where(line, direction * np.exp(1j * x[:, 1] / scale), direction)
+    new_radius = np.where(line, radius, radius + x[:, 2])
+    return new_point, new_direction, new_radius
+
+
+def _peak(absdev: F64, mask: NDArray[np.bool_]) -> F64:
+    """Largest |deviation| over the masked samples, with each interior local maximum raised
+    to the vertex of the parabola through it and its neighbours: a fitted band touches ε
+    between samples too, and the band must hold on the whole interval, not only at samples."""
+    d = np.where(mask, absdev, 0.0)
+    left, mid, right = d[:, :-2], d[:, 1:-1], d[:, 2:]
+    curv = 2 * mid - left - right
+    peak = (mid >= left) & (mid >= right) & (curv > 0) & mask[:, :-2] & mask[:, 2:]
+    vertex = mid + (right - left) ** 2 / (8 * np.where(peak, curv, 1.0))
+    return np.maximum(d.max(axis=1), np.where(peak, vertex, 0.0).max(axis=1, initial=0.0))
+
+
+def _window_path(A: C128, E: C128, cand: _Candidates, rows: I64, width: int) -> tuple[C128, I64]:
+    """Path samples of candidates ``rows`` at fine offsets −width..width about their centres."""
+    mf = A.shape[1]
+    offs = np.arange(-width, width + 1)
+    idx = (cand.center[rows, None] + offs) % mf
+    link = cand.linkage[rows, None]
+    return A[link, idx] + E[link, idx] * cand.uv[rows, None], idx
+
+
+def _runs(dev: F64, band: float, centre: int) -> tuple[I64, I64]:
+    left, right = _run_lengths(np.abs(dev) <= band, centre)
+    inside = np.abs(dev[:, centre]) <= band
+    return np.where(inside, centre - left, centre + 1), np.where(inside, centre + right, centre)
+
+
+def _measure(A: C128, E: C128, cand: _Candidates, rows: I64, width: int, search: SegmentSearch, fine_step: float):
+    """Fit and measure candidates ``rows`` (all with half-window ≤ ``width``) at every level.
+
+    Returns per (candidate, level): run bounds [lo, hi] in window samples (hi < lo: no dwell),
+    truncated (the run reached the window's edge), and the fitted geometry."""
+    z, _ = _window_path(A, E, cand, rows, width)
+    n, size = z.shape
+    centre = width
+    kind = cand.kind[rows]
+    point, direction, radius = cand.point[rows].copy(), cand.direction[rows].copy(), cand.radius[rows].copy()
+    levels = len(search.tolerances)
+    lo_out = np.zeros((n, levels), np.int64)
+    hi_out = np.zeros((n, levels), np.int64)
+    geom = (np.zeros((n, levels), complex), np.zeros((n, levels), complex), np.zeros((n, levels)))
+    col = np.arange(size)
+    for level, eps in enumerate(search.tolerances):
+        lo, hi = _runs(path_deviation(z, kind[:, None], point[:, None], direction[:, None], radius[:, None]), eps, centre)
+        ext = np.maximum((hi - lo + 1) // 4, 1)
+        for _ in range(search.window_tries):
+            t_lo = np.clip(lo - ext, 0, size - 1)
+            t_hi = np.clip(hi + ext, 0, size - 1)
+            mask = (col >= t_lo[:, None]) & (col <= t_hi[:, None])
+            # fit on FIT_SAMPLES spread over the target (the check below uses every sample)
+            pos = t_lo[:, None] + np.rint(_FIT_SPREAD * (t_hi - t_lo)[:, None]).astype(np.int64)
+            zs = np.take_along_axis(z, pos, axis=1)
+            p2, d2, r2 = _fit(zs, kind, point, direction, radius, search.lawson_iterations)
+            dev = path_deviation(z, kind[:, None], p2[:, None], d2[:, None], r2[:, None])
+            h = _peak(np.abs(dev), mask)
+            ok = (h <= eps) & (hi >= lo)
+            point, direction, radius = np.where(ok, p2, point), np.where(ok, d2, direction), np.where(ok, r2, radius)
+            nlo, nhi = _runs(dev, eps, centre)  # where ok, dev is the new geometry's
+            lo, hi = np.where(ok, nlo, lo), np.where(ok, nhi, hi)
+            # next target from the band's growth law: a minimum-zone band over a stretch of
+            # length L grows like L⁴ (four-point contact), so L·(ε/h)^¼ just fits
+            target = (t_hi - t_lo + 1) * (eps / np.maximum(h, 1e-300)) ** 0.25 * _GROWTH_SAFETY
+            ext = np.maximum(np.floor((target - (hi - lo + 1)) / 2), 0).astype(np.int64)
+            ext = np.where(ok, np.maximum(ext, 1), ext)
+            ext = np.where(hi >= lo, ext, 0)
+            if not np.any(ext > 0):
+                break
+        lo_out[:, level], hi_out[:, level] = lo, hi
+        geom[0][:, level], geom[1][:, level], geom[2][:, level] = point, direction, radius
+    truncated = (lo_out == 0) | (hi_out == size - 1)
+    return lo_out, hi_out, truncated, geom
+
+
+def _bisect_ends(b, c, d, br, cand: _Candidates, rows: I64, phi_in: F64, phi_out: F64, geom, band: F64) -> F64:
+    """Refine the crossing of |deviation| = band between ``phi_in`` (inside) and ``phi_out``
+    (outside) on the exact path, to ``END_TOLERANCE``. Returns the last inside angle."""
+    link = cand.linkage[rows]
+    kind, uv = cand.kind[rows], cand.uv[rows]
+    point, direction, radius = geom
+    lo, hi = phi_in.copy(), phi_out.copy()
+    steps = max(1, math.ceil(math.log2(max(np.max(np.abs(hi - lo), initial=0.0), END_TOLERANCE) / END_TOLERANCE)))
+    for _ in range(steps):
+        mid = 0.5 * (lo + hi)
+        motion = fourbar_motion(1.0, b[link], c[link], d[link], mid, br[link], order=0)
+        z = motion.A + motion.e_theta * uv
+        inside = np.abs(path_deviation(z, kind, point, direction, radius)) <= band
+        lo = np.where(inside, mid, lo)
+        hi = np.where(inside, hi, mid)
+    return lo
+
+
+def find_segments(b: F64, c: F64, d: F64, branch: I64, search: SegmentSearch) -> FoundSegments:
+    """Find and measure the dwell segments of a batch of crank-normalised linkages.
+
+    ``b, c, d, branch``: shape (N,), linkages that assemble over the whole turn (crank-rockers
+    or double-cranks). Returns segments grouped by linkage, then kind, then generating angle.
+    """
+    b, c, d = (np.asarray(x, float).ravel() for x in (b, c, d))
+    br = np.asarray(branch, np.int64).ravel()
+    skipped: Counter[str] = Counter()
+    grid = _grid_candidates(b, c, d, br, search, skipped)
+    double = _double_candidates(b, c, d, br, search, skipped) if b.size else grid
+    if b.size:
+        shift = len(grid.linkage)
+        cand = _Candidates(
+            *(np.r_[getattr(grid, f), getattr(double, f)] for f in _Candidates.__dataclass_fields__ if f != "partner"),
+            partner=np.r_[grid.partner, np.where(double.partner >= 0, double.partner + shift, -1)],
+        )
+    else:
+        cand = grid
+    n_cand = len(cand.linkage)
+    levels = len(search.tolerances)
+    mf = search.steps * search.fine_per_step
+    fine_step = 2 * np.pi / mf
+    phi_f = np.arange(mf) * fine_step
+    motion = fourbar_motion(1.0, b[:, None], c[:, None], d[:, None], phi_f, br[:, None], order=0)
+    A, E = np.broadcast_to(motion.A, motion.shape), motion.e_theta
+    mu = transmission_angle(motion)
+    mu = np.minimum(mu, np.pi - mu)
+
+    lo = np.zeros((n_cand, levels), np.int64)
+    hi = np.full((n_cand, levels), -1, np.int64)
+    truncated = np.zeros((n_cand, levels), bool)
+    gp = np.zeros((n_cand, levels), complex)
+    gd = np.ones((n_cand, levels), complex)
+    gr = np.zeros((n_cand, levels))
+    width_of = np.zeros(n_cand, np.int64)
+    window = np.minimum(cand.window, mf // 2 - 1)
+    for width, kind in itertools.product(_window_classes(mf), (_LINE, _ARC)):
+        rows = np.flatnonzero((window <= width) & (width_of == 0) & (cand.kind == kind))
+        if not rows.size:
+            continue
+        width_of[rows] = width
+        l, h, t, (p, dr, r) = _measure(A, E, cand, rows, width, search, fine_step)
+        lo[rows], hi[rows], truncated[rows] = l - width, h - width, t  # offsets from the centre
+        gp[rows], gd[rows], gr[rows] = p, dr, r
+    has = hi >= lo
+    # a run that reached its window's edge was cut short: measure it again in the widest window
+    redo = np.flatnonzero((truncated & has).any(axis=1) & (width_of < mf // 2 - 1))
+    for kind in (_LINE, _ARC):
+        rows = redo[cand.kind[redo] == kind]
+        if not rows.size:
+            continue
+        width = mf // 2 - 1
+        l, h, t, (p, dr, r) = _measure(A, E, cand, rows, width, search, fine_step)
+        lo[rows], hi[rows], truncated[rows] = l - width, h - width, t
+        gp[rows], gd[rows], gr[rows] = p, dr, r
+        width_of[rows] = width
+    has = hi >= lo
+    whole = (truncated & has).any(axis=1)
+    skipped["candidate skipped: path within tolerance over the whole turn"] += int(np.count_nonzero(whole))
+
+    # exact ends: bisection between the last inside and the first outside fine sample
+    start = np.zeros((n_cand, levels))
+    end = np.zeros((n_cand, levels))
+    base = cand.center[:, None] * fine_step
+    for level, eps in enumerate(search.tolerances):
+        rows = np.flatnonzero(has[:, level] & ~whole)
+        if not rows.size:
+            continue
+        g = (gp[rows, level], gd[rows, level], gr[rows, level])
+        band = np.full(rows.size, eps)
+        b_in = base[rows, 0] + lo[rows, level] * fine_step
+        start[rows, level] = _bisect_ends(b, c, d, br, cand, rows, b_in, b_in - fine_step, g, band)
+        e_in = base[rows, 0] + hi[rows, level] * fine_step
+        end[rows, level] = _bisect_ends(b, c, d, br, cand, rows, e_in, e_in + fine_step, g, band)
+
+    dwell = np.where(has & ~whole[:, None], end - start, 0.0)
+    min_dwell = math.radians(search.min_dwell_deg)
+    keep = (dwell[:, -1] >= min_dwell) & ~whole
+    skipped["candidate dropped: dwell shorter than the minimum"] += int(np.count_nonzero(~keep & ~whole))
+    # a double Ball point needs both stretches
+    dbl = cand.partner >= 0
+    keep_pair = keep & np.where(dbl, keep[np.maximum(cand.partner, 0)], True)
+    skipped["double Ball point dropped: one stretch shorter than the minimum"] += int(
+        np.count_nonzero(dbl & keep & ~keep_pair)
+    ) // 1
+    keep = keep_pair
+    keep &= ~_near_duplicates(cand, dwell[:, -1], start[:, -1], end[:, -1], keep, search.tolerances[-1])
+    return _assemble(b, c, d, br, cand, keep, search, start, end, dwell, gp, gd, gr, mu, phi_f, skipped)
+
+
+def _window_classes(mf: int) -> list[int]:
+    widths = [16, 32, 64, 128]
+    return [w for w in widths if w < mf // 2 - 1] + [mf // 2 - 1]
+
+
+def _near_duplicates(cand: _Candidates, dwell: F64, start: F64, end: F64, keep: NDArray[np.bool_], eps: float) -> NDArray[np.bool_]:
+    """Segments of one linkage and kind whose coupler points lie within 50 tolerances of each
+    other and whose widest intervals overlap by more than half: all but the longest."""
+    drop = np.zeros(keep.size, bool)
+    single = keep & (cand.partner < 0)
+    idx = np.flatnonzero(single)
+    if idx.size < 2:
+        return drop
+    order = idx[np.lexsort((-dwell[idx], cand.kind[idx], cand.linkage[idx]))]
+    group = cand.linkage[order] * 2 + cand.kind[order]
+    bounds = np.r_[0, np.flatnonzero(np.diff(group)) + 1, order.size]
+    for g0, g1 in zip(bounds[:-1], bounds[1:]):
+        if g1 - g0 < 2:
+            continue
+        members = order[g0:g1]  # longest first
+        uv = cand.uv[members]
+        close = np.abs(uv[:, None] - uv[None, :]) < 50 * eps
+        lo = np.maximum(start[members][:, None], start[members][None, :])
+        hi = np.minimum(end[members][:, None], end[members][None, :])
+        # intervals may be expressed a turn apart
+        for shift in (-2 * np.pi, 2 * np.pi):
+            lo2 = np.maximum(start[members][:, None], start[members][None, :] + shift)
+            hi2 = np.minimum(end[members][:, None], end[members][None, :] + shift)
+            better = (hi2 - lo2) > (hi - lo)
+            lo, hi = np.where(better, lo2, lo), np.where(better, hi2, hi)
+        shorter = np.minimum(dwell[members][:, None], dwell[members][None, :])
+        dup = close & ((hi - lo) > 0.5 * shorter)
+        np.fill_diagonal(dup, False)
+        dead = np.zeros(members.size, bool)
+        for i in range(members.size):  # greedy: a kept segment removes its duplicates
+            if not dead[i]:
+                dead[i + 1 :] |= dup[i, i + 1 :]
+        drop[members[dead]] = True
+    return drop
+
+
+def _assemble(b, c, d, br, cand, keep, search, start, end, dwell, gp, gd, gr, mu, phi_f, skipped) -> FoundSegments:
+    levels = len(search.tolerances)
+    first = np.flatnonzero(keep & ((cand.partner < 0) | (np.arange(keep.size) < cand.partner)))
+    partner = np.where(cand.partner[first] >= 0, cand.partner[first], first)
+    kind = np.where(cand.partner[first] >= 0, 2, cand.kind[first])
+    # canonical order: linkage, kind, generating angle, ray
+    order = np.lexsort((cand.ray[first], cand.phi[first], kind, cand.linkage[first]))
+    first, partner, kind = first[order], partner[order], kind[order]
+    two = np.stack([first, partner], axis=1)  # (S, 2): part 0 and part 1 (same for single)
+    has = (dwell[two] > 0).transpose(0, 2, 1)  # (S, levels, 2)
+    is_double = kind == 2
+    has[~is_double, :, 1] = False
+    twopi = 2 * np.pi
+    s = np.mod(start[two], twopi).transpose(0, 2, 1)
+    e = s + dwell[two].transpose(0, 2, 1)
+    # transmission angle over the widest interval, deviation reached at every level (≤ the
+    # band), both on the fine grid
+    mf = phi_f.size
+    fine_step = twopi / mf
+    tmin = np.full(first.size, np.pi / 2)
+    tmax = np.zeros(first.size)
+    maxdev = np.zeros((first.size, levels, 2))
+    offsets = np.arange(mf)
+    for part in range(2):
+        rows = two[:, part]
+        link = cand.linkage[rows]
+        z = motion_path(b, c, d, br, link, cand.uv[rows], phi_f)
+        for level in range(levels):
+            k0 = np.ceil(start[rows, level] / fine_step - 1e-9).astype(np.int64)
+            k1 = np.floor(end[rows, level] / fine_step + 1e-9).astype(np.int64)
+            idx = (k0[:, None] + offsets) % mf
+            inside = (k0[:, None] + offsets) <= k1[:, None]
+            dev = np.abs(path_deviation(np.take_along_axis(z, idx, axis=1), cand.kind[rows][:, None],
+                                        gp[rows, level][:, None], gd[rows, level][:, None], gr[rows, level][:, None]))
+            maxdev[:, level, part] = np.where(inside, dev, 0.0).max(axis=1)
+            if level == levels - 1:
+                vals = mu[link[:, None], idx]
+                tmin = np.minimum(tmin, np.where(inside, vals, np.inf).min(axis=1))
+                tmax = np.maximum(tmax, np.where(inside, vals, -np.inf).max(axis=1))
+    a_dbl = is_double
+    p1, p2 = cand.point[two[:, 0]], cand.point[two[:, 1]]
+    t1, t2 = cand.direction[two[:, 0]], cand.direction[two[:, 1]]
+    cross = np.imag(np.conj(t1) * t2)
+    parallel = a_dbl & (np.abs(cross) < 1e-6)
+    safe = np.where(np.abs(cross) < 1e-6, 1.0, cross)
+    tpar = np.where(parallel, 0.0, np.imag(np.conj(p2 - p1) * t2) / safe)
+    inter = np.where(a_dbl & ~parallel, p1 + tpar * t1, 0.0)
+    far = a_dbl & (parallel | (np.abs(inter) > 1e6))
+    if np.any(far):
+        skipped["double Ball point dropped: its lines are parallel"] += int(np.count_nonzero(far))
+    sel = ~far
+    return FoundSegments(
+        linkage=cand.linkage[first][sel],
+        kind=kind[sel],
+        phi_gen=cand.phi[first][sel],
+        phi_gen2=np.where(a_dbl, cand.phi[partner], 0.0)[sel],
+        ray=cand.ray[first][sel],
+        uv=cand.uv[first][sel],
+        point=np.where(kind == _ARC, 0, p1)[sel],
+        direction=np.where(kind == _ARC, 1, t1)[sel],
+        point2=np.where(a_dbl, p2, 0)[sel],
+        direction2=np.where(a_dbl, t2, 1)[sel],
+        intersection=inter[sel],
+        center=np.where(kind == _ARC, cand.point[first], 0)[sel],
+        radius=np.where(kind == _ARC, cand.radius[first], 0.0)[sel],
+        transmission_min=tmin[sel],
+        transmission_max=tmax[sel],
+        tolerances=tuple(search.tolerances),
+        has_dwell=has[sel],
+        phi_start=s[sel],
+        phi_end=e[sel],
+        max_deviation=maxdev[sel],
+        fit_point=gp[two].transpose(0, 2, 1)[sel],
+        fit_direction=gd[two].transpose(0, 2, 1)[sel],
+        fit_radius=gr[two].transpose(0, 2, 1)[sel],
+        skipped=dict(sorted((k, v) for k, v in skipped.items() if v)),
+    )
+
+
+def motion_path(b: F64, c: F64, d: F64, br: I64, link: I64, uv: C128, phi: F64) -> C128:
+    """Exact path of coupler points ``uv`` of linkages ``link`` at crank angles ``phi``: (len(link), len(phi))."""
+    motion = fourbar_motion(1.0, b[link, None], c[link, None], d[link, None], phi, br[link, None], order=0)
+    return motion.A + motion.e_theta * uv[:, None]
