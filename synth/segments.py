@@ -63,6 +63,9 @@ FIT_SAMPLES = 21
 _FIT_SPREAD = np.linspace(0.0, 1.0, FIT_SAMPLES)
 #: Further offsets (multiples of min_dwell/2) at which the local-best score looks at the path.
 _SCORE_OFFSETS = (2, 4)
+#: A fit is accepted when its sampled (and parabola-interpolated) band is this much inside
+#: ε, so that the band holds between samples too.
+_BAND_MARGIN = 1e-3
 #: Margin on the predicted length of the next fit's interval (see ``_measure``).
 _GROWTH_SAFETY = 0.98
 #: Linkages per block of the candidate search (bounds the memory of the pruning stage).
@@ -541,7 +544,7 @@ def _measure(A: C128, E: C128, cand: _Candidates, rows: I64, width: int, search:
             p2, d2, r2 = _fit(zs, kind, point, direction, radius, search.lawson_iterations)
             dev = path_deviation(z, kind[:, None], p2[:, None], d2[:, None], r2[:, None])
             h = _peak(np.abs(dev), mask)
-            ok = (h <= eps) & (hi >= lo)
+            ok = (h <= eps * (1 - _BAND_MARGIN)) & (hi >= lo)
             point, direction, radius = np.where(ok, p2, point), np.where(ok, d2, direction), np.where(ok, r2, radius)
             nlo, nhi = _runs(dev, eps, centre)  # where ok, dev is the new geometry's
             lo, hi = np.where(ok, nlo, lo), np.where(ok, nhi, hi)
