@@ -1,0 +1,218 @@
+"""``dwell bench atlas``: run time against error of the segment search, at several resolutions.
+
+The same sweep (the first ``--proportions`` of a preset, on both branches) is searched at each
+(crank step, rays) resolution, in this process (one core). Reported per resolution:
+
+* ``linkages_per_s`` and ``segments_per_s`` (the search and row building, no database);
+* ``dwell_error_deg``: the largest difference between a stored dwell angle and the same
+  interval measured independently — a dense walk (0.02°) along the exact path from inside
+  the interval to where it leaves the stored band, then bisection (a sample of dwells);
+* ``best_dwell_shortfall``: per linkage, kind and level, how much shorter the longest dwell
+  found is than at the reference resolution (``--reference-step``/``--reference-rays``),
+  relative (median and 90th percentile): what a coarser search misses.
+
+With ``--build N``, the real build (processes + database) of the preset's resolution is
+timed too: a sweep of N samples with the preset's settings into a temporary SQLite atlas.
+JSON on stdout; ``--plot FILE`` draws the time–error chart (PNG).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import platform
+import tempfile
+import time
+from pathlib import Path
+
+import click
+import numpy as np
+
+from atlas.shard import DWELLS_PER_SEGMENT, SEGMENTS_PER_LINKAGE
+from atlas.sweep import PRESETS, sweep_linkages
+from cli.options import writable_file
+from kinematics.fourbar import fourbar_motion
+from synth.segments import KINDS, SegmentSearch, find_segments, path_deviation
+
+DEFAULT_RESOLUTIONS = "4:18,3:24,2:36,1.5:48"
+FLOOR = 100.0  # linkages/s on 2 cores at the standard resolution (issue #4)
+
+
+def _resolutions(text: str) -> list[tuple[float, int]]:
+    out = []
+    for item in text.split(","):
+        try:
+            step, rays = item.split(":")
+            out.append((float(step), int(rays)))
+        except ValueError:
+            raise click.BadParameter(f"expected STEP:RAYS pairs separated by commas, got {item!r}") from None
+    return out
+
+
+def _independent_dwell(b, c, d, br, found, i, level, part) -> float:
+    """The dwell (rad) of stored geometry (i, level, part), measured by a dense walk and bisection."""
+    k = found.linkage[i]
+    eps = found.tolerances[level]
+    geometry = (found.fit_point[i, level, part], found.fit_direction[i, level, part], found.fit_radius[i, level, part])
+    kind = 1 if KINDS[found.kind[i]] == "arc" else 0
+    uv = found.uv[i]
+
+    def outside(phi):
+        m = fourbar_motion(1.0, b[k], c[k], d[k], np.atleast_1d(phi), br[k], order=0)
+        return np.abs(path_deviation(m.A + m.e_theta * uv, kind, *geometry)) > eps
+
+    mid = 0.5 * (found.phi_start[i, level, part] + found.phi_end[i, level, part])
+    ends = []
+    for sign in (-1, 1):
+        phis = mid + sign * np.radians(np.arange(0.0, 180.0, 0.02))
+        j = int(np.argmax(outside(phis)))
+        lo, hi = phis[max(j - 1, 0)], phis[j]
+        for _ in range(40):
+            m = 0.5 * (lo + hi)
+            if outside(m)[0]:
+                hi = m
+            else:
+                lo = m
+        ends.append(lo)
+    return ends[1] - ends[0]
+
+
+def _best(found, n_links: int, levels: int) -> np.ndarray:
+    best = np.zeros((n_links, len(KINDS), levels))
+    dwell = np.where(found.has_dwell[..., 0], found.phi_end[..., 0] - found.phi_start[..., 0], 0.0)
+    for kind in range(len(KINDS)):
+        sel = found.kind == kind
+        for level in range(levels):
+            np.maximum.at(best[:, kind, level], found.linkage[sel], dwell[sel, level])
+    return best
+
+
+@click.command("atlas")
+@click.option("--preset", type=click.Choice(sorted(PRESETS)), default="standard", show_default=True)
+@click.option("--proportions", type=click.IntRange(1, 100_000), default=32, show_default=True,
+              help="Proportions of the sweep searched (each on both branches).")
+@click.option("--resolutions", default=DEFAULT_RESOLUTIONS, show_default=True, help="STEP:RAYS pairs (degrees, rays).")
+@click.option("--reference-step", type=float, default=0.75, show_default=True, help="Crank step (°) of the reference search.")
+@click.option("--reference-rays", type=int, default=96, show_default=True, help="Rays of the reference search.")
+@click.option("--dwell-samples", type=click.IntRange(0, 10_000), default=60, show_default=True,
+              help="Stored dwells re-measured independently per resolution.")
+@click.option("--build", "build_samples", type=click.IntRange(0, 2**24), default=0, show_default=True,
+              help="Also time a real build of N samples at the preset's resolution (0: skip).")
+@click.option("--workers", type=click.IntRange(1, 256), default=2, show_default=True, help="Workers of the timed build.")
+@click.option("--plot", type=click.Path(dir_okay=False), callback=writable_file(".png"), default=None,
+              help="Write the time–error chart (PNG).")
+def atlas(preset, proportions, resolutions, reference_step, reference_rays, dwell_samples, build_samples, workers, plot):
+    """Atlas build: linkages/s and segments/s against dwell error, per search resolution."""
+    spec = PRESETS[preset]
+    pairs = _resolutions(resolutions)
+    sweep = sweep_linkages(spec)
+    n = min(proportions, len(sweep))
+    b, c, d = (np.repeat(x[:n], len(spec.branches)) for x in (sweep.b, sweep.c, sweep.d))
+    br = np.tile(np.asarray(spec.branches), n)
+    levels = len(spec.tolerances)
+    ids = np.arange(1, b.size + 1, dtype=np.int64)
+
+    def search(step: float, rays: int):
+        s = SegmentSearch.from_spec(spec.replace(crank_step_deg=step, rays=rays))
+        t0 = time.perf_counter()
+        found = find_segments(b, c, d, br, s)
+        rows = found.rows(ids, SEGMENTS_PER_LINKAGE, DWELLS_PER_SEGMENT)
+        return found, rows, time.perf_counter() - t0
+
+    ref, _, ref_seconds = search(reference_step, reference_rays)
+    ref_best = _best(ref, b.size, levels)
+    rng = np.random.default_rng(0)
+    results = []
+    for step, rays in pairs:
+        found, (segments, _), seconds = search(step, rays)
+        best = _best(found, b.size, levels)
+        has = ref_best > 0
+        shortfall = np.clip((ref_best - best)[has] / ref_best[has], 0.0, None)
+        triples = [(i, lv, p) for i in range(len(found)) for lv in range(levels)
+                   for p in range(2 if KINDS[found.kind[i]] == "double_line" else 1) if found.has_dwell[i, lv, p]]
+        pick = rng.choice(len(triples), size=min(dwell_samples, len(triples)), replace=False) if triples else []
+        errors = [abs(_independent_dwell(b, c, d, br, found, *triples[j])
+                      - (found.phi_end[triples[j]] - found.phi_start[triples[j]])) for j in pick]
+        results.append(
+            {
+                "crank_step_deg": step,
+                "rays": rays,
+                "linkages": int(b.size),
+                "seconds": round(seconds, 4),
+                "linkages_per_s": round(b.size / seconds, 2),
+                "segments": len(segments),
+                "segments_per_s": round(len(segments) / seconds, 1),
+                "segments_by_kind": {k: int(np.count_nonzero(found.kind == j)) for j, k in enumerate(KINDS)},
+                "dwell_error_deg": float(np.degrees(max(errors))) if errors else None,
+                "dwells_checked": len(errors),
+                "best_dwell_shortfall_median": float(np.median(shortfall)) if shortfall.size else None,
+                "best_dwell_shortfall_p90": float(np.percentile(shortfall, 90)) if shortfall.size else None,
+            }
+        )
+    report = {
+        "benchmark": "atlas",
+        "preset": preset,
+        "proportions": n,
+        "branches": list(spec.branches),
+        "tolerances": list(spec.tolerances),
+        "reference": {"crank_step_deg": reference_step, "rays": reference_rays, "seconds": round(ref_seconds, 3),
+                      "linkages_per_s": round(b.size / ref_seconds, 2)},
+        "resolutions": results,
+        "machine": {"cpus": os.cpu_count(), "python": platform.python_version(), "machine": platform.machine()},
+    }
+    if build_samples:
+        report["build"] = _timed_build(spec, build_samples, workers)
+    click.echo(json.dumps(report, indent=2))
+    if plot:
+        _plot(report, Path(plot))
+
+
+def _timed_build(spec, samples: int, workers: int) -> dict:
+    from atlas.build import build_atlas
+
+    small = spec.replace(samples=samples)
+    with tempfile.TemporaryDirectory() as tmp:
+        target = str(Path(tmp) / "bench.sqlite")
+        t0 = time.perf_counter()
+        summary = build_atlas(target, small, workers=workers, progress=False)
+        seconds = time.perf_counter() - t0
+    linkages = int(getattr(summary, "linkages", 0))
+    rate = linkages / seconds if seconds > 0 else math.inf
+    return {
+        "samples": samples,
+        "workers": workers,
+        "linkages": linkages,
+        "segments": int(getattr(summary, "segments", 0)),
+        "seconds": round(seconds, 2),
+        "linkages_per_s": round(rate, 1),
+        "floor_linkages_per_s": FLOOR,
+        "meets_floor": bool(rate >= FLOOR),
+    }
+
+
+def _plot(report: dict, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = report["resolutions"]
+    fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
+    x = [r["linkages_per_s"] for r in rows]
+    y = [100 * (r["best_dwell_shortfall_median"] or 0.0) for r in rows]
+    y90 = [100 * (r["best_dwell_shortfall_p90"] or 0.0) for r in rows]
+    ax.plot(x, y, "o-", label="median shortfall of the best dwell")
+    ax.plot(x, y90, "s--", label="90th percentile")
+    for r, xi, yi in zip(rows, x, y90):
+        ax.annotate(f"{r['crank_step_deg']:g}°, {r['rays']} rays", (xi, yi), textcoords="offset points", xytext=(4, 6),
+                    fontsize=8)
+    ax.set_xlabel("linkages per second (one core, search only)")
+    ax.set_ylabel(f"% shorter than at {report['reference']['crank_step_deg']:g}°/{report['reference']['rays']} rays")
+    err = max((r["dwell_error_deg"] or 0.0) for r in rows)
+    ax.set_title(f"Atlas search: speed against error ({report['preset']} sweep, {report['proportions']} proportions)\n"
+                 f"stored dwell angles vs independent measurement: max error {err:.1e}°", fontsize=10)
+    ax.grid(True, alpha=0.3)
+    ax.legend()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
