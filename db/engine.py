@@ -16,7 +16,7 @@ from sqlalchemy.orm import Session
 
 from db.schema import APPLICATION, SCHEMA_VERSION, Base, Meta
 
-__all__ = ["AtlasError", "open_atlas", "database_url"]
+__all__ = ["AtlasError", "database_url", "open_atlas", "sqlite_path"]
 
 _SQLITE_MAGIC = b"SQLite format 3\x00"
 
@@ -30,6 +30,14 @@ def database_url(target: str) -> str:
     if "://" in target:
         return target
     return f"sqlite:///{Path(target).expanduser().resolve()}"
+
+
+def sqlite_path(target: str) -> Path | None:
+    """The file behind ``target`` if it names an SQLite file (None for other URLs, memory)."""
+    try:
+        return _sqlite_path(database_url(target))
+    except ArgumentError:
+        return None
 
 
 def _sqlite_path(url: str) -> Path | None:

@@ -10,7 +10,7 @@ dialects, so no NaN or inf can ever be stored, whatever the writer does.
 
 from __future__ import annotations
 
-from sqlalchemy import CheckConstraint, Float, ForeignKey, Index, Integer, String, Text, UniqueConstraint
+from sqlalchemy import BigInteger, CheckConstraint, Float, ForeignKey, Index, Integer, String, Text, UniqueConstraint
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 
 __all__ = ["SCHEMA_VERSION", "APPLICATION", "Base", "Meta", "Build", "Shard", "Linkage", "Segment", "Dwell"]
@@ -21,6 +21,12 @@ SCHEMA_VERSION = 1
 APPLICATION = "dwell-atlas"
 
 _FINITE = "BETWEEN -1e300 AND 1e300"
+
+#: Row ids are assigned by the builder, deterministically from the sweep (see
+#: ``atlas.shard``), so they are the same whatever the worker count or resume history and
+#: can name a segment across machines. 64-bit everywhere; on SQLite an INTEGER PRIMARY KEY
+#: (the rowid itself, also 64-bit).
+RowId = BigInteger().with_variant(Integer, "sqlite")
 
 
 def _finite_checks(table: str, *columns: str) -> tuple[CheckConstraint, ...]:
@@ -47,7 +53,12 @@ class Meta(Base):
 
 
 class Build(Base):
-    """One atlas build: its full sweep spec (JSON), code and schema version, status."""
+    """One atlas build: its full sweep spec (JSON), code and schema version, status.
+
+    The ``lock_*`` columns hold the builder lock (see ``db.writes``): the one process allowed
+    to write this build's shards, named by a random token, its pid and host, and a heartbeat
+    (Unix time, seconds) refreshed at every shard commit. All NULL when no builder holds it.
+    """
 
     __tablename__ = "build"
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
@@ -59,7 +70,14 @@ class Build(Base):
     n_shards: Mapped[int] = mapped_column(Integer)
     created_at: Mapped[str] = mapped_column(String(32))
     finished_at: Mapped[str | None] = mapped_column(String(32), nullable=True)
-    __table_args__ = (CheckConstraint("status IN ('building', 'complete')", name="ck_build_status"),)
+    lock_token: Mapped[str | None] = mapped_column(String(32), nullable=True)
+    lock_pid: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    lock_host: Mapped[str | None] = mapped_column(String(255), nullable=True)
+    lock_heartbeat: Mapped[float | None] = mapped_column(Float, nullable=True)  #: Unix time (s)
+    __table_args__ = (
+        CheckConstraint("status IN ('building', 'complete')", name="ck_build_status"),
+        *_finite_or_null_checks("build", "lock_heartbeat"),
+    )
 
 
 class Shard(Base):
@@ -82,7 +100,7 @@ class Linkage(Base):
     """A crank-normalised four-bar (a = 1) on one assembly branch."""
 
     __tablename__ = "linkage"
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    id: Mapped[int] = mapped_column(RowId, primary_key=True, autoincrement=False)
     build_id: Mapped[int] = mapped_column(ForeignKey("build.id"))
     shard_index: Mapped[int] = mapped_column(Integer)
     sweep_index: Mapped[int] = mapped_column(Integer)  #: position in the sweep, for canonical order
@@ -112,8 +130,8 @@ class Segment(Base):
     """
 
     __tablename__ = "segment"
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
-    linkage_id: Mapped[int] = mapped_column(ForeignKey("linkage.id"))
+    id: Mapped[int] = mapped_column(RowId, primary_key=True, autoincrement=False)
+    linkage_id: Mapped[int] = mapped_column(RowId, ForeignKey("linkage.id"))
     kind: Mapped[str] = mapped_column(String(12))
     phi_gen: Mapped[float] = mapped_column(Float)  #: generating crank angle (rad)
     phi_gen2: Mapped[float | None] = mapped_column(Float, nullable=True)  #: double Ball point: second angle
@@ -147,12 +165,15 @@ class Dwell(Base):
     """The dwell interval of a segment at one tolerance level (band half-width, crank lengths).
 
     ``part`` is 0, or 1 for the second line of a double Ball point. ``kind`` repeats the
-    segment's kind so that the query's index covers its filter.
+    segment's kind so that the query's index covers its filter. Each level has its own
+    minimum-zone line (``x``, ``y``, ``direction``) or circle (centre ``x``, ``y``, ``radius``),
+    fitted to its own interval: the interval is the largest crank interval around the
+    generating angle on which the coupler point stays within ``tolerance`` of that geometry.
     """
 
     __tablename__ = "dwell"
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
-    segment_id: Mapped[int] = mapped_column(ForeignKey("segment.id"))
+    id: Mapped[int] = mapped_column(RowId, primary_key=True, autoincrement=False)
+    segment_id: Mapped[int] = mapped_column(RowId, ForeignKey("segment.id"))
     kind: Mapped[str] = mapped_column(String(12))
     level: Mapped[int] = mapped_column(Integer)
     tolerance: Mapped[float] = mapped_column(Float)
@@ -161,10 +182,15 @@ class Dwell(Base):
     phi_end: Mapped[float] = mapped_column(Float)
     dwell_angle: Mapped[float] = mapped_column(Float)  #: rad, phi_end − phi_start
     max_deviation: Mapped[float] = mapped_column(Float)  #: crank lengths, from the fitted line/circle
+    x: Mapped[float] = mapped_column(Float)  #: line point or circle centre, fixed frame
+    y: Mapped[float] = mapped_column(Float)
+    direction: Mapped[float | None] = mapped_column(Float, nullable=True)  #: line direction (rad)
+    radius: Mapped[float | None] = mapped_column(Float, nullable=True)  #: circle radius
     __table_args__ = (
         CheckConstraint("part IN (0, 1)", name="ck_dwell_part"),
         CheckConstraint("dwell_angle > 0", name="ck_dwell_positive"),
-        *_finite_checks("dwell", "tolerance", "phi_start", "phi_end", "dwell_angle", "max_deviation"),
+        *_finite_checks("dwell", "tolerance", "phi_start", "phi_end", "dwell_angle", "max_deviation", "x", "y"),
+        *_finite_or_null_checks("dwell", "direction", "radius"),
         # dwell query: WHERE kind = ? AND level = ? AND dwell_angle BETWEEN ? AND ?
         Index("ix_dwell_query", "kind", "level", "dwell_angle"),
         Index("ix_dwell_segment", "segment_id"),

@@ -213,6 +213,7 @@ def _plot(report: dict, path: Path) -> None:
     ax.set_title(f"Atlas search: speed against error ({report['preset']} sweep, {report['proportions']} proportions)\n"
                  f"stored dwell angles vs independent measurement: max error {err:.1e}°", fontsize=10)
     ax.grid(True, alpha=0.3)
+    ax.margins(x=0.15, y=0.15)  # room for the point labels
     ax.legend()
     fig.savefig(path, dpi=120)
     plt.close(fig)
