@@ -121,7 +121,8 @@ class SweepSpec:
 #: Named sweeps. ``demo`` builds in seconds; ``standard`` holds ≥ 20 000 linkages;
 #: ``large`` ≥ 1 000 000 (a cluster or a long night).
 PRESETS: dict[str, SweepSpec] = {
-    "demo": SweepSpec(name="demo", samples=256, crank_step_deg=3.0, rays=24, shard_size=16),
+    "demo": SweepSpec(name="demo", b=(1.5, 4.5), c=(1.5, 4.5), d=(1.5, 4.5), samples=1024, crank_step_deg=3.0, rays=24,
+                      shard_size=32),
     "standard": SweepSpec(name="standard", samples=2**15, crank_step_deg=2.0, rays=36, shard_size=128),
     "large": SweepSpec(name="large", samples=2**21, crank_step_deg=2.0, rays=36, shard_size=256),
 }

@@ -9,12 +9,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from sqlalchemy import Engine, and_, func, select
+from sqlalchemy import Engine, and_, func, or_, select
 from sqlalchemy.orm import Session
 
 from db.schema import Dwell, Linkage, Segment
 
-__all__ = ["SegmentRow", "select_segments", "nearest_dwell_angles"]
+__all__ = ["SegmentRow", "nearest_dwell_angles", "select_segments", "tolerance_levels"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -45,19 +45,32 @@ def select_segments(
     dwell_high: float,
     target: float,
     *,
+    level: int | None = None,
+    min_transmission: float = 0.0,
+    max_length: float = 1e300,
     limit: int = 200,
 ) -> list[SegmentRow]:
-    """Segments of ``kinds`` with a dwell angle (any level, part 0) in [dwell_low, dwell_high]
-    rad, at most ``limit``, ordered by |dwell − target| (then id, for a stable order)."""
+    """Segments of ``kinds`` with a dwell angle (part 0; at tolerance ``level``, or any) in
+    [dwell_low, dwell_high] rad, at most ``limit``, ordered by |dwell − target| (then id, for
+    a stable order). Only linkages whose transmission angle stays ≥ ``min_transmission`` (rad)
+    over the turn and whose links are all ≤ ``max_length`` (cranks) are considered."""
     closeness = func.abs(Dwell.dwell_angle - target)
     stmt = (
         select(Dwell.segment_id, Dwell.level, closeness.label("closeness"))
+        .join(Segment, Segment.id == Dwell.segment_id)
+        .join(Linkage, Linkage.id == Segment.linkage_id)
         .where(
             and_(
                 Dwell.kind.in_(kinds),
                 Dwell.part == 0,
                 Dwell.dwell_angle >= dwell_low,
                 Dwell.dwell_angle <= dwell_high,
+                *(() if level is None else (Dwell.level == level,)),
+                Linkage.transmission_min >= min_transmission,
+                Linkage.b <= max_length,
+                Linkage.c <= max_length,
+                Linkage.d <= max_length,
+                or_(Dwell.radius.is_(None), Dwell.radius <= max_length),  # an arc's radius is the rod
             )
         )
         .order_by(closeness, Dwell.segment_id, Dwell.level)
@@ -119,3 +132,9 @@ def nearest_dwell_angles(engine: Engine, kinds: tuple[str, ...], target: float) 
             select(func.min(Dwell.dwell_angle)).where(and_(Dwell.kind.in_(kinds), Dwell.dwell_angle >= target))
         ).scalar()
     return below, above
+
+
+def tolerance_levels(engine: Engine) -> list[tuple[int, float]]:
+    """The atlas's (level, tolerance) pairs, in level order."""
+    with Session(engine) as s:
+        return [(int(lv), float(t)) for lv, t in s.execute(select(Dwell.level, Dwell.tolerance).distinct().order_by(Dwell.level))]

@@ -1,0 +1,208 @@
+"""Synthesis requests and ranked candidate six-bars (pure: no database, no I/O).
+
+A :class:`Request` is what the designer asks (angles in radians here, degrees at the CLI); a
+:class:`Candidate` is a six-bar in the user's units with its figures from the exact
+simulation. Ranking: non-dominated sorting (Pareto layers) on four objectives — dwell
+accuracy |dwell − requested|, output deviation over the requested dwell window, the worst
+transmission angle (four-bar or output, larger is better) and compactness (footprint area
+over crank²) — then, inside a layer, a score: the sum of the four objectives each scaled to
+a designer's unit (the dwell tolerance, the dwell band, 45° of transmission, 100 crank²).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from synth.sixbar import SixBar, SixBarFigures
+
+__all__ = ["Candidate", "Request", "candidate_id", "candidate_json", "parse_candidate_id", "rank"]
+
+OUTPUTS = ("rpr", "rrr", "any")
+
+
+@dataclass(frozen=True, slots=True)
+class Request:
+    """A dwell request. Angles in radians, lengths in the user's unit (crank = ``crank``).
+
+    ``band`` is the total width of the output band that counts as standing still; ``swing``
+    is required for one dwell and optional for two (then a constraint, ±``swing_tol``)."""
+
+    dwell: float
+    dwell_tol: float = math.radians(2.0)
+    swing: float | None = None
+    swing_tol: float = math.radians(0.5)
+    output: str = "any"
+    dwells: int = 1
+    band: float = math.radians(0.1)
+    crank: float = 1.0
+    min_transmission: float = math.radians(30.0)
+    max_link_ratio: float = 10.0
+    top: int = 10
+
+    def __post_init__(self) -> None:
+        bad = ValueError
+        if not (math.isfinite(self.dwell) and 0 < self.dwell < 2 * math.pi):
+            raise bad(f"--dwell must be between 0 and 360 degrees (exclusive), got {math.degrees(self.dwell):g}")
+        if not (math.isfinite(self.dwell_tol) and 0 <= self.dwell_tol < 2 * math.pi):
+            raise bad(f"--dwell-tol must be between 0 and 360 degrees, got {math.degrees(self.dwell_tol):g}")
+        if self.swing is not None and not (math.isfinite(self.swing) and 0 < self.swing < math.pi):
+            raise bad(f"--swing must be between 0 and 180 degrees (exclusive), got {math.degrees(self.swing):g}")
+        if not (math.isfinite(self.swing_tol) and 0 <= self.swing_tol < math.pi):
+            raise bad(f"--swing-tol must be between 0 and 180 degrees, got {math.degrees(self.swing_tol):g}")
+        if self.output not in OUTPUTS:
+            raise bad(f"--output must be one of {', '.join(OUTPUTS)}, got {self.output!r}")
+        if self.dwells not in (1, 2):
+            raise bad(f"--dwells must be 1 or 2, got {self.dwells}")
+        if self.dwells == 1 and self.swing is None:
+            raise bad("--swing is required for one dwell per turn")
+        if self.dwells == 2 and self.output == "rrr":
+            raise bad("two dwells per turn come from a double Ball point with an RPR output; use --output rpr or any")
+        if self.dwells * self.dwell >= 2 * math.pi:
+            raise bad(f"{self.dwells} dwell(s) of {math.degrees(self.dwell):g} degrees do not fit in one turn")
+        if not (math.isfinite(self.band) and 0 < self.band < math.pi):
+            raise bad(f"--dwell-tolerance must be between 0 and 180 degrees (exclusive), got {math.degrees(self.band):g}")
+        if not (math.isfinite(self.crank) and self.crank > 0):
+            raise bad(f"--crank must be a positive length, got {self.crank:g}")
+        if not (math.isfinite(self.min_transmission) and 0 <= self.min_transmission < math.pi / 2):
+            raise bad(f"--min-transmission must be in [0, 90) degrees, got {math.degrees(self.min_transmission):g}")
+        if not (math.isfinite(self.max_link_ratio) and self.max_link_ratio >= 1):
+            raise bad(f"--max-link-ratio must be at least 1, got {self.max_link_ratio:g}")
+        if self.top < 1:
+            raise bad(f"--top must be at least 1, got {self.top}")
+
+    def to_json(self) -> dict:
+        return {
+            "dwell_deg": math.degrees(self.dwell),
+            "dwell_tol_deg": math.degrees(self.dwell_tol),
+            "swing_deg": None if self.swing is None else math.degrees(self.swing),
+            "swing_tol_deg": math.degrees(self.swing_tol),
+            "output": self.output,
+            "dwells": self.dwells,
+            "dwell_tolerance_deg": math.degrees(self.band),
+            "crank": self.crank,
+            "min_transmission_deg": math.degrees(self.min_transmission),
+            "max_link_ratio": self.max_link_ratio,
+            "top": self.top,
+        }
+
+
+@dataclass(frozen=True, slots=True)
+class Candidate:
+    """A ranked six-bar: geometry in the user's units (crank = request.crank), its figures
+    from the exact simulation (lengths scaled likewise), and where it came from."""
+
+    id: str
+    segment_id: int
+    sixbar: SixBar
+    figures: SixBarFigures
+    rank: int = 0
+    #: RRR: where the moving pivot Q rests during the dwell (the fitted arc's centre)
+    dwell_position: complex | None = None
+
+
+def candidate_id(segment_id: int, output: str, slot: int, swing: float | None) -> str:
+    """``<segment>-<rpr|rrr|dbl><slot>@<swing°>``: enough to rebuild the six-bar from the atlas
+    (the fit is deterministic; ``slot`` indexes the fit's candidates, found or not)."""
+    sw = "free" if swing is None else f"{math.degrees(swing):.6g}"
+    return f"{segment_id}-{output}{slot}@{sw}"
+
+
+def parse_candidate_id(text: str) -> tuple[int, str, int, float | None]:
+    """Inverse of :func:`candidate_id`; ValueError with the reason on a malformed id."""
+    try:
+        head, sw = text.strip().split("@")
+        seg, kind = head.split("-")
+        output, slot = kind[:3], int(kind[3:])
+        if output not in ("rpr", "rrr", "dbl"):
+            raise ValueError
+        swing = None if sw == "free" else math.radians(float(sw))
+        if swing is not None and not (0 < swing < math.pi):
+            raise ValueError
+        return int(seg), output, slot, swing
+    except ValueError:
+        raise ValueError(f"not a candidate id: {text!r} (expected e.g. 1234500007-rrr0@30)") from None
+
+
+def objectives(request: Request, figures: list[SixBarFigures]) -> np.ndarray:
+    """(n, 4) objectives to minimise: dwell error (rad), output deviation (rad), −worst
+    transmission (rad), footprint / crank² (dimensionless)."""
+    rows = []
+    for f in figures:
+        err = max(abs(d.angle - request.dwell) for d in f.dwells) if f.dwells else math.pi
+        dev = max(f.deviations) if f.deviations else 0.0
+        mu = min(f.transmission_fourbar, f.transmission_output)
+        rows.append((err, dev, -mu, f.footprint / request.crank**2))
+    return np.array(rows, dtype=float).reshape(-1, 4)
+
+
+def _pareto_layers(obj: np.ndarray) -> np.ndarray:
+    """Non-dominated sorting: layer 0 is the Pareto front, layer 1 the front of the rest, …"""
+    n = obj.shape[0]
+    layer = np.full(n, -1)
+    le = np.all(obj[:, None, :] <= obj[None, :, :], axis=2)
+    lt = np.any(obj[:, None, :] < obj[None, :, :], axis=2)
+    dominates = le & lt  # [i, j]: i dominates j
+    remaining = np.ones(n, bool)
+    k = 0
+    while remaining.any():
+        dominated = (dominates & remaining[:, None]).any(axis=0)
+        front = remaining & ~dominated
+        layer[front] = k
+        remaining &= ~front
+        k += 1
+    return layer
+
+
+def rank(request: Request, candidates: list[Candidate]) -> list[Candidate]:
+    """Candidates in rank order (Pareto layer, then score, then id), ``rank`` set from 1."""
+    if not candidates:
+        return []
+    obj = objectives(request, [c.figures for c in candidates])
+    layer = _pareto_layers(obj)
+    scale = np.array([max(request.dwell_tol, math.radians(0.5)), request.band, math.radians(45.0), 100.0])
+    score = (obj + np.array([0.0, 0.0, math.pi / 2, 0.0])) / scale
+    total = score.sum(axis=1)
+    order = sorted(range(len(candidates)), key=lambda i: (layer[i], total[i], candidates[i].id))
+    return [
+        dataclasses.replace(candidates[i], rank=r + 1) for r, i in enumerate(order)
+    ]
+
+
+def candidate_json(c: Candidate) -> dict:
+    """The query's JSON shape for one candidate (lengths in the user's unit, angles in degrees,
+    fixed frame with A0 = (0, 0) and B0 = (d, 0))."""
+    sb, f = c.sixbar, c.figures
+    dyad = sb.dyad
+    pivot = [float(dyad.pivot.real), float(dyad.pivot.imag)]
+    if dyad.kind == "RRR":
+        output = {"type": "RRR", "pivot": pivot, "rocker": float(dyad.rocker), "rod": float(dyad.rod),
+                  "branch": int(dyad.branch),
+                  "dwell_position": None if c.dwell_position is None
+                  else [float(c.dwell_position.real), float(c.dwell_position.imag)]}
+    else:
+        output = {"type": "RPR", "pivot": pivot}
+    dwells = []
+    for k, d in enumerate(f.dwells):
+        dwells.append({
+            "dwell_deg": math.degrees(d.angle),
+            "interval_deg": [math.degrees(d.start), math.degrees(d.end)],
+            "output_deviation_deg": math.degrees(f.deviations[k]) if k < len(f.deviations) else None,
+        })
+    return {
+        "rank": c.rank,
+        "id": c.id,
+        "fourbar": {"a": sb.a, "b": sb.b, "c": sb.c, "d": sb.d, "branch": int(sb.branch)},
+        "coupler_point": [sb.u, sb.v],
+        "output": output,
+        "dwells": dwells,
+        "swing_deg": math.degrees(f.swing),
+        "transmission_deg": {"fourbar_min": math.degrees(f.transmission_fourbar),
+                             "output_min": math.degrees(f.transmission_output)},
+        "link_ratio": f.link_ratio,
+        "footprint": f.footprint,
+        "segment_id": c.segment_id,
+    }

@@ -1,0 +1,252 @@
+"""Output-dyad fitting: RPR slot pivots on Ball-point lines, double Ball point pivots, RRR
+dyads on circle points — each checked by the exact simulation of the resulting six-bar
+(swing to 0.01°, dwell, transmission), plus batches, refusals and no NaN/inf."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from kinematics.fourbar import fourbar_motion
+from kinematics.status import Status
+from synth import ball_point, double_ball_points, line_scan, pole
+from synth.dyad import SWING_TOL, fit_rpr, fit_rrr, rpr_double
+from synth.sixbar import SixBar, crank_grid, simulate, sixbar_figures
+
+DEG = math.pi / 180
+PHI = crank_grid(720)
+#: (a, b, c, d, branch, generating crank angle) of Grashof crank-rockers.
+FOURBARS = [(1.0, 3.0, 3.0, 3.5, 1, 1.2), (1.0, 2.5, 3.0, 3.0, -1, 4.0), (1.0, 4.0, 2.5, 3.5, 1, 2.5)]
+
+
+def _path(a, b, c, d, br, uv):
+    return fourbar_motion(a, b, c, d, PHI, br, order=0).coupler_point(uv.real, uv.imag)[0]
+
+
+def _ball_segment(a, b, c, d, br, phi0):
+    """Ball's point at φ₀: its tangent line and path (a nearly straight stretch around φ₀)."""
+    bp = ball_point(pole(fourbar_motion(a, b, c, d, phi0, br)))
+    assert bp.status == 0
+    uv = complex(bp.uv)
+    return complex(bp.point), float(np.angle(bp.tangent)), uv, _path(a, b, c, d, br, uv)
+
+
+# ---------------------------------------------------------------------------------------------
+# RPR
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("fb", FOURBARS)
+def test_rpr_on_a_ball_point_line_gives_the_swing_and_a_dwell(fb):
+    a, b, c, d, br, phi0 = fb
+    P0, delta, uv, path = _ball_segment(*fb)
+    interval = (phi0 - 0.25, phi0 + 0.25)
+    fit = fit_rpr(P0, delta, PHI, path, interval, 30 * DEG)
+    assert fit.pivot.shape == (2,)
+    dyads = fit.dyads()
+    assert dyads
+    e = np.exp(1j * delta)
+    t_dwell = ((path - P0) * np.conj(e)).real[np.abs(np.angle(np.exp(1j * (PHI - phi0)))) <= 0.25]
+    for k, dyad in zip(np.flatnonzero(fit.found), dyads):
+        D = fit.pivot[k]
+        assert dyad.pivot == D
+        assert abs(((D - P0) * np.conj(e)).imag) < 1e-12  # on the line
+        t = fit.position[k]
+        assert t > t_dwell.max() or t < t_dwell.min()  # outside the stretch
+        assert abs(fit.swing[k] - 30 * DEG) <= SWING_TOL
+        sb = SixBar(a, b, c, d, br, uv.real, uv.imag, dyad)
+        f = sixbar_figures(sb, band=0.1 * DEG, dwell_length=20 * DEG)
+        assert abs(f.swing - 30 * DEG) <= 0.01 * DEG
+        assert f.acceptable
+        (dwell,) = f.dwells
+        # the straight stretch around φ₀ is a dwell of the output
+        assert dwell.start < phi0 < dwell.end or dwell.start < phi0 + 2 * np.pi < dwell.end
+        assert dwell.angle > 30 * DEG
+        band = simulate(sb, np.linspace(phi0 - 0.1, phi0 + 0.1, 201), order=0).psi
+        assert band.max() - band.min() < 0.05 * DEG
+
+
+def test_rpr_sides_are_ordered_and_unreachable_swings_are_not_found():
+    P0, delta, _, path = _ball_segment(*FOURBARS[0])
+    fit = fit_rpr(P0, delta, PHI, path, (1.0, 1.4), np.array([5 * DEG, 170 * DEG])[:, None] * np.ones(2))
+    assert fit.pivot.shape == (2, 2, 2)
+    assert np.all(fit.position[..., 0] < fit.position[..., 1])
+    assert fit.found[0, 0].any()
+    assert not fit.found[1].any()  # 170° needs the pivot inside the stretch
+    for arr in (fit.pivot, fit.position, fit.swing, fit.clearance):
+        assert np.all(np.isfinite(arr))
+
+
+def test_rpr_batch_equals_single_fits():
+    segments = [_ball_segment(*fb) for fb in FOURBARS]
+    swings = np.array([20.0, 30.0, 45.0]) * DEG
+    intervals = np.array([fb[-1] for fb in FOURBARS])
+    batch = fit_rpr(np.array([s[0] for s in segments]), np.array([s[1] for s in segments]), PHI,
+                    np.array([s[3] for s in segments]), (intervals - 0.2, intervals + 0.2), swings)
+    for k, (P0, delta, _, path) in enumerate(segments):
+        one = fit_rpr(P0, delta, PHI, path, (intervals[k] - 0.2, intervals[k] + 0.2), swings[k])
+        np.testing.assert_array_equal(one.found, batch.found[k])
+        np.testing.assert_allclose(one.pivot, batch.pivot[k], rtol=0, atol=1e-12)
+
+
+def test_rpr_refuses_bad_input():
+    P0, delta, _, path = _ball_segment(*FOURBARS[0])
+    with pytest.raises(ValueError, match="swing"):
+        fit_rpr(P0, delta, PHI, path, (1.0, 1.4), 0.0)
+    with pytest.raises(ValueError, match="samples"):
+        fit_rpr(P0, delta, PHI, path[:100], (1.0, 1.4), 0.3)
+    with pytest.raises(ValueError, match="finite"):
+        fit_rpr(np.nan, delta, PHI, path, (1.0, 1.4), 0.3)
+    with pytest.raises(ValueError, match="end >= start"):
+        fit_rpr(P0, delta, PHI, path, (1.4, 1.0), 0.3)
+
+
+# ---------------------------------------------------------------------------------------------
+# Double Ball point
+# ---------------------------------------------------------------------------------------------
+
+
+def test_rpr_double_intersects_lines_and_flags_parallel_ones():
+    piv = rpr_double((np.array([0j, 1 + 0j, 0j]), np.array([0.0, 0.0, 0.0])),
+                     (np.array([2 + 1j, 2 + 1j, 5j]), np.array([np.pi / 2, np.pi / 4, 1e-12])))
+    assert piv.pivot[0] == pytest.approx(2 + 0j, abs=1e-15)
+    assert piv.pivot[1] == pytest.approx(1 + 0j, abs=1e-15)
+    assert piv.status.tolist() == [0, 0, Status.AT_INFINITY]
+    assert piv.found.tolist() == [True, True, False]
+    assert np.all(np.isfinite(piv.pivot))
+    assert piv.dyad((2,)) is None and piv.dyad((0,)).kind == "RPR"
+    far = rpr_double((0j, 0.0), (1j, 1e-5))  # meets 1e5 away
+    assert not far.found
+
+
+def test_double_ball_point_rpr_dwells_twice_per_turn():
+    a, b, c, d, br = 1.0, 3.0, 3.0, 3.5, 1
+    found = double_ball_points(a, b, c, d, br)
+    k = 0
+    piv = rpr_double((found.point1[k], np.angle(found.tangent1[k])), (found.point2[k], np.angle(found.tangent2[k])))
+    dyad = piv.dyad()
+    assert dyad is not None
+    sb = SixBar(a, b, c, d, br, found.uv[k].real, found.uv[k].imag, dyad)
+    f = sixbar_figures(sb, band=0.2 * DEG, dwells=2, dwell_length=20 * DEG)
+    assert f.acceptable and len(f.dwells) == 2
+    for phi_k in (found.phi1[k], found.phi2[k]):
+        assert any(dw.start < phi_k < dw.end or dw.start < phi_k + 2 * np.pi < dw.end for dw in f.dwells)
+    assert all(dw.angle > 25 * DEG for dw in f.dwells)
+    assert all(dev < 0.2 * DEG for dev in f.deviations)
+
+
+# ---------------------------------------------------------------------------------------------
+# RRR
+# ---------------------------------------------------------------------------------------------
+
+
+def _circle_segment(a, b, c, d, br, phi0, alpha):
+    scan = line_scan(pole(fourbar_motion(a, b, c, d, phi0, br)), alpha)
+    assert scan.status == 0
+    uv = complex(scan.circle_point_uv)
+    return complex(scan.center_point), float(scan.radius), uv, _path(a, b, c, d, br, uv)
+
+
+RRR_CASES = [(FOURBARS[0], 90 * DEG), (FOURBARS[0], 140 * DEG), (FOURBARS[1], 50 * DEG), (FOURBARS[2], 120 * DEG)]
+
+
+@pytest.mark.parametrize("fb,alpha", RRR_CASES)
+def test_rrr_on_a_circle_point_gives_the_swing_with_the_transmission_asked(fb, alpha):
+    a, b, c, d, br, phi0 = fb
+    C0, rho, uv, path = _circle_segment(*fb, alpha)
+    fit = fit_rrr(C0, rho, PHI, path, (phi0 - 0.2, phi0 + 0.2), 40 * DEG, 20 * DEG)
+    assert fit.pivot.shape == (3,)
+    dyads = fit.dyads()
+    assert dyads
+    mu = fit.transmission[fit.found]
+    assert np.all(np.diff(mu) <= 0)  # best first
+    for k, dyad in enumerate(dyads):
+        assert dyad.rod == rho and dyad.rocker == pytest.approx(abs(dyad.pivot - C0), rel=1e-12)
+        sb = SixBar(a, b, c, d, br, uv.real, uv.imag, dyad)
+        f = sixbar_figures(sb, band=0.2 * DEG, dwell_length=20 * DEG)
+        assert f.acceptable, f.status
+        assert abs(f.swing - 40 * DEG) <= 0.01 * DEG
+        assert f.transmission_output >= 20 * DEG - 0.01 * DEG
+        assert f.transmission_output == pytest.approx(mu[k], abs=0.01 * DEG)
+        # Q rests at C₀ at the generating instant, on the branch chosen
+        m = simulate(sb, np.array([phi0]))
+        assert abs(m.moving_pivot[0] - C0) < 1e-9
+        (dwell,) = f.dwells
+        assert dwell.start < phi0 < dwell.end or dwell.start < phi0 + 2 * np.pi < dwell.end
+
+
+def test_rrr_transmission_is_the_best_over_rocker_directions():
+    """No rocker direction on a fine scan beats the fitted one by more than the fine step allows."""
+    fb, alpha = RRR_CASES[0]
+    phi0 = fb[-1]
+    C0, rho, _, path = _circle_segment(*fb, alpha)
+    best = fit_rrr(C0, rho, PHI, path, (phi0 - 0.2, phi0 + 0.2), 40 * DEG, 20 * DEG, keep=1)
+    assert best.found[0]
+    dense = fit_rrr(C0, rho, PHI, path, (phi0 - 0.2, phi0 + 0.2), 40 * DEG, 20 * DEG, directions=360, keep=1)
+    assert best.transmission[0] >= dense.transmission[0] - 1.0 * DEG
+
+
+def test_rrr_impossible_requests_find_nothing_and_stay_finite():
+    fb, alpha = RRR_CASES[0]
+    C0, rho, _, path = _circle_segment(*fb, alpha)
+    fit = fit_rrr(C0, rho, PHI, path, (1.0, 1.4), 40 * DEG, 89 * DEG)
+    assert not fit.found.any() and fit.dyads() == []
+    tiny = fit_rrr(C0, 1e-3, PHI, path, (1.0, 1.4), 40 * DEG, 20 * DEG)  # rod cannot reach the curve
+    assert not tiny.found.any()
+    for res in (fit, tiny):
+        for arr in (res.pivot, res.rocker, res.swing, res.transmission, res.direction):
+            assert np.all(np.isfinite(arr))
+
+
+def test_rrr_batch_equals_single_fits():
+    segs = [(_circle_segment(*fb, alpha), fb[-1]) for fb, alpha in RRR_CASES]
+    C0 = np.array([s[0][0] for s in segs])
+    rho = np.array([s[0][1] for s in segs])
+    paths = np.array([s[0][3] for s in segs])
+    phi0 = np.array([s[1] for s in segs])
+    batch = fit_rrr(C0, rho, PHI, paths, (phi0 - 0.2, phi0 + 0.2), 40 * DEG, 20 * DEG)
+    assert batch.pivot.shape == (4, 3)
+    for k in range(4):
+        one = fit_rrr(C0[k], rho[k], PHI, paths[k], (phi0[k] - 0.2, phi0[k] + 0.2), 40 * DEG, 20 * DEG)
+        np.testing.assert_array_equal(one.found, batch.found[k])
+        np.testing.assert_allclose(one.pivot, batch.pivot[k], rtol=0, atol=1e-9)
+
+
+def test_rrr_refuses_bad_input():
+    fb, alpha = RRR_CASES[0]
+    C0, rho, _, path = _circle_segment(*fb, alpha)
+    with pytest.raises(ValueError, match="min_transmission"):
+        fit_rrr(C0, rho, PHI, path, (1.0, 1.4), 0.5, 0.0)
+    with pytest.raises(ValueError, match="radius"):
+        fit_rrr(C0, -1.0, PHI, path, (1.0, 1.4), 0.5, 0.3)
+    with pytest.raises(ValueError, match="swing"):
+        fit_rrr(C0, rho, PHI, path, (1.0, 1.4), 4.0, 0.3)
+
+
+# ---------------------------------------------------------------------------------------------
+# Properties: random segments give finite results, and what is found is what was asked
+# ---------------------------------------------------------------------------------------------
+
+coord = st.floats(-10.0, 10.0, allow_nan=False, allow_infinity=False)
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(coord, coord, st.floats(0.0, 2 * np.pi), st.floats(0.01, 20.0), st.floats(0.0, 2 * np.pi),
+       st.floats(0.01, 3.0), st.floats(1 * DEG, 170 * DEG), st.sampled_from(range(3)))
+def test_random_segments_give_finite_fits(x, y, delta, radius, start, span, swing, which):
+    a, b, c, d, br, _ = FOURBARS[which]
+    path = _path(a, b, c, d, br, complex(x, y) / 3)
+    rpr = fit_rpr(complex(x, y), delta, PHI, path, (start, start + span), swing)
+    rrr = fit_rrr(complex(x, y), radius, PHI, path, (start, start + span), swing, 15 * DEG)
+    for res in (rpr, rrr):
+        for name in res.__slots__:
+            arr = np.asarray(getattr(res, name))
+            if arr.dtype.kind in "fc":
+                assert np.all(np.isfinite(arr)), name
+    assert np.all(np.abs(rpr.swing[rpr.found] - swing) <= SWING_TOL)
+    assert np.all(np.abs(rrr.swing[rrr.found] - swing) <= SWING_TOL)
+    assert np.all(rrr.transmission[rrr.found] >= 15 * DEG - 1e-12)
