@@ -1,0 +1,315 @@
+"""The atlas build driver: draw the sweep once, run the missing shards, write each result.
+
+Two parts with a narrow seam between them, so that another engine (Dask distributed,
+issue #8) can be added without touching the writer:
+
+* a **shard runner** — any callable shaped like :func:`run_shards`: given the spec, the drawn
+  sweep and the shard indices to compute, it yields :class:`~atlas.shard.ShardResult` objects
+  in any order (ids are deterministic, so completion order does not matter). The local
+  runner uses the driver's process (``workers=1``) or a ``ProcessPoolExecutor``.
+* the **writer** — :func:`build_atlas`, the only code that touches the database: it takes the
+  builder lock (``db.writes``), writes every result as it arrives in its own transaction,
+  shows progress and marks the build complete.
+
+Interrupts: Ctrl-C (KeyboardInterrupt) cancels the pending shards, stops the workers and
+propagates (the CLI exits 130); every shard committed before is kept and the next run of the
+same command resumes. A kill (SIGKILL) loses at most the shards in flight: a half-written
+shard is rolled back by the database, and the dead builder's lock is taken over.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import signal
+import sys
+import time
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Protocol
+
+import atlas.shard as _shard
+from atlas.shard import ShardResult
+from atlas.sweep import SweepLinkages, SweepSpec, sweep_linkages
+
+__all__ = ["BuildSummary", "ShardRunner", "build_atlas", "run_shards"]
+
+#: While waiting on workers, the lock's heartbeat is refreshed at least this often (seconds).
+TICK_SECONDS = 10.0
+
+
+class ShardRunner(Protocol):
+    """An engine that computes shards. It must not touch the database."""
+
+    def __call__(
+        self,
+        spec: SweepSpec,
+        sweep: SweepLinkages,
+        indices: Sequence[int],
+        workers: int,
+        *,
+        tick: Callable[[], None] | None = None,
+    ) -> Iterator[ShardResult]:
+        """Yield the result of every shard in ``indices`` (any order). Call ``tick`` at least
+        every few seconds while waiting. Closing the iterator must stop all work promptly."""
+        ...
+
+
+# ---------------------------------------------------------------------------- local engine
+
+#: (spec, sweep) of a worker process, set once by :func:`_init_worker`.
+_WORKER_STATE: tuple[SweepSpec, SweepLinkages] | None = None
+
+
+def _init_worker(spec: SweepSpec, sweep: SweepLinkages) -> None:
+    global _WORKER_STATE
+    # Ctrl-C reaches the whole process group; only the driver reacts (it stops the workers),
+    # so a worker never dies half-way through a task and breaks the pool.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _WORKER_STATE = (spec, sweep)
+
+
+def _compute_in_worker(index: int) -> ShardResult:
+    assert _WORKER_STATE is not None, "worker not initialised"
+    spec, sweep = _WORKER_STATE
+    return _shard.compute_shard(spec, index, sweep)
+
+
+def _mp_context() -> multiprocessing.context.BaseContext:
+    """forkserver where available: workers start from a clean single-threaded server (no
+    fork of a process that holds threads or database connections), and die with the driver
+    (their task pipe closes). The server preloads the shard code, so workers start fast."""
+    if "forkserver" in multiprocessing.get_all_start_methods():
+        ctx = multiprocessing.get_context("forkserver")
+        ctx.set_forkserver_preload(["atlas.build"])
+        return ctx
+    return multiprocessing.get_context("spawn")
+
+
+def _stop(executor: ProcessPoolExecutor, pending: set[Future]) -> None:
+    """Cancel what has not started and terminate the workers (do not wait for a shard)."""
+    processes = list((getattr(executor, "_processes", None) or {}).values())
+    for f in pending:
+        f.cancel()
+    executor.shutdown(wait=False, cancel_futures=True)
+    for p in processes:
+        if p.is_alive():
+            p.terminate()
+    for p in processes:
+        p.join(timeout=5)
+
+
+def run_shards(
+    spec: SweepSpec,
+    sweep: SweepLinkages,
+    indices: Sequence[int],
+    workers: int = 1,
+    *,
+    tick: Callable[[], None] | None = None,
+) -> Iterator[ShardResult]:
+    """The local engine: ``workers == 1`` computes in this process, in order; more runs a
+    process pool with at most ``2 · workers`` shards in flight (results are written as they
+    come, so memory stays bounded whatever the sweep size)."""
+    indices = list(indices)
+    if workers <= 1 or len(indices) <= 1:
+        for index in indices:
+            yield _shard.compute_shard(spec, index, sweep)
+        return
+    n = min(workers, len(indices))
+    executor = ProcessPoolExecutor(max_workers=n, mp_context=_mp_context(), initializer=_init_worker, initargs=(spec, sweep))
+    todo = iter(indices)
+    pending: set[Future] = set()
+    clean = False
+    try:
+        for index in todo:
+            pending.add(executor.submit(_compute_in_worker, index))
+            if len(pending) >= 2 * n:
+                break
+        while pending:
+            done, pending = wait(pending, timeout=TICK_SECONDS, return_when=FIRST_COMPLETED)
+            if not done:
+                if tick is not None:
+                    tick()
+                continue
+            for future in done:
+                result = future.result()
+                nxt = next(todo, None)
+                if nxt is not None:  # keep the workers busy while the driver writes
+                    pending.add(executor.submit(_compute_in_worker, nxt))
+                yield result
+        clean = True
+    finally:
+        if clean:
+            executor.shutdown(wait=True)
+        else:
+            _stop(executor, pending)
+
+
+# ---------------------------------------------------------------------------- the writer
+
+
+@dataclass(frozen=True, slots=True)
+class BuildSummary:
+    """The outcome of :func:`build_atlas`.
+
+    ``linkages``, ``segments`` (kind → count) and ``dwells`` count the whole build in the
+    database; ``shards_written``, ``linkages_computed`` and ``seconds`` (wall clock) this run
+    only. ``linkages_computed`` counts (proportion, branch) pairs attempted, stored or skipped.
+    """
+
+    target: str
+    build_id: int
+    complete: bool
+    resumed: bool
+    replaced: str | None
+    n_shards: int
+    shards_done: int
+    shards_written: int
+    linkages: int
+    segments: dict[str, int]
+    dwells: int
+    linkages_computed: int
+    seconds: float
+
+    @property
+    def rate(self) -> float:
+        """Linkages computed per second of this run (0 when nothing was computed)."""
+        return self.linkages_computed / self.seconds if self.seconds > 0 and self.linkages_computed else 0.0
+
+    def line(self) -> str:
+        """The one-line report printed at the end of ``dwell atlas build``."""
+        segs = ", ".join(f"{k} {n}" for k, n in self.segments.items())
+        state = "complete" if self.complete else f"{self.shards_done}/{self.n_shards} shards"
+        if self.shards_written == 0 and self.complete:
+            return f"atlas {self.target} is already complete: {self.linkages} linkages; segments: {segs}"
+        return (
+            f"atlas {self.target} {state}: {self.linkages} linkages; segments: {segs}; "
+            f"{self.shards_written} shard(s) in {self.seconds:.1f} s ({self.rate:.0f} linkages/s)"
+        )
+
+
+def _remove_new_file(path: Path | None) -> None:
+    """Remove an SQLite file this run created (and its side files): bad input leaves no file."""
+    if path is None:
+        return
+    for p in (path, *(path.with_name(path.name + s) for s in ("-wal", "-shm", "-journal"))):
+        try:
+            p.unlink()
+        except FileNotFoundError:
+            pass
+
+
+def build_atlas(
+    target: str,
+    spec: SweepSpec,
+    *,
+    workers: int = 1,
+    replace: bool = False,
+    progress: bool | None = None,
+    runner: ShardRunner = run_shards,
+    log: Callable[[str], None] | None = None,
+) -> BuildSummary:
+    """Build (or resume) the atlas of ``spec`` at ``target`` (SQLite path or SQLAlchemy URL).
+
+    ``progress`` shows a tqdm bar on stderr (rate and ETA in linkages/s); None means "if
+    stderr is a terminal". ``log`` receives one-line notes (resuming, replacing,
+    interrupted). Errors: :class:`db.AtlasError` for an unusable atlas, a different sweep
+    without ``replace`` or a concurrent builder — then nothing was written, and a file this
+    call created is removed again.
+    """
+    from tqdm import tqdm
+
+    from db.engine import open_atlas, sqlite_path
+    from db.summary import row_counts
+    from db.writes import BuildLock, finish_build, heartbeat, open_build, release_lock, write_shard
+
+    if workers < 1:
+        raise ValueError(f"workers must be >= 1, got {workers}")
+    note = log if log is not None else (lambda _msg: None)
+    t0 = time.perf_counter()
+    path = sqlite_path(target)
+    created = path is not None and not path.exists()
+    sweep = sweep_linkages(spec)
+    n_shards = sweep.n_shards(spec.shard_size)
+    lock = BuildLock.mine()
+    try:
+        engine = open_atlas(target, create=True)
+    except BaseException:
+        if created:
+            _remove_new_file(path)
+        raise
+    try:
+        handle = open_build(
+            engine, target=target, spec_json=spec.to_json(), spec_digest=spec.digest,
+            n_shards=n_shards, lock=lock, replace=replace,
+        )
+    except BaseException:
+        engine.dispose()
+        if created:
+            _remove_new_file(path)
+        raise
+
+    holding = not handle.complete
+    written = computed = 0
+    complete = handle.complete
+    try:
+        if handle.replaced:
+            note(f"replacing the previous build of {target} ({handle.replaced})")
+        missing = [i for i in range(n_shards) if i not in handle.done]
+        if handle.resumed and missing:
+            note(f"resuming: {len(handle.done)} of {n_shards} shards already built")
+        per_shard = {i: len(sweep.shard(i, spec.shard_size)) * len(spec.branches) for i in missing}
+        show = sys.stderr.isatty() if progress is None else progress
+        bar = tqdm(total=sum(per_shard.values()), unit="linkage", unit_scale=True, desc="atlas",
+                   disable=not show or not missing, file=sys.stderr, smoothing=0.05, dynamic_ncols=True)
+        results = runner(spec, sweep, missing, workers, tick=lambda: heartbeat(engine, handle.build_id, lock.token))
+        segments = 0
+        try:
+            for result in results:
+                if result.shard_index not in per_shard:
+                    raise RuntimeError(f"shard runner returned shard {result.shard_index}, which was not asked for")
+                write_shard(engine, handle.build_id, result, lock_token=lock.token)
+                n = per_shard.pop(result.shard_index)
+                written += 1
+                computed += n
+                segments += len(result.segments)
+                bar.set_postfix(segments=segments, refresh=False)
+                bar.update(n)
+        except KeyboardInterrupt:
+            note(f"interrupted: {len(handle.done) + written} of {n_shards} shards are stored; "
+                 "run the same command again to resume")
+            raise
+        finally:
+            close = getattr(results, "close", None)
+            if close is not None:
+                close()
+            bar.close()
+        if not complete:
+            complete = finish_build(engine, handle.build_id, lock.token)
+            holding = not complete
+            if not complete:  # an engine that silently dropped shards: a bug, not input
+                raise RuntimeError(f"build {handle.build_id}: shards missing after the run: {sorted(per_shard)[:10]}")
+        linkages, segs, dwells = row_counts(engine, handle.build_id)
+        return BuildSummary(
+            target=target,
+            build_id=handle.build_id,
+            complete=complete,
+            resumed=handle.resumed,
+            replaced=handle.replaced,
+            n_shards=n_shards,
+            shards_done=len(handle.done) + written,
+            shards_written=written,
+            linkages=linkages,
+            segments=segs,
+            dwells=dwells,
+            linkages_computed=computed,
+            seconds=time.perf_counter() - t0,
+        )
+    finally:
+        if holding:
+            try:
+                release_lock(engine, handle.build_id, lock.token)
+            except Exception:  # noqa: BLE001 - never mask the error that got us here
+                pass
+        engine.dispose()

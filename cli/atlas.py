@@ -1,0 +1,126 @@
+"""``dwell atlas build`` and ``dwell atlas info``.
+
+The atlas is ``--db PATH|URL``: an SQLite file path (default ``atlas.sqlite`` in the current
+folder, or ``$DWELL_ATLAS``) or any SQLAlchemy URL (``postgresql://…``). Heavy imports (SQLAlchemy,
+scipy, tqdm) happen inside the commands: ``dwell --help`` loads this module.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from typing import Any
+
+import click
+
+__all__ = ["DEFAULT_DB", "atlas", "db_option", "sweep_spec_from_options"]
+
+#: The atlas used when neither ``--db`` nor ``$DWELL_ATLAS`` is given (relative to the cwd).
+DEFAULT_DB = "atlas.sqlite"
+
+
+def _default_workers() -> int:
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+db_option = click.option(
+    "--db", "db", default=DEFAULT_DB, show_default=True, envvar="DWELL_ATLAS", show_envvar=True, metavar="PATH|URL",
+    help="The atlas: an SQLite file or an SQLAlchemy URL.",
+)
+
+
+@click.group("atlas")
+def atlas() -> None:
+    """Build and inspect atlases of nearly straight and circular coupler-curve segments."""
+
+
+def _range(value: tuple[float, float] | None) -> tuple[float, float] | None:
+    return None if value is None or len(value) == 0 else (float(value[0]), float(value[1]))
+
+
+def sweep_spec_from_options(preset: str, overrides: dict[str, Any]):  # -> atlas.SweepSpec
+    """The preset ``preset`` with the given overrides (None values are left out).
+
+    Raises ``SweepSpecError`` (a ValueError, exit 2) naming the bad field or preset. A spec
+    with overrides is named ``<preset>+custom`` (the name does not enter the spec digest).
+    """
+    from atlas.sweep import PRESETS, SweepSpecError
+
+    if preset not in PRESETS:
+        raise SweepSpecError(f"unknown preset {preset!r} (choose from {', '.join(sorted(PRESETS))})")
+    changes = {k: v for k, v in overrides.items() if v is not None}
+    spec = PRESETS[preset]
+    if not changes:
+        return spec
+    return spec.replace(name=f"{preset}+custom", **changes)
+
+
+def _tolerances(text: str | None) -> tuple[float, ...] | None:
+    from atlas.sweep import SweepSpecError
+
+    if text is None:
+        return None
+    try:
+        return tuple(float(t) for t in text.split(","))
+    except ValueError:
+        raise SweepSpecError(f"--tolerances must be comma-separated numbers (crank lengths), got {text!r}") from None
+
+
+@atlas.command("build")
+@db_option
+@click.option("--preset", default="demo", show_default=True, help="Named sweep: demo (seconds), standard, large.")
+@click.option("--samples", type=int, default=None, help="Sobol points drawn, before the crank-rocker filter.")
+@click.option("--seed", type=int, default=None, help="Scrambling seed of the sweep.")
+@click.option("--b", "b_range", nargs=2, type=float, default=None, metavar="LOW HIGH", help="Coupler length range (crank = 1).")
+@click.option("--c", "c_range", nargs=2, type=float, default=None, metavar="LOW HIGH", help="Rocker length range (crank = 1).")
+@click.option("--d", "d_range", nargs=2, type=float, default=None, metavar="LOW HIGH", help="Ground length range (crank = 1).")
+@click.option("--crank-step", type=float, default=None, metavar="DEG", help="Crank-angle step of the candidate search.")
+@click.option("--rays", type=int, default=None, help="Scan rays through the pole per crank step.")
+@click.option("--tolerances", default=None, metavar="T1,T2,..", help="Band half-widths (crank lengths), increasing.")
+@click.option("--min-dwell", type=float, default=None, metavar="DEG", help="Shortest dwell kept.")
+@click.option("--shard-size", type=int, default=None, help="Proportions per shard (unit of work, commit and resume).")
+@click.option("--all-linkages", is_flag=True, help="Keep every proportion, not only crank-rockers.")
+@click.option("--workers", type=click.IntRange(min=1), default=None,
+              help=f"Worker processes (default: all CPUs, here {_default_workers()}).")
+@click.option("--replace", is_flag=True, help="Delete an existing build of a different sweep and rebuild.")
+@click.option("--progress/--no-progress", default=None, help="Progress bar on stderr (default: if it is a terminal).")
+def build(db, preset, samples, seed, b_range, c_range, d_range, crank_step, rays, tolerances, min_dwell, shard_size,
+          all_linkages, workers, replace, progress):
+    """Build an atlas, or resume an interrupted build of the same sweep.
+
+    Ctrl-C or a kill loses nothing that was committed: run the same command again to resume;
+    the result is identical to an uninterrupted build.
+    """
+    from atlas.build import build_atlas
+
+    spec = sweep_spec_from_options(preset, {
+        "samples": samples, "seed": seed, "b": _range(b_range), "c": _range(c_range), "d": _range(d_range),
+        "crank_step_deg": crank_step, "rays": rays, "tolerances": _tolerances(tolerances),
+        "min_dwell_deg": min_dwell, "shard_size": shard_size,
+        "crank_rockers_only": False if all_linkages else None,
+    })
+    summary = build_atlas(db, spec, workers=workers or _default_workers(), replace=replace, progress=progress,
+                          log=lambda msg: click.echo(f"dwell: {msg}", err=True))
+    click.echo(summary.line())
+
+
+@atlas.command("info")
+@db_option
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON document.")
+def info(db, as_json):
+    """What an atlas holds: linkages, segments per kind, dwell-angle coverage, build, digest."""
+    from db.engine import open_atlas
+    from db.summary import atlas_summary, format_summary
+
+    engine = open_atlas(db, readonly=True)
+    try:
+        summary = atlas_summary(engine)
+    finally:
+        engine.dispose()
+    if as_json:
+        click.echo(json.dumps(summary.to_dict(), indent=2))
+    else:
+        click.echo(format_summary(summary, db))

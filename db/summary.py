@@ -1,0 +1,214 @@
+"""What an atlas holds (``dwell atlas info``): counts, dwell-angle coverage, build, digest.
+
+Angles are reported in degrees (the user interface), lengths in crank lengths. Every kind of
+segment (``line``, ``arc``, ``double_line``) and every tolerance level of the build's sweep is
+always present, with zero counts when empty, so that consumers never have to test for keys.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from sqlalchemy import Engine, case, func, select
+
+from db.digest import content_digest
+from db.schema import Build, Dwell, Linkage, Segment, Shard
+
+__all__ = ["BIN_DEG", "KINDS", "AtlasSummary", "atlas_summary", "format_summary", "row_counts"]
+
+#: Segment kinds, in report order (the schema's CHECK constraint lists the same).
+KINDS: tuple[str, ...] = ("line", "arc", "double_line")
+#: Width of a dwell-angle histogram bin (degrees); bins cover [0°, 360°], the last one closed.
+BIN_DEG = 10.0
+_N_BINS = int(round(360.0 / BIN_DEG))
+
+
+@dataclass(frozen=True, slots=True)
+class AtlasSummary:
+    """Counts and coverage of one atlas (see :meth:`to_dict` for the JSON layout)."""
+
+    linkages: int
+    segments: dict[str, int]
+    dwells: dict[str, int]
+    #: kind → list of {level, tolerance, counts[_N_BINS], max_dwell_deg}
+    histogram: dict[str, list[dict[str, Any]]]
+    skipped: dict[str, int]
+    build: dict[str, Any] | None
+    builds: int
+    content_digest: str
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``--json`` document: ``linkages``, ``segments`` (kind → count), ``dwells``,
+        ``dwell_histogram`` ({bin_deg, edges_deg, kinds: kind → per level}), ``skipped``
+        (reason → count), ``build`` (spec, status, versions, shards_done, n_shards, …; null
+        when the atlas has no build), ``builds`` and ``content_digest``."""
+        return {
+            "linkages": self.linkages,
+            "segments": dict(self.segments),
+            "dwells": dict(self.dwells),
+            "dwell_histogram": {
+                "bin_deg": BIN_DEG,
+                "edges_deg": [BIN_DEG * i for i in range(_N_BINS + 1)],
+                "kinds": self.histogram,
+            },
+            "skipped": dict(self.skipped),
+            "build": self.build,
+            "builds": self.builds,
+            "content_digest": self.content_digest,
+        }
+
+
+def _histogram_rows(engine: Engine) -> dict[tuple[str, int], tuple[float, list[int], float]]:
+    """(kind, level) → (tolerance, counts per bin, max dwell in rad), one portable scan.
+
+    Bins are counted with ``SUM(CASE …)`` rather than ``FLOOR``/``CAST`` arithmetic, which
+    differs between SQLite (truncation) and PostgreSQL (rounding).
+    """
+    edges = [math.radians(BIN_DEG * i) for i in range(_N_BINS + 1)]
+    bins = []
+    for i in range(_N_BINS):
+        upper = Dwell.dwell_angle <= edges[i + 1] if i == _N_BINS - 1 else Dwell.dwell_angle < edges[i + 1]
+        bins.append(func.sum(case(((Dwell.dwell_angle >= edges[i]) & upper, 1), else_=0)))
+    stmt = (
+        select(Dwell.kind, Dwell.level, func.min(Dwell.tolerance), func.max(Dwell.dwell_angle), *bins)
+        .group_by(Dwell.kind, Dwell.level)
+    )
+    out = {}
+    with engine.connect() as conn:
+        for kind, level, tol, top, *counts in conn.execute(stmt):
+            out[(kind, int(level))] = (float(tol), [int(c or 0) for c in counts], float(top))
+    return out
+
+
+def row_counts(engine: Engine, build_id: int | None = None) -> tuple[int, dict[str, int], int]:
+    """(linkages, segments per kind — all kinds present —, dwells) of one build or all."""
+    links = select(Linkage.id)
+    if build_id is not None:
+        links = links.where(Linkage.build_id == build_id)
+    seg_q = select(Segment.kind, func.count()).group_by(Segment.kind)
+    dwell_q = select(func.count()).select_from(Dwell)
+    link_q = select(func.count()).select_from(Linkage)
+    if build_id is not None:
+        link_q = link_q.where(Linkage.build_id == build_id)
+        seg_q = seg_q.where(Segment.linkage_id.in_(links))
+        dwell_q = dwell_q.where(Dwell.segment_id.in_(select(Segment.id).where(Segment.linkage_id.in_(links))))
+    with engine.connect() as conn:
+        segments = dict.fromkeys(KINDS, 0)
+        segments.update({k: int(n) for k, n in conn.execute(seg_q)})
+        return int(conn.execute(link_q).scalar_one()), segments, int(conn.execute(dwell_q).scalar_one())
+
+
+def atlas_summary(engine: Engine) -> AtlasSummary:
+    """Summarise the atlas behind ``engine`` (read only)."""
+    with engine.connect() as conn:
+        linkages = conn.execute(select(func.count()).select_from(Linkage)).scalar_one()
+        segments = dict.fromkeys(KINDS, 0)
+        segments.update({k: int(n) for k, n in conn.execute(select(Segment.kind, func.count()).group_by(Segment.kind))})
+        dwells = dict.fromkeys(KINDS, 0)
+        dwells.update({k: int(n) for k, n in conn.execute(select(Dwell.kind, func.count()).group_by(Dwell.kind))})
+        builds = conn.execute(select(Build).order_by(Build.id)).all()
+        skipped: dict[str, int] = {}
+        for (text,) in conn.execute(select(Shard.skipped_json)):
+            for reason, n in json.loads(text).items():
+                skipped[reason] = skipped.get(reason, 0) + int(n)
+        shard_stats = {
+            bid: (int(n), float(sec or 0.0))
+            for bid, n, sec in conn.execute(select(Shard.build_id, func.count(), func.sum(Shard.seconds)).group_by(Shard.build_id))
+        }
+
+    build = None
+    tolerances: list[float] = []
+    if builds:
+        row = builds[-1]
+        spec = json.loads(row.spec_json)
+        tolerances = [float(t) for t in spec.get("tolerances", [])]
+        done, seconds = shard_stats.get(row.id, (0, 0.0))
+        build = {
+            "id": row.id,
+            "spec": spec,
+            "spec_digest": row.spec_digest,
+            "status": row.status,
+            "code_version": row.code_version,
+            "schema_version": row.schema_version,
+            "shards_done": done,
+            "n_shards": row.n_shards,
+            "compute_seconds": round(seconds, 3),
+            "created_at": row.created_at,
+            "finished_at": row.finished_at,
+            "builder": (
+                {"pid": row.lock_pid, "host": row.lock_host, "heartbeat": row.lock_heartbeat}
+                if row.lock_token is not None else None
+            ),
+        }
+
+    found = _histogram_rows(engine)
+    levels = sorted(set(range(len(tolerances))) | {lvl for _, lvl in found})
+    histogram: dict[str, list[dict[str, Any]]] = {}
+    for kind in KINDS:
+        per_level = []
+        for lvl in levels:
+            tol, counts, top = found.get((kind, lvl), (None, [0] * _N_BINS, None))
+            if tol is None and lvl < len(tolerances):
+                tol = tolerances[lvl]
+            per_level.append({
+                "level": lvl,
+                "tolerance": tol,
+                "counts": counts,
+                "max_dwell_deg": None if top is None else math.degrees(top),
+            })
+        histogram[kind] = per_level
+
+    return AtlasSummary(
+        linkages=int(linkages),
+        segments=segments,
+        dwells=dwells,
+        histogram=histogram,
+        skipped=dict(sorted(skipped.items())),
+        build=build,
+        builds=len(builds),
+        content_digest=content_digest(engine),
+    )
+
+
+def format_summary(summary: AtlasSummary, target: str) -> str:
+    """A readable multi-line text of ``summary`` (no trailing newline)."""
+    lines = [f"atlas {target}"]
+    b = summary.build
+    if b is None:
+        lines.append("build: none (an empty atlas)")
+    else:
+        spec = b["spec"]
+        lines.append(
+            f"build {b['id']}: {b['status']}, {b['shards_done']}/{b['n_shards']} shards, "
+            f"sweep {spec.get('name', '?')} (digest {b['spec_digest'][:12]}), "
+            f"dwell-atlas {b['code_version']}, schema {b['schema_version']}"
+        )
+        lines.append(
+            "sweep: "
+            + ", ".join(f"{k}={spec[k]}" for k in ("samples", "seed", "b", "c", "d", "crank_rockers_only", "branches",
+                                                   "crank_step_deg", "rays", "tolerances", "min_dwell_deg", "shard_size")
+                        if k in spec)
+        )
+        if b["builder"] is not None:
+            lines.append(f"builder: pid {b['builder']['pid']} on {b['builder']['host']}")
+    if summary.builds > 1:
+        lines.append(f"note: {summary.builds} builds in this atlas; the last one is shown, counts cover all")
+    lines.append(f"linkages: {summary.linkages}")
+    lines.append("segments: " + ", ".join(f"{k} {n}" for k, n in summary.segments.items()))
+    lines.append("dwells: " + ", ".join(f"{k} {n}" for k, n in summary.dwells.items()))
+    lines.append(f"dwell angles (dwell intervals per {BIN_DEG:g}° bin, by tolerance):")
+    for kind, levels in summary.histogram.items():
+        for lvl in levels:
+            tol = "?" if lvl["tolerance"] is None else f"{lvl['tolerance']:g}"
+            bins = [f"{BIN_DEG * i:g}-{BIN_DEG * (i + 1):g}°:{n}" for i, n in enumerate(lvl["counts"]) if n]
+            top = "" if lvl["max_dwell_deg"] is None else f" (max {lvl['max_dwell_deg']:.1f}°)"
+            lines.append(f"  {kind:<11} tol {tol:<7} {' '.join(bins) if bins else '-'}{top}")
+    if summary.skipped:
+        lines.append("skipped: " + "; ".join(f"{reason}: {n}" for reason, n in summary.skipped.items()))
+    else:
+        lines.append("skipped: none")
+    lines.append(f"content digest: {summary.content_digest}")
+    return "\n".join(lines)

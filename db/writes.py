@@ -1,0 +1,391 @@
+"""Writes of an atlas build: the build row, its builder lock, one transaction per shard.
+
+Invariants
+----------
+* **A shard is all or nothing.** :func:`write_shard` inserts a shard's linkage, segment and
+  dwell rows *and* its shard row in one transaction; a shard row therefore means "every row
+  of this shard is here". Resume = compute the shards without a shard row.
+* **An atlas holds one build.** A different sweep (by spec digest, the preset name is
+  ignored) is refused unless ``replace`` is given; replacing deletes the old build's rows in
+  the same transaction that creates the new build row.
+* **One writer per build.** The builder lock is a row lock kept in the ``build`` table
+  (``lock_token``, ``lock_pid``, ``lock_host``, ``lock_heartbeat``), not SQLite's file lock, so
+  it works the same on PostgreSQL and survives between transactions. It is taken and every
+  shard is written by compare-and-swap on ``lock_token`` (``UPDATE … WHERE lock_token = ours``
+  first in the transaction), so even two builders that both believe they hold it can never
+  both write: the loser's next shard fails with :class:`LockLostError` and is rolled back.
+
+  A lock is *dead* (and is taken over silently) when its holder is on this host and its pid
+  no longer runs (a zombie counts as dead), or its heartbeat is older than
+  :data:`STALE_SECONDS` (another host, whose pids we cannot see), or older than
+  :data:`PID_REUSE_SECONDS` on this host (the pid was reused by an unrelated process). So a
+  killed build on the same machine is resumable at once, a killed build on another machine
+  after :data:`STALE_SECONDS`.
+
+Nothing here imports ``atlas``: a shard result is anything shaped like :class:`ShardRows`.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import socket
+import time
+import uuid
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from typing import Any, Protocol
+
+from sqlalchemy import Connection, Engine, delete, func, insert, select, update
+from sqlalchemy.exc import IntegrityError
+
+from db.engine import AtlasError
+from db.schema import SCHEMA_VERSION, Build, Dwell, Linkage, Segment, Shard
+
+__all__ = [
+    "PID_REUSE_SECONDS",
+    "STALE_SECONDS",
+    "BuildHandle",
+    "BuildLock",
+    "LockLostError",
+    "ShardRows",
+    "ShardWriteError",
+    "code_version",
+    "finish_build",
+    "heartbeat",
+    "open_build",
+    "release_lock",
+    "write_shard",
+]
+
+#: A lock held from another host is dead when its heartbeat is older than this (seconds).
+#: Heartbeats come with every shard commit and, while waiting on workers, every few seconds.
+STALE_SECONDS = 300.0
+#: On this host a live pid keeps a lock alive unless its heartbeat is older than this: then
+#: the pid has been reused by some unrelated process.
+PID_REUSE_SECONDS = 3600.0
+
+
+class ShardWriteError(RuntimeError):
+    """A shard's rows could not be stored (a bug upstream: NaN/inf, a duplicate id, …).
+
+    The whole shard was rolled back; nothing of it is in the database.
+    """
+
+
+class LockLostError(AtlasError):
+    """Another builder took this build's lock over (ours was seen as dead)."""
+
+
+class ShardRows(Protocol):
+    """What :func:`write_shard` needs of a shard result (``atlas.shard.ShardResult``)."""
+
+    shard_index: int
+    linkages: list[dict[str, Any]]
+    segments: list[dict[str, Any]]
+    dwells: list[dict[str, Any]]
+    skipped: dict[str, int]
+    seconds: float
+
+
+@dataclass(frozen=True, slots=True)
+class BuildLock:
+    """This process's claim on a build: a random token plus who we are (for messages)."""
+
+    token: str
+    pid: int
+    host: str
+
+    @classmethod
+    def mine(cls) -> BuildLock:
+        return cls(uuid.uuid4().hex, os.getpid(), socket.gethostname())
+
+
+@dataclass(frozen=True, slots=True)
+class BuildHandle:
+    """The build a builder works on, as found or created by :func:`open_build`.
+
+    ``done`` holds the shard indices already written; ``resumed`` is True when some were;
+    ``replaced`` describes the build that ``replace`` deleted (None if none); ``complete``
+    is True when there is nothing left to do (then no lock is held).
+    """
+
+    build_id: int
+    n_shards: int
+    done: frozenset[int]
+    resumed: bool
+    complete: bool
+    replaced: str | None = None
+
+
+def code_version() -> str:
+    """The installed package version (``importlib.metadata``); no git involved."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("dwell-atlas")
+    except PackageNotFoundError:  # running from a source tree that was never installed
+        return "unknown"
+
+
+def _now_iso() -> str:
+    return datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+
+
+def _pid_alive(pid: int) -> bool:
+    """True if ``pid`` runs on this host (a zombie — killed, not yet reaped — is dead)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # exists, owned by someone else
+        return True
+    except OSError:
+        return False
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as fh:
+            # state is the field after the parenthesised command name (which may hold spaces)
+            state = fh.read().rsplit(b")", 1)[1].split()[0]
+        return state not in (b"Z", b"X")
+    except (OSError, IndexError):
+        return True  # no /proc (macOS …): the signal test above is all we have
+
+
+def _lock_alive(row: Any, now: float) -> bool:
+    """Whether the lock recorded in build ``row`` belongs to a process that still runs."""
+    if row.lock_token is None:
+        return False
+    age = now - (row.lock_heartbeat if row.lock_heartbeat is not None else -math.inf)
+    if row.lock_host == socket.gethostname() and row.lock_pid is not None:
+        return _pid_alive(int(row.lock_pid)) and age < PID_REUSE_SECONDS
+    return age < STALE_SECONDS
+
+
+def _describe_holder(target: str, row: Any, now: float) -> str:
+    age = now - row.lock_heartbeat if row.lock_heartbeat is not None else float("nan")
+    return (
+        f"atlas {target!r} is being built by another process (pid {row.lock_pid} on {row.lock_host}, "
+        f"last heartbeat {age:.0f} s ago); wait for it to finish or stop it"
+    )
+
+
+def _describe_spec(spec_json: str, spec_digest: str) -> str:
+    try:
+        name = json.loads(spec_json).get("name", "?")
+    except (ValueError, AttributeError):
+        name = "?"
+    return f"preset {name}, digest {spec_digest[:8]}…"
+
+
+def _take_lock(conn: Connection, row: Any, lock: BuildLock, target: str) -> None:
+    """Compare-and-swap ``row``'s lock (as read) for ours; refuse if someone was faster."""
+    old = Build.lock_token.is_(None) if row.lock_token is None else Build.lock_token == row.lock_token
+    res = conn.execute(
+        update(Build)
+        .where(Build.id == row.id, old)
+        .values(lock_token=lock.token, lock_pid=lock.pid, lock_host=lock.host, lock_heartbeat=time.time())
+    )
+    if res.rowcount != 1:
+        raise AtlasError(f"atlas {target!r} is being built by another process (it took the lock just now); wait for it to finish")
+
+
+def _delete_rows(conn: Connection, build_id: int, *, unfinished_only: bool = False) -> None:
+    """Delete a build's linkage, segment and dwell rows (with ``unfinished_only``, only those
+    of shards that have no shard row)."""
+    links = select(Linkage.id).where(Linkage.build_id == build_id)
+    if unfinished_only:
+        # a subquery, not a literal list: thousands of shards would exceed SQLite's parameter limit
+        links = links.where(Linkage.shard_index.not_in(select(Shard.shard_index).where(Shard.build_id == build_id)))
+    segs = select(Segment.id).where(Segment.linkage_id.in_(links))
+    conn.execute(delete(Dwell).where(Dwell.segment_id.in_(segs)))
+    conn.execute(delete(Segment).where(Segment.linkage_id.in_(links)))
+    conn.execute(delete(Linkage).where(Linkage.id.in_(links)))
+
+
+def open_build(
+    engine: Engine,
+    *,
+    target: str,
+    spec_json: str,
+    spec_digest: str,
+    n_shards: int,
+    lock: BuildLock,
+    replace: bool = False,
+) -> BuildHandle:
+    """Create the build of ``spec_digest`` or resume it, taking the builder lock.
+
+    Refuses (:class:`AtlasError`, nothing changed) a different sweep unless ``replace``, a
+    build locked by a live builder, and resuming a build half-made by another code version.
+    With ``replace`` every existing build (same sweep or not) is deleted and rebuilt.
+    On resume the rows of shards without a shard row are deleted first (there should be
+    none, shards are atomic: this is a defence against a writer that was not).
+    """
+    if not 1 <= n_shards:
+        raise ValueError(f"n_shards must be >= 1, got {n_shards}")
+    now = time.time()
+    with engine.connect() as conn:
+        builds = conn.execute(select(Build).order_by(Build.id)).all()
+    for row in builds:
+        if row.lock_token is not None and row.lock_token != lock.token and _lock_alive(row, now):
+            if replace or row.spec_digest == spec_digest:
+                raise AtlasError(_describe_holder(target, row, now))
+    others = [r for r in builds if r.spec_digest != spec_digest]
+    if others and not replace:
+        old = others[0]
+        raise AtlasError(
+            f"atlas {target!r} was built with a different sweep ({_describe_spec(old.spec_json, old.spec_digest)}); "
+            "use --replace to rebuild it"
+        )
+    same = next((r for r in builds if r.spec_digest == spec_digest), None)
+    version = code_version()
+
+    if replace and builds:
+        replaced = "; ".join(_describe_spec(r.spec_json, r.spec_digest) for r in builds)
+        with engine.begin() as conn:
+            for row in builds:
+                _take_lock(conn, row, lock, target)  # first: fails fast if a builder sneaked in
+            for row in builds:
+                _delete_rows(conn, row.id)
+                conn.execute(delete(Shard).where(Shard.build_id == row.id))
+                conn.execute(delete(Build).where(Build.id == row.id))
+            build_id = _insert_build(conn, spec_json, spec_digest, n_shards, lock, version)
+        return BuildHandle(build_id, n_shards, frozenset(), resumed=False, complete=False, replaced=replaced)
+
+    if same is None:
+        try:
+            with engine.begin() as conn:
+                build_id = _insert_build(conn, spec_json, spec_digest, n_shards, lock, version)
+        except IntegrityError:  # a concurrent builder created the same build a moment ago
+            raise AtlasError(f"atlas {target!r} is being built by another process (it started just now); wait for it to finish") from None
+        return BuildHandle(build_id, n_shards, frozenset(), resumed=False, complete=False)
+
+    if same.n_shards != n_shards:  # same spec digest ⇒ same sweep: a different count is a bug
+        raise AtlasError(f"atlas {target!r} records {same.n_shards} shards for this sweep, this code makes {n_shards}; use --replace")
+    with engine.connect() as conn:
+        done = frozenset(conn.execute(select(Shard.shard_index).where(Shard.build_id == same.id)).scalars())
+    if same.status == "complete":
+        return BuildHandle(same.id, n_shards, done, resumed=True, complete=True)
+    if same.code_version != version:
+        raise AtlasError(
+            f"atlas {target!r} was partly built by dwell-atlas {same.code_version} (this is {version}); "
+            "use --replace to rebuild it"
+        )
+    with engine.begin() as conn:
+        _take_lock(conn, same, lock, target)
+        _delete_rows(conn, same.id, unfinished_only=True)
+    return BuildHandle(same.id, n_shards, done, resumed=bool(done), complete=False)
+
+
+def _insert_build(conn: Connection, spec_json: str, spec_digest: str, n_shards: int, lock: BuildLock, version: str) -> int:
+    res = conn.execute(
+        insert(Build).values(
+            spec_json=spec_json,
+            spec_digest=spec_digest,
+            code_version=version,
+            schema_version=SCHEMA_VERSION,
+            status="building",
+            n_shards=n_shards,
+            created_at=_now_iso(),
+            lock_token=lock.token,
+            lock_pid=lock.pid,
+            lock_host=lock.host,
+            lock_heartbeat=time.time(),
+        )
+    )
+    return int(res.inserted_primary_key[0])
+
+
+def _assert_lock(conn: Connection, build_id: int, token: str) -> None:
+    """Refresh our heartbeat; a write first, so it also takes SQLite's write lock at once."""
+    res = conn.execute(
+        update(Build).where(Build.id == build_id, Build.lock_token == token).values(lock_heartbeat=time.time())
+    )
+    if res.rowcount != 1:
+        raise LockLostError(
+            f"build {build_id} was taken over by another builder (this one was seen as dead); this builder stops"
+        )
+
+
+def heartbeat(engine: Engine, build_id: int, token: str) -> None:
+    """Refresh the lock's heartbeat (call every few seconds while waiting on workers)."""
+    with engine.begin() as conn:
+        _assert_lock(conn, build_id, token)
+
+
+def _first_nonfinite(rows: list[dict[str, Any]]) -> tuple[int, str, float] | None:
+    for i, row in enumerate(rows):
+        for key, value in row.items():
+            if isinstance(value, float) and not math.isfinite(value):
+                return i, key, value
+    return None
+
+
+def write_shard(engine: Engine, build_id: int, result: ShardRows, *, lock_token: str | None = None) -> None:
+    """Store one shard — linkages, segments, dwells and the shard row — in ONE transaction.
+
+    Bulk Core ``insert()`` executemany per table. With ``lock_token`` the transaction first
+    checks (and refreshes) our builder lock. Any failure rolls back the whole shard: a NaN or
+    inf (checked here, because SQLite would turn NaN into NULL and a nullable column would
+    silently take it) or a constraint violation raises :class:`ShardWriteError`.
+    """
+    index = int(result.shard_index)
+    for table, rows in (("linkage", result.linkages), ("segment", result.segments), ("dwell", result.dwells)):
+        bad = _first_nonfinite(rows)
+        if bad is not None:
+            i, key, value = bad
+            raise ShardWriteError(f"shard {index}: {table} row {i} has {key}={value!r}; nothing of the shard was written")
+    if not math.isfinite(result.seconds):
+        raise ShardWriteError(f"shard {index}: seconds={result.seconds!r}; nothing of the shard was written")
+    linkages = [{**row, "build_id": build_id} for row in result.linkages]
+    shard_row = dict(
+        build_id=build_id,
+        shard_index=index,
+        n_linkages=len(result.linkages),
+        n_segments=len(result.segments),
+        skipped_json=json.dumps(dict(sorted(result.skipped.items())), sort_keys=True),
+        seconds=float(result.seconds),
+    )
+    try:
+        with engine.begin() as conn:
+            if lock_token is not None:
+                _assert_lock(conn, build_id, lock_token)
+            if linkages:
+                conn.execute(insert(Linkage), linkages)
+            if result.segments:
+                conn.execute(insert(Segment), result.segments)
+            if result.dwells:
+                conn.execute(insert(Dwell), result.dwells)
+            conn.execute(insert(Shard), [shard_row])
+    except IntegrityError as exc:
+        first = str(exc.orig).splitlines()[0] if exc.orig is not None else str(exc)
+        raise ShardWriteError(f"shard {index} of build {build_id} rolled back: {first}") from exc
+
+
+def finish_build(engine: Engine, build_id: int, token: str) -> bool:
+    """Mark the build complete and release the lock if every shard is written.
+
+    Returns True when it was complete; otherwise only the heartbeat is refreshed.
+    """
+    with engine.begin() as conn:
+        _assert_lock(conn, build_id, token)
+        n_shards = conn.execute(select(Build.n_shards).where(Build.id == build_id)).scalar_one()
+        done = conn.execute(select(func.count()).select_from(Shard).where(Shard.build_id == build_id)).scalar_one()
+        if done < n_shards:
+            return False
+        conn.execute(
+            update(Build)
+            .where(Build.id == build_id)
+            .values(status="complete", finished_at=_now_iso(), lock_token=None, lock_pid=None, lock_host=None, lock_heartbeat=None)
+        )
+    return True
+
+
+def release_lock(engine: Engine, build_id: int, token: str) -> None:
+    """Give the lock up (no-op if it is not ours any more)."""
+    with engine.begin() as conn:
+        conn.execute(
+            update(Build)
+            .where(Build.id == build_id, Build.lock_token == token)
+            .values(lock_token=None, lock_pid=None, lock_host=None, lock_heartbeat=None)
+        )

@@ -1,0 +1,178 @@
+"""The build driver: same content whatever the workers, order or interruptions; resume."""
+
+from __future__ import annotations
+
+import hashlib
+import multiprocessing
+import sqlite3
+import time
+from dataclasses import replace
+
+import pytest
+
+import atlas.build as build_mod
+from atlas import SweepSpec, sweep_linkages
+from atlas.build import build_atlas, run_shards
+from atlas.shard import compute_shard
+from db import AtlasError, open_atlas
+from db.digest import content_digest
+from db.writes import ShardWriteError
+
+#: a small sweep with demo-like search settings: a few dozen linkages in several shards
+SPEC = SweepSpec(name="test", b=(1.5, 4.5), c=(1.5, 4.5), d=(1.5, 4.5), samples=64, crank_step_deg=3.0, rays=24,
+                 shard_size=8)
+N_SHARDS = sweep_linkages(SPEC).n_shards(SPEC.shard_size)
+
+
+def digest_of(path) -> str:
+    engine = open_atlas(str(path), readonly=True)
+    try:
+        return content_digest(engine)
+    finally:
+        engine.dispose()
+
+
+def shard_rows(path) -> dict[int, tuple]:
+    con = sqlite3.connect(path)
+    try:
+        return {r[0]: r for r in con.execute("select shard_index, n_linkages, n_segments, skipped_json, seconds from shard")}
+    finally:
+        con.close()
+
+
+def build_row(path) -> tuple:
+    con = sqlite3.connect(path)
+    try:
+        return con.execute("select status, lock_token, n_shards from build").fetchone()
+    finally:
+        con.close()
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """An uninterrupted in-process build of SPEC and the rows computed directly."""
+    path = tmp_path_factory.mktemp("ref") / "ref.sqlite"
+    summary = build_atlas(str(path), SPEC, workers=1, progress=False)
+    sweep = sweep_linkages(SPEC)
+    direct = [compute_shard(SPEC, i, sweep) for i in range(sweep.n_shards(SPEC.shard_size))]
+    return path, summary, digest_of(path), direct
+
+
+def test_uninterrupted_build_matches_the_shards(reference):
+    path, summary, digest, direct = reference
+    assert N_SHARDS >= 4  # enough to interrupt in the middle
+    assert summary.complete and not summary.resumed and summary.n_shards == len(direct) == N_SHARDS
+    assert summary.shards_written == summary.shards_done == N_SHARDS
+    assert summary.linkages == sum(len(r.linkages) for r in direct) > 0
+    assert summary.linkages_computed == 2 * len(sweep_linkages(SPEC))
+    for kind in ("line", "arc", "double_line"):
+        assert summary.segments[kind] == sum(1 for r in direct for s in r.segments if s["kind"] == kind)
+    assert summary.dwells == sum(len(r.dwells) for r in direct)
+    assert build_row(path) == ("complete", None, N_SHARDS)
+    assert len(digest) == 64 and int(digest, 16) >= 0
+
+
+def test_two_workers_give_the_same_content(tmp_path, reference):
+    path = tmp_path / "two.sqlite"
+    summary = build_atlas(str(path), SPEC, workers=2, progress=False)
+    assert summary.complete and summary.linkages == reference[1].linkages
+    assert digest_of(path) == reference[2]
+    assert multiprocessing.active_children() == []  # the pool is gone
+
+
+def test_completion_order_does_not_matter(tmp_path, reference):
+    def backwards(spec, sweep, indices, workers, *, tick=None):
+        yield from reversed(list(run_shards(spec, sweep, indices, 1)))
+
+    path = tmp_path / "rev.sqlite"
+    build_atlas(str(path), SPEC, runner=backwards, progress=False)
+    assert digest_of(path) == reference[2]
+
+
+def stop_after(k: int):
+    """A runner that delivers k shards, then behaves as if Ctrl-C were pressed."""
+
+    def runner(spec, sweep, indices, workers, *, tick=None):
+        for n, result in enumerate(run_shards(spec, sweep, indices, workers)):
+            if n == k:
+                raise KeyboardInterrupt
+            yield result
+
+    return runner
+
+
+def test_interrupt_keeps_committed_shards_and_resume_gives_the_same_content(tmp_path, reference):
+    path = tmp_path / "int.sqlite"
+    notes: list[str] = []
+    with pytest.raises(KeyboardInterrupt):
+        build_atlas(str(path), SPEC, runner=stop_after(2), progress=False, log=notes.append)
+    assert notes == [f"interrupted: 2 of {N_SHARDS} shards are stored; run the same command again to resume"]
+    kept = shard_rows(path)
+    assert sorted(kept) == [0, 1]
+    assert build_row(path) == ("building", None, N_SHARDS)  # the lock was released
+    notes.clear()
+    summary = build_atlas(str(path), SPEC, workers=2, progress=False, log=notes.append)
+    assert notes == [f"resuming: 2 of {N_SHARDS} shards already built"]
+    assert summary.resumed and summary.shards_written == N_SHARDS - 2 and summary.complete
+    after = shard_rows(path)
+    assert {i: after[i] for i in kept} == kept  # committed shards were not recomputed
+    assert digest_of(path) == reference[2]
+
+
+def test_a_bad_shard_is_rolled_back_and_the_others_kept(tmp_path, reference):
+    def poisoned(spec, sweep, indices, workers, *, tick=None):
+        for result in run_shards(spec, sweep, indices, 1):
+            if result.shard_index == 2:
+                bad = [dict(r) for r in result.linkages]
+                bad[-1]["transmission_max"] = float("nan")
+                result = replace(result, linkages=bad)
+            yield result
+
+    path = tmp_path / "bad.sqlite"
+    with pytest.raises(ShardWriteError, match="shard 2: linkage row .* transmission_max=nan"):
+        build_atlas(str(path), SPEC, runner=poisoned, progress=False)
+    assert sorted(shard_rows(path)) == [0, 1]
+    con = sqlite3.connect(path)
+    assert con.execute("select count(*) from linkage where shard_index >= 2").fetchone() == (0,)
+    con.close()
+    build_atlas(str(path), SPEC, progress=False)
+    assert digest_of(path) == reference[2]
+
+
+def test_a_complete_atlas_is_not_rebuilt(reference):
+    path = reference[0]
+    before = hashlib.sha256(path.read_bytes()).hexdigest()
+    summary = build_atlas(str(path), SPEC.replace(name="renamed"), progress=False)  # the name is not content
+    assert summary.complete and summary.shards_written == 0 and summary.linkages == reference[1].linkages
+    assert summary.line().startswith(f"atlas {path} is already complete: {summary.linkages} linkages")
+    assert hashlib.sha256(path.read_bytes()).hexdigest() == before
+
+
+def test_closing_the_pool_stops_the_workers_promptly():
+    sweep = sweep_linkages(SPEC)
+    results = run_shards(SPEC, sweep, range(N_SHARDS), 2)
+    first = next(results)
+    assert first.shard_index in range(N_SHARDS)
+    t0 = time.perf_counter()
+    results.close()
+    assert time.perf_counter() - t0 < 5
+    assert multiprocessing.active_children() == []
+
+
+def test_a_refused_build_leaves_no_new_file(tmp_path, monkeypatch):
+    import db.writes
+
+    def refuse(*args, **kwargs):
+        raise AtlasError("refused")
+
+    monkeypatch.setattr(db.writes, "open_build", refuse)
+    with pytest.raises(AtlasError, match="refused"):
+        build_atlas(str(tmp_path / "new.sqlite"), SPEC, progress=False)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_workers_must_be_positive(tmp_path):
+    with pytest.raises(ValueError, match="workers"):
+        build_atlas(str(tmp_path / "x.sqlite"), SPEC, workers=0)
+    assert list(tmp_path.iterdir()) == []
+    assert build_mod.TICK_SECONDS > 0

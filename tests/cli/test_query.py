@@ -1,0 +1,151 @@
+"""``dwell query`` on a small built atlas: every returned candidate re-simulated independently.
+
+The independent simulation is the plain per-angle loop of ``tests/synth/test_sixbar.py``
+(circle intersections with cmath, no numpy, no code of ``synth``), at 0.05° steps; its dwell
+is the longest run of samples within the band (so it may be up to one step shorter).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+
+import pytest
+
+from atlas.build import build_atlas
+from atlas.sweep import PRESETS
+from cli.main import main
+from synth.sixbar import OutputDyad, SixBar
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "synth"))
+from test_sixbar import reference_psi  # noqa: E402  (the independent per-angle loop)
+
+SPEC = PRESETS["demo"].replace(samples=384)
+STEP = 0.05  # degrees
+
+
+@pytest.fixture(scope="module")
+def atlas_path(tmp_path_factory) -> str:
+    path = str(tmp_path_factory.mktemp("atlas") / "demo.sqlite")
+    build_atlas(path, SPEC, workers=1, progress=False)
+    return path
+
+
+def run(capsys, *args):
+    code = main(list(args))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _independent(doc: dict, band_deg: float) -> dict:
+    fb, out = doc["fourbar"], doc["output"]
+    if out["type"] == "RRR":
+        dyad = OutputDyad.rrr(complex(*out["pivot"]), out["rocker"], out["rod"], out["branch"])
+    else:
+        dyad = OutputDyad.rpr(complex(*out["pivot"]))
+    sb = SixBar(fb["a"], fb["b"], fb["c"], fb["d"], fb["branch"], *doc["coupler_point"], dyad)
+    n = round(360 / STEP)
+    psi, prev = [], None
+    for k in range(n):
+        got = reference_psi(sb, math.radians(k * STEP))
+        assert got is not None, "the six-bar must assemble over the whole turn"
+        p = got[0]
+        if prev is not None:  # unwrap
+            p += 2 * math.pi * round((prev - p) / (2 * math.pi))
+        psi.append(p)
+        prev = p
+    swing = math.degrees(max(psi) - min(psi))
+    # longest cyclic run of samples within a band of total width band_deg
+    band = math.radians(band_deg)
+    best, ext = 0, psi + psi
+    j = 0
+    for i in range(len(ext)):
+        j = max(j, i)
+        while j < min(len(ext), i + n) and max(ext[i : j + 1]) - min(ext[i : j + 1]) <= band:
+            j += 1
+        best = max(best, j - i)
+        if best >= n:
+            break
+    return {"swing_deg": swing, "dwell_deg": (best - 1) * STEP}
+
+
+def test_rpr_request_candidates_resimulated_independently(capsys, atlas_path):
+    code, out, err = run(capsys, "query", "--db", atlas_path, "--dwell", "45", "--swing", "40", "--output", "rpr",
+                         "--top", "3", "--json")
+    assert code == 0, err
+    doc = json.loads(out)
+    assert doc["request"]["dwell_deg"] == 45
+    cands = doc["candidates"]
+    assert cands, "the demo sweep must answer an RPR 45°/40° request"
+    for rank, cand in enumerate(cands, start=1):
+        assert cand["rank"] == rank
+        assert set(cand) >= {"rank", "id", "fourbar", "coupler_point", "output", "dwells", "swing_deg",
+                             "transmission_deg", "link_ratio", "segment_id"}
+        assert cand["output"]["type"] == "RPR"
+        assert abs(cand["dwells"][0]["dwell_deg"] - 45) <= 2
+        assert abs(cand["swing_deg"] - 40) <= 0.5
+        assert cand["transmission_deg"]["fourbar_min"] >= 30
+        ref = _independent(cand, 0.1)
+        assert ref["swing_deg"] == pytest.approx(cand["swing_deg"], abs=0.01)
+        # the sampled run is at most two steps shorter than the refined dwell, and the refined
+        # ends are within 0.01° each of the true ones
+        assert cand["dwells"][0]["dwell_deg"] - 2 * STEP <= ref["dwell_deg"] <= cand["dwells"][0]["dwell_deg"] + 0.02
+
+
+def test_double_dwell_request(capsys, atlas_path):
+    code, out, err = run(capsys, "query", "--db", atlas_path, "--dwell", "30", "--dwell-tol", "5", "--dwells", "2",
+                         "--json")
+    assert code == 0, err
+    cands = json.loads(out)["candidates"]
+    for cand in cands:
+        assert len(cand["dwells"]) == 2
+        for dw in cand["dwells"]:
+            assert abs(dw["dwell_deg"] - 30) <= 5
+        ref = _independent(cand, 0.1)
+        assert ref["swing_deg"] == pytest.approx(cand["swing_deg"], abs=0.01)
+
+
+def test_table_output_and_no_match(capsys, atlas_path):
+    code, out, err = run(capsys, "query", "--db", atlas_path, "--dwell", "45", "--swing", "40", "--output", "rpr",
+                         "--top", "2")
+    assert code == 0, err
+    assert "rank" in out and "RPR" in out
+    code, out, err = run(capsys, "query", "--db", atlas_path, "--dwell", "300", "--swing", "40", "--json")
+    assert code == 0
+    assert json.loads(out)["candidates"] == []
+    assert "no six-bar meets the request" in err
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--dwell", "0", "--swing", "30"], "--dwell"),
+        (["--dwell", "360", "--swing", "30"], "--dwell"),
+        (["--dwell", "60", "--swing", "0"], "--swing"),
+        (["--dwell", "60", "--swing", "180"], "--swing"),
+        (["--dwell", "60", "--swing", "30", "--output", "rrp"], "--output"),
+        (["--dwell", "60"], "--swing is required"),
+    ],
+)
+def test_bad_requests_exit_2_with_one_line(capsys, atlas_path, args, message):
+    code, out, err = run(capsys, "query", "--db", atlas_path, *args)
+    assert code == 2
+    assert out == ""
+    assert len(err.strip().splitlines()) == 1 and message in err
+
+
+def test_missing_or_foreign_database(capsys, tmp_path):
+    code, _, err = run(capsys, "query", "--db", str(tmp_path / "none.sqlite"), "--dwell", "60", "--swing", "30")
+    assert code == 2 and "no atlas" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "none.sqlite").exists()
+    foreign = tmp_path / "foreign.sqlite"
+    import sqlite3
+
+    with sqlite3.connect(foreign) as con:
+        con.execute("CREATE TABLE t (x)")
+    before = foreign.read_bytes()
+    code, _, err = run(capsys, "query", "--db", str(foreign), "--dwell", "60", "--swing", "30")
+    assert code == 2 and "another application" in err
+    assert foreign.read_bytes() == before

@@ -1,0 +1,221 @@
+"""Build writes: one transaction per shard, resume, one build per atlas, the builder lock."""
+
+from __future__ import annotations
+
+import json
+import os
+import socket
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import pytest
+from sqlalchemy import func, insert, select, update
+
+from db import AtlasError, Build, Dwell, Linkage, Segment, Shard, open_atlas
+from db.writes import (
+    STALE_SECONDS,
+    BuildLock,
+    LockLostError,
+    ShardWriteError,
+    code_version,
+    finish_build,
+    open_build,
+    release_lock,
+    write_shard,
+)
+
+SPEC_A = json.dumps({"name": "demo", "samples": 8})
+SPEC_B = json.dumps({"name": "other", "samples": 9})
+DIGEST_A = "a" * 64
+DIGEST_B = "b" * 64
+
+
+@dataclass(frozen=True)
+class Rows:
+    """A hand-made shard result (the ShardRows protocol)."""
+
+    shard_index: int
+    linkages: list[dict[str, Any]]
+    segments: list[dict[str, Any]]
+    dwells: list[dict[str, Any]]
+    skipped: dict[str, int] = field(default_factory=dict)
+    seconds: float = 0.25
+
+
+def shard_rows(index: int, *, radius: float | None = 2.0, dwell_angle: float = 0.5) -> Rows:
+    """One linkage with one arc segment and one dwell; ids follow atlas.shard's scheme."""
+    lid = 2 * index + 1
+    sid = lid * 100_000
+    return Rows(
+        shard_index=index,
+        linkages=[dict(id=lid, shard_index=index, sweep_index=index, b=3.0, c=2.5, d=3.0, branch=1, grashof=1,
+                       transmission_min=0.5, transmission_max=1.5)],
+        segments=[dict(id=sid, linkage_id=lid, kind="arc", phi_gen=1.0, phi_gen2=None, ray=0.3, u=1.2, v=0.8,
+                       px=None, py=None, direction=None, p2x=None, p2y=None, direction2=None, ix=None, iy=None,
+                       cx=0.5, cy=0.25, radius=radius, transmission_min=0.6, transmission_max=1.4)],
+        dwells=[dict(id=sid * 64, segment_id=sid, kind="arc", level=0, tolerance=1e-3, part=0, phi_start=0.75,
+                     phi_end=0.75 + dwell_angle, dwell_angle=dwell_angle, max_deviation=9e-4, x=0.5, y=0.25,
+                     direction=None, radius=radius)],
+        skipped={"pole at infinity": index},
+    )
+
+
+def count(engine, model) -> int:
+    with engine.connect() as conn:
+        return conn.execute(select(func.count()).select_from(model)).scalar_one()
+
+
+@pytest.fixture
+def engine(tmp_path):
+    e = open_atlas(str(tmp_path / "a.sqlite"), create=True)
+    yield e
+    e.dispose()
+
+
+def start(engine, *, digest=DIGEST_A, spec=SPEC_A, n_shards=3, lock=None, replace=False, target="a.sqlite"):
+    lock = lock or BuildLock.mine()
+    return open_build(engine, target=target, spec_json=spec, spec_digest=digest, n_shards=n_shards, lock=lock,
+                      replace=replace), lock
+
+
+def test_new_build_row_and_shard_rows(engine):
+    h, lock = start(engine)
+    assert (h.done, h.resumed, h.complete, h.replaced) == (frozenset(), False, False, None)
+    write_shard(engine, h.build_id, shard_rows(0), lock_token=lock.token)
+    with engine.connect() as conn:
+        b = conn.execute(select(Build)).one()
+        shard = conn.execute(select(Shard)).one()
+    assert (b.status, b.n_shards, b.spec_json, b.spec_digest) == ("building", 3, SPEC_A, DIGEST_A)
+    assert b.code_version == code_version() != "" and b.schema_version == 1
+    assert (b.lock_token, b.lock_pid, b.lock_host) == (lock.token, os.getpid(), socket.gethostname())
+    assert (shard.shard_index, shard.n_linkages, shard.n_segments, shard.seconds) == (0, 1, 1, 0.25)
+    assert json.loads(shard.skipped_json) == {"pole at infinity": 0}
+    assert [count(engine, m) for m in (Linkage, Segment, Dwell)] == [1, 1, 1]
+
+
+@pytest.mark.parametrize("bad", [
+    dict(radius=float("nan")),        # a nullable column: SQLite would store NaN as NULL silently
+    dict(radius=float("inf")),
+    dict(dwell_angle=-0.1),           # CHECK dwell_angle > 0, caught by the database
+])
+def test_a_bad_row_rolls_the_whole_shard_back(engine, bad):
+    h, lock = start(engine)
+    write_shard(engine, h.build_id, shard_rows(0), lock_token=lock.token)
+    with pytest.raises(ShardWriteError, match="shard 1"):
+        write_shard(engine, h.build_id, shard_rows(1, **bad), lock_token=lock.token)
+    # shard 0 intact, nothing at all of shard 1 (its linkage came first in the transaction)
+    assert [count(engine, m) for m in (Linkage, Segment, Dwell, Shard)] == [1, 1, 1, 1]
+
+
+def test_a_duplicate_id_rolls_back(engine):
+    h, lock = start(engine)
+    write_shard(engine, h.build_id, shard_rows(0), lock_token=lock.token)
+    dup = replace(shard_rows(1), dwells=[{**shard_rows(0).dwells[0]}])  # shard 0's dwell id again
+    dup.dwells[0]["segment_id"] = shard_rows(1).segments[0]["id"]
+    with pytest.raises(ShardWriteError, match="rolled back"):
+        write_shard(engine, h.build_id, dup, lock_token=lock.token)
+    assert count(engine, Shard) == 1 and count(engine, Linkage) == 1
+
+
+def test_resume_knows_done_shards_and_drops_orphans(engine):
+    h, lock = start(engine)
+    write_shard(engine, h.build_id, shard_rows(0), lock_token=lock.token)
+    # an orphan: rows of shard 2 without a shard row (a writer that was not atomic)
+    orphan = shard_rows(2)
+    with engine.begin() as conn:
+        conn.execute(insert(Linkage), [{**orphan.linkages[0], "build_id": h.build_id}])
+        conn.execute(insert(Segment), orphan.segments)
+        conn.execute(insert(Dwell), orphan.dwells)
+    release_lock(engine, h.build_id, lock.token)
+    h2, lock2 = start(engine)
+    assert h2.build_id == h.build_id and h2.done == {0} and h2.resumed
+    assert [count(engine, m) for m in (Linkage, Segment, Dwell)] == [1, 1, 1]
+    for i in (1, 2):
+        write_shard(engine, h2.build_id, shard_rows(i), lock_token=lock2.token)
+    assert finish_build(engine, h2.build_id, lock2.token)
+    with engine.connect() as conn:
+        b = conn.execute(select(Build)).one()
+    assert b.status == "complete" and b.finished_at and b.lock_token is None
+    h3, _ = start(engine)
+    assert h3.complete and h3.done == {0, 1, 2}
+
+
+def test_finish_is_refused_while_shards_are_missing(engine):
+    h, lock = start(engine)
+    write_shard(engine, h.build_id, shard_rows(0), lock_token=lock.token)
+    assert finish_build(engine, h.build_id, lock.token) is False
+    with engine.connect() as conn:
+        assert conn.execute(select(Build.status)).scalar_one() == "building"
+
+
+def test_different_sweep_refused_then_replaced(engine):
+    h, lock = start(engine)
+    write_shard(engine, h.build_id, shard_rows(0), lock_token=lock.token)
+    release_lock(engine, h.build_id, lock.token)
+    with pytest.raises(AtlasError, match=r"built with a different sweep \(preset demo, digest aaaaaaaa…\); use --replace"):
+        start(engine, digest=DIGEST_B, spec=SPEC_B)
+    assert count(engine, Linkage) == 1  # nothing changed
+    h2, _ = start(engine, digest=DIGEST_B, spec=SPEC_B, replace=True)
+    assert h2.replaced and "preset demo" in h2.replaced and h2.done == frozenset()
+    assert [count(engine, m) for m in (Linkage, Segment, Dwell, Shard)] == [0, 0, 0, 0]
+    with engine.connect() as conn:
+        assert conn.execute(select(Build.spec_digest)).scalars().all() == [DIGEST_B]
+
+
+def test_resume_by_another_code_version_is_refused(engine):
+    h, lock = start(engine)
+    release_lock(engine, h.build_id, lock.token)
+    with engine.begin() as conn:
+        conn.execute(update(Build).values(code_version="0.0.1-old"))
+    with pytest.raises(AtlasError, match="partly built by dwell-atlas 0.0.1-old.*--replace"):
+        start(engine)
+
+
+def set_lock(engine, *, pid, host, age):
+    with engine.begin() as conn:
+        conn.execute(update(Build).values(lock_token="x" * 32, lock_pid=pid, lock_host=host,
+                                          lock_heartbeat=time.time() - age))
+
+
+def dead_pid() -> int:
+    p = subprocess.Popen([sys.executable, "-c", "pass"])
+    p.wait()  # reaped: the pid is free
+    return p.pid
+
+
+@pytest.mark.parametrize("pid, host, age, alive", [
+    ("me", "here", 0, True),                       # a live process on this host
+    ("me", "here", STALE_SECONDS * 2, True),       # slow but alive: the pid decides on this host
+    ("dead", "here", 0, False),                    # killed on this host: taken over at once
+    (1, "elsewhere.example", 5, True),             # another host, fresh heartbeat
+    (1, "elsewhere.example", STALE_SECONDS + 5, False),  # another host, stale heartbeat
+])
+def test_lock_liveness(engine, pid, host, age, alive):
+    h, lock = start(engine)
+    pid = os.getpid() if pid == "me" else dead_pid() if pid == "dead" else pid
+    host = socket.gethostname() if host == "here" else host
+    set_lock(engine, pid=pid, host=host, age=age)
+    if alive:
+        with pytest.raises(AtlasError, match=rf"being built by another process \(pid {pid} on {host}"):
+            start(engine)
+        with pytest.raises(AtlasError, match="being built by another process"):
+            start(engine, digest=DIGEST_B, spec=SPEC_B, replace=True)  # --replace does not break a live lock
+    else:
+        h2, lock2 = start(engine)
+        assert h2.build_id == h.build_id
+        with engine.connect() as conn:
+            assert conn.execute(select(Build.lock_token)).scalar_one() == lock2.token
+
+
+def test_a_builder_that_lost_its_lock_writes_nothing(engine):
+    h, lock = start(engine)
+    set_lock(engine, pid=dead_pid(), host=socket.gethostname(), age=0)  # as if we had been seen as dead
+    h2, lock2 = start(engine)
+    with pytest.raises(LockLostError, match="taken over"):
+        write_shard(engine, h.build_id, shard_rows(0), lock_token=lock.token)
+    assert count(engine, Linkage) == 0 and count(engine, Shard) == 0
+    write_shard(engine, h2.build_id, shard_rows(0), lock_token=lock2.token)
+    assert count(engine, Shard) == 1
