@@ -20,12 +20,15 @@ shard is rolled back by the database, and the dead builder's lock is taken over.
 from __future__ import annotations
 
 import multiprocessing
+import os
 import signal
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass
+from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Protocol
 
@@ -62,11 +65,25 @@ class ShardRunner(Protocol):
 _WORKER_STATE: tuple[SweepSpec, SweepLinkages] | None = None
 
 
-def _init_worker(spec: SweepSpec, sweep: SweepLinkages) -> None:
+def _exit_with_driver(lifeline: Connection) -> None:
+    """Block until the driver is gone (its end of the pipe closes), then exit at once.
+
+    A pool worker otherwise outlives a killed driver forever: it waits on a task queue whose
+    write end every worker holds too, so it never sees end-of-file.
+    """
+    try:
+        lifeline.recv()
+    except (EOFError, OSError):
+        pass
+    os._exit(1)
+
+
+def _init_worker(spec: SweepSpec, sweep: SweepLinkages, lifeline: Connection) -> None:
     global _WORKER_STATE
     # Ctrl-C reaches the whole process group; only the driver reacts (it stops the workers),
     # so a worker never dies half-way through a task and breaks the pool.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    threading.Thread(target=_exit_with_driver, args=(lifeline,), name="driver-watch", daemon=True).start()
     _WORKER_STATE = (spec, sweep)
 
 
@@ -117,7 +134,11 @@ def run_shards(
             yield _shard.compute_shard(spec, index, sweep)
         return
     n = min(workers, len(indices))
-    executor = ProcessPoolExecutor(max_workers=n, mp_context=_mp_context(), initializer=_init_worker, initargs=(spec, sweep))
+    ctx = _mp_context()
+    # only the driver ever holds the sending end: it closes when the driver dies, however
+    lifeline_r, lifeline_w = ctx.Pipe(duplex=False)
+    executor = ProcessPoolExecutor(max_workers=n, mp_context=ctx, initializer=_init_worker,
+                                   initargs=(spec, sweep, lifeline_r))
     todo = iter(indices)
     pending: set[Future] = set()
     clean = False
@@ -144,6 +165,8 @@ def run_shards(
             executor.shutdown(wait=True)
         else:
             _stop(executor, pending)
+        lifeline_w.close()
+        lifeline_r.close()
 
 
 # ---------------------------------------------------------------------------- the writer
@@ -190,13 +213,20 @@ class BuildSummary:
 
 
 def _remove_new_file(path: Path | None) -> None:
-    """Remove an SQLite file this run created (and its side files): bad input leaves no file."""
+    """Remove an empty SQLite file (and side files) that this run created but could not make
+    an atlas of: bad input leaves no file behind. A file with content is left alone, since
+    another builder that started at the same moment may be writing it."""
     if path is None:
         return
+    try:
+        if path.stat().st_size > 0:
+            return
+    except OSError:
+        pass
     for p in (path, *(path.with_name(path.name + s) for s in ("-wal", "-shm", "-journal"))):
         try:
             p.unlink()
-        except FileNotFoundError:
+        except OSError:
             pass
 
 
@@ -216,13 +246,24 @@ def build_atlas(
     stderr is a terminal". ``log`` receives one-line notes (resuming, replacing,
     interrupted). Errors: :class:`db.AtlasError` for an unusable atlas, a different sweep
     without ``replace`` or a concurrent builder — then nothing was written, and a file this
-    call created is removed again.
+    call created but could not open as an atlas is removed again.
+
+    With ``workers > 1`` the pool starts its workers by forkserver (spawn where there is no
+    forkserver): a script calling this must guard its entry point with
+    ``if __name__ == "__main__":``, as for any multiprocessing code.
     """
     from tqdm import tqdm
 
     from db.engine import open_atlas, sqlite_path
     from db.summary import row_counts
-    from db.writes import BuildLock, finish_build, heartbeat, open_build, release_lock, write_shard
+    from db.writes import (
+        BuildLock,
+        finish_build,
+        heartbeat,
+        open_build,
+        release_lock,
+        write_shard,
+    )
 
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
@@ -245,9 +286,9 @@ def build_atlas(
             n_shards=n_shards, lock=lock, replace=replace,
         )
     except BaseException:
+        # not removed even if this call created the file: on a new atlas this only fails when
+        # another builder got there first, and the file is now that builder's
         engine.dispose()
-        if created:
-            _remove_new_file(path)
         raise
 
     holding = not handle.complete
@@ -261,7 +302,7 @@ def build_atlas(
             note(f"resuming: {len(handle.done)} of {n_shards} shards already built")
         per_shard = {i: len(sweep.shard(i, spec.shard_size)) * len(spec.branches) for i in missing}
         show = sys.stderr.isatty() if progress is None else progress
-        bar = tqdm(total=sum(per_shard.values()), unit="linkage", unit_scale=True, desc="atlas",
+        bar = tqdm(total=sum(per_shard.values()), unit=" linkages", unit_scale=True, desc="atlas",
                    disable=not show or not missing, file=sys.stderr, smoothing=0.05, dynamic_ncols=True)
         results = runner(spec, sweep, missing, workers, tick=lambda: heartbeat(engine, handle.build_id, lock.token))
         segments = 0

@@ -85,7 +85,8 @@ def _tolerances(text: str | None) -> tuple[float, ...] | None:
 @click.option("--all-linkages", is_flag=True, help="Keep every proportion, not only crank-rockers.")
 @click.option("--workers", type=click.IntRange(min=1), default=None,
               help=f"Worker processes (default: all CPUs, here {_default_workers()}).")
-@click.option("--replace", is_flag=True, help="Delete an existing build of a different sweep and rebuild.")
+@click.option("--replace", is_flag=True,
+              help="Delete what the atlas holds (any sweep) and build from scratch; needed for a different sweep.")
 @click.option("--progress/--no-progress", default=None, help="Progress bar on stderr (default: if it is a terminal).")
 def build(db, preset, samples, seed, b_range, c_range, d_range, crank_step, rays, tolerances, min_dwell, shard_size,
           all_linkages, workers, replace, progress):

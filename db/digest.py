@@ -23,7 +23,7 @@ import json
 from collections.abc import Callable
 from typing import Any
 
-from sqlalchemy import Column, Engine, Float, Integer, select
+from sqlalchemy import Column, Connection, Engine, Float, Integer, select
 from sqlalchemy.sql import Select
 
 from db.schema import Dwell, Linkage, Segment
@@ -83,20 +83,30 @@ def _statements(build_id: int | None) -> list[tuple[str, list[Column], Select]]:
     return out
 
 
-def content_digest(engine: Engine, build_id: int | None = None) -> str:
-    """SHA-256 hex of the atlas content (of one build if ``build_id`` is given)."""
+def content_digest(bind: Engine | Connection, build_id: int | None = None) -> str:
+    """SHA-256 hex of the atlas content (of one build if ``build_id`` is given).
+
+    ``bind`` may be a connection, to digest inside a transaction (``db.writes.finish_build``).
+    """
+    if isinstance(bind, Connection):
+        return _digest(bind, build_id)
+    with bind.connect() as conn:
+        return _digest(conn, build_id)
+
+
+def _digest(conn: Connection, build_id: int | None) -> str:
     h = hashlib.sha256()
-    with engine.connect() as conn:
-        for name, cols, stmt in _statements(build_id):
-            h.update(_header(name, cols))
-            fmts = [_formatter(c) for c in cols]
-            result = conn.execution_options(yield_per=_BATCH).execute(stmt)
-            for part in result.partitions():
-                lines = []
-                for row in part:
-                    lines.append("\t".join(_NULL if v is None else f(v) for f, v in zip(fmts, row)))
-                    lines.append("\n")
-                h.update("".join(lines).encode())
+    for name, cols, stmt in _statements(build_id):
+        h.update(_header(name, cols))
+        fmts = [_formatter(c) for c in cols]
+        # streamed in batches: a big atlas does not fit in memory
+        result = conn.execution_options(yield_per=_BATCH).execute(stmt)
+        for part in result.partitions():
+            lines = []
+            for row in part:
+                lines.append("\t".join(_NULL if v is None else f(v) for f, v in zip(fmts, row)))
+                lines.append("\n")
+            h.update("".join(lines).encode())
     return h.hexdigest()
 
 

@@ -70,6 +70,9 @@ class Build(Base):
     n_shards: Mapped[int] = mapped_column(Integer)
     created_at: Mapped[str] = mapped_column(String(32))
     finished_at: Mapped[str | None] = mapped_column(String(32), nullable=True)
+    #: ``db.digest.content_digest`` of the build, stored when it completes (``info`` of a big
+    #: atlas would otherwise re-read every row); NULL while building.
+    content_digest: Mapped[str | None] = mapped_column(String(64), nullable=True)
     lock_token: Mapped[str | None] = mapped_column(String(32), nullable=True)
     lock_pid: Mapped[int | None] = mapped_column(Integer, nullable=True)
     lock_host: Mapped[str | None] = mapped_column(String(255), nullable=True)

@@ -34,7 +34,7 @@ import socket
 import time
 import uuid
 from dataclasses import dataclass
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from typing import Any, Protocol
 
 from sqlalchemy import Connection, Engine, delete, func, insert, select, update
@@ -130,7 +130,7 @@ def code_version() -> str:
 
 
 def _now_iso() -> str:
-    return datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+    return datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
 
 
 def _pid_alive(pid: int) -> bool:
@@ -227,9 +227,10 @@ def open_build(
     with engine.connect() as conn:
         builds = conn.execute(select(Build).order_by(Build.id)).all()
     for row in builds:
-        if row.lock_token is not None and row.lock_token != lock.token and _lock_alive(row, now):
-            if replace or row.spec_digest == spec_digest:
-                raise AtlasError(_describe_holder(target, row, now))
+        # a live builder of another sweep matters only if we are about to delete its build
+        relevant = replace or row.spec_digest == spec_digest
+        if relevant and row.lock_token is not None and row.lock_token != lock.token and _lock_alive(row, now):
+            raise AtlasError(_describe_holder(target, row, now))
     others = [r for r in builds if r.spec_digest != spec_digest]
     if others and not replace:
         old = others[0]
@@ -363,10 +364,12 @@ def write_shard(engine: Engine, build_id: int, result: ShardRows, *, lock_token:
 
 
 def finish_build(engine: Engine, build_id: int, token: str) -> bool:
-    """Mark the build complete and release the lock if every shard is written.
+    """Mark the build complete, store its content digest and release the lock — if every
+    shard is written. Returns True when it was complete; otherwise only the heartbeat is
+    refreshed. The digest is computed in the same transaction, so a complete build always
+    has the digest of exactly its rows."""
+    from db.digest import content_digest
 
-    Returns True when it was complete; otherwise only the heartbeat is refreshed.
-    """
     with engine.begin() as conn:
         _assert_lock(conn, build_id, token)
         n_shards = conn.execute(select(Build.n_shards).where(Build.id == build_id)).scalar_one()
@@ -376,7 +379,8 @@ def finish_build(engine: Engine, build_id: int, token: str) -> bool:
         conn.execute(
             update(Build)
             .where(Build.id == build_id)
-            .values(status="complete", finished_at=_now_iso(), lock_token=None, lock_pid=None, lock_host=None, lock_heartbeat=None)
+            .values(status="complete", finished_at=_now_iso(), content_digest=content_digest(conn, build_id),
+                    lock_token=None, lock_pid=None, lock_host=None, lock_heartbeat=None)
         )
     return True
 

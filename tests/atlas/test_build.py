@@ -19,8 +19,8 @@ from db.digest import content_digest
 from db.writes import ShardWriteError
 
 #: a small sweep with demo-like search settings: a few dozen linkages in several shards
-SPEC = SweepSpec(name="test", b=(1.5, 4.5), c=(1.5, 4.5), d=(1.5, 4.5), samples=64, crank_step_deg=3.0, rays=24,
-                 shard_size=8)
+SPEC = SweepSpec(name="test", b=(1.5, 4.5), c=(1.5, 4.5), d=(1.5, 4.5), samples=32, crank_step_deg=3.0, rays=24,
+                 shard_size=4)
 N_SHARDS = sweep_linkages(SPEC).n_shards(SPEC.shard_size)
 
 
@@ -159,16 +159,28 @@ def test_closing_the_pool_stops_the_workers_promptly():
     assert multiprocessing.active_children() == []
 
 
-def test_a_refused_build_leaves_no_new_file(tmp_path, monkeypatch):
+def test_a_refused_new_atlas_is_left_to_the_builder_that_won(tmp_path, monkeypatch):
+    # on a new file open_build fails only when another builder created the build first:
+    # the file is now that builder's and must survive (it may be writing into it)
     import db.writes
 
     def refuse(*args, **kwargs):
         raise AtlasError("refused")
 
     monkeypatch.setattr(db.writes, "open_build", refuse)
+    path = tmp_path / "new.sqlite"
     with pytest.raises(AtlasError, match="refused"):
-        build_atlas(str(tmp_path / "new.sqlite"), SPEC, progress=False)
-    assert list(tmp_path.iterdir()) == []
+        build_atlas(str(path), SPEC, progress=False)
+    open_atlas(str(path)).dispose()  # still a valid (empty) atlas
+
+
+def test_a_complete_build_stores_its_digest(reference):
+    path, _, digest, _ = reference
+    con = sqlite3.connect(path)
+    try:
+        assert con.execute("select content_digest from build").fetchall() == [(digest,)]
+    finally:
+        con.close()
 
 
 def test_workers_must_be_positive(tmp_path):

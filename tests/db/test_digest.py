@@ -13,6 +13,7 @@ from db import Build, Dwell, Linkage, Segment, open_atlas
 from db.digest import content_digest, format_value
 from db.writes import write_shard
 
+
 @dataclass(frozen=True)
 class Rows:
     shard_index: int

@@ -39,7 +39,7 @@ def test_create_then_reopen_in_wal_mode(atlas):
 @pytest.mark.parametrize("bad", [float("nan"), float("inf"), float("-inf"), 1e301])
 def test_nan_and_inf_never_stored(atlas, bad):
     _, engine = atlas
-    row = dict(build_id=1, shard_index=0, sweep_index=0, b=bad, c=1.0, d=1.0, branch=1, grashof=1,
+    row = dict(id=1, build_id=1, shard_index=0, sweep_index=0, b=bad, c=1.0, d=1.0, branch=1, grashof=1,
                transmission_min=0.1, transmission_max=1.0)
     with pytest.raises(IntegrityError):
         with Session(engine) as s, s.begin():

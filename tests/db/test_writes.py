@@ -194,7 +194,7 @@ def dead_pid() -> int:
     (1, "elsewhere.example", STALE_SECONDS + 5, False),  # another host, stale heartbeat
 ])
 def test_lock_liveness(engine, pid, host, age, alive):
-    h, lock = start(engine)
+    h, _ = start(engine)
     pid = os.getpid() if pid == "me" else dead_pid() if pid == "dead" else pid
     host = socket.gethostname() if host == "here" else host
     set_lock(engine, pid=pid, host=host, age=age)

@@ -1,0 +1,325 @@
+"""``dwell atlas build`` / ``info``: kill and resume, Ctrl-C, concurrent builders, another
+sweep and --replace, bad input (exit 2, one line, nothing written), info consistent with the db.
+
+Subprocess tests slow every shard down with a ``sitecustomize`` hook on PYTHONPATH (it also
+reaches the worker processes), so that a build can be caught half-way whatever the machine.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import re
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from atlas import SweepSpec, sweep_linkages
+from atlas.build import build_atlas
+from cli.main import main
+from db import open_atlas
+from db.digest import content_digest
+
+#: the demo preset's search settings on a small sweep (a few seconds of compute)
+SMALL = ["--b", "1.5", "4.5", "--c", "1.5", "4.5", "--d", "1.5", "4.5", "--samples", "32", "--shard-size", "4"]
+SPEC = SweepSpec(name="same content, other name", b=(1.5, 4.5), c=(1.5, 4.5), d=(1.5, 4.5), samples=32,
+                 crank_step_deg=3.0, rays=24, shard_size=4)
+N_SHARDS = sweep_linkages(SPEC).n_shards(SPEC.shard_size)
+
+HOOK = '''
+import os
+_delay = float(os.environ.get("DWELL_TEST_SHARD_DELAY") or 0)
+if _delay > 0:
+    import time
+    import atlas.shard as _shard
+    _compute = _shard.compute_shard
+    def _slow(*args, **kwargs):
+        time.sleep(_delay)
+        return _compute(*args, **kwargs)
+    _shard.compute_shard = _slow
+'''
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """An uninterrupted in-process build of the same sweep: (path, content digest)."""
+    path = tmp_path_factory.mktemp("ref") / "ref.sqlite"
+    build_atlas(str(path), SPEC, workers=1, progress=False)
+    engine = open_atlas(str(path), readonly=True)
+    digest = content_digest(engine)
+    engine.dispose()
+    return path, digest
+
+
+def dwell(capsys, *args: str) -> tuple[int, str, str]:
+    rc = main(["atlas", *args])
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+def info_json(capsys, db: Path) -> dict:
+    rc, out, err = dwell(capsys, "info", "--db", str(db), "--json")
+    assert rc == 0, err
+    return json.loads(out)
+
+
+def spawn(tmp_path: Path, *args: str, delay: float = 0.0) -> subprocess.Popen:
+    """``python -m cli.main atlas build ARGS`` in its own session (a terminal's process group)."""
+    hook = tmp_path / "hook"
+    hook.mkdir(exist_ok=True)
+    (hook / "sitecustomize.py").write_text(HOOK)
+    env = dict(os.environ, DWELL_TEST_SHARD_DELAY=str(delay),
+               PYTHONPATH=os.pathsep.join([str(hook), *filter(None, [os.environ.get("PYTHONPATH")])]))
+    env.pop("DWELL_ATLAS", None)
+    return subprocess.Popen([sys.executable, "-m", "cli.main", "atlas", "build", *args], cwd=tmp_path, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+
+
+def query(db: Path, sql: str):
+    con = sqlite3.connect(f"file:{db}?mode=ro", uri=True)
+    try:
+        return con.execute(sql).fetchall()
+    finally:
+        con.close()
+
+
+def wait_for_shards(db: Path, proc: subprocess.Popen, at_least: int = 1, timeout: float = 60) -> int:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        assert proc.poll() is None, f"the build ended early: {proc.communicate()}"
+        try:
+            n = query(db, "select count(*) from shard")[0][0]
+        except sqlite3.Error:  # not created yet, or the schema is being written
+            n = 0
+        if n >= at_least:
+            return n
+        time.sleep(0.05)
+    raise AssertionError("no shard was written in time")
+
+
+def processes_of(tmp_path: Path) -> list[int]:
+    """Live processes started with our hook on their path (the builder, forkserver, workers)."""
+    marker = str(tmp_path / "hook").encode()
+    pids = []
+    for d in Path("/proc").glob("[0-9]*"):
+        try:
+            if marker in (d / "cmdline").read_bytes() or marker in (d / "environ").read_bytes():
+                stat = (d / "stat").read_bytes().rsplit(b")", 1)[1].split()[0]
+                if stat != b"Z":
+                    pids.append(int(d.name))
+        except OSError:
+            pass
+    return pids
+
+
+def no_orphans(tmp_path: Path, timeout: float = 10) -> bool:
+    deadline = time.monotonic() + timeout
+    while processes_of(tmp_path):
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.1)
+    return True
+
+
+def shard_table(db: Path) -> dict[int, tuple]:
+    return {r[0]: r for r in query(db, "select shard_index, n_linkages, n_segments, skipped_json, seconds from shard")}
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc")
+def test_killed_build_resumes_to_the_same_content(tmp_path, reference, capsys):
+    db = tmp_path / "atlas.sqlite"
+    proc = spawn(tmp_path, "--db", str(db), *SMALL, "--workers", "2", delay=1.0)
+    wait_for_shards(db, proc)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert no_orphans(tmp_path), "workers outlived the killed builder"
+    kept = shard_table(db)
+    assert 1 <= len(kept) < N_SHARDS
+    status, pid = query(db, "select status, lock_pid from build")[0]
+    assert (status, pid) == ("building", proc.pid)  # the dead builder's lock is still there
+
+    again = spawn(tmp_path, "--db", str(db), *SMALL, "--workers", "2")
+    out, err = again.communicate(timeout=120)
+    assert again.returncode == 0, err
+    assert f"resuming: {len(kept)} of {N_SHARDS} shards already built" in err
+    assert re.fullmatch(
+        rf"atlas {re.escape(str(db))} complete: \d+ linkages; segments: line \d+, arc \d+, double_line \d+; "
+        rf"{N_SHARDS - len(kept)} shard\(s\) in [\d.]+ s \(\d+ linkages/s\)\n", out)
+    after = shard_table(db)
+    assert {i: after[i] for i in kept} == kept  # what was committed was kept, not recomputed
+    doc = info_json(capsys, db)
+    assert doc["content_digest"] == reference[1]
+    assert doc["build"]["status"] == "complete" and doc["build"]["builder"] is None
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc")
+def test_ctrl_c_and_a_concurrent_builder(tmp_path, reference, capsys):
+    db = tmp_path / "atlas.sqlite"
+    # 2 s a shard: a few seconds in which the build is surely still running
+    proc = spawn(tmp_path, "--db", str(db), *SMALL, "--workers", "2", delay=2.0)
+    wait_for_shards(db, proc)
+
+    # a second builder is refused while the first one runs; nothing changes
+    before = shard_table(db)
+    rc, out, err = dwell(capsys, "build", "--db", str(db), *SMALL, "--workers", "1")
+    assert rc == 2 and out == ""
+    assert err.count("\n") == 1 and err.startswith(f"dwell: error: atlas {str(db)!r} is being built by another process "
+                                                   f"(pid {proc.pid} on ")
+    assert set(shard_table(db)) >= set(before)
+    # info works while it builds
+    doc = info_json(capsys, db)
+    assert doc["build"]["status"] == "building" and doc["build"]["builder"]["pid"] == proc.pid
+
+    os.killpg(proc.pid, signal.SIGINT)  # what Ctrl-C in a terminal does: the whole process group
+    out, err = proc.communicate(timeout=30)
+    assert proc.returncode == 130, err
+    assert "interrupted:" in err and "run the same command again to resume" in err
+    assert err.rstrip().endswith("dwell: interrupted")
+    assert "Traceback" not in err
+    assert no_orphans(tmp_path)
+    kept = shard_table(db)
+    assert 1 <= len(kept) < N_SHARDS
+    assert query(db, "select status, lock_token from build") == [("building", None)]  # lock released
+
+    rc, out, err = dwell(capsys, "build", "--db", str(db), *SMALL, "--workers", "1")
+    assert rc == 0 and "resuming" in err
+    assert info_json(capsys, db)["content_digest"] == reference[1]
+
+
+def test_info_json_is_consistent_with_the_database(reference, capsys):
+    db, digest = reference
+    doc = info_json(capsys, db)
+    assert doc["linkages"] == query(db, "select count(*) from linkage")[0][0] > 0
+    by_kind = dict(query(db, "select kind, count(*) from segment group by kind"))
+    assert doc["segments"] == {k: by_kind.get(k, 0) for k in ("line", "arc", "double_line")}
+    dwells = dict(query(db, "select kind, count(*) from dwell group by kind"))
+    assert doc["dwells"] == {k: dwells.get(k, 0) for k in ("line", "arc", "double_line")}
+    hist = doc["dwell_histogram"]
+    assert hist["bin_deg"] == 10 and len(hist["edges_deg"]) == 37 and hist["edges_deg"][-1] == 360
+    assert set(hist["kinds"]) == {"line", "arc", "double_line"}
+    per_level = dict(((k, lvl), n) for k, lvl, n in query(db, "select kind, level, count(*) from dwell group by kind, level"))
+    for kind, levels in hist["kinds"].items():
+        assert [lv["level"] for lv in levels] == [0, 1, 2]
+        assert [lv["tolerance"] for lv in levels] == list(SPEC.tolerances)
+        for lv in levels:
+            assert len(lv["counts"]) == 36 and sum(lv["counts"]) == per_level.get((kind, lv["level"]), 0)
+    skipped: dict[str, int] = {}
+    for (text,) in query(db, "select skipped_json from shard"):
+        for reason, n in json.loads(text).items():
+            skipped[reason] = skipped.get(reason, 0) + n
+    assert doc["skipped"] == skipped
+    build = doc["build"]
+    assert build["spec"] == json.loads(SPEC.to_json()) and build["spec_digest"] == SPEC.digest
+    assert (build["status"], build["shards_done"], build["n_shards"], build["schema_version"]) == ("complete", N_SHARDS, N_SHARDS, 1)
+    assert build["code_version"] and doc["builds"] == 1
+    assert doc["content_digest"] == digest and re.fullmatch(r"[0-9a-f]{64}", digest)
+
+    rc, out, err = dwell(capsys, "info", "--db", str(db))
+    assert rc == 0 and err == ""
+    assert f"linkages: {doc['linkages']}\n" in out and f"content digest: {digest}" in out
+    assert f"build 1: complete, {N_SHARDS}/{N_SHARDS} shards" in out
+
+
+def test_another_sweep_is_refused_then_replaced(tmp_path, capsys):
+    db = tmp_path / "a.sqlite"
+    tiny = ["--samples", "12", "--shard-size", "8"]
+    rc, out, err = dwell(capsys, "build", "--db", str(db), *tiny, "--workers", "1")
+    assert rc == 0, err
+    old = info_json(capsys, db)
+    before = hashlib.sha256(db.read_bytes()).hexdigest()
+
+    rc, out, err = dwell(capsys, "build", "--db", str(db), *tiny, "--seed", "1", "--workers", "1")
+    spec_digest = old["build"]["spec_digest"]
+    assert rc == 2 and out == ""
+    assert err == (f"dwell: error: atlas {str(db)!r} was built with a different sweep (preset demo+custom, digest "
+                   f"{spec_digest[:8]}…); use --replace to rebuild it\n")
+    assert hashlib.sha256(db.read_bytes()).hexdigest() == before
+
+    rc, out, err = dwell(capsys, "build", "--db", str(db), *tiny, "--seed", "1", "--workers", "1", "--replace")
+    assert rc == 0, err
+    assert f"replacing the previous build of {db} (preset demo+custom, digest {spec_digest[:8]}…)" in err
+    new = info_json(capsys, db)
+    assert new["builds"] == 1 and new["build"]["spec"]["seed"] == 1 and new["build"]["status"] == "complete"
+    assert new["content_digest"] != old["content_digest"]
+    # every row belongs to the new build
+    assert query(db, "select count(*) from linkage where build_id != (select id from build)") == [(0,)]
+    assert query(db, "select count(*) from shard where build_id != (select id from build)") == [(0,)]
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--preset", "nope"], "unknown preset 'nope' (choose from demo, large, standard)"),
+    (["--samples", "-5"], "samples must be between 1 and 2^31, got -5"),
+    (["--b", "3", "2"], "range b must satisfy 0 < low <= high, got (3, 2)"),
+    (["--c", "-1", "2"], "range c must satisfy 0 < low <= high, got (-1, 2)"),
+    (["--d", "nan", "2"], "range d must satisfy 0 < low <= high"),
+    (["--crank-step", "0"], "crank_step_deg must be in (0, 30]"),
+    (["--tolerances", "0.01,abc"], "--tolerances must be comma-separated numbers"),
+    (["--tolerances", "0.01,0.001"], "tolerances must be in increasing order"),
+    (["--min-dwell", "400"], "min_dwell_deg must be in (0, 360)"),
+    (["--shard-size", "0"], "shard_size must be >= 1"),
+    (["--workers", "0"], "Invalid value for '--workers'"),
+    (["--samples", "many"], "Invalid value for '--samples'"),
+])
+def test_bad_sweep_options_write_nothing(tmp_path, capsys, monkeypatch, args, message):
+    monkeypatch.chdir(tmp_path)  # the default --db lives in the cwd
+    rc, out, err = dwell(capsys, "build", *args)
+    assert rc == 2 and out == ""
+    assert err.count("\n") == 1 and err.startswith("dwell: error: ") and message in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def _foreign(path: Path) -> None:
+    con = sqlite3.connect(path)
+    con.execute("create table things(x)")
+    con.execute("insert into things values (1)")
+    con.commit()
+    con.close()
+
+
+@pytest.mark.parametrize("case, message", [
+    ("foreign", "is a database of another application"),
+    ("text", "is not an SQLite database"),
+    ("folder", "is a folder, not an atlas file"),
+    ("no-folder", "does not exist"),
+    ("unwritable", "cannot use"),
+])
+@pytest.mark.parametrize("command", ["build", "info"])
+def test_bad_atlas_paths_are_refused_untouched(tmp_path, capsys, case, message, command):
+    target = {"foreign": tmp_path / "other.sqlite", "text": tmp_path / "notes.txt", "folder": tmp_path,
+              "no-folder": tmp_path / "none" / "a.sqlite", "unwritable": Path("/proc/dwell-atlas-test.sqlite")}[case]
+    if case == "foreign":
+        _foreign(target)
+    elif case == "text":
+        target.write_text("not an atlas\n")
+    if case == "unwritable" and not Path("/proc").is_dir():
+        pytest.skip("no /proc (a folder where nobody, not even root, can create a file)")
+    if command == "info" and case in ("no-folder", "unwritable"):
+        message = "no atlas at"
+    listing = {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()}
+    extra = ["--samples", "8"] if command == "build" else []
+    rc, out, err = dwell(capsys, command, "--db", str(target), *extra)
+    assert rc == 2 and out == ""
+    assert err.count("\n") == 1 and err.startswith("dwell: error: ") and message in err, err
+    assert {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()} == listing  # byte-identical, nothing new
+    assert not Path("/proc/dwell-atlas-test.sqlite").exists()
+
+
+def test_default_db_is_atlas_sqlite_in_the_cwd(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delenv("DWELL_ATLAS", raising=False)
+    rc, out, err = dwell(capsys, "build", "--samples", "12", "--shard-size", "8", "--workers", "1")
+    assert rc == 0, err
+    assert out.startswith("atlas atlas.sqlite complete: ")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["atlas.sqlite"]
+    rc, out, err = dwell(capsys, "build", "--samples", "12", "--shard-size", "8")
+    assert rc == 0 and out.startswith("atlas atlas.sqlite is already complete: ")
+    monkeypatch.setenv("DWELL_ATLAS", str(tmp_path / "env.sqlite"))
+    assert info_json(capsys, tmp_path / "atlas.sqlite")["build"]["status"] == "complete"
+    rc, out, err = dwell(capsys, "info")
+    assert rc == 2 and "no atlas at" in err and "env.sqlite" in err
