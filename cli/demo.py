@@ -1,51 +1,78 @@
 """``dwell demo``: the main job on the embedded defaults.
 
-Until the atlas exists, the demo analyses a crank-rocker four-bar and the quick-return
-shaper: it prints their tables and writes JSON, motion diagrams and drawings.
+Builds (or reuses) the ``demo`` atlas in a local SQLite file, answers one RRR request, one RPR
+request and one double-dwell request, prints their best candidates and writes a report for
+each (JSON, CSV, plots, drawings, DXF and an animated HTML page).
 """
 
 from __future__ import annotations
 
-import contextlib
-import io
+import math
+import os
 import time
 from pathlib import Path
 
 import click
 
-#: The demo's mechanisms, as the ``dwell`` arguments a user would type.
-DEMO_ANALYSES = {
-    "fourbar": ["analyze", "fourbar", "--a", "1", "--b", "3", "--c", "2.5", "--d", "3", "--point", "1.2", "0.8"],
-    "shaper": ["analyze", "shaper", "--crank", "60", "--rod", "300", "--link", "150", "--height", "200", "--offset", "30"],
+#: The demo's requests, as the ``dwell query`` options a user would type.
+DEMO_REQUESTS = {
+    # the demo sweep is small: its RRR answers need rockers up to 20 cranks long
+    "rrr": {"dwell": 60.0, "swing": 30.0, "output": "rrr", "max_link_ratio": 20.0},
+    "rpr": {"dwell": 45.0, "swing": 40.0, "output": "rpr"},
+    "double": {"dwell": 30.0, "dwell_tol": 5.0, "dwells": 2, "output": "rpr"},
 }
+TOP = 3
 
 
 @click.command("demo")
 @click.option("--out", "out_dir", default="dwell-out", show_default=True, type=click.Path(file_okay=False),
-              help="Folder for the tables, JSON, plots and drawings.")
-def demo(out_dir: str) -> None:
-    """Analyse a crank-rocker four-bar and a quick-return shaper; write tables and plots."""
-    from cli.main import main as run_dwell
+              help="Folder for the reports (one sub-folder per request).")
+@click.option("--db", "target", default=None, help="Atlas to build or reuse [default: OUT/demo-atlas.sqlite].")
+@click.option("--workers", type=click.IntRange(1, 256), default=None, help="Build processes [default: all CPUs].")
+def demo(out_dir: str, target: str | None, workers: int | None) -> None:
+    """Build the demo atlas, answer an RRR, an RPR and a double-dwell request, write reports."""
+    from atlas.build import build_atlas
+    from atlas.sweep import PRESETS
+    from cli.query import _table, answer, no_match_message, request_from_options
+    from db.engine import open_atlas
+    from report.export import write_report
 
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise click.BadParameter(f"{out_dir!r} exists and is not a folder", param_hint="--out")
     out.mkdir(parents=True, exist_ok=True)
+    target = target or str(out / "demo-atlas.sqlite")
     start = time.perf_counter()
-    for name, args in DEMO_ANALYSES.items():
-        click.echo(f"\n$ dwell {' '.join(args)}")
-        files = ["--plot", str(out / f"{name}_motion.png"), "--draw", str(out / f"{name}.svg")]
-        buffer = io.StringIO()
-        with contextlib.redirect_stdout(buffer):
-            code = run_dwell(args + files)
-        click.echo(buffer.getvalue(), nl=False)
-        (out / f"{name}.txt").write_text(buffer.getvalue())
-        if code == 0:
-            buffer = io.StringIO()
-            with contextlib.redirect_stdout(buffer):
-                code = run_dwell(args + ["--json"])
-            (out / f"{name}.json").write_text(buffer.getvalue())
-        if code != 0:
-            raise click.ClickException(f"demo step {name!r} failed with exit status {code}")
-    click.echo(f"\nwrote tables (.txt, .json), motion diagrams (.png) and drawings (.svg) to {out.resolve()} "
-               f"in {time.perf_counter() - start:.1f} s")
+    click.echo(f"$ dwell atlas build --db {target} --preset demo")
+    summary = build_atlas(target, PRESETS["demo"], workers=workers or os.cpu_count() or 1)
+    click.echo(f"atlas: {summary.linkages} linkages, {sum(summary.segments.values())} segments "
+               f"({time.perf_counter() - start:.1f} s)")
+    engine = open_atlas(target, readonly=True)
+    written = []
+    try:
+        for name, opts in DEMO_REQUESTS.items():
+            o = {"dwell_tol": 2.0, "swing": None, "swing_tol": 0.5, "output": "any", "dwells": 1,
+                 "dwell_tolerance": 0.1, "crank": 1.0, "min_transmission": 30.0, "max_link_ratio": 10.0, "top": TOP}
+            o.update(opts)
+            args = " ".join(f"--{k.replace('_', '-')} {v:g}" if isinstance(v, float) else f"--{k.replace('_', '-')} {v}"
+                            for k, v in opts.items())
+            click.echo(f"\n$ dwell query --db {target} {args} --top {TOP}")
+            request = request_from_options(o["dwell"], o["dwell_tol"], o["swing"], o["swing_tol"], o["output"],
+                                           o["dwells"], o["dwell_tolerance"], o["crank"], o["min_transmission"],
+                                           o["max_link_ratio"], o["top"])
+            result = answer(engine, request)
+            if not result.candidates:
+                click.echo(no_match_message(result))
+                continue
+            click.echo(_table(result))
+            best = result.candidates[0]
+            dwell = " and ".join(f"{math.degrees(d.angle):.2f}°" for d in best.figures.dwells[: request.dwells])
+            click.echo(f"best: {best.id}: {best.sixbar.dyad.kind} output, dwell {dwell}, "
+                       f"swing {math.degrees(best.figures.swing):.2f}°")
+            folder = out / name
+            folder.mkdir(exist_ok=True)
+            write_report(result.candidates, request, folder)
+            written.append(folder / "index.html")
+    finally:
+        engine.dispose()
+    click.echo(f"\nreports: {', '.join(str(p) for p in written)} ({time.perf_counter() - start:.1f} s in all)")

@@ -183,7 +183,7 @@ def _timed_build(spec, samples: int, workers: int) -> dict:
         "samples": samples,
         "workers": workers,
         "linkages": linkages,
-        "segments": int(getattr(summary, "segments", 0)),
+        "segments": int(sum(summary.segments.values())),
         "seconds": round(seconds, 2),
         "linkages_per_s": round(rate, 1),
         "floor_linkages_per_s": FLOOR,
