@@ -170,7 +170,7 @@ def _simulate(request: Request, fitted) -> tuple[list[Candidate], int]:
             continue
         out.append(
             Candidate(
-                id=candidate_id(r.segment_id, output, slot, request.swing),
+                id=candidate_id(r.segment_id, output, slot, r.level, request.swing),
                 segment_id=r.segment_id,
                 sixbar=sb.scaled(request.crank),
                 figures=_scaled_figures(f, request.crank),
@@ -229,7 +229,7 @@ def rebuild(engine, ids: list[str], request: Request) -> list[Candidate]:
     out = []
     for text in ids:
         try:
-            seg_id, output, slot, swing = parse_candidate_id(text)
+            seg_id, output, slot, level, swing = parse_candidate_id(text)
         except ValueError as exc:
             raise InputError(str(exc)) from None
         req = dataclasses.replace(request, swing=swing, dwells=2 if output == "dbl" else 1,
@@ -241,23 +241,20 @@ def rebuild(engine, ids: list[str], request: Request) -> list[Candidate]:
                 raise InputError(f"no segment {seg_id} in this atlas (candidate {text!r})")
             seg, link = hit
             dwells = s.execute(select(Dwell).where(Dwell.segment_id == seg_id).order_by(Dwell.level, Dwell.part)).scalars().all()
+        parts = tuple((dw.phi_start, dw.phi_end, dw.x, dw.y, dw.direction, dw.radius)
+                      for dw in dwells if dw.level == level)
         found = None
-        # the level the query used is the one whose fit reproduces the id's slot: try each
-        for level in sorted({dw.level for dw in dwells}):
-            parts = tuple((dw.phi_start, dw.phi_end, dw.x, dw.y, dw.direction, dw.radius)
-                          for dw in dwells if dw.level == level)
+        if parts:
             row = SegmentRow(seg.id, seg.kind, level, dwells[0].tolerance, link.b, link.c, link.d, link.branch,
                              seg.u, seg.v, seg.phi_gen, parts, link.transmission_min)
             fitted = [f for f in _fit(req, [row], seg.kind) if f[1] == output and f[2] == slot]
-            if fitted:
-                cands, _ = _simulate(dataclasses.replace(req, dwell_tol=2 * math.pi - req.dwell - 1e-9,
-                                                         swing_tol=math.pi, min_transmission=0.0,
-                                                         max_link_ratio=1e12), fitted)
-                if cands:
-                    found = dataclasses.replace(cands[0], id=text.strip())
-                    break
+            # the figures of the rebuilt six-bar are shown whatever they are: no request filter
+            loose = dataclasses.replace(req, dwell_tol=2 * math.pi - req.dwell - 1e-9, swing_tol=math.pi - 1e-9,
+                                        min_transmission=0.0, max_link_ratio=1e12)
+            cands, _ = _simulate(loose, fitted)
+            found = dataclasses.replace(cands[0], id=text.strip()) if cands else None
         if found is None:
-            raise InputError(f"candidate {text!r} cannot be rebuilt from this atlas (no fit for that slot)")
+            raise InputError(f"candidate {text!r} cannot be rebuilt from this atlas (no fit for that slot and level)")
         out.append(dataclasses.replace(found, rank=len(out) + 1))
     return out
 

@@ -104,27 +104,29 @@ class Candidate:
     dwell_position: complex | None = None
 
 
-def candidate_id(segment_id: int, output: str, slot: int, swing: float | None) -> str:
-    """``<segment>-<rpr|rrr|dbl><slot>@<swing°>``: enough to rebuild the six-bar from the atlas
-    (the fit is deterministic; ``slot`` indexes the fit's candidates, found or not)."""
+def candidate_id(segment_id: int, output: str, slot: int, level: int, swing: float | None) -> str:
+    """``<segment>-<rpr|rrr|dbl><slot>.<level>@<swing°>``: enough to rebuild the six-bar from
+    the atlas (the fit is deterministic; ``slot`` indexes the fit's candidates, found or not;
+    ``level`` is the tolerance level whose fitted line or circle was used)."""
     sw = "free" if swing is None else f"{math.degrees(swing):.6g}"
-    return f"{segment_id}-{output}{slot}@{sw}"
+    return f"{segment_id}-{output}{slot}.{level}@{sw}"
 
 
-def parse_candidate_id(text: str) -> tuple[int, str, int, float | None]:
+def parse_candidate_id(text: str) -> tuple[int, str, int, int, float | None]:
     """Inverse of :func:`candidate_id`; ValueError with the reason on a malformed id."""
     try:
         head, sw = text.strip().split("@")
         seg, kind = head.split("-")
-        output, slot = kind[:3], int(kind[3:])
+        slot_text, level_text = kind[3:].split(".")
+        output, slot, level = kind[:3], int(slot_text), int(level_text)
         if output not in ("rpr", "rrr", "dbl"):
             raise ValueError
         swing = None if sw == "free" else math.radians(float(sw))
         if swing is not None and not (0 < swing < math.pi):
             raise ValueError
-        return int(seg), output, slot, swing
+        return int(seg), output, slot, level, swing
     except ValueError:
-        raise ValueError(f"not a candidate id: {text!r} (expected e.g. 1234500007-rrr0@30)") from None
+        raise ValueError(f"not a candidate id: {text!r} (expected e.g. 1234500007-rrr0.1@30)") from None
 
 
 def objectives(request: Request, figures: list[SixBarFigures]) -> np.ndarray:

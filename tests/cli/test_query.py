@@ -149,3 +149,20 @@ def test_missing_or_foreign_database(capsys, tmp_path):
     code, _, err = run(capsys, "query", "--db", str(foreign), "--dwell", "60", "--swing", "30")
     assert code == 2 and "another application" in err
     assert foreign.read_bytes() == before
+
+
+def test_report_rebuilds_the_queried_six_bar(capsys, atlas_path, tmp_path):
+    code, out, err = run(capsys, "query", "--db", atlas_path, "--dwell", "45", "--swing", "40", "--output", "rpr",
+                         "--top", "2", "--json", "--report", str(tmp_path / "q"))
+    assert code == 0, err
+    queried = json.loads(out)["candidates"]
+    assert json.loads((tmp_path / "q" / "candidates.json").read_text())["candidates"][0]["id"] == queried[0]["id"]
+    code, out, err = run(capsys, "report", "--db", atlas_path, "--candidates", queried[0]["id"], "--out",
+                         str(tmp_path / "r"), "--dwell", "45")
+    assert code == 0, err
+    rebuilt = json.loads((tmp_path / "r" / "candidates.json").read_text())["candidates"][0]
+    assert rebuilt["output"]["pivot"] == pytest.approx(queried[0]["output"]["pivot"], abs=1e-9)
+    assert rebuilt["dwells"][0]["dwell_deg"] == pytest.approx(queried[0]["dwells"][0]["dwell_deg"], abs=1e-9)
+    assert rebuilt["swing_deg"] == pytest.approx(queried[0]["swing_deg"], abs=1e-9)
+    code, out, err = run(capsys, "report", "--db", atlas_path, "--candidates", "12-rpr0@40", "--out", str(tmp_path / "x"))
+    assert code == 2 and "not a candidate id" in err and not (tmp_path / "x").exists()

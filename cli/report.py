@@ -1,0 +1,51 @@
+"""``dwell report``: export chosen candidates (ids from ``dwell query``) from an atlas."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import click
+
+from cli.errors import InputError
+
+
+@click.command("report")
+@click.option("--db", "target", required=True, help="Atlas: SQLite file path or SQLAlchemy URL.")
+@click.option("--candidates", "ids", required=True, multiple=True,
+              help="Candidate id(s) from `dwell query` (repeat the option or separate with spaces).")
+@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False), help="Folder for the report.")
+@click.option("--dwell", type=float, default=None, help="Requested dwell (°) for the output deviation window.")
+@click.option("--dwell-tolerance", type=float, default=0.1, show_default=True, help="Output band (°).")
+@click.option("--crank", type=float, default=1.0, show_default=True, help="Crank length (your unit).")
+@click.option("--min-transmission", type=float, default=30.0, show_default=True,
+              help="The query's smallest transmission angle (°): RRR fits are rebuilt with it.")
+@click.argument("more_ids", nargs=-1)
+def report(target, ids, out_dir, dwell, dwell_tolerance, crank, min_transmission, more_ids):
+    """Write JSON, CSV, plots, drawings, DXF and an animated HTML page for the candidates."""
+    from cli.query import rebuild, request_from_options
+    from db.engine import open_atlas
+    from report.export import write_report
+
+    names = [t for item in (*ids, *more_ids) for t in item.replace(",", " ").split()]
+    if not names:
+        raise InputError("--candidates: give at least one candidate id")
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out {out_dir!r} is a file, not a folder")
+    if not (out if out.exists() else out.parent).exists():
+        raise InputError(f"--out: folder {str(out.parent)!r} does not exist")
+    # the deviation window: the requested dwell, or the rebuilt six-bar's own dwell
+    request = request_from_options(dwell if dwell is not None else 60.0, 2.0, 30.0, 0.5, "any", 1, dwell_tolerance,
+                                   crank, min_transmission, 1e12, len(names))
+    engine = open_atlas(target, readonly=True)
+    try:
+        candidates = rebuild(engine, names, request)
+    finally:
+        engine.dispose()
+    out.mkdir(parents=True, exist_ok=True)
+    written = write_report(candidates, request, out)
+    for c in candidates:
+        dw = " and ".join(f"{math.degrees(d.angle):.2f}°" for d in c.figures.dwells)
+        click.echo(f"{c.rank}. {c.id}: {c.sixbar.dyad.kind}, dwell {dw}, swing {math.degrees(c.figures.swing):.2f}°")
+    click.echo(f"wrote {len(written)} files to {out.resolve()} (open index.html)")
