@@ -23,7 +23,14 @@ import click
 import numpy as np
 
 from cli.errors import InputError
-from synth.candidates import Candidate, Request, candidate_id, candidate_json, parse_candidate_id, rank
+from synth.candidates import (
+    Candidate,
+    Request,
+    candidate_id,
+    candidate_json,
+    parse_candidate_id,
+    rank,
+)
 
 __all__ = ["QueryResult", "answer", "query", "rebuild"]
 
@@ -100,7 +107,7 @@ def _paths(rows, phi: np.ndarray) -> np.ndarray:
 def _fit(request: Request, rows, kind: str) -> list[tuple[object, str, int, object, complex | None]]:
     """(row, output, slot, OutputDyad, dwell position) of every found dyad of ``rows``."""
     from synth.dyad import fit_rpr, fit_rrr, rpr_double
-    from synth.sixbar import crank_grid
+    from synth.sixbar import OutputDyad, crank_grid
 
     phi = crank_grid(SAMPLES)
     out = []
@@ -123,14 +130,10 @@ def _fit(request: Request, rows, kind: str) -> list[tuple[object, str, int, obje
         for i, r in enumerate(rows):
             for slot in range(fit.found.shape[-1]):
                 if fit.found[i, slot]:
-                    from synth.sixbar import OutputDyad
-
                     out.append((r, "rpr", slot, OutputDyad.rpr(complex(fit.pivot[i, slot])), None))
     else:
         radius = np.array([r.parts[0][5] for r in rows])
         fit = fit_rrr(point, radius, phi, paths, (start, end), request.swing, request.min_transmission, keep=2)
-        from synth.sixbar import OutputDyad
-
         for i, r in enumerate(rows):
             for slot in range(fit.found.shape[-1]):
                 if fit.found[i, slot]:
@@ -182,7 +185,7 @@ def _simulate(request: Request, fitted) -> tuple[list[Candidate], int]:
 
 def answer(engine, request: Request) -> QueryResult:
     """Ranked candidates for ``request`` from the atlas behind ``engine`` (pure read)."""
-    from db.queries import nearest_dwell_angles, select_segments
+    from db.queries import nearest_dwell_angles
 
     clock: dict[str, float] = {}
     t0 = time.perf_counter()
@@ -206,7 +209,7 @@ def answer(engine, request: Request) -> QueryResult:
     seen: set = set()
     unique = []
     for c in ranked:
-        f, sb = c.figures, c.sixbar
+        sb = c.sixbar
         mirror = (round(sb.b, 9), round(sb.c, 9), round(sb.d, 9), sb.dyad.kind, round(sb.u, 3), round(abs(sb.v), 3))
         key = (c.segment_id, c.id.split("-")[1][:3])
         if key not in seen and mirror not in seen:

@@ -501,13 +501,13 @@ def _peak(absdev: F64, mask: NDArray[np.bool_]) -> F64:
     return np.maximum(d.max(axis=1), np.where(peak, vertex, 0.0).max(axis=1, initial=0.0))
 
 
-def _window_path(A: C128, E: C128, cand: _Candidates, rows: I64, width: int) -> tuple[C128, I64]:
+def _window_path(A: C128, E: C128, cand: _Candidates, rows: I64, width: int) -> C128:
     """Path samples of candidates ``rows`` at fine offsets −width..width about their centres."""
     mf = A.shape[1]
     offs = np.arange(-width, width + 1)
     idx = (cand.center[rows, None] + offs) % mf
     link = cand.linkage[rows, None]
-    return A[link, idx] + E[link, idx] * cand.uv[rows, None], idx
+    return A[link, idx] + E[link, idx] * cand.uv[rows, None]
 
 
 def _runs(dev: F64, band: float, centre: int) -> tuple[I64, I64]:
@@ -516,12 +516,12 @@ def _runs(dev: F64, band: float, centre: int) -> tuple[I64, I64]:
     return np.where(inside, centre - left, centre + 1), np.where(inside, centre + right, centre)
 
 
-def _measure(A: C128, E: C128, cand: _Candidates, rows: I64, width: int, search: SegmentSearch, fine_step: float):
+def _measure(A: C128, E: C128, cand: _Candidates, rows: I64, width: int, search: SegmentSearch):
     """Fit and measure candidates ``rows`` (all with half-window ≤ ``width``) at every level.
 
     Returns per (candidate, level): run bounds [lo, hi] in window samples (hi < lo: no dwell),
     truncated (the run reached the window's edge), and the fitted geometry."""
-    z, _ = _window_path(A, E, cand, rows, width)
+    z = _window_path(A, E, cand, rows, width)
     n, size = z.shape
     centre = width
     kind = cand.kind[rows]
@@ -622,7 +622,7 @@ def find_segments(b: F64, c: F64, d: F64, branch: I64, search: SegmentSearch) ->
         if not rows.size:
             continue
         width_of[rows] = width
-        l, h, t, (p, dr, r) = _measure(A, E, cand, rows, width, search, fine_step)
+        l, h, t, (p, dr, r) = _measure(A, E, cand, rows, width, search)
         lo[rows], hi[rows], truncated[rows] = l - width, h - width, t  # offsets from the centre
         gp[rows], gd[rows], gr[rows] = p, dr, r
     has = hi >= lo
@@ -633,7 +633,7 @@ def find_segments(b: F64, c: F64, d: F64, branch: I64, search: SegmentSearch) ->
         if not rows.size:
             continue
         width = mf // 2 - 1
-        l, h, t, (p, dr, r) = _measure(A, E, cand, rows, width, search, fine_step)
+        l, h, t, (p, dr, r) = _measure(A, E, cand, rows, width, search)
         lo[rows], hi[rows], truncated[rows] = l - width, h - width, t
         gp[rows], gd[rows], gr[rows] = p, dr, r
         width_of[rows] = width
@@ -665,7 +665,7 @@ def find_segments(b: F64, c: F64, d: F64, branch: I64, search: SegmentSearch) ->
     keep_pair = keep & np.where(dbl, keep[np.maximum(cand.partner, 0)], True)
     skipped["double Ball point dropped: one stretch shorter than the minimum"] += int(
         np.count_nonzero(dbl & keep & ~keep_pair)
-    ) // 1
+    )
     keep = keep_pair
     keep &= ~_near_duplicates(cand, dwell[:, -1], start[:, -1], end[:, -1], keep, search.tolerances[-1])
     return _assemble(b, c, d, br, cand, keep, search, start, end, dwell, gp, gd, gr, mu, phi_f, skipped)

@@ -20,7 +20,7 @@ from cli.main import main
 from synth.sixbar import OutputDyad, SixBar
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "synth"))
-from test_sixbar import reference_psi  # noqa: E402  (the independent per-angle loop)
+from test_sixbar import reference_psi
 
 SPEC = PRESETS["demo"].replace(samples=384)
 STEP = 0.05  # degrees

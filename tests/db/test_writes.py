@@ -8,10 +8,10 @@ import socket
 import subprocess
 import sys
 import time
-from dataclasses import dataclass, field, replace
-from typing import Any
+from dataclasses import replace
 
 import pytest
+from shards import shard_rows
 from sqlalchemy import func, insert, select, update
 
 from db import AtlasError, Build, Dwell, Linkage, Segment, Shard, open_atlas
@@ -31,36 +31,6 @@ SPEC_A = json.dumps({"name": "demo", "samples": 8})
 SPEC_B = json.dumps({"name": "other", "samples": 9})
 DIGEST_A = "a" * 64
 DIGEST_B = "b" * 64
-
-
-@dataclass(frozen=True)
-class Rows:
-    """A hand-made shard result (the ShardRows protocol)."""
-
-    shard_index: int
-    linkages: list[dict[str, Any]]
-    segments: list[dict[str, Any]]
-    dwells: list[dict[str, Any]]
-    skipped: dict[str, int] = field(default_factory=dict)
-    seconds: float = 0.25
-
-
-def shard_rows(index: int, *, radius: float | None = 2.0, dwell_angle: float = 0.5) -> Rows:
-    """One linkage with one arc segment and one dwell; ids follow atlas.shard's scheme."""
-    lid = 2 * index + 1
-    sid = lid * 100_000
-    return Rows(
-        shard_index=index,
-        linkages=[dict(id=lid, shard_index=index, sweep_index=index, b=3.0, c=2.5, d=3.0, branch=1, grashof=1,
-                       transmission_min=0.5, transmission_max=1.5)],
-        segments=[dict(id=sid, linkage_id=lid, kind="arc", phi_gen=1.0, phi_gen2=None, ray=0.3, u=1.2, v=0.8,
-                       px=None, py=None, direction=None, p2x=None, p2y=None, direction2=None, ix=None, iy=None,
-                       cx=0.5, cy=0.25, radius=radius, transmission_min=0.6, transmission_max=1.4)],
-        dwells=[dict(id=sid * 64, segment_id=sid, kind="arc", level=0, tolerance=1e-3, part=0, phi_start=0.75,
-                     phi_end=0.75 + dwell_angle, dwell_angle=dwell_angle, max_deviation=9e-4, x=0.5, y=0.25,
-                     direction=None, radius=radius)],
-        skipped={"pole at infinity": index},
-    )
 
 
 def count(engine, model) -> int:
