@@ -23,8 +23,12 @@ Only what can pass is evaluated (the build's cost is dominated by candidates tha
    the generating angle contains one of them (two path points per candidate);
 2. the survivors' osculating runs give a score; only local maxima over neighbouring crank steps
    (and rays) are kept — neighbours are near-duplicates;
-3. the rest are fitted and measured at every level, and a final pass removes segments of one
-   linkage whose coupler points and intervals nearly coincide.
+3. near-duplicates — segments of one linkage whose coupler points and intervals nearly
+   coincide — are removed, first on the osculating runs within ε_max (those are never
+   measured), then again on the measured dwells;
+4. the rest are fitted and measured at the widest band ε_max, which alone decides what is
+   kept (minimum dwell, near-duplicates); only the kept ones are measured at the narrower
+   bands.
 
 Pure: arrays in, a frozen struct of arrays out, skipped cases counted by reason.
 """
@@ -260,13 +264,20 @@ class _Candidates:
     radius: F64
     window: I64
     partner: I64
+    osc_start: F64
+    osc_end: F64
 
 
 def _run_lengths(inside: NDArray[np.bool_], centre: int) -> tuple[I64, I64]:
-    """Samples inside the band contiguous with ``centre`` on the left and right (last axis)."""
-    left = np.cumprod(inside[..., centre::-1], axis=-1).sum(axis=-1) - 1
-    right = np.cumprod(inside[..., centre:], axis=-1).sum(axis=-1) - 1
-    return left.astype(np.int64), right.astype(np.int64)
+    """Samples inside the band contiguous with ``centre`` on the left and right (last axis;
+    −1 on both sides when ``centre`` itself is outside)."""
+
+    def leading(x: NDArray[np.bool_]) -> I64:
+        first_out = np.argmax(~x, axis=-1)  # 0 also when every sample is inside
+        all_in = np.take_along_axis(x, first_out[..., None], axis=-1)[..., 0]
+        return np.where(all_in, x.shape[-1], first_out)
+
+    return leading(inside[..., centre::-1]) - 1, leading(inside[..., centre:]) - 1
 
 
 def _local_best(score: F64, cyclic_axes: tuple[int, ...], reach: int = 1) -> NDArray[np.bool_]:
@@ -370,8 +381,13 @@ def _grid_candidates(b: F64, c: F64, d: F64, br: I64, search: SegmentSearch, ski
             skipped["candidate skipped: path within tolerance over the whole turn"] += int(np.count_nonzero(whole))
             skipped["candidate pruned: cannot reach the minimum dwell"] += int(np.count_nonzero(~long_enough & ~whole))
             window = (np.maximum(left, right) + 2) * fine
+            # the osculating run within the widest band (crank grid): a first guess of the
+            # interval, good enough to tell near-duplicates apart before measuring them
+            in_left, in_right = _run_lengths(np.abs(dev) <= eps_max, reach)
+            osc_start = (ci[1] - in_left) * step
+            osc_end = (ci[1] + in_right) * step
             best.flat[cell[~long_enough]] = False
-            window = window[long_enough]
+            window, osc_start, osc_end = window[long_enough], osc_start[long_enough], osc_end[long_enough]
             cell = np.flatnonzero(best)
             ci = np.unravel_index(cell, shape)
             out.append(
@@ -386,13 +402,15 @@ def _grid_candidates(b: F64, c: F64, d: F64, br: I64, search: SegmentSearch, ski
                     direction[ci],
                     radius[ci],
                     window,
+                    osc_start,
+                    osc_end,
                 )
             )
     if not out:
         empty = (np.zeros(0, np.int64),) * 3 + (np.zeros(0),) * 2 + (np.zeros(0, complex),) * 3 + (np.zeros(0), np.zeros(0, np.int64))
-        return _Candidates(*empty, partner=np.zeros(0, np.int64))
-    cols = [np.concatenate([o[k] for o in out]) for k in range(10)]
-    return _Candidates(*cols, partner=np.full(cols[0].size, -1, dtype=np.int64))
+        return _Candidates(*empty, partner=np.zeros(0, np.int64), osc_start=np.zeros(0), osc_end=np.zeros(0))
+    cols = [np.concatenate([o[k] for o in out]) for k in range(12)]
+    return _Candidates(*cols[:10], partner=np.full(cols[0].size, -1, dtype=np.int64), osc_start=cols[10], osc_end=cols[11])
 
 
 def _double_candidates(b: F64, c: F64, d: F64, br: I64, search: SegmentSearch, skipped: Counter) -> _Candidates:
@@ -416,6 +434,8 @@ def _double_candidates(b: F64, c: F64, d: F64, br: I64, search: SegmentSearch, s
         radius=np.zeros(2 * k),
         window=window,
         partner=np.r_[np.arange(k, 2 * k), np.arange(k)].astype(np.int64),
+        osc_start=phi,
+        osc_end=phi,
     )
 
 
@@ -423,70 +443,71 @@ def _double_candidates(b: F64, c: F64, d: F64, br: I64, search: SegmentSearch, s
 # stage 3: minimum-zone fits and dwell intervals on the exact path
 
 
-def _lawson(J: F64, r0: F64, iterations: int) -> tuple[F64, F64]:
-    """Approximate Chebyshev (minimax) solution of r0 ≈ J·x, batched over the first axis
-    (Lawson's iteratively reweighted least squares; J: (n, samples, p)). Returns the best x
-    seen and its max |r0 − J·x|."""
-    n, size, p = J.shape
-    cols = [J[..., k] for k in range(p)]
+def _solve_symmetric(M: dict[tuple[int, int], F64], rhs: list[F64]) -> list[F64]:
+    """x with M·x = rhs for batches of symmetric 2×2 or 3×3 systems (entries M[i, k], i ≤ k,
+    each of shape (n,)), by Cramer's rule: far cheaper than a batched LAPACK call at this size."""
+    if len(rhs) == 2:
+        a, b, c = M[0, 0], M[0, 1], M[1, 1]
+        det = a * c - b * b
+        return [(c * rhs[0] - b * rhs[1]) / det, (a * rhs[1] - b * rhs[0]) / det]
+    a, b, c, d, e, f = M[0, 0], M[0, 1], M[0, 2], M[1, 1], M[1, 2], M[2, 2]
+    # cofactors of the symmetric matrix [[a b c] [b d e] [c e f]]
+    A, B, C = d * f - e * e, c * e - b * f, b * e - c * d
+    D, E, F = a * f - c * c, b * c - a * e, a * d - b * b
+    det = a * A + b * B + c * C
+    r0, r1, r2 = rhs
+    return [(A * r0 + B * r1 + C * r2) / det, (B * r0 + D * r1 + E * r2) / det, (C * r0 + E * r1 + F * r2) / det]
+
+
+def _lawson(cols: list[F64], r0: F64, iterations: int) -> F64:
+    """Approximate Chebyshev (minimax) solution x of r0 ≈ Σ x_k·cols[k], batched over the
+    first axis (Lawson's iteratively reweighted least squares; each column (n, samples), 2
+    or 3 of them). Returns the best x seen, (n, p)."""
+    n, size = r0.shape
+    p = len(cols)
     w = np.full((n, size), 1.0 / size)
     best_x = np.zeros((n, p))
     best_h = np.abs(r0).max(axis=1)
-    M = np.empty((n, p, p))
-    rhs = np.empty((n, p))
     for _ in range(iterations):
+        wc = [w * col for col in cols]
+        M = {(i, k): np.einsum("ij,ij->i", wc[i], cols[k]) for i in range(p) for k in range(i, p)}
+        # ridge: keeps near-singular fits (a stretch seen almost edge-on) finite
+        ridge = 1e-13 * sum(M[i, i] for i in range(p)) + 1e-300
         for i in range(p):
-            wi = w * cols[i]
-            rhs[:, i] = (wi * r0).sum(axis=1)
-            for k in range(i, p):
-                M[:, i, k] = M[:, k, i] = (wi * cols[k]).sum(axis=1)
-        # ridge: pins unused parameters (a line's third) and keeps near-singular fits finite
-        trace = np.maximum(np.trace(M, axis1=1, axis2=2), 1e-300)
-        M[:, range(p), range(p)] += 1e-13 * trace[:, None]
-        x = np.linalg.solve(M, rhs[..., None])[..., 0]
-        res = r0.copy()
-        for i in range(p):
-            res -= x[:, i : i + 1] * cols[i]
-        res = np.abs(res)
+            M[i, i] = M[i, i] + ridge
+        x = _solve_symmetric(M, [np.einsum("ij,ij->i", wc[i], r0) for i in range(p)])
+        res = r0 - x[0][:, None] * cols[0]
+        for i in range(1, p):
+            res -= x[i][:, None] * cols[i]
+        np.abs(res, out=res)
         h = res.max(axis=1)
         better = h < best_h
-        best_x[better] = x[better]
+        best_x[better] = np.stack(x, axis=1)[better]
         best_h = np.where(better, h, best_h)
-        w = w * res
+        w *= res
         total = w.sum(axis=1, keepdims=True)
         w = np.where(total > 0, w / np.where(total > 0, total, 1.0), 1.0 / size)
-    return best_x, best_h
+    return best_x
 
 
-def _fit(z: C128, kind: I64, point: C128, direction: C128, radius: F64, iterations: int):
-    """Minimum-zone line/circle through path samples ``z`` (n, samples), starting from the given one.
+def _fit(z: C128, kind: int, point: C128, direction: C128, radius: F64, iterations: int):
+    """Minimum-zone line (``kind`` 0) or circle (1) through path samples ``z`` (n, samples),
+    starting from the given one.
 
     Linearised about the current geometry: a line moves by δo along its normal and turns by
     δβ; a circle's centre moves by δc and its radius by δρ (first order in the change, which
     is of the order of the band over the stretch)."""
-    r0 = path_deviation(z, kind[:, None], point[:, None], direction[:, None], radius[:, None])
+    r0 = path_deviation(z, kind, point[:, None], direction[:, None], radius[:, None])
     rel = z - point[:, None]
-    # lines: r ≈ r0 − δo − δβ·s (s along the line, scaled to O(1) for conditioning)
-    s = np.real(np.conj(direction[:, None]) * rel)
-    scale = np.maximum(np.abs(s).max(axis=1), 1e-12)
+    if kind == _LINE:
+        # r ≈ r0 − δo − δβ·s (s along the line, scaled to O(1) for conditioning)
+        s = np.real(np.conj(direction[:, None]) * rel)
+        scale = np.maximum(np.abs(s).max(axis=1), 1e-12)
+        x = _lawson([np.ones_like(s), s / scale[:, None]], r0, iterations)
+        return point + 1j * direction * x[:, 0], direction * np.exp(1j * x[:, 1] / scale), radius
     e = rel / np.maximum(np.abs(rel), 1e-300)
-    is_line = (kind == _LINE)[:, None]
-    # a line has two parameters: its third column is zero and the ridge pins that coefficient
-    J = np.stack(
-        np.broadcast_arrays(
-            np.where(is_line, 1.0, e.real),
-            np.where(is_line, s / scale[:, None], e.imag),
-            np.where(is_line, 0.0, 1.0),
-        ),
-        axis=-1,
-    )
-    x, _ = _lawson(J, r0, iterations)
-    line = kind == _LINE
-    normal = 1j * direction
-    new_point = np.where(line, point + normal * x[:, 0], point + x[:, 0] + 1j * x[:, 1])
-    new_direction = np.where(line, direction * np.exp(1j * x[:, 1] / scale), direction)
-    new_radius = np.where(line, radius, radius + x[:, 2])
-    return new_point, new_direction, new_radius
+    x = _lawson([e.real, e.imag, np.ones_like(r0)], r0, iterations)
+    return point + x[:, 0] + 1j * x[:, 1], direction, radius + x[:, 2]
 
 
 def _peak(absdev: F64, mask: NDArray[np.bool_]) -> F64:
@@ -494,11 +515,15 @@ def _peak(absdev: F64, mask: NDArray[np.bool_]) -> F64:
     to the vertex of the parabola through it and its neighbours: a fitted band touches ε
     between samples too, and the band must hold on the whole interval, not only at samples."""
     d = np.where(mask, absdev, 0.0)
-    left, mid, right = d[:, :-2], d[:, 1:-1], d[:, 2:]
-    curv = 2 * mid - left - right
-    peak = (mid >= left) & (mid >= right) & (curv > 0) & mask[:, :-2] & mask[:, 2:]
-    vertex = mid + (right - left) ** 2 / (8 * np.where(peak, curv, 1.0))
-    return np.maximum(d.max(axis=1), np.where(peak, vertex, 0.0).max(axis=1, initial=0.0))
+    h = d.max(axis=1)
+    mid = d[:, 1:-1]
+    row, col = np.nonzero((mid >= d[:, :-2]) & (mid >= d[:, 2:]) & mask[:, :-2] & mask[:, 2:])
+    # few peaks per row: the parabola only where there is one
+    left, top, right = d[row, col], d[row, col + 1], d[row, col + 2]
+    curv = 2 * top - left - right
+    vertex = np.where(curv > 0, top + (right - left) ** 2 / (8 * np.where(curv > 0, curv, 1.0)), top)
+    np.maximum.at(h, row, vertex)
+    return h
 
 
 def _window_path(A: C128, E: C128, cand: _Candidates, rows: I64, width: int) -> C128:
@@ -510,29 +535,34 @@ def _window_path(A: C128, E: C128, cand: _Candidates, rows: I64, width: int) -> 
     return A[link, idx] + E[link, idx] * cand.uv[rows, None]
 
 
-def _runs(dev: F64, band: float, centre: int) -> tuple[I64, I64]:
-    left, right = _run_lengths(np.abs(dev) <= band, centre)
-    inside = np.abs(dev[:, centre]) <= band
+def _runs(absdev: F64, band: float, centre: int) -> tuple[I64, I64]:
+    """[lo, hi] (samples) of the run of |deviation| ≤ ``band`` through ``centre`` (hi < lo: none)."""
+    left, right = _run_lengths(absdev <= band, centre)
+    inside = absdev[:, centre] <= band
     return np.where(inside, centre - left, centre + 1), np.where(inside, centre + right, centre)
 
 
-def _measure(A: C128, E: C128, cand: _Candidates, rows: I64, width: int, search: SegmentSearch):
-    """Fit and measure candidates ``rows`` (all with half-window ≤ ``width``) at every level.
+def _measure(A: C128, E: C128, cand: _Candidates, rows: I64, width: int, search: SegmentSearch, levels: list[int]):
+    """Fit and measure candidates ``rows`` (all with half-window ≤ ``width``) at ``levels``.
 
-    Returns per (candidate, level): run bounds [lo, hi] in window samples (hi < lo: no dwell),
-    truncated (the run reached the window's edge), and the fitted geometry."""
+    The first level starts from the candidate's osculating line/circle, each further level
+    from the previous level's fit. Returns per (candidate, level of ``levels``): run bounds
+    [lo, hi] in window samples (hi < lo: no dwell), truncated (the run reached the window's
+    edge), and the fitted geometry."""
     z = _window_path(A, E, cand, rows, width)
     n, size = z.shape
     centre = width
-    kind = cand.kind[rows]
+    kind = int(cand.kind[rows[0]])
+    assert np.all(cand.kind[rows] == kind), "one kind per measurement batch"
     point, direction, radius = cand.point[rows].copy(), cand.direction[rows].copy(), cand.radius[rows].copy()
-    levels = len(search.tolerances)
-    lo_out = np.zeros((n, levels), np.int64)
-    hi_out = np.zeros((n, levels), np.int64)
-    geom = (np.zeros((n, levels), complex), np.zeros((n, levels), complex), np.zeros((n, levels)))
+    k = len(levels)
+    lo_out = np.zeros((n, k), np.int64)
+    hi_out = np.zeros((n, k), np.int64)
+    geom = (np.zeros((n, k), complex), np.zeros((n, k), complex), np.zeros((n, k)))
     col = np.arange(size)
-    for level, eps in enumerate(search.tolerances):
-        lo, hi = _runs(path_deviation(z, kind[:, None], point[:, None], direction[:, None], radius[:, None]), eps, centre)
+    for out, level in enumerate(levels):
+        eps = search.tolerances[level]
+        lo, hi = _runs(np.abs(path_deviation(z, kind, point[:, None], direction[:, None], radius[:, None])), eps, centre)
         ext = np.maximum((hi - lo + 1) // 4, 1)
         for _ in range(search.window_tries):
             t_lo = np.clip(lo - ext, 0, size - 1)
@@ -542,8 +572,8 @@ def _measure(A: C128, E: C128, cand: _Candidates, rows: I64, width: int, search:
             pos = t_lo[:, None] + np.rint(_FIT_SPREAD * (t_hi - t_lo)[:, None]).astype(np.int64)
             zs = np.take_along_axis(z, pos, axis=1)
             p2, d2, r2 = _fit(zs, kind, point, direction, radius, search.lawson_iterations)
-            dev = path_deviation(z, kind[:, None], p2[:, None], d2[:, None], r2[:, None])
-            h = _peak(np.abs(dev), mask)
+            dev = np.abs(path_deviation(z, kind, p2[:, None], d2[:, None], r2[:, None]))
+            h = _peak(dev, mask)
             ok = (h <= eps * (1 - _BAND_MARGIN)) & (hi >= lo)
             point, direction, radius = np.where(ok, p2, point), np.where(ok, d2, direction), np.where(ok, r2, radius)
             nlo, nhi = _runs(dev, eps, centre)  # where ok, dev is the new geometry's
@@ -556,8 +586,8 @@ def _measure(A: C128, E: C128, cand: _Candidates, rows: I64, width: int, search:
             ext = np.where(hi >= lo, ext, 0)
             if not np.any(ext > 0):
                 break
-        lo_out[:, level], hi_out[:, level] = lo, hi
-        geom[0][:, level], geom[1][:, level], geom[2][:, level] = point, direction, radius
+        lo_out[:, out], hi_out[:, out] = lo, hi
+        geom[0][:, out], geom[1][:, out], geom[2][:, out] = point, direction, radius
     truncated = (lo_out == 0) | (hi_out == size - 1)
     return lo_out, hi_out, truncated, geom
 
@@ -594,7 +624,7 @@ def find_segments(b: F64, c: F64, d: F64, branch: I64, search: SegmentSearch) ->
     if b.size:
         shift = len(grid.linkage)
         cand = _Candidates(
-            *(np.r_[getattr(grid, f), getattr(double, f)] for f in _Candidates.__dataclass_fields__ if f != "partner"),
+            **{f: np.r_[getattr(grid, f), getattr(double, f)] for f in _Candidates.__dataclass_fields__ if f != "partner"},
             partner=np.r_[grid.partner, np.where(double.partner >= 0, double.partner + shift, -1)],
         )
     else:
@@ -609,66 +639,118 @@ def find_segments(b: F64, c: F64, d: F64, branch: I64, search: SegmentSearch) ->
     mu = transmission_angle(motion)
     mu = np.minimum(mu, np.pi - mu)
 
-    lo = np.zeros((n_cand, levels), np.int64)
-    hi = np.full((n_cand, levels), -1, np.int64)
-    truncated = np.zeros((n_cand, levels), bool)
-    gp = np.zeros((n_cand, levels), complex)
-    gd = np.ones((n_cand, levels), complex)
-    gr = np.zeros((n_cand, levels))
-    width_of = np.zeros(n_cand, np.int64)
+    m = _Measured.empty(n_cand, levels)
+    top = levels - 1
+    # The widest band first, for every candidate: it alone decides which segments are kept
+    # (minimum dwell, near-duplicates), so the narrower bands are measured for those only.
     window = np.minimum(cand.window, mf // 2 - 1)
-    for width, kind in itertools.product(_window_classes(mf), (_LINE, _ARC)):
-        rows = np.flatnonzero((window <= width) & (width_of == 0) & (cand.kind == kind))
-        if not rows.size:
-            continue
-        width_of[rows] = width
-        l, h, t, (p, dr, r) = _measure(A, E, cand, rows, width, search)
-        lo[rows], hi[rows], truncated[rows] = l - width, h - width, t  # offsets from the centre
-        gp[rows], gd[rows], gr[rows] = p, dr, r
-    has = hi >= lo
-    # a run that reached its window's edge was cut short: measure it again in the widest window
-    redo = np.flatnonzero((truncated & has).any(axis=1) & (width_of < mf // 2 - 1))
-    for kind in (_LINE, _ARC):
-        rows = redo[cand.kind[redo] == kind]
-        if not rows.size:
-            continue
-        width = mf // 2 - 1
-        l, h, t, (p, dr, r) = _measure(A, E, cand, rows, width, search)
-        lo[rows], hi[rows], truncated[rows] = l - width, h - width, t
-        gp[rows], gd[rows], gr[rows] = p, dr, r
-        width_of[rows] = width
-    has = hi >= lo
-    whole = (truncated & has).any(axis=1)
+    # Near-duplicates judged on their osculating runs are not measured at all (the same rule
+    # is applied again to the measured dwells below): about a third of the work.
+    early = _near_duplicates(cand, cand.osc_end - cand.osc_start, cand.osc_start, cand.osc_end, np.ones(n_cand, bool),
+                             search.tolerances[-1])
+    skipped["candidate merged: a near-duplicate follows the path longer"] += int(np.count_nonzero(early))
+    every = np.flatnonzero(~early)
+    _measure_rows(m, A, E, cand, every, window[every], [top], search)
+    whole = m.truncated[:, top] & m.has[:, top]
     skipped["candidate skipped: path within tolerance over the whole turn"] += int(np.count_nonzero(whole))
+    _refine_ends(m, b, c, d, br, cand, np.flatnonzero(m.has[:, top] & ~whole), top, search)
 
-    # exact ends: bisection between the last inside and the first outside fine sample
-    start = np.zeros((n_cand, levels))
-    end = np.zeros((n_cand, levels))
-    base = cand.center[:, None] * fine_step
-    for level, eps in enumerate(search.tolerances):
-        rows = np.flatnonzero(has[:, level] & ~whole)
-        if not rows.size:
-            continue
-        g = (gp[rows, level], gd[rows, level], gr[rows, level])
-        band = np.full(rows.size, eps)
-        b_in = base[rows, 0] + lo[rows, level] * fine_step
-        start[rows, level] = _bisect_ends(b, c, d, br, cand, rows, b_in, b_in - fine_step, g, band)
-        e_in = base[rows, 0] + hi[rows, level] * fine_step
-        end[rows, level] = _bisect_ends(b, c, d, br, cand, rows, e_in, e_in + fine_step, g, band)
-
-    dwell = np.where(has & ~whole[:, None], end - start, 0.0)
     min_dwell = math.radians(search.min_dwell_deg)
-    keep = (dwell[:, -1] >= min_dwell) & ~whole
-    skipped["candidate dropped: dwell shorter than the minimum"] += int(np.count_nonzero(~keep & ~whole))
-    # a double Ball point needs both stretches
+    keep = (m.dwell[:, top] >= min_dwell) & ~whole & ~early
+    skipped["candidate dropped: dwell shorter than the minimum"] += int(np.count_nonzero(~keep & ~whole & ~early))
+    keep = _pairs_kept(cand, keep, skipped)
+    keep &= ~_near_duplicates(cand, m.dwell[:, top], m.start[:, top], m.end[:, top], keep, search.tolerances[-1])
+
+    if top > 0:
+        rows = np.flatnonzero(keep)
+        narrower = list(range(top))
+        _measure_rows(m, A, E, cand, rows, m.width[rows], narrower, search)
+        for level in narrower:
+            _refine_ends(m, b, c, d, br, cand, rows[m.has[rows, level] & ~m.truncated[rows, level]], level, search)
+    # a narrower band whose run still reached the widest window's edge: no dwell stored there
+    np.logical_and(m.has, ~m.truncated, out=m.has)
+    return _assemble(A, E, cand, keep, search, m.start, m.end, np.where(m.has, m.dwell, 0.0),
+                     m.point, m.direction, m.radius, mu, skipped)
+
+
+@dataclass(frozen=True, slots=True)
+class _Measured:
+    """Per candidate and level: the run found on the fine grid (offsets from the centre), the
+    fitted geometry, the exact interval [start, end] (rad) and the half-window used."""
+
+    has: NDArray[np.bool_]
+    lo: I64
+    hi: I64
+    truncated: NDArray[np.bool_]
+    point: C128
+    direction: C128
+    radius: F64
+    start: F64
+    end: F64
+    width: I64
+
+    @classmethod
+    def empty(cls, n: int, levels: int) -> _Measured:
+        shape = (n, levels)
+        return cls(np.zeros(shape, bool), np.zeros(shape, np.int64), np.full(shape, -1, np.int64),
+                   np.zeros(shape, bool), np.zeros(shape, complex), np.ones(shape, complex), np.zeros(shape),
+                   np.zeros(shape), np.zeros(shape), np.zeros(n, np.int64))
+
+    @property
+    def dwell(self) -> F64:
+        return np.where(self.has, self.end - self.start, 0.0)
+
+
+def _measure_rows(m: _Measured, A: C128, E: C128, cand: _Candidates, rows: I64, window: I64, levels: list[int],
+                  search: SegmentSearch) -> None:
+    """Measure candidates ``rows`` at ``levels`` into ``m``, each in the narrowest window class
+    that holds its ``window``; a run cut short by its window is measured again in the widest."""
+    mf = A.shape[1]
+    widest = mf // 2 - 1
+    cols = np.asarray(levels)
+
+    def run(sel: I64, width: int) -> None:
+        lo, hi, truncated, (p, dr, r) = _measure(A, E, cand, sel, width, search, levels)
+        m.lo[sel[:, None], cols], m.hi[sel[:, None], cols] = lo - width, hi - width  # offsets from the centre
+        m.truncated[sel[:, None], cols] = truncated
+        m.has[sel[:, None], cols] = hi >= lo
+        m.point[sel[:, None], cols], m.direction[sel[:, None], cols], m.radius[sel[:, None], cols] = p, dr, r
+        m.width[sel] = width
+
+    done = np.zeros(rows.size, bool)
+    for width, kind in itertools.product(_window_classes(mf), (_LINE, _ARC)):
+        pick = (window <= width) & ~done & (cand.kind[rows] == kind)
+        if np.any(pick):
+            done |= pick
+            run(rows[pick], width)
+    cut = rows[(m.truncated[rows[:, None], cols] & m.has[rows[:, None], cols]).any(axis=1) & (m.width[rows] < widest)]
+    for kind in (_LINE, _ARC):
+        sel = cut[cand.kind[cut] == kind]
+        if sel.size:
+            run(sel, widest)
+
+
+def _refine_ends(m: _Measured, b, c, d, br, cand: _Candidates, rows: I64, level: int, search: SegmentSearch) -> None:
+    """Exact ends of the runs of ``rows`` at ``level``: bisection between the last inside and
+    the first outside fine sample."""
+    if not rows.size:
+        return
+    fine_step = 2 * np.pi / (search.steps * search.fine_per_step)
+    g = (m.point[rows, level], m.direction[rows, level], m.radius[rows, level])
+    band = np.full(rows.size, search.tolerances[level])
+    base = cand.center[rows] * fine_step
+    inside = base + m.lo[rows, level] * fine_step
+    m.start[rows, level] = _bisect_ends(b, c, d, br, cand, rows, inside, inside - fine_step, g, band)
+    inside = base + m.hi[rows, level] * fine_step
+    m.end[rows, level] = _bisect_ends(b, c, d, br, cand, rows, inside, inside + fine_step, g, band)
+
+
+def _pairs_kept(cand: _Candidates, keep: NDArray[np.bool_], skipped: Counter) -> NDArray[np.bool_]:
+    """``keep`` with the double Ball points that lost one stretch dropped (both are needed)."""
     dbl = cand.partner >= 0
-    keep_pair = keep & np.where(dbl, keep[np.maximum(cand.partner, 0)], True)
-    skipped["double Ball point dropped: one stretch shorter than the minimum"] += int(
-        np.count_nonzero(dbl & keep & ~keep_pair)
-    )
-    keep = keep_pair
-    keep &= ~_near_duplicates(cand, dwell[:, -1], start[:, -1], end[:, -1], keep, search.tolerances[-1])
-    return _assemble(b, c, d, br, cand, keep, search, start, end, dwell, gp, gd, gr, mu, phi_f, skipped)
+    kept = keep & np.where(dbl, keep[np.maximum(cand.partner, 0)], True)
+    skipped["double Ball point dropped: one stretch shorter than the minimum"] += int(np.count_nonzero(dbl & keep & ~kept))
+    return kept
 
 
 def _window_classes(mf: int) -> list[int]:
@@ -712,7 +794,7 @@ def _near_duplicates(cand: _Candidates, dwell: F64, start: F64, end: F64, keep: 
     return drop
 
 
-def _assemble(b, c, d, br, cand, keep, search, start, end, dwell, gp, gd, gr, mu, phi_f, skipped) -> FoundSegments:
+def _assemble(A, E, cand, keep, search, start, end, dwell, gp, gd, gr, mu, skipped) -> FoundSegments:
     levels = len(search.tolerances)
     first = np.flatnonzero(keep & ((cand.partner < 0) | (np.arange(keep.size) < cand.partner)))
     partner = np.where(cand.partner[first] >= 0, cand.partner[first], first)
@@ -729,28 +811,36 @@ def _assemble(b, c, d, br, cand, keep, search, start, end, dwell, gp, gd, gr, mu
     e = s + dwell[two].transpose(0, 2, 1)
     # transmission angle over the widest interval, deviation reached at every level (≤ the
     # band), both on the fine grid
-    mf = phi_f.size
+    mf = A.shape[1]
     fine_step = twopi / mf
     tmin = np.full(first.size, np.pi / 2)
     tmax = np.zeros(first.size)
     maxdev = np.zeros((first.size, levels, 2))
-    offsets = np.arange(mf)
+    k0 = np.ceil(start / fine_step - 1e-9).astype(np.int64)
+    k1 = np.floor(end / fine_step + 1e-9).astype(np.int64)
     for part in range(2):
-        rows = two[:, part]
-        link = cand.linkage[rows]
-        z = motion_path(b, c, d, br, link, cand.uv[rows], phi_f)
+        seg = np.arange(first.size) if part == 0 else np.flatnonzero(is_double)  # a single has one part
+        rows = two[seg, part]
         for level in range(levels):
-            k0 = np.ceil(start[rows, level] / fine_step - 1e-9).astype(np.int64)
-            k1 = np.floor(end[rows, level] / fine_step + 1e-9).astype(np.int64)
-            idx = (k0[:, None] + offsets) % mf
-            inside = (k0[:, None] + offsets) <= k1[:, None]
-            dev = np.abs(path_deviation(np.take_along_axis(z, idx, axis=1), cand.kind[rows][:, None],
-                                        gp[rows, level][:, None], gd[rows, level][:, None], gr[rows, level][:, None]))
-            maxdev[:, level, part] = np.where(inside, dev, 0.0).max(axis=1)
-            if level == levels - 1:
-                vals = mu[link[:, None], idx]
-                tmin = np.minimum(tmin, np.where(inside, vals, np.inf).min(axis=1))
-                tmax = np.maximum(tmax, np.where(inside, vals, -np.inf).max(axis=1))
+            span = k1[rows, level] - k0[rows, level] + 1
+            # intervals grouped by length, so that a few long ones do not widen every gather
+            for shorter, width in itertools.pairwise((0, 16, 32, 64, 128, 256, 2 * mf)):
+                pick = np.flatnonzero((span > shorter) & (span <= width))
+                if not pick.size:
+                    continue
+                r, at = rows[pick], seg[pick]
+                offsets = np.arange(min(width, mf))
+                idx = (k0[r, level][:, None] + offsets) % mf
+                inside = offsets <= (k1[r, level] - k0[r, level])[:, None]
+                link = cand.linkage[r][:, None]
+                z = A[link, idx] + E[link, idx] * cand.uv[r][:, None]
+                dev = np.abs(path_deviation(z, cand.kind[r][:, None], gp[r, level][:, None], gd[r, level][:, None],
+                                            gr[r, level][:, None]))
+                maxdev[at, level, part] = np.where(inside, dev, 0.0).max(axis=1)
+                if level == levels - 1:
+                    vals = mu[link, idx]
+                    tmin[at] = np.minimum(tmin[at], np.where(inside, vals, np.inf).min(axis=1))
+                    tmax[at] = np.maximum(tmax[at], np.where(inside, vals, -np.inf).max(axis=1))
     a_dbl = is_double
     p1, p2 = cand.point[two[:, 0]], cand.point[two[:, 1]]
     t1, t2 = cand.direction[two[:, 0]], cand.direction[two[:, 1]]
@@ -790,8 +880,3 @@ def _assemble(b, c, d, br, cand, keep, search, start, end, dwell, gp, gd, gr, mu
         skipped=dict(sorted((k, v) for k, v in skipped.items() if v)),
     )
 
-
-def motion_path(b: F64, c: F64, d: F64, br: I64, link: I64, uv: C128, phi: F64) -> C128:
-    """Exact path of coupler points ``uv`` of linkages ``link`` at crank angles ``phi``: (len(link), len(phi))."""
-    motion = fourbar_motion(1.0, b[link, None], c[link, None], d[link, None], phi, br[link, None], order=0)
-    return motion.A + motion.e_theta * uv[:, None]
