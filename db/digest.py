@@ -99,8 +99,11 @@ def _digest(conn: Connection, build_id: int | None) -> str:
     for name, cols, stmt in _statements(build_id):
         h.update(_header(name, cols))
         fmts = [_formatter(c) for c in cols]
-        # streamed in batches: a big atlas does not fit in memory
-        result = conn.execution_options(yield_per=_BATCH).execute(stmt)
+        # streamed in batches: a big atlas does not fit in memory. The option goes on the
+        # statement: ``Connection.execution_options`` changes the connection itself, and on
+        # PostgreSQL every later statement of the transaction would then run through a
+        # server-side cursor (which an UPDATE cannot).
+        result = conn.execute(stmt.execution_options(yield_per=_BATCH))
         for part in result.partitions():
             lines = []
             for row in part:

@@ -3,22 +3,43 @@
 An atlas is refused — with one clear :class:`AtlasError` and the file untouched — when it is
 not an SQLite file, is an SQLite file of another application, has a newer schema version
 than this code, or does not exist (unless ``create=True``).
+
+PostgreSQL (``postgresql+psycopg://user:pw@host:port/dbname``; a bare ``postgresql://`` means
+the same driver) runs the same code. The database must exist (the tool creates tables in an
+empty one, never databases); an unreachable server, bad credentials or a missing database is
+one :class:`AtlasError` line. Dialect differences handled here:
+
+* transactions are pinned to READ COMMITTED: the builder lock's compare-and-swap
+  (``db.writes``) relies on a blocked ``UPDATE … WHERE lock_token = ?`` re-reading the row
+  once the other transaction commits, and so matching nothing; under REPEATABLE READ or
+  SERIALIZABLE (a server default some sites set) it would fail with a serialisation error;
+* ``readonly`` makes every transaction READ ONLY (SQLite: ``mode=ro``);
+* a connect timeout (10 s unless the URL sets ``connect_timeout``): a firewalled server
+  must not hang the command;
+* creating the schema takes an advisory lock and runs in one transaction (PostgreSQL has
+  transactional DDL), so two builders starting on one empty database cannot both create it.
+
+Messages never show a URL's password (:func:`display_target`).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
-from sqlalchemy import Engine, create_engine, event, inspect, select
-from sqlalchemy.engine import make_url
-from sqlalchemy.exc import ArgumentError, DatabaseError, OperationalError
-from sqlalchemy.orm import Session
+from sqlalchemy import Connection, Engine, create_engine, event, func, insert, inspect, select
+from sqlalchemy.engine import URL, make_url
+from sqlalchemy.exc import ArgumentError, DatabaseError, DBAPIError, OperationalError
 
 from db.schema import APPLICATION, SCHEMA_VERSION, Base, Meta
 
-__all__ = ["AtlasError", "database_url", "open_atlas", "sqlite_path"]
+__all__ = ["AtlasError", "database_url", "display_target", "open_atlas", "sqlite_path"]
 
 _SQLITE_MAGIC = b"SQLite format 3\x00"
+#: Seconds to wait for a PostgreSQL server before giving up (unless the URL says otherwise).
+CONNECT_TIMEOUT = 10
+#: pg_advisory_xact_lock key serialising schema creation (any constant; "dwel" in ASCII).
+_CREATE_LOCK_KEY = 0x6477656C
 
 
 class AtlasError(Exception):
@@ -26,10 +47,28 @@ class AtlasError(Exception):
 
 
 def database_url(target: str) -> str:
-    """A SQLAlchemy URL from ``target``: a URL as is, anything else a SQLite file path."""
-    if "://" in target:
+    """A SQLAlchemy URL from ``target``: a URL as is, anything else a SQLite file path.
+
+    A bare ``postgresql://`` (or ``postgres://``) URL gets the psycopg (3) driver, the one
+    the ``postgres`` extra installs (SQLAlchemy 2.0 would pick psycopg2 for it).
+    """
+    if "://" not in target:
+        return f"sqlite:///{Path(target).expanduser().resolve()}"
+    scheme, rest = target.split("://", 1)
+    if scheme in ("postgresql", "postgres"):
+        return f"postgresql+psycopg://{rest}"
+    return target
+
+
+def display_target(target: str) -> str:
+    """``target`` as messages show it: a URL's password replaced by ``***``."""
+    if "://" not in target:
         return target
-    return f"sqlite:///{Path(target).expanduser().resolve()}"
+    try:
+        url = make_url(target)
+    except ArgumentError:
+        return target.split("://", 1)[0] + "://…"  # unparsable: show no more than the scheme
+    return url.render_as_string(hide_password=True) if url.password else target
 
 
 def sqlite_path(target: str) -> Path | None:
@@ -56,8 +95,8 @@ def open_atlas(target: str, *, create: bool = False, readonly: bool = False) -> 
     try:
         url = database_url(target)
         make_url(url)
-    except ArgumentError as exc:
-        raise AtlasError(f"not a database path or URL: {target!r} ({exc})") from None
+    except ArgumentError:
+        raise AtlasError(f"not a database path or URL: {display_target(target)!r}") from None
     path = _sqlite_path(url)
     if path is not None:
         existing = _check_sqlite_file(path, target, create=create)
@@ -65,30 +104,80 @@ def open_atlas(target: str, *, create: bool = False, readonly: bool = False) -> 
         if existing:
             # Look before touching: even setting WAL mode rewrites the file header, so a file
             # that turns out not to be an atlas must only ever be read.
-            _checked(_engine(read_only_url, target), target, create=False).dispose()
+            # (an empty database is fine to build in: what a build killed before its schema leaves)
+            before = _side_files(path)
+            try:
+                _checked(_engine(read_only_url, target), target, create=False, empty_ok=create).dispose()
+            except AtlasError:
+                _remove_new_side_files(path, before)
+                raise
         if readonly:
             url = read_only_url
-    engine = _engine(url, target)
+    engine = _engine(url, target, readonly=readonly)
     if engine.dialect.name == "sqlite":
         _sqlite_pragmas(engine, wal=not readonly)
     return _checked(engine, target, create=create and not readonly)
 
 
-def _engine(url: str, target: str) -> Engine:
+def _engine(url: str, target: str, *, readonly: bool = False) -> Engine:
+    u = make_url(url)
+    options = _postgresql_options(u, readonly=readonly) if u.get_backend_name() == "postgresql" else {}
     try:
-        return create_engine(url)
-    except (ArgumentError, ModuleNotFoundError, ImportError) as exc:
-        raise AtlasError(f"cannot open {target!r}: {exc}") from None
+        return create_engine(u, **options)
+    except (ModuleNotFoundError, ImportError) as exc:
+        hint = " (install it with: pip install 'dwell-atlas[postgres]')" if u.get_backend_name() == "postgresql" else ""
+        raise AtlasError(f"cannot open {display_target(target)!r}: database driver missing: {exc}{hint}") from None
+    except ArgumentError as exc:
+        raise AtlasError(f"cannot open {display_target(target)!r}: {exc}") from None
 
 
-def _checked(engine: Engine, target: str, *, create: bool) -> Engine:
+def _postgresql_options(url: URL, *, readonly: bool) -> dict[str, Any]:
+    """``create_engine`` keywords for PostgreSQL (why each: see the module docstring)."""
+    connect_args: dict[str, Any] = {}
+    if "connect_timeout" not in url.query:
+        connect_args["connect_timeout"] = CONNECT_TIMEOUT
+    if "application_name" not in url.query:
+        connect_args["application_name"] = APPLICATION  # names the builders in pg_stat_activity
+    options: dict[str, Any] = {"isolation_level": "READ COMMITTED", "connect_args": connect_args}
+    if readonly:
+        options["execution_options"] = {"postgresql_readonly": True}
+    return options
+
+
+def _first_line(exc: BaseException) -> str:
+    """The driver's message, first line, without psycopg's ``connection failed:`` preamble."""
+    text = str(getattr(exc, "orig", None) or exc).strip()
+    first = text.splitlines()[0] if text else type(exc).__name__
+    return " ".join(first.removeprefix("connection failed: ").split())
+
+
+def _connected(engine: Engine, target: str) -> None:
+    """Open one connection, turning every way of failing into one :class:`AtlasError` line.
+
+    Servers only: an SQLite file was checked before, and its failures (corrupt, not a
+    database) surface in the schema check, with that wording."""
+    if engine.dialect.name == "sqlite":
+        return
+    try:
+        with engine.connect():
+            pass
+    except DBAPIError as exc:
+        message = _first_line(exc)
+        hint = ""
+        if engine.dialect.name == "postgresql" and "does not exist" in message and "database" in message:
+            database = engine.url.database
+            hint = f"; create it first (createdb {database}), the atlas's tables are made by dwell atlas build"
+        raise AtlasError(f"cannot connect to {display_target(target)!r}: {message}{hint}") from None
+
+
+def _checked(engine: Engine, target: str, *, create: bool, empty_ok: bool = False) -> Engine:
     """``engine`` after the schema check (or creation); disposed and refused on failure."""
     try:
-        _check_or_create_schema(engine, target, create=create)
+        _connected(engine, target)
+        _check_or_create_schema(engine, display_target(target), create=create, empty_ok=empty_ok)
     except (OperationalError, DatabaseError) as exc:
         engine.dispose()
-        first = str(exc.orig if hasattr(exc, "orig") else exc).splitlines()[0]
-        raise AtlasError(f"cannot use {target!r} as an atlas: {first}") from None
+        raise AtlasError(f"cannot use {display_target(target)!r} as an atlas: {_first_line(exc)}") from None
     except AtlasError:
         engine.dispose()
         raise
@@ -115,6 +204,23 @@ def _check_sqlite_file(path: Path, target: str, *, create: bool) -> bool:
     return False
 
 
+def _side_files(path: Path) -> set[Path]:
+    return {p for p in (path.with_name(path.name + "-wal"), path.with_name(path.name + "-shm")) if p.exists()}
+
+
+def _remove_new_side_files(path: Path, before: set[Path]) -> None:
+    """Leave a refused file as it was found: a read-only look at a WAL-mode file makes an
+    empty ``-wal`` and a ``-shm`` beside it; remove those (only if they are new and empty)."""
+    wal, shm = path.with_name(path.name + "-wal"), path.with_name(path.name + "-shm")
+    try:
+        if wal not in before and wal.exists() and wal.stat().st_size == 0:
+            wal.unlink()
+        if shm not in before and shm.exists() and not wal.exists():
+            shm.unlink()
+    except OSError:
+        pass
+
+
 def _sqlite_pragmas(engine: Engine, *, wal: bool) -> None:
     @event.listens_for(engine, "connect")
     def _on_connect(dbapi_conn, _record):  # noqa: ANN001 - DBAPI connection
@@ -127,19 +233,40 @@ def _sqlite_pragmas(engine: Engine, *, wal: bool) -> None:
         cur.close()
 
 
-def _check_or_create_schema(engine: Engine, target: str, *, create: bool) -> None:
-    tables = set(inspect(engine).get_table_names())
-    if not tables:
-        if not create:
-            raise AtlasError(f"{target!r} is an empty database, not an atlas")
-        Base.metadata.create_all(engine)
-        with Session(engine) as s, s.begin():
-            s.add_all([Meta(key="application", value=APPLICATION), Meta(key="schema_version", value=str(SCHEMA_VERSION))])
-        return
+def _check_or_create_schema(engine: Engine, target: str, *, create: bool, empty_ok: bool = False) -> None:
+    """Refuse what is not an atlas of this schema version; with ``create`` make the schema in
+    an empty database. ``target`` is the name for messages."""
+    with engine.begin() as conn:
+        if create and conn.dialect.name == "postgresql":
+            # held to the end of this transaction: a second builder waits, then sees the tables
+            conn.execute(select(func.pg_advisory_xact_lock(_CREATE_LOCK_KEY)))
+        elif create and conn.dialect.name == "sqlite" and not inspect(conn).get_table_names():
+            # pysqlite runs DDL outside any transaction: a kill between CREATE TABLE and the meta
+            # rows would leave a half-made atlas that every later build refuses. IMMEDIATE also
+            # makes a second builder wait here, then see the tables.
+            conn.exec_driver_sql("BEGIN IMMEDIATE")
+        tables = set(inspect(conn).get_table_names())
+        if not tables:
+            if create:
+                _create_schema(conn)
+            elif not empty_ok:
+                raise AtlasError(f"{target!r} is an empty database, not an atlas")
+            return
+        _check_schema(conn, tables, target)
+
+
+def _create_schema(conn: Connection) -> None:
+    Base.metadata.create_all(conn)
+    conn.execute(insert(Meta), [
+        {"key": "application", "value": APPLICATION},
+        {"key": "schema_version", "value": str(SCHEMA_VERSION)},
+    ])
+
+
+def _check_schema(conn: Connection, tables: set[str], target: str) -> None:
     if "meta" not in tables:
         raise AtlasError(f"{target!r} is a database of another application (no Dwell atlas meta table)")
-    with Session(engine) as s:
-        meta = {key: value for key, value in s.execute(select(Meta.key, Meta.value))}
+    meta = {key: value for key, value in conn.execute(select(Meta.key, Meta.value))}
     if meta.get("application") != APPLICATION:
         raise AtlasError(f"{target!r} is a database of another application (application={meta.get('application')!r})")
     try:

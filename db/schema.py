@@ -3,9 +3,12 @@
 Units inside the database: lengths in crank lengths (crank = 1), angles in radians, points in
 the four-bar's fixed frame (A0 = (0, 0), B0 = (d, 0)) unless a column says otherwise.
 
-Every float column is NOT NULL and checked to lie in [−1e300, 1e300]: this rejects NaN
-(stored as NULL by SQLite, ordered above every number by PostgreSQL) and ±inf on both
-dialects, so no NaN or inf can ever be stored, whatever the writer does.
+Every float column is checked to lie in [−1e300, 1e300] (and is NOT NULL unless it is
+optional geometry). This rejects ±inf on both dialects and NaN on PostgreSQL, where 'NaN'
+equals itself and sorts above every number, so ``BETWEEN`` is false for it (the server folds
+the numeric bounds to float8 once). SQLite binds a NaN parameter as NULL: a NOT NULL column
+refuses it, an optional one would take it as NULL — which is why ``db.writes`` refuses
+non-finite values before writing. ``tests/db/test_engine.py`` tries every float column.
 """
 
 from __future__ import annotations
@@ -15,8 +18,11 @@ from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 
 __all__ = ["SCHEMA_VERSION", "APPLICATION", "Base", "Meta", "Build", "Shard", "Linkage", "Segment", "Dwell"]
 
-#: Bumped whenever a table or column changes meaning; an atlas of a newer version is refused.
-SCHEMA_VERSION = 1
+#: Bumped whenever a table or column changes meaning; an atlas of a newer version is refused,
+#: an older one must be rebuilt. 2: deterministic 64-bit row ids, per-level fitted geometry
+#: in ``dwell`` (with copies of the linkage's constraint figures for the query's covering
+#: index), the builder lock columns and the stored content digest of ``build``.
+SCHEMA_VERSION = 2
 #: Written to the meta table so that a foreign SQLite file is recognised as such.
 APPLICATION = "dwell-atlas"
 
@@ -189,12 +195,20 @@ class Dwell(Base):
     y: Mapped[float] = mapped_column(Float)
     direction: Mapped[float | None] = mapped_column(Float, nullable=True)  #: line direction (rad)
     radius: Mapped[float | None] = mapped_column(Float, nullable=True)  #: circle radius
+    # copies of the linkage's constraint figures, so that the query filters inside the index
+    # (no join per row walked): smallest folded transmission angle (rad), longest of b, c, d
+    linkage_transmission_min: Mapped[float] = mapped_column(Float)
+    longest_link: Mapped[float] = mapped_column(Float)
     __table_args__ = (
         CheckConstraint("part IN (0, 1)", name="ck_dwell_part"),
         CheckConstraint("dwell_angle > 0", name="ck_dwell_positive"),
-        *_finite_checks("dwell", "tolerance", "phi_start", "phi_end", "dwell_angle", "max_deviation", "x", "y"),
+        *_finite_checks("dwell", "tolerance", "phi_start", "phi_end", "dwell_angle", "max_deviation", "x", "y",
+                        "linkage_transmission_min", "longest_link"),
         *_finite_or_null_checks("dwell", "direction", "radius"),
-        # dwell query: WHERE kind = ? AND level = ? AND dwell_angle BETWEEN ? AND ?
-        Index("ix_dwell_query", "kind", "level", "dwell_angle"),
+        # dwell query: WHERE kind = ? AND level = ? AND dwell_angle BETWEEN ? AND ?, walked in
+        # (dwell_angle, segment_id) order from a target outwards; covering: the filters read
+        # the index only
+        Index("ix_dwell_query", "kind", "level", "dwell_angle", "segment_id", "part", "linkage_transmission_min",
+              "longest_link", "radius"),
         Index("ix_dwell_segment", "segment_id"),
     )

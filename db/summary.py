@@ -15,6 +15,7 @@ from typing import Any
 from sqlalchemy import Engine, case, func, select
 
 from db.digest import content_digest
+from db.engine import display_target
 from db.schema import Build, Dwell, Linkage, Segment, Shard
 
 __all__ = ["BIN_DEG", "KINDS", "AtlasSummary", "atlas_summary", "format_summary", "row_counts"]
@@ -178,7 +179,7 @@ def atlas_summary(engine: Engine) -> AtlasSummary:
 
 def format_summary(summary: AtlasSummary, target: str) -> str:
     """A readable multi-line text of ``summary`` (no trailing newline)."""
-    lines = [f"atlas {target}"]
+    lines = [f"atlas {display_target(target)}"]
     b = summary.build
     if b is None:
         lines.append("build: none (an empty atlas)")

@@ -4,7 +4,10 @@ Invariants
 ----------
 * **A shard is all or nothing.** :func:`write_shard` inserts a shard's linkage, segment and
   dwell rows *and* its shard row in one transaction; a shard row therefore means "every row
-  of this shard is here". Resume = compute the shards without a shard row.
+  of this shard is here". Resume = compute the shards without a shard row. On PostgreSQL
+  with psycopg the rows go in by ``COPY`` (in the same transaction, CHECKs enforced alike):
+  ten times faster than an executemany of ``INSERT``, which would make the single writer
+  the bottleneck of a big build.
 * **An atlas holds one build.** A different sweep (by spec digest, the preset name is
   ignored) is refused unless ``replace`` is given; replacing deletes the old build's rows in
   the same transaction that creates the new build row.
@@ -37,10 +40,10 @@ from dataclasses import dataclass
 from datetime import UTC, datetime
 from typing import Any, Protocol
 
-from sqlalchemy import Connection, Engine, delete, func, insert, select, update
+from sqlalchemy import Connection, Engine, Table, delete, func, insert, select, update
 from sqlalchemy.exc import IntegrityError
 
-from db.engine import AtlasError
+from db.engine import AtlasError, display_target
 from db.schema import SCHEMA_VERSION, Build, Dwell, Linkage, Segment, Shard
 
 __all__ = [
@@ -223,6 +226,7 @@ def open_build(
     """
     if not 1 <= n_shards:
         raise ValueError(f"n_shards must be >= 1, got {n_shards}")
+    target = display_target(target)  # messages below name it; never with a password
     now = time.time()
     with engine.connect() as conn:
         builds = conn.execute(select(Build).order_by(Build.id)).all()
@@ -322,11 +326,44 @@ def _first_nonfinite(rows: list[dict[str, Any]]) -> tuple[int, str, float] | Non
     return None
 
 
+def _uses_copy(conn: Connection) -> bool:
+    """Whether rows are bulk-loaded with ``COPY`` (PostgreSQL through psycopg 3's copy API)."""
+    return conn.dialect.name == "postgresql" and conn.dialect.driver == "psycopg"
+
+
+def _copy_rows(conn: Connection, table: Table, rows: list[dict[str, Any]]) -> None:
+    """``COPY table FROM STDIN`` of ``rows`` inside ``conn``'s transaction.
+
+    Text format: psycopg writes floats with ``repr`` (shortest round trip), so the stored
+    values are bit-identical to an ``INSERT``'s. A violated constraint is re-raised as
+    SQLAlchemy's :class:`IntegrityError`, as an ``INSERT`` would have raised it.
+    """
+    quote = conn.dialect.identifier_preparer.quote
+    names = [c.name for c in table.columns if c.name in rows[0]]
+    sql = f"COPY {quote(table.name)} ({', '.join(quote(n) for n in names)}) FROM STDIN"
+    raw = conn.connection.dbapi_connection
+    try:
+        with raw.cursor() as cur, cur.copy(sql) as copy:
+            for row in rows:
+                copy.write_row([row[n] for n in names])
+    except conn.dialect.loaded_dbapi.IntegrityError as exc:
+        raise IntegrityError(sql, None, exc) from exc
+
+
+def _insert_rows(conn: Connection, model: type, rows: list[dict[str, Any]]) -> None:
+    if not rows:
+        return
+    if _uses_copy(conn):
+        _copy_rows(conn, model.__table__, rows)
+    else:
+        conn.execute(insert(model), rows)
+
+
 def write_shard(engine: Engine, build_id: int, result: ShardRows, *, lock_token: str | None = None) -> None:
     """Store one shard — linkages, segments, dwells and the shard row — in ONE transaction.
 
-    Bulk Core ``insert()`` executemany per table. With ``lock_token`` the transaction first
-    checks (and refreshes) our builder lock. Any failure rolls back the whole shard: a NaN or
+    Bulk Core ``insert()`` executemany per table (``COPY`` on PostgreSQL). With
+    ``lock_token`` the transaction first checks (and refreshes) our builder lock. Any failure rolls back the whole shard: a NaN or
     inf (checked here, because SQLite would turn NaN into NULL and a nullable column would
     silently take it) or a constraint violation raises :class:`ShardWriteError`.
     """
@@ -351,12 +388,10 @@ def write_shard(engine: Engine, build_id: int, result: ShardRows, *, lock_token:
         with engine.begin() as conn:
             if lock_token is not None:
                 _assert_lock(conn, build_id, lock_token)
-            if linkages:
-                conn.execute(insert(Linkage), linkages)
-            if result.segments:
-                conn.execute(insert(Segment), result.segments)
-            if result.dwells:
-                conn.execute(insert(Dwell), result.dwells)
+            # parents first: the foreign keys are checked row by row
+            _insert_rows(conn, Linkage, linkages)
+            _insert_rows(conn, Segment, result.segments)
+            _insert_rows(conn, Dwell, result.dwells)
             conn.execute(insert(Shard), [shard_row])
     except IntegrityError as exc:
         first = str(exc.orig).splitlines()[0] if exc.orig is not None else str(exc)

@@ -25,3 +25,7 @@ def reference_cases() -> dict[str, dict]:
         pytest.skip(f"reference cases not found at {CASES_FILE}")
     data = json.loads(CASES_FILE.read_text())
     return {case["name"]: case for case in data["cases"]}
+
+
+# PostgreSQL fixtures (postgres_server, postgres_url, atlas_url, demo_atlases): see tests/postgres.py
+pytest_plugins = ["postgres"]

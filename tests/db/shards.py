@@ -23,7 +23,7 @@ def shard_rows(index: int, *, radius: float | None = 2.0, dwell_angle: float = 0
                        cx=0.5, cy=0.25, radius=radius, transmission_min=0.6, transmission_max=1.4)],
         dwells=[dict(id=sid * DWELLS_PER_SEGMENT, segment_id=sid, kind="arc", level=0, tolerance=1e-3, part=0,
                      phi_start=0.75, phi_end=0.75 + dwell_angle, dwell_angle=dwell_angle, max_deviation=9e-4,
-                     x=0.5, y=0.25, direction=None, radius=radius)],
+                     x=0.5, y=0.25, direction=None, radius=radius, linkage_transmission_min=0.5, longest_link=3.0)],
         skipped={"pole at infinity": index},
         seconds=0.25,
     )

@@ -1,4 +1,5 @@
-"""Content digest: canonical text, what it ignores, what it does not."""
+"""Content digest: canonical text, what it ignores, what it does not; the same on SQLite and
+PostgreSQL, for hand-made shards and for real builds."""
 
 from __future__ import annotations
 
@@ -7,31 +8,36 @@ from dataclasses import replace
 
 import pytest
 from shards import shard_rows
-from sqlalchemy import insert, update
+from sqlalchemy import insert, select, update
 
-from db import Build, Dwell, Linkage, Segment, open_atlas
+from atlas.build import build_atlas
+from atlas.sweep import PRESETS
+from db import SCHEMA_VERSION, Build, Dwell, Linkage, Segment, open_atlas
 from db.digest import content_digest, format_value
+from db.summary import atlas_summary
 from db.writes import write_shard
 
 
-def make(tmp_path, name, shards, *, spec_json='{"name": "demo"}', extra_builds=0):
-    """An atlas holding ``shards``; ``extra_builds`` empty build rows first shift the build id."""
-    engine = open_atlas(str(tmp_path / name), create=True)
+def make(target, shards, *, spec_json='{"name": "demo"}', extra_builds=0):
+    """An atlas at ``target`` holding ``shards``; ``extra_builds`` empty build rows first shift
+    the build id."""
+    engine = open_atlas(target, create=True)
     with engine.begin() as conn:
         for k in range(extra_builds):
-            conn.execute(insert(Build).values(spec_json="{}", spec_digest=str(k) * 64, code_version="0", schema_version=1,
-                                              status="complete", n_shards=1, created_at="t"))
+            conn.execute(insert(Build).values(spec_json="{}", spec_digest=str(k) * 64, code_version="0",
+                                              schema_version=SCHEMA_VERSION, status="complete", n_shards=1,
+                                              created_at="t"))
         build_id = conn.execute(insert(Build).values(spec_json=spec_json, spec_digest="a" * 64, code_version="0",
-                                                     schema_version=1, status="building", n_shards=len(shards),
-                                                     created_at="t")).inserted_primary_key[0]
+                                                     schema_version=SCHEMA_VERSION, status="building",
+                                                     n_shards=len(shards), created_at="t")).inserted_primary_key[0]
     for rows in shards:
         write_shard(engine, build_id, rows)
     return engine
 
 
-def test_canonical_text_of_a_known_atlas(tmp_path):
+def test_canonical_text_of_a_known_atlas(atlas_url):
     rows = shard_rows(0)
-    engine = make(tmp_path, "a.sqlite", [rows])
+    engine = make(atlas_url, [rows])
     lk, sg, dw = rows.linkages[0], rows.segments[0], rows.dwells[0]
     # written out by hand from the rules in db/digest.py
     text = (
@@ -41,18 +47,19 @@ def test_canonical_text_of_a_known_atlas(tmp_path):
         "\tcx\tcy\tradius\ttransmission_min\ttransmission_max\n"
         f"{sg['id']}\t1\t\"arc\"\t1\t~\t0.3\t1.2\t0.8\t~\t~\t~\t~\t~\t~\t~\t~\t0.5\t0.25\t2\t0.6\t1.4\n"
         "#dwell\tid\tsegment_id\tkind\tlevel\ttolerance\tpart\tphi_start\tphi_end\tdwell_angle\tmax_deviation\tx\ty"
-        "\tdirection\tradius\n"
-        f"{dw['id']}\t{sg['id']}\t\"arc\"\t0\t0.001\t0\t0.75\t1.25\t0.5\t0.0009\t0.5\t0.25\t~\t2\n"
+        "\tdirection\tradius\tlinkage_transmission_min\tlongest_link\n"
+        f"{dw['id']}\t{sg['id']}\t\"arc\"\t0\t0.001\t0\t0.75\t1.25\t0.5\t0.0009\t0.5\t0.25\t~\t2\t0.5\t3\n"
     )
     assert lk["id"] == 1
     assert content_digest(engine) == hashlib.sha256(text.encode()).hexdigest()
     engine.dispose()
 
 
-def test_order_build_id_and_volatile_columns_do_not_matter(tmp_path):
+def test_order_build_id_and_volatile_columns_do_not_matter(atlas_url, tmp_path):
+    """``one`` on each backend, ``two`` always SQLite: also SQLite against PostgreSQL."""
     shards = [shard_rows(i) for i in range(4)]
-    one = make(tmp_path, "one.sqlite", shards)
-    two = make(tmp_path, "two.sqlite", [replace(s, seconds=9.0, skipped={}) for s in reversed(shards)],
+    one = make(atlas_url, shards)
+    two = make(str(tmp_path / "two.sqlite"), [replace(s, seconds=9.0, skipped={}) for s in reversed(shards)],
                spec_json='{"name": "renamed"}', extra_builds=2)
     with two.connect() as conn:
         assert conn.execute(Build.__table__.select().where(Build.spec_digest == "a" * 64)).one().id == 3
@@ -71,8 +78,8 @@ def test_order_build_id_and_volatile_columns_do_not_matter(tmp_path):
     (Dwell, "level", 1, False),
     (Segment, "kind", "line", False),
 ])
-def test_digest_sees_content_changes_and_ignores_noise(tmp_path, table, column, value, same):
-    engine = make(tmp_path, "a.sqlite", [shard_rows(0), shard_rows(1)])
+def test_digest_sees_content_changes_and_ignores_noise(atlas_url, table, column, value, same):
+    engine = make(atlas_url, [shard_rows(0), shard_rows(1)])
     before = content_digest(engine)
     with engine.begin() as conn:
         conn.execute(update(table).where(table.id == conn.execute(table.__table__.select()).first().id).values({column: value}))
@@ -88,3 +95,42 @@ def test_format_value_rules():
     assert format_value(b, None) == "~"
     assert format_value(Linkage.__table__.c.id, 2**40) == str(2**40)
     assert format_value(Segment.__table__.c.kind, "arc") == '"arc"'
+
+
+def _facts(target: str, *, recompute: bool = True) -> tuple[str | None, str | None, dict]:
+    """(digest computed now — None without ``recompute`` —, digest stored by the build,
+    ``info`` document without what differs between two builds: timestamps, compute time, ids)."""
+    engine = open_atlas(target, readonly=True)
+    try:
+        with engine.connect() as conn:
+            stored = conn.execute(select(Build.content_digest)).scalar_one()
+        doc = atlas_summary(engine).to_dict()
+        for key in ("created_at", "finished_at", "compute_seconds", "id"):
+            doc["build"].pop(key)
+        return content_digest(engine) if recompute else None, stored, doc
+    finally:
+        engine.dispose()
+
+
+@pytest.mark.postgres
+def test_a_small_build_is_the_same_on_sqlite_and_postgresql(tmp_path, postgres_url):
+    spec = PRESETS["demo"].replace(samples=64)
+    path = str(tmp_path / "small.sqlite")
+    for target in (path, postgres_url):
+        summary = build_atlas(target, spec, workers=1, progress=False)
+        assert summary.complete and summary.linkages > 0 and sum(summary.segments.values()) > 0
+    lite, pg = _facts(path), _facts(postgres_url)
+    assert lite[0] == lite[1] and pg[0] == pg[1]  # the stored digest is that of the rows
+    assert pg[0] == lite[0]
+    assert pg[2] == lite[2]  # counts, histograms, skipped reasons, spec: the same atlas
+    assert lite[2]["dwells"]["arc"] > 0
+
+
+@pytest.mark.postgres
+def test_the_demo_build_is_the_same_on_sqlite_and_postgresql(demo_atlases):
+    # the stored digests (that they equal a fresh one is checked on the small build above)
+    lite = _facts(demo_atlases["sqlite"], recompute=False)
+    pg = _facts(demo_atlases["postgresql"], recompute=False)
+    assert lite[2]["linkages"] > 1000 and lite[2]["build"]["spec"]["name"] == "demo"
+    assert pg[1] == lite[1] and lite[1] == lite[2]["content_digest"]
+    assert pg[2] == lite[2]

@@ -1,12 +1,15 @@
-"""Build writes: one transaction per shard, resume, one build per atlas, the builder lock."""
+"""Build writes: one transaction per shard, resume, one build per atlas, the builder lock —
+on SQLite and PostgreSQL (``atlas_url``)."""
 
 from __future__ import annotations
 
 import json
+import math
 import os
 import socket
 import subprocess
 import sys
+import threading
 import time
 from dataclasses import replace
 
@@ -14,7 +17,8 @@ import pytest
 from shards import shard_rows
 from sqlalchemy import func, insert, select, update
 
-from db import AtlasError, Build, Dwell, Linkage, Segment, Shard, open_atlas
+import db.writes
+from db import SCHEMA_VERSION, AtlasError, Build, Dwell, Linkage, Segment, Shard, open_atlas
 from db.writes import (
     STALE_SECONDS,
     BuildLock,
@@ -39,8 +43,8 @@ def count(engine, model) -> int:
 
 
 @pytest.fixture
-def engine(tmp_path):
-    e = open_atlas(str(tmp_path / "a.sqlite"), create=True)
+def engine(atlas_url):
+    e = open_atlas(atlas_url, create=True)
     yield e
     e.dispose()
 
@@ -59,7 +63,7 @@ def test_new_build_row_and_shard_rows(engine):
         b = conn.execute(select(Build)).one()
         shard = conn.execute(select(Shard)).one()
     assert (b.status, b.n_shards, b.spec_json, b.spec_digest) == ("building", 3, SPEC_A, DIGEST_A)
-    assert b.code_version == code_version() != "" and b.schema_version == 1
+    assert b.code_version == code_version() != "" and b.schema_version == SCHEMA_VERSION
     assert (b.lock_token, b.lock_pid, b.lock_host) == (lock.token, os.getpid(), socket.gethostname())
     assert (shard.shard_index, shard.n_linkages, shard.n_segments, shard.seconds) == (0, 1, 1, 0.25)
     assert json.loads(shard.skipped_json) == {"pole at infinity": 0}
@@ -189,3 +193,53 @@ def test_a_builder_that_lost_its_lock_writes_nothing(engine):
     assert count(engine, Linkage) == 0 and count(engine, Shard) == 0
     write_shard(engine, h2.build_id, shard_rows(0), lock_token=lock2.token)
     assert count(engine, Shard) == 1
+
+
+def test_a_writer_blocked_behind_a_takeover_loses_cleanly(engine):
+    """The compare-and-swap under contention: while another builder's takeover is still
+    uncommitted, our shard write waits for it, then finds its token gone and writes nothing
+    (on PostgreSQL this relies on READ COMMITTED re-reading the row, see db/engine.py)."""
+    h, lock = start(engine)
+    holder = engine.connect()
+    takeover = holder.begin()
+    holder.execute(update(Build).values(lock_token="t" * 32, lock_pid=1, lock_host="elsewhere.example",
+                                        lock_heartbeat=time.time()))
+    outcome: list[BaseException | None] = []
+
+    def write() -> None:
+        try:
+            write_shard(engine, h.build_id, shard_rows(0), lock_token=lock.token)
+            outcome.append(None)
+        except BaseException as exc:  # noqa: BLE001 - recorded for the assertion
+            outcome.append(exc)
+
+    writer = threading.Thread(target=write)
+    writer.start()
+    writer.join(0.5)
+    assert writer.is_alive() and outcome == []  # blocked on the uncommitted takeover, not failed
+    takeover.commit()
+    holder.close()
+    writer.join(60)
+    assert len(outcome) == 1 and isinstance(outcome[0], LockLostError), outcome
+    assert [count(engine, m) for m in (Linkage, Segment, Dwell, Shard)] == [0, 0, 0, 0]
+
+
+AWKWARD = [1 / 3, 2.0**-1074, 1e-300, -1e300, math.pi * 1e17, math.nextafter(1.0, 2.0), -0.0]
+
+
+@pytest.mark.parametrize("path", ["bulk", "insert"])
+def test_floats_round_trip_bit_for_bit(engine, monkeypatch, path):
+    """What is read back is exactly what was written (the digest rounds to 12 digits, the
+    query and the report do not), through COPY on PostgreSQL and through INSERT."""
+    if path == "insert":
+        monkeypatch.setattr(db.writes, "_uses_copy", lambda conn: False)
+    h, lock = start(engine)
+    rows = shard_rows(0)
+    values = dict(zip(("u", "v", "cx", "cy", "phi_gen", "ray", "transmission_min"), AWKWARD, strict=True))
+    rows.segments[0].update(values)
+    write_shard(engine, h.build_id, rows, lock_token=lock.token)
+    with engine.connect() as conn:
+        got = conn.execute(select(*(getattr(Segment, k) for k in values))).one()
+    # x + 0.0 turns −0.0 into 0.0: SQLite does not keep the sign of zero (PostgreSQL does),
+    # which is why the content digest writes both as 0
+    assert [(v + 0.0).hex() for v in got] == [(v + 0.0).hex() for v in values.values()]
