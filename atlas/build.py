@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import Protocol
 
 import atlas.shard as _shard
+from atlas.malloc import raise_malloc_thresholds
 from atlas.shard import ShardResult
 from atlas.sweep import SweepLinkages, SweepSpec, sweep_linkages
 
@@ -84,6 +85,7 @@ def _init_worker(spec: SweepSpec, sweep: SweepLinkages, lifeline: Connection) ->
     # so a worker never dies half-way through a task and breaks the pool.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     threading.Thread(target=_exit_with_driver, args=(lifeline,), name="driver-watch", daemon=True).start()
+    raise_malloc_thresholds()
     _WORKER_STATE = (spec, sweep)
 
 
@@ -130,6 +132,7 @@ def run_shards(
     come, so memory stays bounded whatever the sweep size)."""
     indices = list(indices)
     if workers <= 1 or len(indices) <= 1:
+        raise_malloc_thresholds()
         for index in indices:
             yield _shard.compute_shard(spec, index, sweep)
         return
@@ -254,7 +257,7 @@ def build_atlas(
     """
     from tqdm import tqdm
 
-    from db.engine import open_atlas, sqlite_path
+    from db.engine import display_target, open_atlas, sqlite_path
     from db.summary import row_counts
     from db.writes import (
         BuildLock,
@@ -296,7 +299,7 @@ def build_atlas(
     complete = handle.complete
     try:
         if handle.replaced:
-            note(f"replacing the previous build of {target} ({handle.replaced})")
+            note(f"replacing the previous build of {display_target(target)} ({handle.replaced})")
         missing = [i for i in range(n_shards) if i not in handle.done]
         if handle.resumed and missing:
             note(f"resuming: {len(handle.done)} of {n_shards} shards already built")
@@ -333,7 +336,7 @@ def build_atlas(
                 raise RuntimeError(f"build {handle.build_id}: shards missing after the run: {sorted(per_shard)[:10]}")
         linkages, segs, dwells = row_counts(engine, handle.build_id)
         return BuildSummary(
-            target=target,
+            target=display_target(target),  # printed by line(): a URL's password is not
             build_id=handle.build_id,
             complete=complete,
             resumed=handle.resumed,

@@ -84,28 +84,59 @@ def _tolerances(text: str | None) -> tuple[float, ...] | None:
 @click.option("--shard-size", type=int, default=None, help="Proportions per shard (unit of work, commit and resume).")
 @click.option("--all-linkages", is_flag=True, help="Keep every proportion, not only crank-rockers.")
 @click.option("--workers", type=click.IntRange(min=1), default=None,
-              help=f"Worker processes (default: all CPUs, here {_default_workers()}).")
+              help=f"Worker processes of the local engine (default: all CPUs, here {_default_workers()}); "
+                   "ignored with --engine dask, where the cluster's workers decide.")
+@click.option("--engine", type=click.Choice(["local", "dask"]), default="local", show_default=True,
+              help="Where shards are computed: local processes, or a dask.distributed cluster (needs --scheduler "
+                   "and the dask extra). The database is written by this process either way.")
+@click.option("--scheduler", metavar="ADDR", default=None,
+              help="Address of a running dask scheduler (tcp://host:8786), with --engine dask.")
 @click.option("--replace", is_flag=True,
               help="Delete what the atlas holds (any sweep) and build from scratch; needed for a different sweep.")
 @click.option("--progress/--no-progress", default=None, help="Progress bar on stderr (default: if it is a terminal).")
 def build(db, preset, samples, seed, b_range, c_range, d_range, crank_step, rays, tolerances, min_dwell, shard_size,
-          all_linkages, workers, replace, progress):
+          all_linkages, workers, engine, scheduler, replace, progress):
     """Build an atlas, or resume an interrupted build of the same sweep.
 
-    Ctrl-C or a kill loses nothing that was committed: run the same command again to resume;
-    the result is identical to an uninterrupted build.
+    Ctrl-C or a kill loses nothing that was committed: run the same command again to resume
+    (with either engine); the result is identical to an uninterrupted build.
     """
     from atlas.build import build_atlas
 
+    if engine == "dask" and scheduler is None:
+        raise click.UsageError("--engine dask needs --scheduler ADDR (a running dask scheduler, e.g. tcp://host:8786)")
+    if engine != "dask" and scheduler is not None:
+        raise click.UsageError("--scheduler needs --engine dask")
     spec = sweep_spec_from_options(preset, {
         "samples": samples, "seed": seed, "b": _range(b_range), "c": _range(c_range), "d": _range(d_range),
         "crank_step_deg": crank_step, "rays": rays, "tolerances": _tolerances(tolerances),
         "min_dwell_deg": min_dwell, "shard_size": shard_size,
         "crank_rockers_only": False if all_linkages else None,
     })
-    summary = build_atlas(db, spec, workers=workers or _default_workers(), replace=replace, progress=progress,
-                          log=lambda msg: click.echo(f"dwell: {msg}", err=True))
+    if engine == "local":
+        summary = build_atlas(db, spec, workers=workers or _default_workers(), replace=replace, progress=progress,
+                              log=_log)
+    else:
+        summary = _build_on_dask(db, spec, scheduler, replace=replace, progress=progress)
     click.echo(summary.line())
+
+
+def _log(msg: str) -> None:
+    """A build's one-line notes, on stderr."""
+    click.echo(f"dwell: {msg}", err=True)
+
+
+def _build_on_dask(db: str, spec, scheduler: str, *, replace: bool, progress: bool | None):  # -> BuildSummary
+    """``build_atlas`` with the dask engine. The scheduler is reached before the atlas is
+    opened, so a bad address writes nothing; cluster problems are one line, exit 2."""
+    from atlas.build import build_atlas
+    from atlas.dask_engine import ClusterError, DaskRunner
+
+    try:
+        with DaskRunner.connect(scheduler, log=_log) as runner:
+            return build_atlas(db, spec, runner=runner, replace=replace, progress=progress, log=_log)
+    except ClusterError as exc:
+        raise click.ClickException(str(exc)) from None
 
 
 @atlas.command("info")
