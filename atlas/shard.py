@@ -109,6 +109,11 @@ def compute_shard(spec: SweepSpec, shard_index: int, linkages: SweepLinkages | N
     found = find_segments(b[keep], c[keep], d[keep], br[keep], search)
     skipped.update(found.skipped)
     segment_rows, dwell_rows = found.rows(ids[keep], SEGMENTS_PER_LINKAGE, DWELLS_PER_SEGMENT)
+    # the query's covering index holds the linkage's constraint figures with every dwell
+    figures = {row["id"]: (row["transmission_min"], max(row["b"], row["c"], row["d"])) for row in linkage_rows}
+    linkage_of = {row["id"]: row["linkage_id"] for row in segment_rows}
+    for row in dwell_rows:
+        row["linkage_transmission_min"], row["longest_link"] = figures[linkage_of[row["segment_id"]]]
     return ShardResult(
         shard_index=int(shard_index),
         linkages=linkage_rows,

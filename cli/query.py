@@ -30,12 +30,16 @@ from synth.candidates import (
     candidate_json,
     parse_candidate_id,
     rank,
+    screen,
 )
 
 __all__ = ["QueryResult", "answer", "query", "rebuild"]
 
-#: Crank samples of the path used for fitting (0.5°); the figures refine beyond it.
+#: Crank samples of the exact simulation (0.5°); the figures refine beyond it.
 SAMPLES = 720
+#: Crank samples of the path the dyads are fitted to (1°): a fitted swing is within ~0.01° of
+#: the simulated one, which is what the request is checked against.
+FIT_SAMPLES = 360
 #: Segments taken from the atlas per kind and tolerance level, closest to that level's target first.
 PER_LEVEL = 10
 #: Output link lengths (crank lengths) tried in the band conversion of ``_select``.
@@ -61,28 +65,22 @@ def _select(engine, request: Request, kinds: tuple[str, ...]) -> list:
     rocker), a few cranks. Dwells grow like ε^¼ (four-point contact), so at level ε_ℓ the
     segment dwell that gives the requested six-bar dwell is about dwell·(ε_ℓ/ε*)^¼; each level
     is searched around its own target, generously — the simulation decides."""
-    from db.queries import select_segments, tolerance_levels
+    from db.queries import DwellWindow, select_segments, tolerance_levels
 
-    levels = tolerance_levels(engine)
-    # constraints the four-bar alone already decides (crank = 1, the shortest link)
-    linkage_filter = {"min_transmission": request.min_transmission, "max_length": request.max_link_ratio}
-    rows, seen = [], set()
+    windows = []
+    # the stored dwells closest to the request at any level, then each level's own target
+    width = request.dwell_tol + math.radians(10.0)
+    windows.append(DwellWindow(None, request.dwell - width, request.dwell + width, request.dwell, 2 * PER_LEVEL))
+    for (level, eps), reach in itertools.product(tolerance_levels(engine), REACHES):
+        target = request.dwell * (eps / (reach * request.band / 2)) ** 0.25
+        width = request.dwell_tol + 0.2 * target
+        windows.append(DwellWindow(level, target - width, target + width, target, PER_LEVEL))
+    # constraints the four-bar alone already decides (crank = 1, the shortest link); an arc's
+    # radius becomes the rod, which must not be the link that breaks the ratio
+    rows = []
     for kind in kinds:
-        # the stored dwells closest to the request at any level, then each level's own target
-        width = request.dwell_tol + math.radians(10.0)
-        for r in select_segments(engine, (kind,), request.dwell - width, request.dwell + width, request.dwell,
-                                 limit=2 * PER_LEVEL, **linkage_filter):
-            if r.segment_id not in seen:
-                seen.add(r.segment_id)
-                rows.append(r)
-        for (level, eps), reach in itertools.product(levels, REACHES):
-            target = request.dwell * (eps / (reach * request.band / 2)) ** 0.25
-            width = request.dwell_tol + 0.2 * target
-            for r in select_segments(engine, (kind,), target - width, target + width, target, level=level,
-                                     limit=PER_LEVEL, **linkage_filter):
-                if r.segment_id not in seen:
-                    seen.add(r.segment_id)
-                    rows.append(r)
+        rows += select_segments(engine, (kind,), windows, min_transmission=request.min_transmission,
+                                max_length=request.max_link_ratio, min_radius_ratio=1.0 / request.max_link_ratio)
     return rows
 
 
@@ -109,7 +107,7 @@ def _fit(request: Request, rows, kind: str) -> list[tuple[object, str, int, obje
     from synth.dyad import fit_rpr, fit_rrr, rpr_double
     from synth.sixbar import OutputDyad, crank_grid
 
-    phi = crank_grid(SAMPLES)
+    phi = crank_grid(FIT_SAMPLES)
     out = []
     if kind == "double_line":
         line1 = (np.array([complex(r.parts[0][2], r.parts[0][3]) for r in rows]), np.array([r.parts[0][4] for r in rows]))
@@ -165,6 +163,12 @@ def _simulate(request: Request, fitted) -> tuple[list[Candidate], int]:
     if not fitted:
         return [], 0
     sixbars = [SixBar(1.0, r.b, r.c, r.d, r.branch, r.u, r.v, dyad) for r, _, _, dyad, _ in fitted]
+    # the full figures only for six-bars that pass the (necessary) test on the crank grid
+    passed = screen(request, SixBars.from_sixbars(sixbars), SAMPLES)
+    fitted = [f for f, p in zip(fitted, passed) if p]
+    sixbars = [sb for sb, p in zip(sixbars, passed) if p]
+    if not sixbars:
+        return [], len(passed)
     figures = sixbar_figures(SixBars.from_sixbars(sixbars), band=request.band, dwell_length=request.dwell,
                              dwells=request.dwells, samples=SAMPLES)
     out = []
@@ -180,7 +184,7 @@ def _simulate(request: Request, fitted) -> tuple[list[Candidate], int]:
                 dwell_position=None if rest is None else rest * request.crank,
             )
         )
-    return out, len(sixbars)
+    return out, len(passed)
 
 
 def answer(engine, request: Request) -> QueryResult:
@@ -296,11 +300,18 @@ def _table(result: QueryResult) -> str:
 
 
 def no_match_message(result: QueryResult) -> str:
+    req = result.request
     below, above = result.nearest
-    near = [f"{math.degrees(x):.1f}°" for x in (below, above) if x is not None]
-    hint = f"; the atlas holds dwells of {' and '.join(near)} nearest to the request" if near else ""
-    return (f"no six-bar meets the request ({result.considered} segments fitted, {result.simulated} simulated){hint}; "
-            "try a wider --dwell-tol or --swing-tol, a larger --dwell-tolerance, or a lower --min-transmission")
+    head = f"no six-bar meets the request ({result.considered} segments fitted, {result.simulated} simulated)"
+    near = [x for x in (below, above) if x is not None]
+    if near and min(abs(x - req.dwell) for x in near) <= req.dwell_tol:
+        # segments of that dwell exist: it is the dyads that fail the swing or the constraints
+        return (f"{head}; the atlas holds segments of that dwell, but none of their six-bars meets the swing and "
+                f"constraints: try a larger --max-link-ratio (now {req.max_link_ratio:g}), a lower --min-transmission "
+                f"(now {math.degrees(req.min_transmission):g}°), a wider --swing-tol or a larger --dwell-tolerance")
+    hint = " and ".join(f"{math.degrees(x):.1f}°" for x in near)
+    return (f"{head}; " + (f"the closest dwells the atlas holds are {hint}: " if near else "")
+            + "try a wider --dwell-tol, a larger --dwell-tolerance, or a larger atlas")
 
 
 @click.command("query")
@@ -354,3 +365,6 @@ def _check_report_dir(path: Path) -> None:
     parent = path if path.exists() else path.parent
     if not parent.exists():
         raise InputError(f"--report: folder {str(parent)!r} does not exist")
+    from cli.options import probe_folder
+
+    probe_folder(path, "--report")

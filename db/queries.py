@@ -1,20 +1,22 @@
 """Indexed candidate selection for the synthesis query.
 
-One SELECT over ``ix_dwell_query`` (kind, level, dwell_angle): the dwell rows of the wanted
-kinds whose dwell angle lies in a window around the request, joined to their segment and
-linkage, closest dwell first. Units as stored: crank lengths, radians.
+Short walks of ``ix_dwell_query`` (kind, level, dwell_angle) outwards from each wanted dwell
+angle, joined to their segment and linkage and filtered on the linkage's constraints, then one
+read of the chosen segments and their dwell rows. Units as stored: crank lengths, radians.
 """
 
 from __future__ import annotations
 
+import json
+from collections.abc import Sequence
 from dataclasses import dataclass
 
-from sqlalchemy import Engine, and_, func, or_, select
+from sqlalchemy import Engine, and_, bindparam, func, or_, select
 from sqlalchemy.orm import Session
 
-from db.schema import Dwell, Linkage, Segment
+from db.schema import Build, Dwell, Linkage, Segment
 
-__all__ = ["SegmentRow", "nearest_dwell_angles", "select_segments", "tolerance_levels"]
+__all__ = ["DwellWindow", "SegmentRow", "nearest_dwell_angles", "select_segments", "tolerance_levels"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -38,84 +40,103 @@ class SegmentRow:
     fourbar_transmission_min: float
 
 
+@dataclass(frozen=True, slots=True)
+class DwellWindow:
+    """Stored dwells wanted: at tolerance ``level`` (None: any level), with a dwell angle (rad)
+    in [low, high], the ``limit`` closest to ``target``."""
+
+    level: int | None
+    low: float
+    high: float
+    target: float
+    limit: int
+
+
 def select_segments(
     engine: Engine,
     kinds: tuple[str, ...],
-    dwell_low: float,
-    dwell_high: float,
-    target: float,
+    windows: Sequence[DwellWindow],
     *,
-    level: int | None = None,
     min_transmission: float = 0.0,
     max_length: float = 1e300,
-    limit: int = 200,
+    min_radius_ratio: float = 0.0,
 ) -> list[SegmentRow]:
-    """Segments of ``kinds`` with a dwell angle (part 0; at tolerance ``level``, or any) in
-    [dwell_low, dwell_high] rad, at most ``limit``, ordered by |dwell − target| (then id, for
-    a stable order). Only linkages whose transmission angle stays ≥ ``min_transmission`` (rad)
-    over the turn and whose links are all ≤ ``max_length`` (cranks) are considered."""
-    closeness = func.abs(Dwell.dwell_angle - target)
-    stmt = (
-        select(Dwell.segment_id, Dwell.level, closeness.label("closeness"))
-        .join(Segment, Segment.id == Dwell.segment_id)
-        .join(Linkage, Linkage.id == Segment.linkage_id)
-        .where(
-            and_(
-                Dwell.kind.in_(kinds),
-                Dwell.part == 0,
-                Dwell.dwell_angle >= dwell_low,
-                Dwell.dwell_angle <= dwell_high,
-                *(() if level is None else (Dwell.level == level,)),
-                Linkage.transmission_min >= min_transmission,
-                Linkage.b <= max_length,
-                Linkage.c <= max_length,
-                Linkage.d <= max_length,
-                or_(Dwell.radius.is_(None), Dwell.radius <= max_length),  # an arc's radius is the rod
-            )
-        )
-        .order_by(closeness, Dwell.segment_id, Dwell.level)
-        .limit(limit)
+    """Segments of ``kinds`` whose dwell (part 0) lies in one of ``windows``: window by window,
+    each window's closest first (then id, for a stable order); a segment is returned once, at
+    the level of its first match. Only linkages whose transmission angle stays ≥
+    ``min_transmission`` (rad) over the turn and whose links are all ≤ ``max_length`` (cranks)
+    are considered; an arc's radius (the RRR rod) must lie in [longest four-bar link ·
+    ``min_radius_ratio``, ``max_length``].
+
+    Each (kind, level, window) is read as two walks of ``ix_dwell_query`` outwards from the
+    target — dwell ≥ target upwards, dwell < target downwards, each stopping after ``limit``
+    rows that pass or at the window's edge. The index covers every filter, so a walked row
+    costs an index entry, not a join; one statement is compiled for all the walks."""
+    levels = [lv for lv, _ in tolerance_levels(engine)]
+    # every filter reads ix_dwell_query's own columns: the walk never leaves the index
+    base = select(Dwell.segment_id, Dwell.level, Dwell.dwell_angle).where(
+        Dwell.kind == bindparam("kind"),
+        Dwell.level == bindparam("level"),
+        Dwell.part == 0,
+        Dwell.linkage_transmission_min >= min_transmission,
+        Dwell.longest_link <= max_length,
+        or_(Dwell.radius.is_(None), Dwell.radius <= max_length),  # an arc's radius is the rod
+        *(() if min_radius_ratio <= 0 else (or_(Dwell.radius.is_(None), and_(
+            Dwell.radius >= min_radius_ratio, Dwell.radius >= min_radius_ratio * Dwell.longest_link)),)),
     )
-    with Session(engine) as s:
-        hits = s.execute(stmt).all()
+    up = (base.where(Dwell.dwell_angle >= bindparam("target"), Dwell.dwell_angle <= bindparam("high"))
+          .order_by(Dwell.dwell_angle, Dwell.segment_id).limit(bindparam("n")))
+    down = (base.where(Dwell.dwell_angle < bindparam("target"), Dwell.dwell_angle >= bindparam("low"))
+            .order_by(Dwell.dwell_angle.desc(), Dwell.segment_id).limit(bindparam("n")))
+    hits: list[tuple[int, int]] = []
+    seen: set[int] = set()
+    with engine.connect() as conn:
+        for w in windows:
+            found = []
+            for kind in kinds:
+                for lv in levels if w.level is None else [w.level]:
+                    args = {"kind": kind, "level": lv, "target": w.target, "low": w.low, "high": w.high, "n": w.limit}
+                    found += conn.execute(up, args).all() + conn.execute(down, args).all()
+            found.sort(key=lambda h: (abs(h.dwell_angle - w.target), h.segment_id, h.level))
+            for h in found[: w.limit]:
+                if h.segment_id not in seen:
+                    seen.add(h.segment_id)
+                    hits.append((h.segment_id, h.level))
         if not hits:
             return []
-        wanted = {(h.segment_id, h.level) for h in hits}
-        ids = sorted({h.segment_id for h in hits})
-        rows = s.execute(
-            select(Segment, Linkage).join(Linkage, Segment.linkage_id == Linkage.id).where(Segment.id.in_(ids))
-        ).all()
-        segs = {seg.id: (seg, link) for seg, link in rows}
-        dwells = s.execute(select(Dwell).where(Dwell.segment_id.in_(ids)).order_by(Dwell.id)).scalars().all()
-    by_key: dict[tuple[int, int], list[Dwell]] = {}
-    for dw in dwells:
-        by_key.setdefault((dw.segment_id, dw.level), []).append(dw)
+        ids = [sid for sid, _ in hits]
+        segs = {r.id: r for r in conn.execute(
+            select(Segment.id, Segment.kind, Segment.u, Segment.v, Segment.phi_gen, Linkage.b, Linkage.c, Linkage.d,
+                   Linkage.branch, Linkage.transmission_min)
+            .join(Linkage, Segment.linkage_id == Linkage.id).where(Segment.id.in_(ids))
+        )}
+        parts: dict[tuple[int, int], list] = {}
+        for dw in conn.execute(
+            select(Dwell.segment_id, Dwell.level, Dwell.part, Dwell.tolerance, Dwell.phi_start, Dwell.phi_end, Dwell.x,
+                   Dwell.y, Dwell.direction, Dwell.radius)
+            .where(Dwell.segment_id.in_(ids)).order_by(Dwell.segment_id, Dwell.level, Dwell.part)
+        ):
+            parts.setdefault((dw.segment_id, dw.level), []).append(dw)
     out: list[SegmentRow] = []
-    for h in hits:
-        key = (h.segment_id, h.level)
-        if key not in wanted or h.segment_id not in segs:
-            continue
-        seg, link = segs[h.segment_id]
-        parts = tuple(
-            (dw.phi_start, dw.phi_end, dw.x, dw.y, dw.direction, dw.radius) for dw in sorted(by_key[key], key=lambda r: r.part)
-        )
-        if seg.kind == "double_line" and len(parts) != 2:
+    for sid, lv in hits:
+        seg, dws = segs[sid], parts.get((sid, lv), [])
+        if seg.kind == "double_line" and len(dws) != 2:
             continue  # a double line needs both stretches at this level
         out.append(
             SegmentRow(
-                segment_id=seg.id,
+                segment_id=sid,
                 kind=seg.kind,
-                level=h.level,
-                tolerance=by_key[key][0].tolerance,
-                b=link.b,
-                c=link.c,
-                d=link.d,
-                branch=link.branch,
+                level=lv,
+                tolerance=dws[0].tolerance,
+                b=seg.b,
+                c=seg.c,
+                d=seg.d,
+                branch=seg.branch,
                 u=seg.u,
                 v=seg.v,
                 phi_gen=seg.phi_gen,
-                parts=parts,
-                fourbar_transmission_min=link.transmission_min,
+                parts=tuple((dw.phi_start, dw.phi_end, dw.x, dw.y, dw.direction, dw.radius) for dw in dws),
+                fourbar_transmission_min=seg.transmission_min,
             )
         )
     return out
@@ -123,18 +144,23 @@ def select_segments(
 
 def nearest_dwell_angles(engine: Engine, kinds: tuple[str, ...], target: float) -> tuple[float | None, float | None]:
     """The stored dwell angles (rad) of ``kinds`` just below and just above ``target``: what
-    the atlas could offer instead when nothing matches."""
+    the atlas could offer instead when nothing matches (one index probe per kind and level)."""
+    below: list[float] = []
+    above: list[float] = []
     with Session(engine) as s:
-        below = s.execute(
-            select(func.max(Dwell.dwell_angle)).where(and_(Dwell.kind.in_(kinds), Dwell.dwell_angle <= target))
-        ).scalar()
-        above = s.execute(
-            select(func.min(Dwell.dwell_angle)).where(and_(Dwell.kind.in_(kinds), Dwell.dwell_angle >= target))
-        ).scalar()
-    return below, above
+        for kind in kinds:
+            for lv, _ in tolerance_levels(engine):
+                here = and_(Dwell.kind == kind, Dwell.level == lv)
+                b = s.execute(select(func.max(Dwell.dwell_angle)).where(here, Dwell.dwell_angle <= target)).scalar()
+                a = s.execute(select(func.min(Dwell.dwell_angle)).where(here, Dwell.dwell_angle >= target)).scalar()
+                below += [] if b is None else [b]
+                above += [] if a is None else [a]
+    return max(below, default=None), min(above, default=None)
 
 
 def tolerance_levels(engine: Engine) -> list[tuple[int, float]]:
-    """The atlas's (level, tolerance) pairs, in level order."""
+    """The atlas's (level, tolerance) pairs, in level order, from its build's sweep spec (the
+    dwell table itself is too large to scan for them)."""
     with Session(engine) as s:
-        return [(int(lv), float(t)) for lv, t in s.execute(select(Dwell.level, Dwell.tolerance).distinct().order_by(Dwell.level))]
+        spec = s.execute(select(Build.spec_json).order_by(Build.id.desc()).limit(1)).scalar()
+    return [] if spec is None else list(enumerate(float(t) for t in json.loads(spec)["tolerances"]))

@@ -17,9 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from synth.sixbar import SixBar, SixBarFigures
+from synth.sixbar import SixBar, SixBarFigures, SixBars, crank_grid, simulate
 
-__all__ = ["Candidate", "Request", "candidate_id", "candidate_json", "parse_candidate_id", "rank"]
+__all__ = ["Candidate", "Request", "candidate_id", "candidate_json", "parse_candidate_id", "rank", "screen"]
 
 OUTPUTS = ("rpr", "rrr", "any")
 
@@ -102,6 +102,47 @@ class Candidate:
     rank: int = 0
     #: RRR: where the moving pivot Q rests during the dwell (the fitted arc's centre)
     dwell_position: complex | None = None
+
+
+def screen(request: Request, sixbars: SixBars, samples: int = 720) -> np.ndarray:
+    """Which six-bars may meet ``request``: a necessary test on one order-0 simulation on the
+    crank grid, so that the full figures (refined dwell ends, deviation windows, footprint)
+    are computed only for those that pass.
+
+    Each test is one a six-bar meeting the request cannot fail. With h the grid step and m
+    the largest |Δ²ψ|/8 of the row — a bound on how far ψ strays between two samples —:
+    it assembles everywhere and rocks; its sampled transmission angles are ≥ the minimum
+    (the true minimum is lower still); its sampled swing lies within the swing tolerance
+    widened by 2m; some ⌊(dwell − tol)/h⌋ − 1 consecutive samples lie within the band (the
+    dwell holds that many); and no ⌈(dwell + tol)/h⌉ + 2 consecutive samples lie within the
+    band narrowed by 2m (that would be a longer dwell than allowed).
+    """
+    from scipy.ndimage import maximum_filter1d, minimum_filter1d
+
+    phi = crank_grid(samples)
+    h = 2 * math.pi / samples
+    motion = simulate(sixbars, phi, order=0)
+    psi = motion.psi
+    ok = np.all(motion.status == 0, axis=1) & (np.abs(psi[:, -1] - psi[:, 0]) < math.pi)  # rocks, not revolves
+    ok &= (motion.transmission_fourbar.min(axis=1) >= request.min_transmission)
+    ok &= (motion.transmission_output.min(axis=1) >= request.min_transmission)
+    stray = np.abs(np.roll(psi, -1, axis=1) - 2 * psi + np.roll(psi, 1, axis=1)).max(axis=1) / 8
+    if request.swing is not None:
+        swing = psi.max(axis=1) - psi.min(axis=1)
+        ok &= (swing <= request.swing + request.swing_tol) & (swing + 2 * stray >= request.swing - request.swing_tol)
+
+    def fits(length: int, band: np.ndarray | float) -> np.ndarray:
+        """Some run of ``length`` samples lies within ``band`` (cyclic: ψ of a rocker is periodic)."""
+        spread = maximum_filter1d(psi, length, axis=1, mode="wrap") - minimum_filter1d(psi, length, axis=1, mode="wrap")
+        return np.any(spread <= np.reshape(band, (-1, 1)), axis=1)
+
+    shortest = math.floor((request.dwell - request.dwell_tol) / h) - 1
+    if shortest >= 2:
+        ok &= fits(shortest, request.band)
+    longest = math.ceil((request.dwell + request.dwell_tol) / h) + 2
+    if longest < samples:
+        ok &= ~fits(longest, request.band - 2 * stray)
+    return ok
 
 
 def candidate_id(segment_id: int, output: str, slot: int, level: int, swing: float | None) -> str:

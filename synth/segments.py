@@ -475,7 +475,10 @@ def _lawson(cols: list[F64], r0: F64, iterations: int) -> F64:
         ridge = 1e-13 * sum(M[i, i] for i in range(p)) + 1e-300
         for i in range(p):
             M[i, i] = M[i, i] + ridge
-        x = _solve_symmetric(M, [np.einsum("ij,ij->i", wc[i], r0) for i in range(p)])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x = _solve_symmetric(M, [np.einsum("ij,ij->i", wc[i], r0) for i in range(p)])
+        # a singular system (a column that vanishes on every sample) leaves the geometry as it is
+        x = [np.where(np.isfinite(v), v, 0.0) for v in x]
         res = r0 - x[0][:, None] * cols[0]
         for i in range(1, p):
             res -= x[i][:, None] * cols[i]
@@ -505,9 +508,20 @@ def _fit(z: C128, kind: int, point: C128, direction: C128, radius: F64, iteratio
         scale = np.maximum(np.abs(s).max(axis=1), 1e-12)
         x = _lawson([np.ones_like(s), s / scale[:, None]], r0, iterations)
         return point + 1j * direction * x[:, 0], direction * np.exp(1j * x[:, 1] / scale), radius
+    # r ≈ r0 − Re(δc·conj(e)) − δρ, e the unit vector from the centre. On a short arc e hardly
+    # turns, so its components are nearly constant: centred and scaled to O(1), the columns
+    # stay independent enough for the closed-form solve (the constant absorbs their means).
     e = rel / np.maximum(np.abs(rel), 1e-300)
-    x = _lawson([e.real, e.imag, np.ones_like(r0)], r0, iterations)
-    return point + x[:, 0] + 1j * x[:, 1], direction, radius + x[:, 2]
+    cols, means, scales = [], [], []
+    for comp in (e.real, e.imag):
+        mean = comp.mean(axis=1, keepdims=True)
+        scale = np.maximum(np.abs(comp - mean).max(axis=1, keepdims=True), 1e-12)
+        cols.append((comp - mean) / scale)
+        means.append(mean[:, 0])
+        scales.append(scale[:, 0])
+    x = _lawson([*cols, np.ones_like(r0)], r0, iterations)
+    dcx, dcy = x[:, 0] / scales[0], x[:, 1] / scales[1]
+    return point + dcx + 1j * dcy, direction, radius + x[:, 2] - dcx * means[0] - dcy * means[1]
 
 
 def _peak(absdev: F64, mask: NDArray[np.bool_]) -> F64:

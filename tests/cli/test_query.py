@@ -151,6 +151,49 @@ def test_missing_or_foreign_database(capsys, tmp_path):
     assert foreign.read_bytes() == before
 
 
+# --------------------------------------------------------------- the same on PostgreSQL
+# ``demo_atlases`` (tests/postgres.py): the demo preset built on SQLite and on PostgreSQL.
+PG_REQUESTS = [
+    ["--dwell", "45", "--swing", "40", "--output", "rpr", "--top", "3"],
+    ["--dwell", "60", "--swing", "30", "--output", "rrr", "--max-link-ratio", "20", "--top", "3"],
+    ["--dwell", "30", "--dwell-tol", "5", "--dwells", "2", "--top", "3"],
+]
+
+
+@pytest.mark.postgres
+@pytest.mark.parametrize("request_args", PG_REQUESTS, ids=["rpr", "rrr", "double"])
+def test_query_on_postgresql_answers_as_on_sqlite(capsys, demo_atlases, request_args):
+    docs = {}
+    for backend, target in demo_atlases.items():
+        code, out, err = run(capsys, "query", "--db", target, *request_args, "--json")
+        assert code == 0, err
+        docs[backend] = json.loads(out)
+    assert docs["postgresql"]["candidates"], "the demo atlas answers every README request"
+    assert docs["postgresql"] == docs["sqlite"]  # same rows, same order, same simulation: same document
+
+
+@pytest.mark.postgres
+def test_report_on_postgresql(capsys, demo_atlases, tmp_path):
+    url = demo_atlases["postgresql"]
+    code, out, err = run(capsys, "query", "--db", url, *PG_REQUESTS[0], "--json")
+    assert code == 0, err
+    first = json.loads(out)["candidates"][0]
+    exported = {}
+    for backend, target in demo_atlases.items():
+        code, out, err = run(capsys, "report", "--db", target, "--candidates", first["id"], "--out",
+                             str(tmp_path / backend), "--dwell", "45")
+        assert code == 0, err
+        assert f"1. {first['id']}: RPR" in out
+        exported[backend] = json.loads((tmp_path / backend / "candidates.json").read_text())["candidates"]
+        assert (tmp_path / backend / "index.html").stat().st_size > 0
+    assert exported["postgresql"] == exported["sqlite"]
+    assert exported["postgresql"][0]["swing_deg"] == pytest.approx(first["swing_deg"], abs=1e-9)
+    code, out, err = run(capsys, "report", "--db", url, "--candidates", "999999999-rpr0.0@40", "--out",
+                         str(tmp_path / "x"))
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1 and not (tmp_path / "x").exists()
+    assert "no segment 999999999 in this atlas" in err
+
+
 def test_report_rebuilds_the_queried_six_bar(capsys, atlas_path, tmp_path):
     code, out, err = run(capsys, "query", "--db", atlas_path, "--dwell", "45", "--swing", "40", "--output", "rpr",
                          "--top", "2", "--json", "--report", str(tmp_path / "q"))
@@ -166,3 +209,55 @@ def test_report_rebuilds_the_queried_six_bar(capsys, atlas_path, tmp_path):
     assert rebuilt["swing_deg"] == pytest.approx(queried[0]["swing_deg"], abs=1e-9)
     code, out, err = run(capsys, "report", "--db", atlas_path, "--candidates", "12-rpr0@40", "--out", str(tmp_path / "x"))
     assert code == 2 and "not a candidate id" in err and not (tmp_path / "x").exists()
+
+
+def test_bench_query_reports_latency_and_answers(atlas_path, capsys, tmp_path):
+    from cli.bench.query import REQUESTS
+
+    plot = tmp_path / "latency.png"
+    code, out, err = run(capsys, "bench", "query", "--db", atlas_path, "--repeat", "2", "--top", "3", "--plot", str(plot))
+    assert code == 0, err
+    doc = json.loads(out)
+    assert doc["queries"] == 2 * len(REQUESTS)
+    assert doc["atlas"]["preset"] == SPEC.name and doc["atlas"]["linkages"] > 0
+    assert doc["ms_p50"] <= doc["ms_p95"] <= doc["ms_max"]
+    assert doc["meets_floor"] == (doc["ms_p95"] <= doc["floor_ms_p95"])
+    answered = 0
+    for row, req in zip(doc["requests"], REQUESTS, strict=True):
+        assert row["label"] == req.label and row["candidates"] <= 3
+        # the stages are the whole query: their medians add up to about the median time
+        assert sum(row["ms_by_stage"].values()) == pytest.approx(row["ms_median"], rel=0.3, abs=5.0)
+        if row["best"] is not None:
+            answered += 1
+            for dwell in row["best"]["dwell_deg"]:
+                assert abs(dwell - req.dwell) <= req.dwell_tol + 1e-9
+            if req.swing is not None:
+                assert abs(row["best"]["swing_deg"] - req.swing) <= 0.5 + 1e-9
+    assert answered >= len(REQUESTS) // 2
+    assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.parametrize("output, dwell, tol, swing, dwells",
+                         [("rpr", 45, 8, 40, 1), ("rrr", 60, 8, 30, 1), ("rpr", 40, 15, None, 2)])
+def test_grid_screen_never_rejects_a_six_bar_that_meets_the_request(atlas_path, output, dwell, tol, swing, dwells):
+    """``screen`` is a necessary test: every fitted six-bar whose full figures meet the request
+    passes it (checked on all fits of real queries, with a wide dwell tolerance so that many
+    meet), and it does reject a share of those that do not."""
+    from cli.query import _fit, _kinds, _meets, _select, request_from_options
+    from db.engine import open_atlas
+    from synth.candidates import screen
+    from synth.sixbar import SixBars, sixbar_figures
+
+    request = request_from_options(dwell, tol, swing, 2, output, dwells, 0.1, 1.0, 20, 30, 10)
+    engine = open_atlas(atlas_path, readonly=True)
+    try:
+        fitted = [f for kind in _kinds(request) for f in _fit(request, _select(engine, request, (kind,)), kind)]
+    finally:
+        engine.dispose()
+    batch = SixBars.from_sixbars([SixBar(1.0, r.b, r.c, r.d, r.branch, r.u, r.v, dyad) for r, _, _, dyad, _ in fitted])
+    passed = screen(request, batch)
+    figures = sixbar_figures(batch, band=request.band, dwell_length=request.dwell, dwells=request.dwells)
+    meets = [_meets(request, f) for f in figures]
+    assert sum(meets) >= 3, "the request should be answerable on the test atlas"
+    assert all(passed[k] for k, m in enumerate(meets) if m)
+    assert sum(not p for p in passed) >= 0.2 * sum(not m for m in meets)
