@@ -23,6 +23,10 @@ from kinematics.fourbar import GrashofType, grashof_type
 __all__ = ["PRESETS", "SweepLinkages", "SweepSpec", "SweepSpecError", "sweep_linkages"]
 
 
+#: Tolerance levels a sweep may have: dwell ids leave room for 32 (``atlas.shard.DWELLS_PER_SEGMENT``).
+MAX_TOLERANCE_LEVELS = 32
+
+
 class SweepSpecError(ValueError):
     """A sweep specification that makes no sense (message names the field)."""
 
@@ -76,6 +80,8 @@ class SweepSpec:
                 raise SweepSpecError(f"range {field} must satisfy 0 < low <= high, got ({lo:g}, {hi:g})")
         if not 1 <= self.samples <= 2**31:
             raise SweepSpecError(f"samples must be between 1 and 2^31, got {self.samples}")
+        if self.seed < 0:  # numpy's seed sequence takes non-negative integers only
+            raise SweepSpecError(f"seed must be >= 0, got {self.seed}")
         if not self.branches or any(b not in (1, -1) for b in self.branches) or len(set(self.branches)) != len(self.branches):
             raise SweepSpecError(f"branches must be distinct values from (1, -1), got {self.branches}")
         if not 0 < self.crank_step_deg <= 30:
@@ -86,6 +92,8 @@ class SweepSpec:
             raise SweepSpecError(f"tolerances must be in (0, 1) crank lengths, got {self.tolerances}")
         if list(self.tolerances) != sorted(self.tolerances):
             raise SweepSpecError("tolerances must be in increasing order")
+        if len(self.tolerances) > MAX_TOLERANCE_LEVELS:
+            raise SweepSpecError(f"at most {MAX_TOLERANCE_LEVELS} tolerances, got {len(self.tolerances)}")
         if not 0 < self.min_dwell_deg < 360:
             raise SweepSpecError(f"min_dwell_deg must be in (0, 360), got {self.min_dwell_deg:g}")
         if self.shard_size < 1:

@@ -14,6 +14,8 @@ from pathlib import Path
 
 import click
 
+from cli.options import probe_folder
+
 #: The demo's requests, as the ``dwell query`` options a user would type.
 DEMO_REQUESTS = {
     # the demo sweep is small: its RRR answers need rockers up to 20 cranks long
@@ -40,11 +42,22 @@ def demo(out_dir: str, target: str | None, workers: int | None) -> None:
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise click.BadParameter(f"{out_dir!r} exists and is not a folder", param_hint="--out")
+    probe_folder(out, "--out")
+    made = [p for p in (out, *out.parents) if not p.exists()]  # what mkdir makes, innermost first
     out.mkdir(parents=True, exist_ok=True)
     target = target or str(out / "demo-atlas.sqlite")
     start = time.perf_counter()
     click.echo(f"$ dwell atlas build --db {target} --preset demo")
-    summary = build_atlas(target, PRESETS["demo"], workers=workers or os.cpu_count() or 1)
+    try:
+        summary = build_atlas(target, PRESETS["demo"], workers=workers or os.cpu_count() or 1)
+    except BaseException:
+        # a refused --db (or Ctrl-C before the first shard) leaves no empty folders behind
+        for folder in made:
+            try:
+                folder.rmdir()
+            except OSError:  # not empty: the interrupted atlas is in it, to resume
+                break
+        raise
     click.echo(f"atlas: {summary.linkages} linkages, {sum(summary.segments.values())} segments "
                f"({time.perf_counter() - start:.1f} s)")
     engine = open_atlas(target, readonly=True)

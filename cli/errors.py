@@ -20,6 +20,32 @@ USER_ERRORS: tuple[type[BaseException], ...] = (click.ClickException, AssemblyEr
 _LAZY_USER_ERRORS = {"db.engine": "AtlasError", "atlas.sweep": "SweepSpecError"}
 
 
+#: SQLite result codes (primary names) that mean the atlas file or its storage, not the code:
+#: found while reading or writing an atlas that opened fine (a page damaged in the middle of
+#: the file, a file made read-only). What the user can do about each.
+_SQLITE_FILE_PROBLEMS = {
+    "SQLITE_CORRUPT": "the file is damaged: restore a copy or rebuild the atlas",
+    "SQLITE_NOTADB": "the file is damaged: restore a copy or rebuild the atlas",
+    "SQLITE_READONLY": "the file or its folder is read-only",
+    "SQLITE_CANTOPEN": "the file or its folder cannot be opened for this",
+    "SQLITE_PERM": "permission denied",
+    "SQLITE_IOERR": "the storage failed",
+    "SQLITE_FULL": "the disk is full",
+}
+
+
+def _database_problem(exc: BaseException) -> str | None:
+    """The hint for a database error caused by the atlas's file or server, else None."""
+    sa_exc = sys.modules.get("sqlalchemy.exc")
+    if sa_exc is None or not isinstance(exc, sa_exc.DBAPIError):
+        return None
+    if exc.connection_invalidated:
+        return "the connection to the database server was lost"
+    name = getattr(exc.orig, "sqlite_errorname", None) or ""
+    return next((hint for code, hint in _SQLITE_FILE_PROBLEMS.items() if name == code or name.startswith(code + "_")),
+                None)
+
+
 def is_user_error(exc: BaseException) -> bool:
     """True for errors caused by input, including those of lazily imported layers."""
     if isinstance(exc, USER_ERRORS):
@@ -28,16 +54,20 @@ def is_user_error(exc: BaseException) -> bool:
         mod = sys.modules.get(module)
         if mod is not None and isinstance(exc, getattr(mod, name)):
             return True
-    return False
+    return _database_problem(exc) is not None
 
 
 def user_error_line(exc: BaseException) -> str:
     """One line naming the problem (click's usage errors name the command)."""
+    problem = _database_problem(exc)
     if isinstance(exc, click.ClickException):
         msg = exc.format_message()
         ctx = getattr(exc, "ctx", None)
         if ctx is not None and isinstance(exc, click.UsageError):
             msg = f"{ctx.command_path}: {msg}"
+    elif problem is not None:
+        text = str(exc.orig).strip()  # the driver's words, without SQLAlchemy's statement dump
+        msg = f"atlas database error: {text.splitlines()[0] if text else type(exc.orig).__name__} ({problem})"
     else:
         msg = str(exc)
     return " ".join(msg.split())

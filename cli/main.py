@@ -33,7 +33,8 @@ def dwell() -> None:
 def main(argv: list[str] | None = None) -> int:
     """Entry point: run ``dwell`` and map errors to exit statuses (never a traceback for input)."""
     try:
-        dwell.main(args=argv, prog_name="dwell", standalone_mode=False)
+        # without standalone mode click returns the code of ``ctx.exit(n)`` instead of raising
+        rv = dwell.main(args=argv, prog_name="dwell", standalone_mode=False)
     except click.exceptions.Exit as exc:
         return exc.exit_code
     except click.exceptions.Abort:
@@ -47,7 +48,7 @@ def main(argv: list[str] | None = None) -> int:
             raise
         click.echo(f"dwell: error: {user_error_line(exc)}", err=True)
         return 2
-    return 0
+    return rv if isinstance(rv, int) and not isinstance(rv, bool) else 0
 
 
 if __name__ == "__main__":

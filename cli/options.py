@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
@@ -11,11 +12,13 @@ import numpy as np
 from kinematics.timing import crank_speed
 
 __all__ = [
+    "bounded",
     "crank_angle_options",
     "crank_angles_deg",
     "fourbar_options",
     "output_options",
     "positive",
+    "probe_folder",
     "speed_options",
     "speed_from_options",
     "writable_file",
@@ -31,10 +34,18 @@ def _stack(*decorators: Callable) -> Callable:
     return apply
 
 
+#: Lengths accepted on the command line: the square or product of any two stays a finite,
+#: normal float (the closed forms square lengths; 1e308 or 1e-320 would overflow or vanish).
+LENGTH_RANGE = (1e-150, 1e150)
+
+
 def positive(ctx: click.Context, param: click.Parameter, value: float | None) -> float | None:
-    """Callback: a finite length > 0."""
+    """Callback: a finite length > 0, within :data:`LENGTH_RANGE`."""
+    lo, hi = LENGTH_RANGE
     if value is not None and not (np.isfinite(value) and value > 0):
         raise click.BadParameter(f"must be a finite number > 0, got {value:g}", ctx, param)
+    if value is not None and not lo <= value <= hi:
+        raise click.BadParameter(f"must be between {lo:g} and {hi:g} (a length), got {value:g}", ctx, param)
     return value
 
 
@@ -42,6 +53,23 @@ def finite(ctx: click.Context, param: click.Parameter, value: float | None) -> f
     if value is not None and not np.isfinite(value):
         raise click.BadParameter(f"must be a finite number, got {value:g}", ctx, param)
     return value
+
+
+#: Largest input speed (rpm, rad/s, length/s) and acceleration: with lengths up to 1e150 the
+#: accelerations (L·ω²) and jerks (L·ω³) of the output stay finite.
+MAX_SPEED, MAX_ACCELERATION = 1e50, 1e100
+
+
+def bounded(limit: float) -> Callable:
+    """Callback: a finite number of magnitude at most ``limit``."""
+
+    def check(ctx: click.Context, param: click.Parameter, value: float | None) -> float | None:
+        finite(ctx, param, value)
+        if value is not None and abs(value) > limit:
+            raise click.BadParameter(f"must be at most {limit:g} in magnitude, got {value:g}", ctx, param)
+        return value
+
+    return check
 
 
 fourbar_options = _stack(
@@ -81,17 +109,18 @@ def crank_angles_deg(phi: float | None, phi_from: float | None, phi_to: float | 
     if count > 1_000_000:
         raise click.BadParameter(f"--from/--to/--step give {count} crank angles; at most 1000000")
     angles = start + step * np.arange(count)
-    full_turns = (stop - start) > 0 and abs(((stop - start) / 360.0) - round((stop - start) / 360.0)) < 1e-12
+    turns = (stop - start) / 360.0
+    full_turns = round(turns) >= 1 and abs(turns - round(turns)) < 1e-12  # (a sliver of a degree is no turn)
     if full_turns and np.isclose(angles[-1], stop):
         angles = angles[:-1]
     return angles
 
 
 speed_options = _stack(
-    click.option("--rpm", type=float, default=None, callback=finite, help="Crank speed [rev/min] (default 60)."),
-    click.option("--omega", type=float, default=None, callback=finite, help="Crank speed [rad/s]."),
+    click.option("--rpm", type=float, default=None, callback=bounded(MAX_SPEED), help="Crank speed [rev/min] (default 60)."),
+    click.option("--omega", type=float, default=None, callback=bounded(MAX_SPEED), help="Crank speed [rad/s]."),
     click.option("--cw", is_flag=True, help="Crank turns clockwise (default counter-clockwise)."),
-    click.option("--alpha", "crank_alpha", type=float, default=0.0, show_default=True, callback=finite,
+    click.option("--alpha", "crank_alpha", type=float, default=0.0, show_default=True, callback=bounded(MAX_ACCELERATION),
                  help="Crank angular acceleration [rad/s^2], signed like the speed."),
 )
 
@@ -120,9 +149,42 @@ def writable_file(*suffixes: str) -> Callable:
             raise click.BadParameter(f"folder {str(path.parent)!r} does not exist", ctx, param)
         if path.exists() and path.is_dir():
             raise click.BadParameter(f"{value!r} is a folder", ctx, param)
+        try:  # fail now, not after the work: open it as the writer will, then leave it as it was
+            if path.exists():
+                with path.open("ab"):
+                    pass
+            else:
+                with path.open("xb"):
+                    pass
+                path.unlink()
+        except OSError as exc:
+            raise click.BadParameter(f"cannot write {value!r}: {exc.strerror}", ctx, param) from None
         return path
 
     return check
+
+
+def probe_folder(path: Path, option: str) -> None:
+    """Refuse (exit 2, before any work) an output folder that cannot be made or written into.
+
+    Creates what is missing of ``path`` and a temporary file in it, then removes them again:
+    the folder is left as it was found.
+    """
+    from cli.errors import InputError
+
+    made = [p for p in (path, *path.parents) if not p.exists()]  # innermost first
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=path):
+            pass
+    except OSError as exc:
+        raise InputError(f"{option}: cannot write into {str(path)!r}: {exc.strerror}") from None
+    finally:
+        for folder in made:
+            try:
+                folder.rmdir()
+            except OSError:
+                break
 
 
 output_options = _stack(

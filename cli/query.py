@@ -268,6 +268,10 @@ def rebuild(engine, ids: list[str], request: Request) -> list[Candidate]:
 
 def request_from_options(dwell, dwell_tol, swing, swing_tol, output, dwells, dwell_tolerance, crank,
                          min_transmission, max_link_ratio, top) -> Request:
+    # the deviation window must hold at least two samples of the simulation's crank grid
+    if math.isfinite(dwell) and 0 < dwell < 720.0 / SAMPLES:
+        raise InputError(f"--dwell must be at least {720.0 / SAMPLES:g}° (the simulation samples the turn "
+                         f"every {360.0 / SAMPLES:g}°), got {dwell:g}")
     try:
         return Request(
             dwell=math.radians(dwell), dwell_tol=math.radians(dwell_tol),

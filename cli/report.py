@@ -8,6 +8,7 @@ from pathlib import Path
 import click
 
 from cli.errors import InputError
+from cli.options import probe_folder
 
 
 @click.command("report")
@@ -35,6 +36,7 @@ def report(target, ids, out_dir, dwell, dwell_tolerance, crank, min_transmission
         raise InputError(f"--out {out_dir!r} is a file, not a folder")
     if not (out if out.exists() else out.parent).exists():
         raise InputError(f"--out: folder {str(out.parent)!r} does not exist")
+    probe_folder(out, "--out")
     # the deviation window: the requested dwell, or the rebuilt six-bar's own dwell
     request = request_from_options(dwell if dwell is not None else 60.0, 2.0, 30.0, 0.5, "any", 1, dwell_tolerance,
                                    crank, min_transmission, 1e12, len(names))

@@ -324,10 +324,17 @@ def slider_time_ratio(phi_stationary: ArrayLike, s_stationary: ArrayLike) -> tup
 
 
 def slider_limits_from(phi_stationary: ArrayLike, s_stationary: ArrayLike) -> SliderLimits:
-    """:class:`SliderLimits` from every stationary position of a slider over a turn (radians)."""
+    """:class:`SliderLimits` from every stationary position of a slider over a turn (radians).
+
+    Raises :class:`AssemblyError` when the stroke vanishes in floating point (a crank some
+    1e-16 times shorter than the other links): there are no limit positions to tell apart.
+    """
     phi = np.mod(np.asarray(phi_stationary, dtype=float), TWO_PI)
     s = np.asarray(s_stationary, dtype=float)
     hi, lo = int(np.argmax(s)), int(np.argmin(s))
+    if not s[hi] > s[lo]:
+        raise AssemblyError(f"the slider's stroke is below floating-point resolution (it stops at s = {s[hi]:g} "
+                            "only): the link ratios are too extreme for limit positions")
     ratio, reversals = slider_time_ratio(phi, s)
     return SliderLimits(float(phi[hi]), float(s[hi]), float(phi[lo]), float(s[lo]), float(s[hi] - s[lo]), ratio, reversals)
 

@@ -293,7 +293,21 @@ def _crossings(phi: F64, p: C128, t1: F64, ok: NDArray[np.bool_]) -> tuple[F64, 
     idx = np.flatnonzero(seg_ok)
     if idx.size < 2:
         return np.zeros(0), np.zeros(0)
+    # Degenerate tracks would make every box overlap every other one (n² candidate pairs,
+    # tens of GB): a track that stands still (change-point linkages: the kite a = b, c = d
+    # parks it on one point for much of the turn) has segments of rounding-noise length, which
+    # cross nothing; a track folded onto a straight line (the rhombus a = b = c = d) runs over
+    # itself along its whole length and crosses itself nowhere.
+    extent = np.abs(p[idx] - p[idx].mean()).max()
+    idx = idx[np.abs(p[nxt[idx]] - p[idx]) > 1e-15 * extent]
+    if idx.size < 2:
+        return np.zeros(0), np.zeros(0)
     p0, p1 = p[idx], p[nxt[idx]]
+    z = np.concatenate([p0, p1])
+    z = z - z.mean()
+    axis = np.exp(0.5j * np.angle(np.sum(z * z)))  # principal axis of the points: arg(Σ z²)/2
+    if np.abs((z * np.conj(axis)).imag).max() <= 1e-9 * np.abs(z).max():
+        return np.zeros(0), np.zeros(0)
     coords = np.stack([np.c_[p0.real, p0.imag], np.c_[p1.real, p1.imag]], axis=1)
     # the tree gives the pairs whose bounding boxes overlap; the exact test is vectorized below
     # (3x faster than a GEOS "intersects" predicate per pair, most pairs being neighbours)

@@ -16,7 +16,7 @@ import click
 import numpy as np
 
 from cli.errors import InputError
-from cli.options import finite, output_options, speed_from_options, speed_options, writable_file
+from cli.options import MAX_SPEED, bounded, finite, output_options, speed_from_options, speed_options, writable_file
 from kinematics.assur import (
     Assembly,
     Linkage,
@@ -61,7 +61,7 @@ ANIMATION_POSITIONS = 181
 @click.option("--output", "output_name", default=None, metavar="NAME",
               help="Output for --limits and --plot: a link (its angle) or a prismatic pair (its slide). Default: [output] of the file.")
 @speed_options
-@click.option("--speed", "slide_speed", type=float, default=1.0, show_default=True, callback=finite,
+@click.option("--speed", "slide_speed", type=float, default=1.0, show_default=True, callback=bounded(MAX_SPEED),
               help="Speed of a slide input [length/s] (angle inputs use --rpm/--omega).")
 @output_options
 @click.option("--animate", type=click.Path(dir_okay=False), callback=writable_file(".html", ".svg"),
@@ -197,7 +197,8 @@ def _input_grid(mech: Linkage, values, x_from, x_to, x_step, sweep_given) -> np.
     if count > 100_000:
         raise click.BadParameter(f"--from/--to/--step give {count} positions; at most 100000", param_hint="--step")
     grid = start + step * np.arange(count)
-    if angle and stop - start > 0 and abs((stop - start) / 360.0 - round((stop - start) / 360.0)) < 1e-12 and np.isclose(grid[-1], stop):
+    turns = (stop - start) / 360.0
+    if angle and round(turns) >= 1 and abs(turns - round(turns)) < 1e-12 and np.isclose(grid[-1], stop):
         grid = grid[:-1]  # a whole turn: the end repeats the start
     out = np.repeat(base[None, :], grid.size, axis=0)
     out[:, 0] = np.radians(grid) if angle else grid

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import click
@@ -53,7 +54,9 @@ def slider_crank(l1, l2, e, guide_angle, branch, phi, phi_from, phi_to, phi_step
     Formulas: shared/cases/classic_mechanisms.md section 2 (phi1 crank, phi2 rod, s3 slider).
     """
     br = int(branch)
-    alpha = float(np.radians(guide_angle))
+    # whole turns off first, exactly (fmod by 360 is exact): in radians, 1e18 degrees would
+    # swamp the dead-centre angles added to it
+    alpha = float(np.radians(guide_angle if abs(guide_angle) <= 360.0 else math.fmod(guide_angle, 360.0)))
     w = speed_from_options(rpm, omega, cw)
     angles = crank_angles_deg(phi, phi_from, phi_to, phi_step)
     L = units

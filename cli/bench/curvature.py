@@ -34,7 +34,7 @@ FLOOR = 500_000
 def crank_rockers(n: int, seed: int) -> tuple[np.ndarray, ...]:
     """n random Grashof crank-rockers with crank 1 (b, c, d uniform in [1.2, 6])."""
     rng = np.random.default_rng(seed)
-    rows = []
+    rows = [np.empty((0, 3))]  # n may be 0
     while sum(len(r) for r in rows) < n:
         b, c, d = rng.uniform(1.2, 6.0, (3, 4 * n + 8))
         srt = np.sort(np.stack([np.ones_like(b), b, c, d]), axis=0)
@@ -98,7 +98,7 @@ def _errors(seed: int, rays: int) -> dict[str, float]:
               help="Timed runs (the best is kept: the machine is shared).")
 @click.option("--double-ball-linkages", "n_double", type=click.IntRange(0, 100_000), default=20, show_default=True,
               help="Linkages for the double-Ball-point search timing.")
-@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True, help="Seed of the random cases (>= 0).")
 def curvature(linkages, angles, rays, batch, repeat, n_double, seed):
     """Instants/s (pole + inflection circle + Ball point + conjugate pairs) and double-Ball time (JSON)."""
     links = crank_rockers(linkages, seed)

@@ -73,7 +73,7 @@ def _accuracy(samples: int, angles: int, seed: int) -> dict[str, float]:
               help="Comma-separated numbers of linkages.")
 @click.option("--angles", default=360, show_default=True, type=click.IntRange(1, 100_000), help="Crank angles per linkage.")
 @click.option("--repeat", default=3, show_default=True, type=click.IntRange(1, 100), help="Timed runs per size (best is kept).")
-@click.option("--seed", default=0, show_default=True, type=int)
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0), help="Seed of the random linkages (>= 0).")
 def kinematics(sizes: str, angles: int, repeat: int, seed: int) -> None:
     """Four-bar positions + 3 derivative orders per second (one core), with their error."""
     try:

@@ -88,7 +88,7 @@ def make_cases(n: int, seed: int) -> dict[str, np.ndarray]:
 
     # near toggle: the crank cannot turn fully; φ within 1e-9 rad of a limit of its range
     k = counts[2]
-    got = []
+    got = [tuple(np.empty(0) for _ in range(5))]  # a small --n may draw no case of this family
     while sum(x[0].size for x in got) < k:
         b, c, d = (_log_uniform(rng, 0.05, 20, 4 * k + 8) for _ in range(3))
         a = np.ones_like(b)
@@ -261,7 +261,7 @@ def _raise_mode_check(cases: dict[str, np.ndarray], count: int = 200) -> dict[st
 @click.command("stability")
 @click.option("--n", "n_cases", type=click.IntRange(1, 10_000_000), default=100_000, show_default=True,
               help="Number of cases.")
-@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True, help="Seed of the random cases (>= 0).")
 def stability(n_cases: int, seed: int) -> None:
     """Random and adversarial cases: flags per reason, NaN/inf, exceptions, residuals (JSON)."""
     click.echo(json.dumps(stability_summary(n_cases, seed), indent=1))

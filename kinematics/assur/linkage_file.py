@@ -145,10 +145,21 @@ def _text(value: Any, where: str) -> str:
     return value
 
 
+#: Largest magnitude of a number in a file: squares and products of two stay finite.
+MAX_MAGNITUDE = 1e150
+
+
 def _number(value: Any, where: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise LinkageFileError(f"{where} must be a finite number, got {value!r}")
-    return float(value)
+    try:
+        x = float(value)
+    except OverflowError:  # an integer beyond float range
+        x = math.inf
+    if not math.isfinite(x) or abs(x) > MAX_MAGNITUDE:
+        raise LinkageFileError(f"{where} must be a finite number of magnitude at most {MAX_MAGNITUDE:g}, "
+                               f"got {value!r}")
+    return x
 
 
 def _point(value: Any, where: str) -> complex:

@@ -23,7 +23,7 @@ import pytest
 from atlas import SweepSpec, sweep_linkages
 from atlas.build import build_atlas
 from cli.main import main
-from db import open_atlas
+from db import SCHEMA_VERSION, open_atlas
 from db.digest import content_digest
 
 #: the demo preset's search settings on a small sweep (a few seconds of compute)
@@ -216,7 +216,8 @@ def test_info_json_is_consistent_with_the_database(reference, capsys):
     assert doc["skipped"] == skipped
     build = doc["build"]
     assert build["spec"] == json.loads(SPEC.to_json()) and build["spec_digest"] == SPEC.digest
-    assert (build["status"], build["shards_done"], build["n_shards"], build["schema_version"]) == ("complete", N_SHARDS, N_SHARDS, 1)
+    assert (build["status"], build["shards_done"], build["n_shards"], build["schema_version"]) == ("complete", N_SHARDS, N_SHARDS,
+                                                                                            SCHEMA_VERSION)
     assert build["code_version"] and doc["builds"] == 1
     assert doc["content_digest"] == digest and re.fullmatch(r"[0-9a-f]{64}", digest)
 
@@ -323,3 +324,99 @@ def test_default_db_is_atlas_sqlite_in_the_cwd(tmp_path, capsys, monkeypatch):
     assert info_json(capsys, tmp_path / "atlas.sqlite")["build"]["status"] == "complete"
     rc, out, err = dwell(capsys, "info")
     assert rc == 2 and "no atlas at" in err and "env.sqlite" in err
+
+
+# --------------------------------------------------------------- PostgreSQL (tests/postgres.py)
+
+def pg_shards(url: str) -> int:
+    """Shard rows committed so far (0 while the schema is still being created)."""
+    from sqlalchemy import create_engine, text
+    from sqlalchemy.exc import DBAPIError
+
+    engine = create_engine(url)
+    try:
+        with engine.connect() as conn:
+            return int(conn.execute(text("SELECT count(*) FROM shard")).scalar_one())
+    except DBAPIError:
+        return 0
+    finally:
+        engine.dispose()
+
+
+def shown(url: str) -> str:
+    from db.engine import display_target
+
+    return display_target(url)
+
+
+@pytest.mark.postgres
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc")
+def test_killed_build_on_postgresql_resumes_to_the_same_content(tmp_path, reference, capsys, postgres_url):
+    from sqlalchemy.engine import make_url
+
+    proc = spawn(tmp_path, "--db", postgres_url, *SMALL, "--workers", "2", delay=0.5)
+    deadline = time.monotonic() + 60
+    while pg_shards(postgres_url) < 1:
+        assert proc.poll() is None, f"the build ended early: {proc.communicate()}"
+        assert time.monotonic() < deadline, "no shard was written in time"
+        time.sleep(0.05)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert no_orphans(tmp_path), "workers outlived the killed builder"
+    kept = pg_shards(postgres_url)
+    assert 1 <= kept < N_SHARDS
+
+    rc, out, err = dwell(capsys, "build", "--db", postgres_url, *SMALL, "--workers", "1")
+    assert rc == 0, err
+    assert f"resuming: {kept} of {N_SHARDS} shards already built" in err  # the dead builder's lock was taken over
+    assert out.startswith(f"atlas {shown(postgres_url)} complete: ")
+    doc = info_json(capsys, postgres_url)
+    assert doc["content_digest"] == reference[1]  # the SQLite reference build of the same sweep
+    assert doc["build"]["status"] == "complete" and doc["build"]["builder"] is None
+    assert doc["build"]["schema_version"] == SCHEMA_VERSION
+
+    rc, text_out, err = dwell(capsys, "info", "--db", postgres_url)
+    assert rc == 0 and err == ""
+    assert text_out.startswith(f"atlas {shown(postgres_url)}\n") and f"content digest: {reference[1]}" in text_out
+    rc, again, err = dwell(capsys, "build", "--db", postgres_url, *SMALL)
+    assert rc == 0 and again.startswith(f"atlas {shown(postgres_url)} is already complete: ")
+    password = make_url(postgres_url).password
+    if password:
+        assert not any(password in s for s in (out, text_out, again, err))
+
+
+@pytest.mark.postgres
+@pytest.mark.parametrize("case, message", [
+    ("unreachable", "cannot connect to 'postgresql+psycopg://"),
+    ("missing", 'database "dwell_no_such_database" does not exist; create it first'),
+    ("foreign", "is a database of another application"),
+])
+@pytest.mark.parametrize("command", ["build", "info"])
+def test_bad_postgresql_targets_exit_2_with_one_line(capsys, postgres_url, case, message, command):
+    import socket
+
+    from postgres import atlas_snapshot
+    from sqlalchemy import create_engine, text
+    from sqlalchemy.engine import make_url
+
+    url = make_url(postgres_url)
+    if case == "unreachable":
+        with socket.socket() as s:
+            s.bind(("127.0.0.1", 0))
+            port = s.getsockname()[1]  # nobody listens on it once the socket is closed
+        target = f"postgresql+psycopg://dwell:s3cret@127.0.0.1:{port}/atlas"
+    elif case == "missing":
+        target = url.set(database="dwell_no_such_database").render_as_string(hide_password=False)
+    else:
+        target = postgres_url
+        engine = create_engine(target)
+        with engine.begin() as conn:
+            conn.execute(text("CREATE TABLE things (x integer)"))
+        engine.dispose()
+    before = atlas_snapshot(postgres_url)
+    extra = ["--samples", "8", "--workers", "1"] if command == "build" else []
+    rc, out, err = dwell(capsys, command, "--db", target, *extra)
+    assert rc == 2 and out == ""
+    assert err.count("\n") == 1 and err.startswith("dwell: error: ") and message in err, err
+    assert "s3cret" not in err and (url.password is None or url.password not in err)
+    assert atlas_snapshot(postgres_url) == before

@@ -1,0 +1,207 @@
+"""Damaged, foreign, newer and read-only atlases under ``dwell atlas info``, ``dwell atlas
+build``, ``dwell query`` and ``dwell report``: one error line, exit status 2, no traceback,
+and the file byte-identical with nothing new beside it.
+
+Read-only: the tests run as root, for whom ``chmod 444`` stops nothing, and no unprivileged
+user can run this interpreter. ``chattr +i`` (the immutable flag) stops root too: an immutable
+file is a read-only atlas (readers work, a build that must write is refused), an immutable
+folder a read-only location (SQLite cannot even make the ``-shm`` its WAL mode needs to
+read). Those tests skip where the flag cannot be set (not root, or a file system without it).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import shutil
+import sqlite3
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from db import SCHEMA_VERSION
+from processes import N_SHARDS, QUERY, SMALL, info, run
+
+COMMANDS = ("info", "build", "query", "report")
+
+
+def argv(command: str, target: str, tmp_path: Path, candidate: str) -> list[str]:
+    return {
+        "info": ["atlas", "info", "--db", target],
+        "build": ["atlas", "build", "--db", target, *SMALL, "--workers", "1"],
+        "query": ["query", "--db", target, *QUERY],
+        "report": ["report", "--db", target, "--candidates", candidate, "--out", str(tmp_path / "report")],
+    }[command]
+
+
+def snapshot(folder: Path) -> dict[str, str]:
+    """Every file under ``folder``: relative name → sha256."""
+    return {str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def _overwrite(path: Path, start: int, stop: int) -> None:
+    data = bytearray(path.read_bytes())
+    data[start:stop] = bytes((37 * i + 11) % 256 for i in range(stop - start))
+    path.write_bytes(bytes(data))
+
+
+def _truncated(path: Path) -> None:
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+
+
+def _foreign(path: Path) -> None:
+    path.unlink()
+    con = sqlite3.connect(path)
+    con.execute("create table things(x)")
+    con.execute("insert into things values (1)")
+    con.commit()
+    con.close()
+
+
+def _newer(path: Path) -> None:
+    con = sqlite3.connect(path)
+    con.execute("update meta set value = ? where key = 'schema_version'", (str(SCHEMA_VERSION + 1),))
+    con.commit()
+    con.close()
+
+
+#: case → (how to spoil a copy of the reference atlas, what the error line must say)
+CASES = {
+    "truncated": (_truncated, "database disk image is malformed"),
+    "middle-overwritten": (lambda p: _overwrite(p, p.stat().st_size // 3, 2 * p.stat().st_size // 3),
+                           "atlas database error: database disk image is malformed (the file is damaged"),
+    "header-overwritten": (lambda p: _overwrite(p, 16, 100), "file is not a database"),
+    "magic-overwritten": (lambda p: _overwrite(p, 0, 16), "is not an SQLite database"),
+    "foreign": (_foreign, "is a database of another application"),
+    "newer-schema": (_newer, f"has schema version {SCHEMA_VERSION + 1}, newer than this dwell-atlas ({SCHEMA_VERSION})"),
+}
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+@pytest.mark.parametrize("case", CASES)
+def test_a_bad_atlas_is_refused_untouched(tmp_path, capsys, reference, case, command):
+    spoil, message = CASES[case]
+    db = tmp_path / "atlas.sqlite"
+    shutil.copyfile(reference.path, db)
+    spoil(db)
+    before = snapshot(tmp_path)
+    rc, out, err = run(capsys, *argv(command, str(db), tmp_path, reference.candidate))
+    assert rc == 2 and out == "", err
+    assert err.count("\n") == 1 and err.startswith("dwell: error: ") and message in err, err
+    after = snapshot(tmp_path)
+    assert after[db.name] == before[db.name]  # byte-identical
+    new = set(after) - set(before)
+    if case == "middle-overwritten":
+        # the damage is found only while reading rows, after SQLite opened the file in WAL mode:
+        # it leaves its (empty) write-ahead log and index behind, as any reader does
+        assert new <= {f"{db.name}-wal", f"{db.name}-shm"}, new
+        assert after.get(f"{db.name}-wal", hashlib.sha256(b"").hexdigest()) == hashlib.sha256(b"").hexdigest()
+    else:
+        assert new == set(), new  # refused before SQLite touched anything
+
+
+@pytest.mark.postgres
+def test_a_foreign_or_newer_postgresql_database_is_refused(tmp_path, capsys, reference, postgres_url):
+    from sqlalchemy import create_engine, text
+
+    engine = create_engine(postgres_url)
+    with engine.begin() as conn:
+        conn.execute(text("create table things (x integer)"))
+    for command in COMMANDS:
+        rc, out, err = run(capsys, *argv(command, postgres_url, tmp_path, reference.candidate))
+        assert rc == 2 and out == "" and err.count("\n") == 1, err
+        assert "is a database of another application" in err
+    with engine.begin() as conn:
+        conn.execute(text("drop table things"))
+    rc, out, err = run(capsys, "atlas", "build", "--db", postgres_url, "--samples", "8", "--workers", "1")
+    assert rc == 0, err
+    with engine.begin() as conn:
+        conn.execute(text("update meta set value = :v where key = 'schema_version'"), {"v": str(SCHEMA_VERSION + 1)})
+    engine.dispose()
+    for command in COMMANDS:
+        rc, out, err = run(capsys, *argv(command, postgres_url, tmp_path, reference.candidate))
+        assert rc == 2 and out == "" and err.count("\n") == 1, err
+        assert f"has schema version {SCHEMA_VERSION + 1}, newer than this dwell-atlas" in err
+    assert list(tmp_path.iterdir()) == []  # no report folder
+
+
+# ---------------------------------------------------------------------------------- read-only
+
+
+def _chattr(flag: str, *paths: Path) -> bool:
+    try:
+        return subprocess.run(["chattr", flag, *map(str, paths)], capture_output=True).returncode == 0
+    except OSError:
+        return False
+
+
+@pytest.fixture
+def immutable(tmp_path):
+    """``immutable(path, ...)`` sets the immutable flag (skips where it cannot); undone after."""
+    flagged: list[Path] = []
+    probe = tmp_path / "probe"
+    probe.write_text("")
+    if not _chattr("+i", probe):
+        probe.unlink()
+        pytest.skip("chattr +i is not possible here (needs root and a file system with the flag)")
+    _chattr("-i", probe)
+    probe.unlink()
+
+    def flag(*paths: Path) -> None:
+        assert _chattr("+i", *paths)
+        flagged.extend(paths)
+
+    yield flag
+    _chattr("-i", *flagged)
+
+
+def _unfinished(path: Path) -> None:
+    """Make the atlas at ``path`` look killed before its last shard (what a resume completes)."""
+    con = sqlite3.connect(path)
+    last = N_SHARDS - 1
+    links = "select id from linkage where shard_index = ?"
+    con.execute(f"delete from dwell where segment_id in (select id from segment where linkage_id in ({links}))", (last,))
+    con.execute(f"delete from segment where linkage_id in ({links})", (last,))
+    con.execute("delete from linkage where shard_index = ?", (last,))
+    con.execute("delete from shard where shard_index = ?", (last,))
+    con.execute("update build set status = 'building', content_digest = null, finished_at = null")
+    con.commit()
+    con.close()
+
+
+def test_a_read_only_atlas_is_read_but_not_written(tmp_path, capsys, reference, immutable):
+    folder = tmp_path / "atlas"
+    folder.mkdir()
+    db = folder / "atlas.sqlite"
+    shutil.copyfile(reference.path, db)
+    _unfinished(db)
+    immutable(db)
+    digest = hashlib.sha256(db.read_bytes()).hexdigest()
+
+    doc = info(capsys, str(db))  # reading needs no write
+    assert doc["build"]["status"] == "building" and doc["build"]["shards_done"] == N_SHARDS - 1
+    rc, out, err = run(capsys, "query", "--db", str(db), *QUERY, "--json")
+    assert rc == 0, err
+    rc, out, err = run(capsys, *argv("build", str(db), tmp_path, reference.candidate))
+    assert rc == 2 and out == "", err
+    assert err == ("dwell: error: atlas database error: attempt to write a readonly database "
+                   "(the file or its folder is read-only)\n")
+    assert hashlib.sha256(db.read_bytes()).hexdigest() == digest
+    assert {p.name for p in folder.iterdir()} <= {db.name, f"{db.name}-wal", f"{db.name}-shm"}
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_an_atlas_in_a_read_only_folder_is_refused_untouched(tmp_path, capsys, reference, immutable, command):
+    folder = tmp_path / "atlas"
+    folder.mkdir()
+    db = folder / "atlas.sqlite"
+    shutil.copyfile(reference.path, db)
+    immutable(db, folder)
+    before = snapshot(tmp_path)
+    rc, out, err = run(capsys, *argv(command, str(db), tmp_path, reference.candidate))
+    # SQLite reads a WAL-mode file only with a -shm index beside it, which it cannot make here
+    assert rc == 2 and out == "", err
+    assert err == f"dwell: error: cannot use {str(db)!r} as an atlas: unable to open database file\n"
+    assert snapshot(tmp_path) == before
