@@ -166,7 +166,7 @@ def _last_line(text: str) -> str:
     return lines[-1] if lines else ""
 
 
-def _group_alive(pgid: int) -> list[int]:
+def group_alive(pgid: int) -> list[int]:
     """Live (not zombie) processes of process group ``pgid`` (empty without /proc)."""
     alive = []
     for d in Path("/proc").glob("[0-9]*"):
@@ -188,7 +188,7 @@ def _kill_group(proc: subprocess.Popen) -> list[int]:
         pass
     proc.communicate()
     deadline = time.monotonic() + 5.0
-    while (alive := _group_alive(proc.pid)) and time.monotonic() < deadline:
+    while (alive := group_alive(proc.pid)) and time.monotonic() < deadline:
         time.sleep(0.05)
     return alive
 

@@ -21,6 +21,7 @@ import time
 from pathlib import Path
 
 from atlas import SweepSpec, sweep_linkages
+from cli.bench.faults import group_alive
 from cli.main import main
 
 #: The sweep every build here runs, as ``dwell atlas build`` options and as the same spec.
@@ -109,19 +110,6 @@ def wait_for_shards(target: str, proc: subprocess.Popen, at_least: int, timeout:
             return n
         time.sleep(0.02)
     raise AssertionError(f"{at_least} shard(s) were not stored in {timeout} s")
-
-
-def group_alive(pgid: int) -> list[int]:
-    """Live (not zombie) processes of process group ``pgid``."""
-    alive = []
-    for d in Path("/proc").glob("[0-9]*"):
-        try:
-            fields = (d / "stat").read_bytes().rsplit(b")", 1)[1].split()
-        except OSError:
-            continue
-        if int(fields[2]) == pgid and fields[0] not in (b"Z", b"X"):
-            alive.append(int(d.name))
-    return alive
 
 
 def kill_group(proc: subprocess.Popen, timeout: float = 10) -> tuple[list[int], str]:
