@@ -13,37 +13,19 @@ import os
 import re
 import signal
 import sqlite3
-import subprocess
 import sys
 import time
 from pathlib import Path
 
 import pytest
 
-from atlas import SweepSpec, sweep_linkages
 from atlas.build import build_atlas
 from cli.main import main
 from db import SCHEMA_VERSION, open_atlas
 from db.digest import content_digest
 
-#: the demo preset's search settings on a small sweep (a few seconds of compute)
-SMALL = ["--b", "1.5", "4.5", "--c", "1.5", "4.5", "--d", "1.5", "4.5", "--samples", "32", "--shard-size", "4"]
-SPEC = SweepSpec(name="same content, other name", b=(1.5, 4.5), c=(1.5, 4.5), d=(1.5, 4.5), samples=32,
-                 crank_step_deg=3.0, rays=24, shard_size=4)
-N_SHARDS = sweep_linkages(SPEC).n_shards(SPEC.shard_size)
-
-HOOK = '''
-import os
-_delay = float(os.environ.get("DWELL_TEST_SHARD_DELAY") or 0)
-if _delay > 0:
-    import time
-    import atlas.shard as _shard
-    _compute = _shard.compute_shard
-    def _slow(*args, **kwargs):
-        time.sleep(_delay)
-        return _compute(*args, **kwargs)
-    _shard.compute_shard = _slow
-'''
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "faults"))
+from processes import N_SHARDS, SMALL, SPEC, shard_rows, spawn, wait_for_shards  # noqa: E402 - the fault tests' helpers
 
 
 @pytest.fixture(scope="module")
@@ -69,38 +51,12 @@ def info_json(capsys, db: Path) -> dict:
     return json.loads(out)
 
 
-def spawn(tmp_path: Path, *args: str, delay: float = 0.0) -> subprocess.Popen:
-    """``python -m cli.main atlas build ARGS`` in its own session (a terminal's process group)."""
-    hook = tmp_path / "hook"
-    hook.mkdir(exist_ok=True)
-    (hook / "sitecustomize.py").write_text(HOOK)
-    env = dict(os.environ, DWELL_TEST_SHARD_DELAY=str(delay),
-               PYTHONPATH=os.pathsep.join([str(hook), *filter(None, [os.environ.get("PYTHONPATH")])]))
-    env.pop("DWELL_ATLAS", None)
-    return subprocess.Popen([sys.executable, "-m", "cli.main", "atlas", "build", *args], cwd=tmp_path, env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
-
-
 def query(db: Path, sql: str):
     con = sqlite3.connect(f"file:{db}?mode=ro", uri=True)
     try:
         return con.execute(sql).fetchall()
     finally:
         con.close()
-
-
-def wait_for_shards(db: Path, proc: subprocess.Popen, at_least: int = 1, timeout: float = 60) -> int:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        assert proc.poll() is None, f"the build ended early: {proc.communicate()}"
-        try:
-            n = query(db, "select count(*) from shard")[0][0]
-        except sqlite3.Error:  # not created yet, or the schema is being written
-            n = 0
-        if n >= at_least:
-            return n
-        time.sleep(0.05)
-    raise AssertionError("no shard was written in time")
 
 
 def processes_of(tmp_path: Path) -> list[int]:
@@ -134,8 +90,8 @@ def shard_table(db: Path) -> dict[int, tuple]:
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc")
 def test_killed_build_resumes_to_the_same_content(tmp_path, reference, capsys):
     db = tmp_path / "atlas.sqlite"
-    proc = spawn(tmp_path, "--db", str(db), *SMALL, "--workers", "2", delay=1.0)
-    wait_for_shards(db, proc)
+    proc = spawn(tmp_path, str(db), "--workers", "2", delay=1.0)
+    wait_for_shards(str(db), proc, 1)
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
     assert no_orphans(tmp_path), "workers outlived the killed builder"
@@ -144,7 +100,7 @@ def test_killed_build_resumes_to_the_same_content(tmp_path, reference, capsys):
     status, pid = query(db, "select status, lock_pid from build")[0]
     assert (status, pid) == ("building", proc.pid)  # the dead builder's lock is still there
 
-    again = spawn(tmp_path, "--db", str(db), *SMALL, "--workers", "2")
+    again = spawn(tmp_path, str(db), "--workers", "2")
     out, err = again.communicate(timeout=120)
     assert again.returncode == 0, err
     assert f"resuming: {len(kept)} of {N_SHARDS} shards already built" in err
@@ -162,8 +118,8 @@ def test_killed_build_resumes_to_the_same_content(tmp_path, reference, capsys):
 def test_ctrl_c_and_a_concurrent_builder(tmp_path, reference, capsys):
     db = tmp_path / "atlas.sqlite"
     # 2 s a shard: a few seconds in which the build is surely still running
-    proc = spawn(tmp_path, "--db", str(db), *SMALL, "--workers", "2", delay=2.0)
-    wait_for_shards(db, proc)
+    proc = spawn(tmp_path, str(db), "--workers", "2", delay=2.0)
+    wait_for_shards(str(db), proc, 1)
 
     # a second builder is refused while the first one runs; nothing changes
     before = shard_table(db)
@@ -328,21 +284,6 @@ def test_default_db_is_atlas_sqlite_in_the_cwd(tmp_path, capsys, monkeypatch):
 
 # --------------------------------------------------------------- PostgreSQL (tests/postgres.py)
 
-def pg_shards(url: str) -> int:
-    """Shard rows committed so far (0 while the schema is still being created)."""
-    from sqlalchemy import create_engine, text
-    from sqlalchemy.exc import DBAPIError
-
-    engine = create_engine(url)
-    try:
-        with engine.connect() as conn:
-            return int(conn.execute(text("SELECT count(*) FROM shard")).scalar_one())
-    except DBAPIError:
-        return 0
-    finally:
-        engine.dispose()
-
-
 def shown(url: str) -> str:
     from db.engine import display_target
 
@@ -354,16 +295,12 @@ def shown(url: str) -> str:
 def test_killed_build_on_postgresql_resumes_to_the_same_content(tmp_path, reference, capsys, postgres_url):
     from sqlalchemy.engine import make_url
 
-    proc = spawn(tmp_path, "--db", postgres_url, *SMALL, "--workers", "2", delay=0.5)
-    deadline = time.monotonic() + 60
-    while pg_shards(postgres_url) < 1:
-        assert proc.poll() is None, f"the build ended early: {proc.communicate()}"
-        assert time.monotonic() < deadline, "no shard was written in time"
-        time.sleep(0.05)
+    proc = spawn(tmp_path, postgres_url, "--workers", "2", delay=0.5)
+    wait_for_shards(postgres_url, proc, 1)
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
     assert no_orphans(tmp_path), "workers outlived the killed builder"
-    kept = pg_shards(postgres_url)
+    kept = len(shard_rows(postgres_url))
     assert 1 <= kept < N_SHARDS
 
     rc, out, err = dwell(capsys, "build", "--db", postgres_url, *SMALL, "--workers", "1")
