@@ -75,7 +75,7 @@ from sqlalchemy.exc import ArgumentError, DatabaseError, DBAPIError, Operational
 from db.schema import APPLICATION, SCHEMA_VERSION, Base, Build, Meta, Shard
 
 __all__ = [
-    "AtlasError", "damaged", "database_url", "display_target", "open_atlas", "settle_sqlite", "sqlite_path",
+    "AtlasError", "atlas_name", "damaged", "database_url", "display_target", "open_atlas", "settle_sqlite", "sqlite_path",
     "start_writing",
 ]
 
@@ -98,6 +98,15 @@ def damaged(target: str, problem: str) -> AtlasError:
     """The one-line error for an atlas whose content is damaged: ``problem`` names what is
     wrong (e.g. "3 dwell rows name a segment that does not exist")."""
     return AtlasError(f"atlas {display_target(target)!r} is damaged: {problem}; {RECOVER}")
+
+
+def atlas_name(engine: Engine) -> str:
+    """The atlas behind ``engine`` as messages name it (a file path, or the URL without its
+    password): for errors found after opening, e.g. ``damaged(atlas_name(engine), …)``."""
+    url = engine.url
+    if url.get_backend_name() == "sqlite" and url.database:
+        return url.database.removeprefix("file:").split("?", 1)[0]
+    return url.render_as_string(hide_password=True)
 
 
 def database_url(target: str) -> str:
