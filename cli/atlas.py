@@ -151,11 +151,14 @@ def info(db, as_json, verify):
     from sqlalchemy.exc import DatabaseError
 
     from db.engine import damaged, open_atlas
-    from db.summary import atlas_summary, format_summary, verify_atlas
+    from db.summary import atlas_summary, format_summary, quick_check, verify_atlas
 
     engine = open_atlas(db, readonly=True)
     try:
         checked = verify_atlas(engine) if verify else None
+        broken = None if verify else quick_check(engine)  # --verify runs the full integrity check
+        if broken:
+            raise damaged(db, broken)
         summary = atlas_summary(engine)
     except DatabaseError as exc:
         # a page found damaged while reading rows: one line naming the atlas

@@ -19,8 +19,8 @@ from db.engine import display_target
 from db.schema import Build, Dwell, Linkage, Segment, Shard
 
 __all__ = [
-    "BIN_DEG", "KINDS", "AtlasSummary", "Verification", "atlas_summary", "format_summary", "row_counts",
-    "verify_atlas",
+    "BIN_DEG", "KINDS", "AtlasSummary", "Verification", "atlas_summary", "format_summary", "quick_check",
+    "row_counts", "verify_atlas",
 ]
 
 #: Segment kinds, in report order (the schema's CHECK constraint lists the same).
@@ -253,6 +253,17 @@ class Verification:
 #: child table → (its column naming the parent, parent model): the rows ``--verify`` counts.
 _PARENTS = ((Dwell, Dwell.segment_id, Segment), (Segment, Segment.linkage_id, Linkage),
             (Linkage, Linkage.build_id, Build), (Shard, Shard.build_id, Build))
+
+
+def quick_check(engine: Engine) -> str | None:
+    """SQLite's ``PRAGMA quick_check`` (page and b-tree structure, no index-to-row matching):
+    None when it passes or the database is not SQLite, else its first complaint. About 0.04 s
+    on the demo atlas (26 MB), 4 % of ``atlas info``; so plain ``info`` runs it."""
+    if engine.dialect.name != "sqlite":
+        return None
+    with engine.connect() as conn:
+        rows = [r[0] for r in conn.exec_driver_sql("PRAGMA quick_check(1)")]
+    return None if rows == ["ok"] else f"SQLite quick check failed: {rows[0]}"
 
 
 def verify_atlas(engine: Engine) -> Verification:
