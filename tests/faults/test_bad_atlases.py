@@ -14,7 +14,9 @@ from __future__ import annotations
 import hashlib
 import shutil
 import sqlite3
+import json
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -215,3 +217,33 @@ def test_an_atlas_in_a_read_only_folder_is_read_untouched(tmp_path, capsys, refe
     else:
         assert rc == 0 and err == "", err  # build: the same sweep, complete: nothing to write
     assert snapshot(folder) == before
+
+
+def test_a_killed_write_in_rollback_mode_is_refused_by_readers_and_rolled_back_by_a_build(tmp_path, capsys, reference):
+    """A complete atlas is in DELETE journal mode; a write killed half-way (as the switch at the
+    end of a build could be) leaves a hot ``-journal``: readers, which may not write, refuse it
+    untouched; the next build rolls it back and finds the atlas complete."""
+    folder = tmp_path / "atlas"
+    folder.mkdir()
+    db = folder / "atlas.sqlite"
+    shutil.copyfile(reference.path, db)
+    writer = ("import os, signal, sqlite3, sys\n"
+              "con = sqlite3.connect(sys.argv[1], isolation_level=None)\n"
+              "con.execute('PRAGMA cache_size=1')\n"  # changed pages spill into the file itself
+              "con.execute('BEGIN')\n"
+              "con.execute('UPDATE dwell SET x = x + 1')\n"
+              "os.kill(os.getpid(), signal.SIGKILL)\n")
+    proc = subprocess.run([sys.executable, "-c", writer, str(db)])
+    assert proc.returncode == -9
+    assert Path(f"{db}-journal").stat().st_size > 0
+    before = snapshot(folder)
+    for command in ("info", "query", "report"):
+        rc, out, err = run(capsys, *argv(command, str(db), tmp_path, reference.candidate))
+        assert rc == 2 and out == "" and err.count("\n") == 1 and "has an unfinished write" in err, err
+        assert snapshot(folder) == before
+    rc, out, err = run(capsys, *argv("build", str(db), tmp_path, reference.candidate))
+    assert rc == 0 and "already complete" in out, err
+    assert not Path(f"{db}-journal").exists()
+    rc, out, err = run(capsys, "atlas", "info", "--db", str(db), "--verify", "--json")
+    assert rc == 0, err
+    assert json.loads(out)["verify"]["ok"] and json.loads(out)["content_digest"] == reference.digest
