@@ -43,7 +43,7 @@ from typing import Any, Protocol
 from sqlalchemy import Connection, Engine, Table, delete, func, insert, select, update
 from sqlalchemy.exc import IntegrityError
 
-from db.engine import AtlasError, damaged, display_target, start_writing
+from db.engine import AtlasError, atlas_name, damaged, display_target, start_writing
 from db.schema import SCHEMA_VERSION, Build, Dwell, Linkage, Segment, Shard
 
 __all__ = [
@@ -414,8 +414,25 @@ def write_shard(engine: Engine, build_id: int, result: ShardRows, *, lock_token:
             _insert_rows(conn, Dwell, result.dwells)
             conn.execute(insert(Shard), [shard_row])
     except IntegrityError as exc:
+        clash = _stored_already(engine, result)
+        if clash is not None:  # rows the atlas should not hold (ids are deterministic): damage, not a bug
+            raise damaged(atlas_name(engine), f"it already holds {clash} of shard {index}, which has no shard row "
+                                              "(shard rolled back)") from None
         first = str(exc.orig).splitlines()[0] if exc.orig is not None else str(exc)
         raise ShardWriteError(f"shard {index} of build {build_id} rolled back: {first}") from exc
+
+
+def _stored_already(engine: Engine, result: ShardRows) -> str | None:
+    """"linkage ID" if the atlas already holds one of this shard's linkages — its ids derive
+    from the shard index, so that is this shard's own row, stored without its shard row (or
+    under a build row since deleted): a damaged atlas. None otherwise (a bug upstream)."""
+    ids = [row["id"] for row in result.linkages]
+    with engine.connect() as conn:
+        for start in range(0, len(ids), 500):  # under every dialect's parameter limit
+            found = conn.execute(select(Linkage.id).where(Linkage.id.in_(ids[start:start + 500])).limit(1)).scalar()
+            if found is not None:
+                return f"linkage {found}"
+    return None
 
 
 def finish_build(engine: Engine, build_id: int, token: str) -> bool:

@@ -281,3 +281,14 @@ def test_a_build_row_deleted_is_one_line_not_a_collision(engine):
         start(engine)
     h, _ = start(engine, replace=True)  # the way back: everything is deleted, orphans included
     assert count(engine, Linkage) == 0 and (h.replaced or "").startswith("rows of no recorded build")
+
+
+def test_a_shard_whose_rows_are_already_stored_is_a_damaged_atlas(engine):
+    h, lock = start(engine)
+    write_shard(engine, h.build_id, shard_rows(0), lock_token=lock.token)
+    with engine.begin() as conn:  # its shard row lost, its rows kept: what no writer leaves
+        conn.execute(delete(Shard))
+    with pytest.raises(AtlasError, match=r"is damaged: it already holds linkage \d+ of shard 0, which has no shard "
+                                         r"row \(shard rolled back\); restore"):
+        write_shard(engine, h.build_id, shard_rows(0), lock_token=lock.token)
+    assert count(engine, Linkage) == 1 and count(engine, Shard) == 0
