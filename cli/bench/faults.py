@@ -297,6 +297,15 @@ def _wait_for_shard(atlas: _Atlas, proc: subprocess.Popen, timeout: float) -> bo
     return False
 
 
+def _signal_group(proc: subprocess.Popen, sig: int) -> bool:
+    """Send ``sig`` to ``proc``'s process group; False if the group is gone (it finished)."""
+    try:
+        os.killpg(proc.pid, sig)
+    except ProcessLookupError:
+        return False
+    return True
+
+
 #: Tries at stopping the first builder while it still holds its lock (see _concurrent_builder).
 _STOP_ATTEMPTS = 5
 
@@ -316,10 +325,9 @@ def _concurrent_builder(sweep: _Sweep, atlases: _Atlases, reference: str) -> dic
             rc, _, err = _finish(first)
             return {"checked": False, "passed": False, "attempts": attempt,
                     "problems": [f"the first build wrote no shard while running (exit {rc}: {_last_line(err)})"]}
-        os.killpg(first.pid, signal.SIGSTOP)  # hold it half-way, lock taken, whatever the machine's speed
-        if atlas.builder_holds_lock():
-            break
-        os.killpg(first.pid, signal.SIGCONT)  # too late: the build finished before the stop
+        if _signal_group(first, signal.SIGSTOP) and atlas.builder_holds_lock():
+            break  # held half-way, lock taken, whatever the machine's speed
+        _signal_group(first, signal.SIGCONT)  # too late: the build finished before the stop
         _finish(first)
         atlas.drop()
     else:
@@ -329,7 +337,7 @@ def _concurrent_builder(sweep: _Sweep, atlases: _Atlases, reference: str) -> dic
         second = subprocess.run(sweep.build_args(atlas.target), cwd=sweep.cwd, env=sweep.env, capture_output=True,
                                 text=True, timeout=RUN_TIMEOUT)
     finally:
-        os.killpg(first.pid, signal.SIGCONT)
+        _signal_group(first, signal.SIGCONT)
     rc, _, first_err = _finish(first)
     doc, error = sweep.info(atlas.target)
     lines = second.stderr.splitlines()
