@@ -17,7 +17,10 @@ over the reference build's wall time (a kill may land during start-up, schema cr
 shard commit or the final digest); a kill timed after the run already ended counts as
 "missed". Then a second builder is started against an atlas whose builder is stopped
 (SIGSTOP) half-way: it must be refused (exit 2, one line naming the other process), and the
-first build, continued (SIGCONT), must still complete with the reference digest.
+first build, continued (SIGCONT), must still complete with the reference digest. If the stop
+finds the first build already finished (no lock held: on a loaded machine the bench can be
+descheduled between seeing the first shard and the stop), there is nothing to refuse: that
+attempt is repeated on a fresh atlas (``attempts`` in the record), up to 5 times.
 
 JSON on stdout, one progress line per trial and a summary line on stderr; exit status 1 when
 any trial or check failed. PostgreSQL (``--db-kind postgresql|both``) needs ``--postgres URL``
