@@ -134,9 +134,6 @@ def _content(path: Path) -> str | None:
     scratch = path.with_name("scratch.sqlite")
     shutil.copyfile(path, scratch)
     try:
-        con = sqlite3.connect(scratch)
-        con.execute("PRAGMA journal_mode=WAL")  # the engine's read below needs none of this, but be sure
-        con.close()
         engine = open_atlas(str(scratch), readonly=True)
         try:
             return content_digest(engine)
