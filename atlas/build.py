@@ -257,7 +257,7 @@ def build_atlas(
     """
     from tqdm import tqdm
 
-    from db.engine import display_target, open_atlas, sqlite_path
+    from db.engine import display_target, open_atlas, settle_sqlite, sqlite_path
     from db.summary import row_counts
     from db.writes import (
         BuildLock,
@@ -335,6 +335,9 @@ def build_atlas(
             if not complete:  # an engine that silently dropped shards: a bug, not input
                 raise RuntimeError(f"build {handle.build_id}: shards missing after the run: {sorted(per_shard)[:10]}")
         linkages, segs, dwells = row_counts(engine, handle.build_id)
+        if complete and not settle_sqlite(engine):
+            note("the atlas stays in WAL mode (another process had it open); "
+                 "run the same command again to fold its write-ahead log in")
         return BuildSummary(
             target=display_target(target),  # printed by line(): a URL's password is not
             build_id=handle.build_id,

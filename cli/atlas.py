@@ -142,17 +142,40 @@ def _build_on_dask(db: str, spec, scheduler: str, *, replace: bool, progress: bo
 @atlas.command("info")
 @db_option
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document.")
-def info(db, as_json):
+@click.option("--verify", is_flag=True,
+              help="Also check every row: SQLite's integrity check, rows whose parent is missing, and each complete "
+                   "build's content digest recomputed against the stored one (reads the whole atlas). A mismatch "
+                   "is one error line, exit status 2.")
+def info(db, as_json, verify):
     """What an atlas holds: linkages, segments per kind, dwell-angle coverage, build, digest."""
-    from db.engine import open_atlas
-    from db.summary import atlas_summary, format_summary
+    from sqlalchemy.exc import DatabaseError
+
+    from db.engine import damaged, open_atlas
+    from db.summary import atlas_summary, format_summary, quick_check, verify_atlas
 
     engine = open_atlas(db, readonly=True)
     try:
+        checked = verify_atlas(engine) if verify else None
+        broken = None if verify else quick_check(engine)  # --verify runs the full integrity check
+        if broken:
+            raise damaged(db, broken)
         summary = atlas_summary(engine)
+    except DatabaseError as exc:
+        # a page found damaged while reading rows: one line naming the atlas
+        text = str(getattr(exc, "orig", None) or exc).strip()
+        raise damaged(db, text.splitlines()[0] if text else type(exc).__name__) from None
+    except ValueError as exc:  # a damaged value the driver could not convert
+        raise damaged(db, str(exc).splitlines()[0]) from None
     finally:
         engine.dispose()
+    if checked is not None and checked.problems:
+        raise damaged(db, "; ".join(checked.problems))
     if as_json:
-        click.echo(json.dumps(summary.to_dict(), indent=2))
+        doc = summary.to_dict()
+        if checked is not None:
+            doc["verify"] = checked.to_dict()
+        click.echo(json.dumps(doc, indent=2))
     else:
         click.echo(format_summary(summary, db))
+        if checked is not None:
+            click.echo(checked.line())

@@ -20,20 +20,64 @@ one :class:`AtlasError` line. Dialect differences handled here:
   transactional DDL), so two builders starting on one empty database cannot both create it.
 
 Messages never show a URL's password (:func:`display_target`).
+
+SQLite journal modes and the files beside an atlas (``-wal``, ``-shm``, ``-journal``):
+
+* a build writes in WAL mode (readers are never blocked by the builder) and, once the build
+  is complete, switches the file to rollback (DELETE) journal mode (:func:`settle_sqlite`):
+  a complete atlas is one file with nothing beside it, and readers open it ``mode=ro``
+  without creating anything — so it can be read from a read-only folder or medium;
+* SQLite applies any ``-wal`` file it finds beside a database, and a WAL holds no identifier
+  of its database (its salts and checksums only chain its own frames), so ownership cannot be
+  proven from the file. Hence, before anything opens an existing file
+  (:func:`_check_side_files`): a ``-wal`` beside a file in DELETE mode (byte 18 of the header
+  is 1: every complete atlas) is refused — its own WAL was folded in and deleted before the
+  switch; beside a file in WAL mode (a build in progress, or an atlas of an older
+  dwell-atlas) a ``-wal`` is refused when its header's page size differs from the file's
+  (SQLite would read its frames as pages of the wrong size); a ``-wal`` with a bad magic
+  number or header checksum holds nothing SQLite would apply. A WAL-mode atlas in a folder
+  that cannot be written, with no ``-wal`` to apply, is read ``immutable=1`` (nothing to
+  miss, no ``-shm`` needed);
+* a ``-journal`` (rollback journal of a killed write) is rolled back by the next build;
+  read-only commands refuse such a file (they may not write the rollback).
+
+A refusal changes and creates nothing: the file is only read, by our own code, first.
 """
 
 from __future__ import annotations
 
+import json
+import math
+import os
 from pathlib import Path
 from typing import Any
 
-from sqlalchemy import Connection, Engine, create_engine, event, func, insert, inspect, select
+from sqlalchemy import (
+    CheckConstraint,
+    Connection,
+    Engine,
+    Float,
+    Integer,
+    Numeric,
+    String,
+    Table,
+    UniqueConstraint,
+    create_engine,
+    event,
+    func,
+    insert,
+    inspect,
+    select,
+)
 from sqlalchemy.engine import URL, make_url
 from sqlalchemy.exc import ArgumentError, DatabaseError, DBAPIError, OperationalError
 
-from db.schema import APPLICATION, SCHEMA_VERSION, Base, Meta
+from db.schema import APPLICATION, SCHEMA_VERSION, Base, Build, Meta, Shard
 
-__all__ = ["AtlasError", "database_url", "display_target", "open_atlas", "sqlite_path"]
+__all__ = [
+    "AtlasError", "atlas_name", "damaged", "database_url", "display_target", "open_atlas", "settle_sqlite", "sqlite_path",
+    "start_writing",
+]
 
 _SQLITE_MAGIC = b"SQLite format 3\x00"
 #: Seconds to wait for a PostgreSQL server before giving up (unless the URL says otherwise).
@@ -44,6 +88,25 @@ _CREATE_LOCK_KEY = 0x6477656C
 
 class AtlasError(Exception):
     """An atlas database that cannot be used as asked (message names the file and problem)."""
+
+
+#: What a user can do about a damaged atlas (every message about damage ends with it).
+RECOVER = "restore a copy of the atlas or rebuild it (dwell atlas build --replace)"
+
+
+def damaged(target: str, problem: str) -> AtlasError:
+    """The one-line error for an atlas whose content is damaged: ``problem`` names what is
+    wrong (e.g. "3 dwell rows name a segment that does not exist")."""
+    return AtlasError(f"atlas {display_target(target)!r} is damaged: {problem}; {RECOVER}")
+
+
+def atlas_name(engine: Engine) -> str:
+    """The atlas behind ``engine`` as messages name it (a file path, or the URL without its
+    password): for errors found after opening, e.g. ``damaged(atlas_name(engine), …)``."""
+    url = engine.url
+    if url.get_backend_name() == "sqlite" and url.database:
+        return url.database.removeprefix("file:").split("?", 1)[0]
+    return url.render_as_string(hide_password=True)
 
 
 def database_url(target: str) -> str:
@@ -89,8 +152,11 @@ def _sqlite_path(url: str) -> Path | None:
 def open_atlas(target: str, *, create: bool = False, readonly: bool = False) -> Engine:
     """Open (or with ``create`` make) the atlas at ``target`` (path or SQLAlchemy URL).
 
-    SQLite runs in WAL mode (readers are never blocked by the builder) with foreign keys on
-    and a busy timeout. ``readonly`` opens SQLite files read-only (``mode=ro``).
+    SQLite: foreign keys on, a busy timeout; a new file is made in WAL mode, an existing one
+    keeps its journal mode until a build writes (:func:`start_writing`). ``readonly`` opens
+    SQLite files read-only (``mode=ro``; ``immutable=1`` for a WAL-mode file in a folder
+    that cannot be written and with no ``-wal`` beside it). The files beside an existing
+    atlas are checked before anything opens it (module docstring).
     """
     try:
         url = database_url(target)
@@ -98,25 +164,151 @@ def open_atlas(target: str, *, create: bool = False, readonly: bool = False) -> 
     except ArgumentError:
         raise AtlasError(f"not a database path or URL: {display_target(target)!r}") from None
     path = _sqlite_path(url)
+    existing = False
     if path is not None:
         existing = _check_sqlite_file(path, target, create=create)
-        read_only_url = f"sqlite:///file:{path}?mode=ro&uri=true"
         if existing:
-            # Look before touching: even setting WAL mode rewrites the file header, so a file
-            # that turns out not to be an atlas must only ever be read.
+            header = _read_header(path)
+            hot = _check_side_files(path, target, header, readonly=readonly)
+            read_only_url = _read_only_url(path, header)
+            # Look before touching: a file that turns out not to be an atlas (or a damaged
+            # one) must only ever be read. A build skips the look when a killed write left a
+            # rollback journal: only a writer can roll it back (then the schema check below).
             # (an empty database is fine to build in: what a build killed before its schema leaves)
-            before = _side_files(path)
-            try:
-                _checked(_engine(read_only_url, target), target, create=False, empty_ok=create).dispose()
-            except AtlasError:
-                _remove_new_side_files(path, before)
-                raise
-        if readonly:
-            url = read_only_url
+            if not (hot and create):
+                before = _side_files(path)
+                try:
+                    _checked(_engine(read_only_url, target), target, create=False, empty_ok=create).dispose()
+                except AtlasError:
+                    _remove_new_side_files(path, before)
+                    raise
+            if readonly:
+                url = read_only_url
     engine = _engine(url, target, readonly=readonly)
     if engine.dialect.name == "sqlite":
-        _sqlite_pragmas(engine, wal=not readonly)
+        _sqlite_pragmas(engine, wal=create and not readonly and not existing)
     return _checked(engine, target, create=create and not readonly)
+
+
+#: Magic numbers of a WAL file header (the low bit: checksums in big-endian words).
+_WAL_MAGIC = (0x377F0682, 0x377F0683)
+_WAL_HEADER = 32
+
+
+def _read_header(path: Path) -> bytes:
+    """The 100-byte database header (shorter if the file is: SQLite then says what is wrong)."""
+    try:
+        with path.open("rb") as fh:
+            return fh.read(100)
+    except OSError:
+        return b""
+
+
+def _page_size(header: bytes) -> int | None:
+    if len(header) < 100:
+        return None
+    size = int.from_bytes(header[16:18], "big")
+    return 65536 if size == 1 else size
+
+
+def _wal_checksum(data: bytes, big_endian: bool) -> tuple[int, int]:
+    """SQLite's WAL checksum of ``data`` (a multiple of 8 bytes), as (s0, s1)."""
+    order = "big" if big_endian else "little"
+    s0 = s1 = 0
+    for i in range(0, len(data), 8):
+        s0 = (s0 + int.from_bytes(data[i:i + 4], order) + s1) & 0xFFFFFFFF
+        s1 = (s1 + int.from_bytes(data[i + 4:i + 8], order) + s0) & 0xFFFFFFFF
+    return s0, s1
+
+
+def _wal_page_size(wal: Path) -> int | None:
+    """The page size a ``-wal`` file declares, or None if SQLite would ignore the file (too
+    short, wrong magic number or header checksum: then it holds nothing that is applied)."""
+    try:
+        with wal.open("rb") as fh:
+            head = fh.read(_WAL_HEADER)
+    except OSError:
+        return None
+    if len(head) < _WAL_HEADER:
+        return None
+    magic = int.from_bytes(head[0:4], "big")
+    if magic not in _WAL_MAGIC:
+        return None
+    stored = (int.from_bytes(head[24:28], "big"), int.from_bytes(head[28:32], "big"))
+    if _wal_checksum(head[:24], big_endian=bool(magic & 1)) != stored:
+        return None
+    return int.from_bytes(head[8:12], "big")
+
+
+def _check_side_files(path: Path, target: str, header: bytes, *, readonly: bool) -> bool:
+    """Refuse a ``-wal`` that cannot belong to the file and, for readers, an unfinished
+    rollback; True when a rollback journal of a killed write lies beside the file."""
+    name = display_target(target)
+    wal = path.with_name(path.name + "-wal")
+    page_size = _page_size(header)
+    if wal.exists() and page_size is not None:
+        if header[18] == 1:
+            raise AtlasError(
+                f"{name!r} is a complete atlas (it keeps no write-ahead log) but {wal.name!r} lies beside it, "
+                "which is not its own: move that file away (SQLite would apply it), or restore the atlas"
+            )
+        wal_page = _wal_page_size(wal)
+        if wal_page is not None and wal_page != page_size:
+            raise AtlasError(
+                f"{wal.name!r} beside {name!r} is the write-ahead log of another database (page size {wal_page}, "
+                f"the atlas has {page_size}): move that file away (SQLite would apply it), or restore the atlas"
+            )
+    journal = path.with_name(path.name + "-journal")
+    hot = journal.exists() and journal.stat().st_size > 0
+    if hot and readonly:
+        raise AtlasError(
+            f"{name!r} has an unfinished write ({journal.name!r} beside it, left by a stopped build): "
+            "run dwell atlas build on it to roll it back and resume, or restore the atlas"
+        )
+    return hot
+
+
+def _read_only_url(path: Path, header: bytes) -> str:
+    """``mode=ro``; ``immutable=1`` for a WAL-mode file whose folder cannot be written and
+    which has no ``-wal`` to apply (``mode=ro`` would need to make a ``-shm`` there)."""
+    wal = path.with_name(path.name + "-wal")
+    wal_mode = len(header) >= 100 and header[18] == 2
+    nothing_to_apply = not wal.exists() or _wal_page_size(wal) is None
+    if wal_mode and nothing_to_apply and not os.access(path.parent, os.W_OK):
+        return f"sqlite:///file:{path}?immutable=1&uri=true"
+    return f"sqlite:///file:{path}?mode=ro&uri=true"
+
+
+def start_writing(engine: Engine) -> None:
+    """Before a build's first write: SQLite atlases to WAL mode (readers are then never
+    blocked by the builder). No-op elsewhere and when the file already is in WAL mode."""
+    if engine.dialect.name != "sqlite":
+        return
+    with engine.connect() as conn:
+        if str(conn.exec_driver_sql("PRAGMA journal_mode").scalar()).lower() != "wal":
+            conn.exec_driver_sql("PRAGMA journal_mode=WAL")
+
+
+def settle_sqlite(engine: Engine) -> bool:
+    """After a complete build: fold the WAL into the file and switch it to DELETE journal
+    mode, so that a complete atlas is one file (read-only folders can read it, and any ``-wal``
+    found beside it later is refused). Disposes ``engine``'s connections. Returns False when
+    another connection (a reader) kept the file busy: it then stays in WAL mode, which is
+    safe, and the next ``dwell atlas build`` of the same sweep switches it."""
+    if engine.dialect.name != "sqlite":
+        return True
+    engine.dispose()
+    try:
+        with engine.connect() as conn:
+            conn.exec_driver_sql("PRAGMA busy_timeout=2000")  # a reader must not hold the build up long
+            mode = str(conn.exec_driver_sql("PRAGMA journal_mode").scalar()).lower()
+            if mode != "delete":
+                mode = str(conn.exec_driver_sql("PRAGMA journal_mode=DELETE").scalar()).lower()
+    except OperationalError:
+        return False
+    finally:
+        engine.dispose()
+    return mode == "delete"
 
 
 def _engine(url: str, target: str, *, readonly: bool = False) -> Engine:
@@ -177,7 +369,13 @@ def _checked(engine: Engine, target: str, *, create: bool, empty_ok: bool = Fals
         _check_or_create_schema(engine, display_target(target), create=create, empty_ok=empty_ok)
     except (OperationalError, DatabaseError) as exc:
         engine.dispose()
+        code = str(getattr(exc.orig, "sqlite_errorname", ""))
+        if code.startswith(("SQLITE_CORRUPT", "SQLITE_NOTADB")):
+            raise damaged(target, _first_line(exc)) from None
         raise AtlasError(f"cannot use {display_target(target)!r} as an atlas: {_first_line(exc)}") from None
+    except ValueError as exc:  # a damaged page read as a value the driver cannot convert
+        engine.dispose()
+        raise damaged(target, _first_line(exc)) from None
     except AtlasError:
         engine.dispose()
         raise
@@ -227,8 +425,10 @@ def _sqlite_pragmas(engine: Engine, *, wal: bool) -> None:
         cur = dbapi_conn.cursor()
         cur.execute("PRAGMA foreign_keys=ON")
         cur.execute("PRAGMA busy_timeout=30000")
-        if wal:
+        if wal:  # a new file; an existing one changes mode when a build writes (start_writing)
             cur.execute("PRAGMA journal_mode=WAL")
+        cur.execute("PRAGMA journal_mode")
+        if str(cur.fetchone()[0]).lower() == "wal":  # durable in WAL mode, unlike in rollback mode
             cur.execute("PRAGMA synchronous=NORMAL")
         cur.close()
 
@@ -282,3 +482,87 @@ def _check_schema(conn: Connection, tables: set[str], target: str) -> None:
     missing = set(Base.metadata.tables) - tables
     if missing:
         raise AtlasError(f"{target!r} is an incomplete atlas (missing tables: {', '.join(sorted(missing))})")
+    inspector = inspect(conn)
+    for table in Base.metadata.sorted_tables:
+        problem = _table_mismatch(inspector, table)
+        if problem:
+            raise damaged(target, f"table {table.name} does not match the schema of this dwell-atlas ({problem})")
+    _check_json(conn, target)
+
+
+def _type_family(type_: Any) -> str:
+    """What a column type means across dialects and reflection: integer, float or text."""
+    if isinstance(type_, Integer):
+        return "integer"
+    if isinstance(type_, (Float, Numeric)):
+        return "float"
+    if isinstance(type_, String):  # Text too
+        return "text"
+    return str(type_) or type(type_).__name__
+
+
+def _table_mismatch(inspector: Any, table: Table) -> str | None:
+    """How the stored ``table`` differs from the model (columns, types, NOT NULL, keys,
+    named CHECK constraints and indexes), or None. Constraints only need to be there:
+    a dialect may reflect more (PostgreSQL's NOT NULL checks, SQLite's autoindexes)."""
+    stored = {c["name"]: c for c in inspector.get_columns(table.name)}
+    model = {c.name: c for c in table.columns}
+    if set(stored) != set(model):
+        parts = []
+        if set(model) - set(stored):
+            parts.append("missing column " + ", ".join(sorted(set(model) - set(stored))))
+        if set(stored) - set(model):
+            parts.append("unexpected column " + ", ".join(sorted(set(stored) - set(model))))
+        return "; ".join(parts)
+    for name, col in model.items():
+        got = _type_family(stored[name]["type"])
+        if got != _type_family(col.type):
+            return f"column {name} is {stored[name]['type']}, not {_type_family(col.type)}"
+        if not col.primary_key and bool(stored[name]["nullable"]) != bool(col.nullable):
+            return f"column {name} is {'nullable' if stored[name]['nullable'] else 'NOT NULL'}"
+    pk = inspector.get_pk_constraint(table.name).get("constrained_columns") or []
+    if list(pk) != [c.name for c in table.primary_key.columns]:
+        return f"primary key ({', '.join(pk)})"
+    fks = {(tuple(fk["constrained_columns"]), fk["referred_table"], tuple(fk["referred_columns"]))
+           for fk in inspector.get_foreign_keys(table.name)}
+    for fk in table.foreign_key_constraints:
+        want = (tuple(c.name for c in fk.columns), fk.referred_table.name, tuple(e.column.name for e in fk.elements))
+        if want not in fks:
+            return f"no foreign key ({', '.join(want[0])}) → {want[1]}"
+    checks = {c["name"] for c in inspector.get_check_constraints(table.name)}
+    for c in table.constraints:
+        if isinstance(c, CheckConstraint) and c.name not in checks:
+            return f"no constraint {c.name}"
+    uniques = {tuple(u["column_names"]) for u in inspector.get_unique_constraints(table.name)}
+    indexes = inspector.get_indexes(table.name)
+    uniques |= {tuple(i["column_names"]) for i in indexes if i.get("unique")}
+    wanted = [tuple(c.name for c in u.columns) for u in table.constraints if isinstance(u, UniqueConstraint)]
+    wanted += [(c.name,) for c in table.columns if c.unique]
+    for cols in wanted:
+        if cols not in uniques:
+            return f"no unique constraint on ({', '.join(cols)})"
+    names = {i["name"] for i in indexes}
+    for index in table.indexes:
+        if index.name not in names:
+            return f"no index {index.name}"
+    return None
+
+
+def _check_json(conn: Connection, target: str) -> None:
+    """The JSON columns (a few rows: builds and shards) parse as what the code reads."""
+    for build_id, text in conn.execute(select(Build.id, Build.spec_json)):
+        try:
+            spec = json.loads(text)
+            ok = isinstance(spec, dict) and all(math.isfinite(float(t)) for t in spec.get("tolerances", []))
+        except (ValueError, TypeError):
+            ok = False
+        if not ok:
+            raise damaged(target, f"the sweep spec of build {build_id} (build.spec_json) is not readable")
+    for build_id, index, text in conn.execute(select(Shard.build_id, Shard.shard_index, Shard.skipped_json)):
+        try:
+            skipped = json.loads(text)
+            ok = isinstance(skipped, dict) and all(isinstance(n, int) for n in skipped.values())
+        except (ValueError, TypeError):
+            ok = False
+        if not ok:
+            raise damaged(target, f"shard {index} of build {build_id} has an unreadable shard.skipped_json")

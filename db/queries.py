@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from sqlalchemy import Engine, and_, bindparam, func, or_, select
 from sqlalchemy.orm import Session
 
+from db.engine import atlas_name, damaged
 from db.schema import Build, Dwell, Linkage, Segment
 
 __all__ = ["DwellWindow", "SegmentRow", "nearest_dwell_angles", "select_segments", "tolerance_levels"]
@@ -117,6 +118,9 @@ def select_segments(
             .where(Dwell.segment_id.in_(ids)).order_by(Dwell.segment_id, Dwell.level, Dwell.part)
         ):
             parts.setdefault((dw.segment_id, dw.level), []).append(dw)
+    lost = [sid for sid, _ in hits if sid not in segs]
+    if lost:  # dwell rows whose segment (or its linkage) was deleted: only a damaged atlas
+        raise damaged(atlas_name(engine), f"dwell rows name segment {lost[0]}, which does not exist")
     out: list[SegmentRow] = []
     for sid, lv in hits:
         seg, dws = segs[sid], parts.get((sid, lv), [])

@@ -18,7 +18,10 @@ from db.digest import content_digest
 from db.engine import display_target
 from db.schema import Build, Dwell, Linkage, Segment, Shard
 
-__all__ = ["BIN_DEG", "KINDS", "AtlasSummary", "atlas_summary", "format_summary", "row_counts"]
+__all__ = [
+    "BIN_DEG", "KINDS", "AtlasSummary", "Verification", "atlas_summary", "format_summary", "quick_check",
+    "row_counts", "verify_atlas",
+]
 
 #: Segment kinds, in report order (the schema's CHECK constraint lists the same).
 KINDS: tuple[str, ...] = ("line", "arc", "double_line")
@@ -216,3 +219,78 @@ def format_summary(summary: AtlasSummary, target: str) -> str:
         lines.append("skipped: none")
     lines.append(f"content digest: {summary.content_digest}")
     return "\n".join(lines)
+
+
+@dataclass(frozen=True, slots=True)
+class Verification:
+    """What ``dwell atlas info --verify`` checked: SQLite's ``PRAGMA integrity_check`` (None on
+    other databases), rows naming a missing parent, and each complete build's stored content
+    digest against one recomputed from its rows. ``problems`` is empty when all agree."""
+
+    integrity: str | None
+    orphans: dict[str, int]
+    digests: dict[int, tuple[str | None, str]]  #: build id → (stored, recomputed)
+    problems: tuple[str, ...]
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "ok": not self.problems,
+            "integrity_check": self.integrity,
+            "orphans": dict(self.orphans),
+            "digests": {str(k): {"stored": s, "recomputed": r} for k, (s, r) in self.digests.items()},
+            "problems": list(self.problems),
+        }
+
+    def line(self) -> str:
+        """One line for people (``ok`` or the problems)."""
+        checks = ([f"integrity check {self.integrity}"] if self.integrity is not None else []) + [
+            "no orphaned rows" if not any(self.orphans.values()) else "orphaned rows",
+            f"content digest of {len(self.digests)} build(s) recomputed",
+        ]
+        return "verify: " + ("ok (" + ", ".join(checks) + ")" if not self.problems else "; ".join(self.problems))
+
+
+#: child table → (its column naming the parent, parent model): the rows ``--verify`` counts.
+_PARENTS = ((Dwell, Dwell.segment_id, Segment), (Segment, Segment.linkage_id, Linkage),
+            (Linkage, Linkage.build_id, Build), (Shard, Shard.build_id, Build))
+
+
+def quick_check(engine: Engine) -> str | None:
+    """SQLite's ``PRAGMA quick_check`` (page and b-tree structure, no index-to-row matching):
+    None when it passes or the database is not SQLite, else its first complaint. About 0.04 s
+    on the demo atlas (26 MB), 4 % of ``atlas info``; so plain ``info`` runs it."""
+    if engine.dialect.name != "sqlite":
+        return None
+    with engine.connect() as conn:
+        rows = [r[0] for r in conn.exec_driver_sql("PRAGMA quick_check(1)")]
+    return None if rows == ["ok"] else f"SQLite quick check failed: {rows[0]}"
+
+
+def verify_atlas(engine: Engine) -> Verification:
+    """Check the atlas behind ``engine`` in full (reads every row: seconds on a big atlas).
+
+    Database errors (a page that cannot be read) propagate; the caller names the atlas."""
+    problems: list[str] = []
+    integrity = None
+    with engine.connect() as conn:
+        if conn.dialect.name == "sqlite":
+            rows = [r[0] for r in conn.exec_driver_sql("PRAGMA integrity_check(20)")]
+            integrity = "ok" if rows == ["ok"] else f"failed ({len(rows)} problem(s), first: {rows[0]})"
+            if rows != ["ok"]:
+                problems.append(f"SQLite integrity check {integrity}")
+        orphans = {}
+        for child, column, parent in _PARENTS:
+            n = conn.execute(select(func.count()).select_from(child).where(column.not_in(select(parent.id)))).scalar_one()
+            orphans[child.__tablename__] = int(n)
+            if n:
+                problems.append(f"{n} {child.__tablename__} row(s) name a {parent.__tablename__} that does not exist")
+        digests = {}
+        for build_id, status, stored in conn.execute(select(Build.id, Build.status, Build.content_digest)):
+            if status != "complete":
+                continue  # a build in progress has no stored digest yet
+            again = content_digest(conn, build_id)
+            digests[int(build_id)] = (stored, again)
+            if stored != again:
+                problems.append(f"build {build_id}'s rows do not give its stored content digest "
+                                f"({(stored or 'none')[:12]}…, recomputed {again[:12]}…)")
+    return Verification(integrity, orphans, digests, tuple(problems))

@@ -43,7 +43,7 @@ from typing import Any, Protocol
 from sqlalchemy import Connection, Engine, Table, delete, func, insert, select, update
 from sqlalchemy.exc import IntegrityError
 
-from db.engine import AtlasError, display_target
+from db.engine import AtlasError, atlas_name, damaged, display_target, start_writing
 from db.schema import SCHEMA_VERSION, Build, Dwell, Linkage, Segment, Shard
 
 __all__ = [
@@ -245,19 +245,22 @@ def open_build(
     same = next((r for r in builds if r.spec_digest == spec_digest), None)
     version = code_version()
 
-    if replace and builds:
-        replaced = "; ".join(_describe_spec(r.spec_json, r.spec_digest) for r in builds)
+    if replace and (builds or _holds_rows(engine)):
+        replaced = "; ".join(_describe_spec(r.spec_json, r.spec_digest) for r in builds) or "rows of no recorded build"
+        start_writing(engine)
         with engine.begin() as conn:
             for row in builds:
                 _take_lock(conn, row, lock, target)  # first: fails fast if a builder sneaked in
-            for row in builds:
-                _delete_rows(conn, row.id)
-                conn.execute(delete(Shard).where(Shard.build_id == row.id))
-                conn.execute(delete(Build).where(Build.id == row.id))
+            # everything, children first: also rows a damaged atlas holds for no recorded build
+            for model in (Dwell, Segment, Linkage, Shard, Build):
+                conn.execute(delete(model))
             build_id = _insert_build(conn, spec_json, spec_digest, n_shards, lock, version)
         return BuildHandle(build_id, n_shards, frozenset(), resumed=False, complete=False, replaced=replaced)
 
+    if not replace:
+        _refuse_unrecorded_rows(engine, target)
     if same is None:
+        start_writing(engine)
         try:
             with engine.begin() as conn:
                 build_id = _insert_build(conn, spec_json, spec_digest, n_shards, lock, version)
@@ -276,10 +279,27 @@ def open_build(
             f"atlas {target!r} was partly built by dwell-atlas {same.code_version} (this is {version}); "
             "use --replace to rebuild it"
         )
+    start_writing(engine)
     with engine.begin() as conn:
         _take_lock(conn, same, lock, target)
         _delete_rows(conn, same.id, unfinished_only=True)
     return BuildHandle(same.id, n_shards, done, resumed=bool(done), complete=False)
+
+
+def _holds_rows(engine: Engine) -> bool:
+    with engine.connect() as conn:
+        return any(conn.execute(select(model).limit(1)).first() is not None for model in (Linkage, Shard))
+
+
+def _refuse_unrecorded_rows(engine: Engine, target: str) -> None:
+    """A damaged atlas whose build row was deleted still holds that build's shards and
+    linkages; building into it would collide with them (their ids are deterministic)."""
+    known = select(Build.id)
+    with engine.connect() as conn:
+        for column in (Shard.build_id, Linkage.build_id):
+            stray = conn.execute(select(column).where(column.not_in(known)).limit(1)).scalar()
+            if stray is not None:
+                raise damaged(target, f"it holds rows of build {stray}, which has no build row")
 
 
 def _insert_build(conn: Connection, spec_json: str, spec_digest: str, n_shards: int, lock: BuildLock, version: str) -> int:
@@ -394,8 +414,25 @@ def write_shard(engine: Engine, build_id: int, result: ShardRows, *, lock_token:
             _insert_rows(conn, Dwell, result.dwells)
             conn.execute(insert(Shard), [shard_row])
     except IntegrityError as exc:
+        clash = _stored_already(engine, result)
+        if clash is not None:  # rows the atlas should not hold (ids are deterministic): damage, not a bug
+            raise damaged(atlas_name(engine), f"it already holds {clash} of shard {index}, which has no shard row "
+                                              "(shard rolled back)") from None
         first = str(exc.orig).splitlines()[0] if exc.orig is not None else str(exc)
         raise ShardWriteError(f"shard {index} of build {build_id} rolled back: {first}") from exc
+
+
+def _stored_already(engine: Engine, result: ShardRows) -> str | None:
+    """"linkage ID" if the atlas already holds one of this shard's linkages — its ids derive
+    from the shard index, so that is this shard's own row, stored without its shard row (or
+    under a build row since deleted): a damaged atlas. None otherwise (a bug upstream)."""
+    ids = [row["id"] for row in result.linkages]
+    with engine.connect() as conn:
+        for start in range(0, len(ids), 500):  # under every dialect's parameter limit
+            found = conn.execute(select(Linkage.id).where(Linkage.id.in_(ids[start:start + 500])).limit(1)).scalar()
+            if found is not None:
+                return f"linkage {found}"
+    return None
 
 
 def finish_build(engine: Engine, build_id: int, token: str) -> bool:

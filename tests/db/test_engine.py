@@ -17,7 +17,7 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from db import SCHEMA_VERSION, AtlasError, Base, Build, Dwell, Linkage, Meta, open_atlas
-from db.engine import database_url, display_target
+from db.engine import _wal_page_size, database_url, display_target, settle_sqlite
 from db.writes import write_shard
 
 
@@ -359,3 +359,107 @@ def test_two_builders_creating_one_postgresql_atlas(postgres_url):
     with engine.connect() as conn:
         assert conn.execute(select(Meta.key).order_by(Meta.key)).scalars().all() == ["application", "schema_version"]
     engine.dispose()
+
+
+# ------------------------------------------------------------- journal mode and -wal files
+
+
+def _files(folder) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in sorted(folder.iterdir())}
+
+
+def _wal_of_another_database(folder, page_size: int) -> bytes:
+    """The -wal of a fresh database with one committed change (never checkpointed)."""
+    other = folder / "other" / "o.sqlite"
+    other.parent.mkdir()
+    con = sqlite3.connect(other)
+    con.execute(f"PRAGMA page_size={page_size}")
+    con.execute("PRAGMA journal_mode=WAL")
+    con.execute("PRAGMA wal_autocheckpoint=0")
+    con.execute("create table t (x)")
+    con.execute("insert into t values (1)")
+    con.commit()
+    wal = other.with_name("o.sqlite-wal").read_bytes()
+    con.close()
+    return wal
+
+
+def _settled_atlas(tmp_path):
+    folder = tmp_path / "atlas"
+    folder.mkdir()
+    path = folder / "a.sqlite"
+    engine = open_atlas(str(path), create=True)
+    assert settle_sqlite(engine)
+    return path
+
+
+def test_a_settled_atlas_is_one_file_in_delete_mode_and_reading_creates_nothing(tmp_path):
+    path = _settled_atlas(tmp_path)
+    assert path.read_bytes()[18:20] == b"\x01\x01"  # file format versions 1: rollback journal
+    before = _files(path.parent)
+    engine = open_atlas(str(path), readonly=True)
+    with engine.connect() as conn:
+        assert conn.execute(select(Meta.value).where(Meta.key == "application")).scalar() == "dwell-atlas"
+    engine.dispose()
+    assert _files(path.parent) == before
+
+
+def test_wal_header_page_size_and_checksum(tmp_path):
+    wal = _wal_of_another_database(tmp_path, 1024)
+    path = tmp_path / "x-wal"
+    path.write_bytes(wal)
+    assert _wal_page_size(path) == 1024  # magic, page size, and the header checksum verified
+    spoiled = bytearray(wal)
+    spoiled[16] ^= 0x01  # salt-1: the stored checksum no longer matches
+    path.write_bytes(bytes(spoiled))
+    assert _wal_page_size(path) is None  # SQLite would ignore it too
+    path.write_bytes(wal[:31])
+    assert _wal_page_size(path) is None
+
+
+@pytest.mark.parametrize("readonly", [True, False])
+def test_any_wal_beside_a_complete_atlas_is_refused_untouched(tmp_path, readonly):
+    path = _settled_atlas(tmp_path)
+    path.with_name("a.sqlite-wal").write_bytes(_wal_of_another_database(tmp_path, 4096))  # same page size
+    before = _files(path.parent)
+    with pytest.raises(AtlasError, match="is a complete atlas .* but 'a.sqlite-wal' lies beside it"):
+        open_atlas(str(path), readonly=readonly, create=not readonly)
+    assert _files(path.parent) == before
+
+
+def test_a_wal_of_another_page_size_beside_a_wal_mode_atlas_is_refused(tmp_path):
+    folder = tmp_path / "atlas"
+    folder.mkdir()
+    path = folder / "a.sqlite"
+    open_atlas(str(path), create=True).dispose()  # a new atlas: WAL mode, as during a build
+    assert path.read_bytes()[18] == 2
+    path.with_name("a.sqlite-wal").write_bytes(_wal_of_another_database(tmp_path, 1024))
+    before = _files(folder)
+    with pytest.raises(AtlasError, match=r"write-ahead log of another database \(page size 1024, the atlas has 4096\)"):
+        open_atlas(str(path), readonly=True)
+    assert _files(folder) == before
+
+
+def test_a_changed_column_is_refused(atlas):
+    target, engine = atlas
+    with engine.begin() as conn:
+        conn.execute(text("ALTER TABLE dwell RENAME COLUMN max_deviation TO max_dev"))
+    with pytest.raises(AtlasError, match=r"table dwell does not match .*missing column max_deviation; "
+                                         r"unexpected column max_dev\).*rebuild"):
+        open_atlas(target, readonly=True)
+
+
+def test_a_missing_index_is_refused(atlas):
+    target, engine = atlas
+    with engine.begin() as conn:
+        conn.execute(text("DROP INDEX ix_dwell_query"))
+    with pytest.raises(AtlasError, match=r"table dwell does not match .*no index ix_dwell_query"):
+        open_atlas(target, readonly=True)
+
+
+def test_an_unreadable_spec_is_refused(atlas):
+    target, engine = atlas
+    with engine.begin() as conn:
+        conn.execute(update(Build).values(spec_json='{"tolerances": [1e-3, "x"]}'))
+    with pytest.raises(AtlasError, match=r"sweep spec of build 1 \(build.spec_json\) is not readable"):
+        open_atlas(target, readonly=True)

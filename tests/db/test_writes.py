@@ -15,7 +15,7 @@ from dataclasses import replace
 
 import pytest
 from shards import shard_rows
-from sqlalchemy import func, insert, select, update
+from sqlalchemy import delete, func, insert, select, text, update
 
 import db.writes
 from db import SCHEMA_VERSION, AtlasError, Build, Dwell, Linkage, Segment, Shard, open_atlas
@@ -243,3 +243,52 @@ def test_floats_round_trip_bit_for_bit(engine, monkeypatch, path):
     # x + 0.0 turns −0.0 into 0.0: SQLite does not keep the sign of zero (PostgreSQL does),
     # which is why the content digest writes both as 0
     assert [(v + 0.0).hex() for v in got] == [(v + 0.0).hex() for v in values.values()]
+
+
+def _complete(engine, n_shards=2):
+    h, lock = start(engine, n_shards=n_shards)
+    for i in range(n_shards):
+        write_shard(engine, h.build_id, shard_rows(i), lock_token=lock.token)
+    assert finish_build(engine, h.build_id, lock.token)
+    return h
+
+
+def test_verify_passes_a_whole_atlas_and_names_a_changed_value_and_orphans(engine):
+    from db.summary import verify_atlas
+
+    h = _complete(engine)
+    ok = verify_atlas(engine)
+    assert ok.problems == () and ok.orphans == {"dwell": 0, "segment": 0, "linkage": 0, "shard": 0}
+    assert list(ok.digests) == [h.build_id] and ok.digests[h.build_id][0] == ok.digests[h.build_id][1]
+    assert ok.integrity == ("ok" if engine.dialect.name == "sqlite" else None)
+    with engine.begin() as conn:
+        conn.execute(update(Dwell).values(x=Dwell.x + 1e-6))  # above the digest's 12 digits
+    bad = verify_atlas(engine)
+    assert len(bad.problems) == 1 and "do not give its stored content digest" in bad.problems[0]
+
+
+def test_a_build_row_deleted_is_one_line_not_a_collision(engine):
+    _complete(engine)
+    with engine.begin() as conn:  # what a hand edit with foreign keys off leaves
+        if engine.dialect.name == "sqlite":
+            conn.exec_driver_sql("PRAGMA foreign_keys=OFF")
+            conn.execute(delete(Build))
+        else:
+            conn.execute(text("ALTER TABLE build DISABLE TRIGGER ALL"))
+            conn.execute(delete(Build))
+            conn.execute(text("ALTER TABLE build ENABLE TRIGGER ALL"))
+    with pytest.raises(AtlasError, match=r"holds rows of build 1, which has no build row; restore .* --replace"):
+        start(engine)
+    h, _ = start(engine, replace=True)  # the way back: everything is deleted, orphans included
+    assert count(engine, Linkage) == 0 and (h.replaced or "").startswith("rows of no recorded build")
+
+
+def test_a_shard_whose_rows_are_already_stored_is_a_damaged_atlas(engine):
+    h, lock = start(engine)
+    write_shard(engine, h.build_id, shard_rows(0), lock_token=lock.token)
+    with engine.begin() as conn:  # its shard row lost, its rows kept: what no writer leaves
+        conn.execute(delete(Shard))
+    with pytest.raises(AtlasError, match=r"is damaged: it already holds linkage \d+ of shard 0, which has no shard "
+                                         r"row \(shard rolled back\); restore"):
+        write_shard(engine, h.build_id, shard_rows(0), lock_token=lock.token)
+    assert count(engine, Linkage) == 1 and count(engine, Shard) == 0
