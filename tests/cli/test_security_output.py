@@ -93,3 +93,93 @@ def test_display_target(url, shown):
 def test_scrub_removes_raw_and_decoded_secrets():
     url = "postgresql://u:p%40ssw0rd@h/db?password=tok%26en&x=1"
     assert scrub("bad p@ssw0rd and p%40ssw0rd, tok&en", url) == "bad *** and ***, ***"
+
+
+# ---------------------------------------------------------------------------------------------
+# Report folders: whole or not at all, also under SIGKILL
+# ---------------------------------------------------------------------------------------------
+
+import hashlib  # noqa: E402
+import json  # noqa: E402
+import os  # noqa: E402
+import random  # noqa: E402
+import signal  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+DWELL = [str(Path(sys.executable).with_name("dwell"))]
+
+
+@pytest.fixture(scope="module")
+def small_atlas(tmp_path_factory) -> tuple[str, list[str]]:
+    """A small demo-settings atlas and two candidate ids from it."""
+    from atlas.build import build_atlas
+    from atlas.sweep import PRESETS
+
+    path = str(tmp_path_factory.mktemp("atlas") / "small.sqlite")
+    build_atlas(path, PRESETS["demo"].replace(samples=256), workers=1, progress=False)
+    out = subprocess.run([*DWELL, "query", "--db", path, "--dwell", "45", "--swing", "40", "--output", "rpr",
+                          "--top", "2", "--json"], capture_output=True, text=True, check=True).stdout
+    return path, [c["id"] for c in json.loads(out)["candidates"]]
+
+
+def _digest(folder: Path) -> dict[str, str]:
+    return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(folder.iterdir())}
+
+
+@pytest.mark.parametrize("crank", ["1e-320", "0", "-1", "inf", "nan", "1e200"])
+def test_report_crank_out_of_range_is_one_line(capsys, tmp_path, crank):
+    code = main(["report", "--db", str(tmp_path / "none.sqlite"), "--candidates", "x", "--crank", crank,
+                 "--out", str(tmp_path / "r")])
+    out, err = capsys.readouterr()
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "--crank" in err, err
+    assert not (tmp_path / "r").exists()
+
+
+def test_report_into_a_folder_with_other_files_is_refused(capsys, tmp_path, small_atlas):
+    path, ids = small_atlas
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "thesis.tex").write_text("mine")
+    code = main(["report", "--db", path, "--candidates", ids[0], "--out", str(out)])
+    _, err = capsys.readouterr()
+    assert code == 2 and "thesis.tex" in err and len(err.strip().splitlines()) == 1
+    assert sorted(p.name for p in out.iterdir()) == ["thesis.tex"]
+
+
+def test_killed_report_leaves_the_old_or_the_new_report(tmp_path, small_atlas):
+    """SIGKILL at a random moment of `dwell report` over an existing report: the folder is
+    always byte-identical to the old complete report or to the new complete one."""
+    path, ids = small_atlas
+    out = tmp_path / "rep"
+
+    def report(args, target):
+        return [*DWELL, "report", "--db", path, "--out", str(target), *args]
+
+    old_args, new_args = ["--candidates", ids[0]], ["--candidates", *ids, "--dwell-tolerance", "0.2"]
+    subprocess.run(report(new_args, tmp_path / "reference"), check=True, capture_output=True)
+    new = _digest(tmp_path / "reference")
+    t0 = time.perf_counter()
+    subprocess.run(report(old_args, out), check=True, capture_output=True)
+    full = time.perf_counter() - t0
+    old = _digest(out)
+    rng = random.Random(17)
+    outcomes = {"old": 0, "new": 0}
+    for _ in range(int(os.environ.get("DWELL_KILL_TRIALS", "6"))):
+        subprocess.run(report(old_args, out), check=True, capture_output=True)  # back to the old report
+        proc = subprocess.Popen(report(new_args, out), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        time.sleep(rng.uniform(0.3, 1.3) * full)
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+        now = _digest(out)
+        # plots carry their creation date, so a report is recognised by its names and the
+        # bytes of its data files (JSON, CSV, README, the page)
+        kind = next((k for k, ref in (("old", old), ("new", new)) if set(now) == set(ref) and all(
+            now[name] == ref[name] for name in now if name.endswith((".json", ".csv", ".txt", ".html")))), None)
+        assert kind is not None, ("neither the old nor the new report", sorted(now))
+        assert all((out / name).stat().st_size > 0 for name in now)
+        outcomes[kind] += 1
+    assert sum(outcomes.values()) == int(os.environ.get("DWELL_KILL_TRIALS", "6")), outcomes
+    print("kill trials:", outcomes)
