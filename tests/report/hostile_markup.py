@@ -12,7 +12,7 @@ from html.parser import HTMLParser
 
 #: Names a linkage file (or a candidate id) could carry: closing the script block, breaking out
 #: of an attribute, entities, quotes, line/paragraph separators (JavaScript line terminators in
-#: old engines), and a very long name.
+#: old engines), mathtext for the plots, and a very long name.
 HOSTILE = (
     "</script><script>alert(1)</script>",
     '"><svg onload=alert(1)>',
@@ -20,6 +20,7 @@ HOSTILE = (
     "it's \"quoted\" `x`",
     "line\u2028para\u2029end",
     "<!--<script>",
+    "$\\frac{$ a_b^c",  # matplotlib mathtext, unbalanced: must be shown literally, not parsed
     "x" * 5000 + "</script>",
 )
 

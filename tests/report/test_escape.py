@@ -77,3 +77,19 @@ def test_analyze_linkage_animation_and_drawing(tmp_path, capsys, name):
     check_svg(svg.read_text(encoding="utf-8"), name)
     assert main(["analyze", "linkage", str(path), "--input", "50", "--draw", str(draw)]) == 0, capsys.readouterr().err
     check_svg(draw.read_text(encoding="utf-8"))
+    plot = tmp_path / "p.svg"
+    assert main(["analyze", "linkage", str(path), "--step", "30", "--plot", str(plot)]) == 0, capsys.readouterr().err
+    check_svg(plot.read_text(encoding="utf-8"))
+
+
+def test_plot_text_is_literal_in_matplotlib(tmp_path):
+    from report.escape import plot_text
+
+    import matplotlib
+    matplotlib.use("Agg")
+    from matplotlib.figure import Figure
+
+    fig = Figure()
+    fig.subplots().set_title(plot_text("$\\frac{$ and $x$"))
+    fig.savefig(tmp_path / "t.svg")  # raises on mathtext it cannot parse
+    assert plot_text("a$b") == "a\\$b"
