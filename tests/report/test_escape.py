@@ -93,3 +93,22 @@ def test_plot_text_is_literal_in_matplotlib(tmp_path):
     fig.subplots().set_title(plot_text("$\\frac{$ and $x$"))
     fig.savefig(tmp_path / "t.svg")  # raises on mathtext it cannot parse
     assert plot_text("a$b") == "a\\$b"
+
+
+@pytest.mark.parametrize("name", HOSTILE)
+def test_report_page_svgs_and_files_with_a_hostile_candidate_id(tmp_path, candidates, name):
+    """`dwell report`'s page: the scripts it has (two of its own and one JSON block per
+    candidate), no more; the id shown as text; every SVG it writes clean."""
+    import dataclasses
+
+    from report_cases import REQUEST
+
+    from report.export import write_report
+
+    evil = dataclasses.replace(candidates[1], id=name)
+    written = write_report([evil], REQUEST, tmp_path / "r")
+    page = (tmp_path / "r" / "index.html").read_text(encoding="utf-8")
+    check_html(page, name, scripts=3)
+    for svg in (p for p in written if p.suffix == ".svg"):
+        check_svg(svg.read_text(encoding="utf-8"))
+    assert json.loads((tmp_path / "r" / "candidates.json").read_text(encoding="utf-8"))["candidates"][0]["id"] == name
