@@ -44,6 +44,7 @@ def commands(url: str, tmp: str) -> dict[str, list[str]]:
         "report": ["report", "--db", url, "--candidates", "x", "--out", f"{tmp}/r"],
         "bench query": ["bench", "query", "--db", url],
         "demo": ["demo", "--db", url, "--out", f"{tmp}/d"],
+        "bench faults": ["bench", "faults", "--trials", "1", "--db-kind", "postgresql", "--postgres", url],
     }
 
 
@@ -58,7 +59,8 @@ def _leaks(output: str, pw: str) -> list[str]:
     return found
 
 
-@pytest.mark.parametrize("command", ["atlas info", "atlas build", "query", "report", "bench query", "demo"])
+@pytest.mark.parametrize("command", ["atlas info", "atlas build", "query", "report", "bench query", "demo",
+                                     "bench faults"])
 @settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(pw=PASSWORDS)
 @example(pw="QQ@XZ@JJ:KK")  # unescaped '@': SQLAlchemy would read the tail as the host name
