@@ -185,3 +185,29 @@ def test_killed_report_leaves_the_old_or_the_new_report(tmp_path, small_atlas):
         outcomes[kind] += 1
     assert sum(outcomes.values()) == int(os.environ.get("DWELL_KILL_TRIALS", "6")), outcomes
     print("kill trials:", outcomes)
+
+
+@pytest.mark.parametrize("command", ["report", "query"])
+def test_disk_full_is_one_line_and_keeps_the_old_report(capsys, tmp_path, small_atlas, monkeypatch, command):
+    import errno
+
+    path, ids = small_atlas
+    out = tmp_path / "rep"
+    args = {"report": ["report", "--db", path, "--candidates", ids[0], "--out", str(out)],
+            "query": ["query", "--db", path, "--dwell", "45", "--swing", "40", "--output", "rpr", "--top", "1",
+                      "--report", str(out)]}[command]
+    assert main(args) == 0
+    capsys.readouterr()
+    before = _digest(out)
+    real = Path.write_text
+
+    def full(self, *a, **k):
+        if self.name == "index.html":
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real(self, *a, **k)
+
+    monkeypatch.setattr(Path, "write_text", full)
+    code = main(args)
+    _, err = capsys.readouterr()
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "No space left on device" in err, err
+    assert _digest(out) == before and sorted(p.name for p in tmp_path.iterdir()) == ["rep"]
