@@ -69,11 +69,10 @@ _MASK = "***"
 
 
 def _split_userinfo(rest: str) -> tuple[str | None, str]:
-    """``rest`` (a URL after ``scheme://``) as (userinfo or None, host, path and query).
+    """``rest`` (a URL after ``scheme://``) as (userinfo or None, the rest: host, path, query).
 
-    The userinfo ends at the LAST ``@``: a password with an unescaped ``@``, ``:``, ``/``,
-    ``#`` or ``?`` then stays whole inside it (a query holding ``@`` makes the split swallow
-    more than the userinfo — that only hides more, never less)."""
+    The userinfo ends at the LAST ``@``: a password with an unescaped ``@``, ``:``, ``/`` or
+    ``#`` then stays whole inside it (a ``?`` before that ``@``: see :func:`_ambiguous`)."""
     at = rest.rfind("@")
     return (rest[:at], rest[at + 1:]) if at >= 0 else (None, rest)
 
@@ -111,10 +110,10 @@ def _secrets(target: str) -> list[str]:
                 key, _, value = pair.partition("=")
                 if _secret_query_key(key):
                     # the value up to the next '&', and up to the end (a raw '&' inside it)
-                    tail = "&".join([value, *pairs[i + 1:]])
+                    to_end = "&".join([value, *pairs[i + 1:]])
                     # a raw '&' makes the value's tail other options, which drivers name in
                     # errors: hide those pieces too (not 1-2 characters: that garbles messages)
-                    found += [value, tail, *(p for p in re.split("[&=]", tail) if len(p) >= 3)]
+                    found += [value, to_end, *(p for p in re.split("[&=]", to_end) if len(p) >= 3)]
     found += [unquote_plus(v) for v in found] + [unquote(v) for v in found]
     return sorted({v for v in found if v}, key=len, reverse=True)
 
@@ -133,9 +132,9 @@ def display_target(target: str) -> str:
         return f"{scheme}://…"
     userinfo, rest = _split_userinfo(rest)
     head, sep, query = rest.partition("?")
-    netloc = head.split("/", 1)[0]
-    port = netloc.rsplit("]", 1)[-1].rpartition(":")[2] if ":" in netloc.rsplit("]", 1)[-1] else ""
-    if not port.isdigit() and port != "" or "#" in head:
+    host_port = head.split("/", 1)[0].rsplit("]", 1)[-1]  # after an IPv6 literal's brackets
+    port = host_port.rpartition(":")[2] if ":" in host_port else ""
+    if (port and not port.isdigit()) or "#" in head:
         return f"{scheme}://…"  # not host[:port]: the secret may hide anywhere in it
     if userinfo is not None:
         user, colon, _ = userinfo.partition(":")
