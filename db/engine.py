@@ -35,7 +35,7 @@ from sqlalchemy.exc import ArgumentError, DatabaseError, DBAPIError, Operational
 
 from db.schema import APPLICATION, SCHEMA_VERSION, Base, Meta
 
-__all__ = ["AtlasError", "database_url", "display_target", "open_atlas", "scrub", "sqlite_path"]
+__all__ = ["AtlasError", "check_url", "database_url", "display_target", "open_atlas", "scrub", "sqlite_path"]
 
 _SQLITE_MAGIC = b"SQLite format 3\x00"
 #: Seconds to wait for a PostgreSQL server before giving up (unless the URL says otherwise).
@@ -113,7 +113,8 @@ def _secrets(target: str) -> list[str]:
                     to_end = "&".join([value, *pairs[i + 1:]])
                     # a raw '&' makes the value's tail other options, which drivers name in
                     # errors: hide those pieces too (not 1-2 characters: that garbles messages)
-                    found += [value, to_end, *(p for p in re.split("[&=]", to_end) if len(p) >= 3)]
+                    pieces = re.split(r"[&=+\s]", f"{to_end}&{unquote_plus(to_end)}")
+                    found += [value, to_end, *(p for p in pieces if len(p) >= 3)]
     found += [unquote_plus(v) for v in found] + [unquote(v) for v in found]
     return sorted({v for v in found if v}, key=len, reverse=True)
 
@@ -179,12 +180,8 @@ def open_atlas(target: str, *, create: bool = False, readonly: bool = False) -> 
     SQLite runs in WAL mode (readers are never blocked by the builder) with foreign keys on
     and a busy timeout. ``readonly`` opens SQLite files read-only (``mode=ro``).
     """
-    try:
-        url = database_url(target)
-        parsed = make_url(url)
-    except (ArgumentError, ValueError):
-        raise AtlasError(f"not a database path or URL: {display_target(target)!r}") from None
-    _check_userinfo(target, parsed)
+    url = database_url(target)
+    check_url(target)
     path = _sqlite_path(url)
     if path is not None:
         existing = _check_sqlite_file(path, target, create=create)
@@ -207,12 +204,18 @@ def open_atlas(target: str, *, create: bool = False, readonly: bool = False) -> 
     return _checked(engine, target, create=create and not readonly)
 
 
-def _check_userinfo(target: str, parsed: URL) -> None:
-    """Refuse a URL whose password SQLAlchemy reads differently from the masking (an
-    unescaped ``@`` in it): the rest would become the host name and show in the driver's
-    errors, and the connection would go to the wrong server anyway."""
+def check_url(target: str) -> URL:
+    """``target`` (path or URL) parsed, or one :class:`AtlasError` that shows no secret.
+
+    Refuses a URL whose password SQLAlchemy reads differently from the masking (an unescaped
+    ``@`` in it, or a ``?`` before its last ``@``): the rest would become the host name and
+    show in the driver's errors, and the connection would go to the wrong server anyway."""
+    try:
+        parsed = make_url(database_url(target))
+    except (ArgumentError, ValueError):  # ValueError: a port that is not a number
+        raise AtlasError(f"not a database path or URL: {display_target(target)!r}") from None
     if "://" not in target:
-        return
+        return parsed
     rest = target.split("://", 1)[1]
     userinfo, _ = _split_userinfo(rest)
     written = userinfo.partition(":")[2] if userinfo and ":" in userinfo else None
@@ -222,6 +225,7 @@ def _check_userinfo(target: str, parsed: URL) -> None:
     if (written and unquote(written)) != (parsed.password or None):
         raise AtlasError(f"the password in {display_target(target)!r} holds an unescaped '@': "
                          "percent-encode it (%40 for @, %3A for :, %2F for /, %23 for #, %3F for ?)")
+    return parsed
 
 
 def _engine(url: str, target: str, *, readonly: bool = False) -> Engine:

@@ -373,8 +373,12 @@ def _check_postgres(url: str) -> None:
     from sqlalchemy.engine import make_url
     from sqlalchemy.exc import ArgumentError, SQLAlchemyError
 
-    from db.engine import display_target, scrub
+    from db.engine import AtlasError, check_url, display_target, scrub
 
+    try:
+        check_url(url)  # an ambiguous password would reach the driver as a host name
+    except AtlasError as exc:
+        raise InputError(f"--postgres: {exc}") from None
     try:
         if make_url(url).get_backend_name() != "postgresql":
             raise InputError(f"--postgres must be a postgresql:// URL, got {display_target(url)!r}")
