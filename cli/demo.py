@@ -36,7 +36,7 @@ def demo(out_dir: str, target: str | None, workers: int | None) -> None:
     from atlas.build import build_atlas
     from atlas.sweep import PRESETS
     from cli.query import _table, answer, no_match_message, request_from_options
-    from db.engine import open_atlas
+    from db.engine import display_target, open_atlas
     from report.export import write_report
 
     out = Path(out_dir)
@@ -47,7 +47,8 @@ def demo(out_dir: str, target: str | None, workers: int | None) -> None:
     out.mkdir(parents=True, exist_ok=True)
     target = target or str(out / "demo-atlas.sqlite")
     start = time.perf_counter()
-    click.echo(f"$ dwell atlas build --db {target} --preset demo")
+    shown = display_target(target)  # command lines below never show a URL's password
+    click.echo(f"$ dwell atlas build --db {shown} --preset demo")
     try:
         summary = build_atlas(target, PRESETS["demo"], workers=workers or os.cpu_count() or 1)
     except BaseException:
@@ -69,7 +70,7 @@ def demo(out_dir: str, target: str | None, workers: int | None) -> None:
             o.update(opts)
             args = " ".join(f"--{k.replace('_', '-')} {v:g}" if isinstance(v, float) else f"--{k.replace('_', '-')} {v}"
                             for k, v in opts.items())
-            click.echo(f"\n$ dwell query --db {target} {args} --top {TOP}")
+            click.echo(f"\n$ dwell query --db {shown} {args} --top {TOP}")
             request = request_from_options(o["dwell"], o["dwell_tol"], o["swing"], o["swing_tol"], o["output"],
                                            o["dwells"], o["dwell_tolerance"], o["crank"], o["min_transmission"],
                                            o["max_link_ratio"], o["top"])

@@ -17,7 +17,7 @@ class InputError(Exception):
 USER_ERRORS: tuple[type[BaseException], ...] = (click.ClickException, AssemblyError, InputError)
 
 #: Error types of layers that are imported only when a command needs them, by module.
-_LAZY_USER_ERRORS = {"db.engine": "AtlasError", "atlas.sweep": "SweepSpecError"}
+_LAZY_USER_ERRORS = {"db.engine": "AtlasError", "atlas.sweep": "SweepSpecError", "report.folder": "ReportFolderError"}
 
 
 #: SQLite result codes (primary names) that mean the atlas file or its storage, not the code:

@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from cli.errors import InputError
-from cli.options import probe_folder
+from cli.options import positive, probe_folder
 
 
 @click.command("report")
@@ -18,7 +18,7 @@ from cli.options import probe_folder
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False), help="Folder for the report.")
 @click.option("--dwell", type=float, default=None, help="Requested dwell (°) for the output deviation window.")
 @click.option("--dwell-tolerance", type=float, default=0.1, show_default=True, help="Output band (°).")
-@click.option("--crank", type=float, default=1.0, show_default=True, help="Crank length (your unit).")
+@click.option("--crank", type=float, default=1.0, show_default=True, callback=positive, help="Crank length (your unit).")
 @click.option("--min-transmission", type=float, default=30.0, show_default=True,
               help="The query's smallest transmission angle (°): RRR fits are rebuilt with it.")
 @click.argument("more_ids", nargs=-1)
@@ -27,6 +27,7 @@ def report(target, ids, out_dir, dwell, dwell_tolerance, crank, min_transmission
     from cli.query import rebuild, request_from_options
     from db.engine import open_atlas
     from report.export import write_report
+    from report.folder import ReportFolderError, check_report_folder
 
     names = [t for item in (*ids, *more_ids) for t in item.replace(",", " ").split()]
     if not names:
@@ -36,6 +37,10 @@ def report(target, ids, out_dir, dwell, dwell_tolerance, crank, min_transmission
         raise InputError(f"--out {out_dir!r} is a file, not a folder")
     if not (out if out.exists() else out.parent).exists():
         raise InputError(f"--out: folder {str(out.parent)!r} does not exist")
+    try:
+        check_report_folder(out, "--out")  # a folder with the user's own files is refused first
+    except ReportFolderError as exc:
+        raise InputError(str(exc)) from None
     probe_folder(out, "--out")
     # the deviation window: the requested dwell, or the rebuilt six-bar's own dwell
     request = request_from_options(dwell if dwell is not None else 60.0, 2.0, 30.0, 0.5, "any", 1, dwell_tolerance,
@@ -45,8 +50,7 @@ def report(target, ids, out_dir, dwell, dwell_tolerance, crank, min_transmission
         candidates = rebuild(engine, names, request)
     finally:
         engine.dispose()
-    out.mkdir(parents=True, exist_ok=True)
-    written = write_report(candidates, request, out)
+    written = write_report(candidates, request, out, option="--out")  # all files or none (report/folder.py)
     for c in candidates:
         dw = " and ".join(f"{math.degrees(d.angle):.2f}°" for d in c.figures.dwells)
         click.echo(f"{c.rank}. {c.id}: {c.sixbar.dyad.kind}, dwell {dw}, swing {math.degrees(c.figures.swing):.2f}°")

@@ -49,8 +49,10 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 from pathlib import Path
 from typing import Any
+from urllib.parse import unquote, unquote_plus
 
 from sqlalchemy import (
     CheckConstraint,
@@ -75,8 +77,8 @@ from sqlalchemy.exc import ArgumentError, DatabaseError, DBAPIError, Operational
 from db.schema import APPLICATION, SCHEMA_VERSION, Base, Build, Meta, Shard
 
 __all__ = [
-    "AtlasError", "atlas_name", "damaged", "database_url", "display_target", "open_atlas", "settle_sqlite", "sqlite_path",
-    "start_writing",
+    "AtlasError", "atlas_name", "check_url", "damaged", "database_url", "display_target", "open_atlas",
+    "scrub", "settle_sqlite", "sqlite_path", "start_writing",
 ]
 
 _SQLITE_MAGIC = b"SQLite format 3\x00"
@@ -123,22 +125,108 @@ def database_url(target: str) -> str:
     return target
 
 
+#: Query keys whose values are secrets (compared lower-case): any key containing "password"
+#: (password, sslpassword, …) and libpq's passfile (a path that says where the secrets are).
+_SECRET_KEYS = ("password", "passfile")
+_MASK = "***"
+
+
+def _split_userinfo(rest: str) -> tuple[str | None, str]:
+    """``rest`` (a URL after ``scheme://``) as (userinfo or None, the rest: host, path, query).
+
+    The userinfo ends at the LAST ``@``: a password with an unescaped ``@``, ``:``, ``/`` or
+    ``#`` then stays whole inside it (a ``?`` before that ``@``: see :func:`_ambiguous`)."""
+    at = rest.rfind("@")
+    return (rest[:at], rest[at + 1:]) if at >= 0 else (None, rest)
+
+
+def _ambiguous(rest: str) -> bool:
+    """True if ``rest`` (a URL after ``scheme://``) has a raw ``?`` before its last ``@``: a
+    userinfo password holding ``?`` reads the same as a query password holding ``@``."""
+    return "?" in rest[:rest.rfind("@") + 1]
+
+
+def _secret_query_key(key: str) -> bool:
+    k = unquote_plus(key).lower()
+    return any(word in k for word in _SECRET_KEYS)
+
+
+def _secrets(target: str) -> list[str]:
+    """The secret strings in ``target`` as written and percent-decoded (longest first): the
+    userinfo password and the values of password-like query keys.
+
+    Two readings are taken, as a raw ``@`` or ``?`` makes a URL ambiguous: the userinfo ending
+    at the last ``@`` (a password holding ``?``), and the query starting at the first ``?`` (a
+    query password holding ``@``); the secrets of both are hidden."""
+    if "://" not in target:
+        return []
+    rest = target.split("://", 1)[1]
+    head, sep, query = rest.partition("?")
+    readings = [_split_userinfo(rest), (_split_userinfo(head)[0], f"{head}{sep}{query}")]
+    found = []
+    for userinfo, tail in readings:
+        if userinfo is not None and ":" in userinfo:
+            found.append(userinfo.split(":", 1)[1])
+        if "?" in tail:
+            pairs = tail.split("?", 1)[1].split("&")
+            for i, pair in enumerate(pairs):
+                key, _, value = pair.partition("=")
+                if _secret_query_key(key):
+                    # the value up to the next '&', and up to the end (a raw '&' inside it)
+                    to_end = "&".join([value, *pairs[i + 1:]])
+                    # a raw '&' makes the value's tail other options, which drivers name in
+                    # errors: hide those pieces too (not 1-2 characters: that garbles messages)
+                    pieces = re.split(r"[&=+\s]", f"{to_end}&{unquote_plus(to_end)}")
+                    found += [value, to_end, *(p for p in pieces if len(p) >= 3)]
+    found += [unquote_plus(v) for v in found] + [unquote(v) for v in found]
+    return sorted({v for v in found if v}, key=len, reverse=True)
+
+
 def display_target(target: str) -> str:
-    """``target`` as messages show it: a URL's password replaced by ``***``."""
+    """``target`` as messages show it: every secret of a URL replaced by ``***``.
+
+    The one masking function: a userinfo password (also one with unescaped ``@ : / # ?``),
+    and the value of every query key containing ``password`` (any case: ``password``,
+    ``sslpassword``, …) or ``passfile``. A URL whose host part cannot be a host (e.g. a
+    password without ``@``) shows only its scheme. Paths (no ``://``) are shown as given."""
     if "://" not in target:
         return target
-    try:
-        url = make_url(target)
-    except ArgumentError:
-        return target.split("://", 1)[0] + "://…"  # unparsable: show no more than the scheme
-    return url.render_as_string(hide_password=True) if url.password else target
+    scheme, rest = target.split("://", 1)
+    if _ambiguous(rest):
+        return f"{scheme}://…"
+    userinfo, rest = _split_userinfo(rest)
+    head, sep, query = rest.partition("?")
+    host_port = head.split("/", 1)[0].rsplit("]", 1)[-1]  # after an IPv6 literal's brackets
+    port = host_port.rpartition(":")[2] if ":" in host_port else ""
+    if (port and not port.isdigit()) or "#" in head:
+        return f"{scheme}://…"  # not host[:port]: the secret may hide anywhere in it
+    if userinfo is not None:
+        user, colon, _ = userinfo.partition(":")
+        userinfo = f"{user}:{_MASK}" if colon else user
+    if sep:
+        # everything after the first secret key is hidden: a raw '&' or '#' in its value would
+        # otherwise show the value's tail as if it were the next parameter
+        pairs = query.split("&")
+        for i, pair in enumerate(pairs):
+            key = pair.partition("=")[0]
+            if _secret_query_key(key):
+                query = "&".join([*pairs[:i], f"{key}={_MASK}"])
+                break
+    return f"{scheme}://{'' if userinfo is None else userinfo + '@'}{head}{sep}{query}"
+
+
+def scrub(message: str, target: str) -> str:
+    """``message`` (e.g. a driver's error) with every secret of ``target`` replaced by ``***``."""
+    for secret in _secrets(target):
+        message = message.replace(secret, _MASK)
+    return message
 
 
 def sqlite_path(target: str) -> Path | None:
     """The file behind ``target`` if it names an SQLite file (None for other URLs, memory)."""
     try:
         return _sqlite_path(database_url(target))
-    except ArgumentError:
+    except (ArgumentError, ValueError):  # ValueError: a port that is not a number
         return None
 
 
@@ -158,11 +246,8 @@ def open_atlas(target: str, *, create: bool = False, readonly: bool = False) -> 
     that cannot be written and with no ``-wal`` beside it). The files beside an existing
     atlas are checked before anything opens it (module docstring).
     """
-    try:
-        url = database_url(target)
-        make_url(url)
-    except ArgumentError:
-        raise AtlasError(f"not a database path or URL: {display_target(target)!r}") from None
+    url = database_url(target)
+    check_url(target)
     path = _sqlite_path(url)
     existing = False
     if path is not None:
@@ -311,6 +396,30 @@ def settle_sqlite(engine: Engine) -> bool:
     return mode == "delete"
 
 
+def check_url(target: str) -> URL:
+    """``target`` (path or URL) parsed, or one :class:`AtlasError` that shows no secret.
+
+    Refuses a URL whose password SQLAlchemy reads differently from the masking (an unescaped
+    ``@`` in it, or a ``?`` before its last ``@``): the rest would become the host name and
+    show in the driver's errors, and the connection would go to the wrong server anyway."""
+    try:
+        parsed = make_url(database_url(target))
+    except (ArgumentError, ValueError):  # ValueError: a port that is not a number
+        raise AtlasError(f"not a database path or URL: {display_target(target)!r}") from None
+    if "://" not in target:
+        return parsed
+    rest = target.split("://", 1)[1]
+    userinfo, _ = _split_userinfo(rest)
+    written = userinfo.partition(":")[2] if userinfo and ":" in userinfo else None
+    if _ambiguous(rest):
+        raise AtlasError(f"{display_target(target)!r}: a raw '?' before the last '@' makes the URL ambiguous "
+                         "(user password or query?): percent-encode the password (%3F for ?, %40 for @)")
+    if (written and unquote(written)) != (parsed.password or None):
+        raise AtlasError(f"the password in {display_target(target)!r} holds an unescaped '@': "
+                         "percent-encode it (%40 for @, %3A for :, %2F for /, %23 for #, %3F for ?)")
+    return parsed
+
+
 def _engine(url: str, target: str, *, readonly: bool = False) -> Engine:
     u = make_url(url)
     options = _postgresql_options(u, readonly=readonly) if u.get_backend_name() == "postgresql" else {}
@@ -320,7 +429,7 @@ def _engine(url: str, target: str, *, readonly: bool = False) -> Engine:
         hint = " (install it with: pip install 'dwell-atlas[postgres]')" if u.get_backend_name() == "postgresql" else ""
         raise AtlasError(f"cannot open {display_target(target)!r}: database driver missing: {exc}{hint}") from None
     except ArgumentError as exc:
-        raise AtlasError(f"cannot open {display_target(target)!r}: {exc}") from None
+        raise AtlasError(f"cannot open {display_target(target)!r}: {scrub(str(exc), target)}") from None
 
 
 def _postgresql_options(url: URL, *, readonly: bool) -> dict[str, Any]:
@@ -354,7 +463,7 @@ def _connected(engine: Engine, target: str) -> None:
         with engine.connect():
             pass
     except DBAPIError as exc:
-        message = _first_line(exc)
+        message = scrub(_first_line(exc), target)
         hint = ""
         if engine.dialect.name == "postgresql" and "does not exist" in message and "database" in message:
             database = engine.url.database
@@ -372,7 +481,7 @@ def _checked(engine: Engine, target: str, *, create: bool, empty_ok: bool = Fals
         code = str(getattr(exc.orig, "sqlite_errorname", ""))
         if code.startswith(("SQLITE_CORRUPT", "SQLITE_NOTADB")):
             raise damaged(target, _first_line(exc)) from None
-        raise AtlasError(f"cannot use {display_target(target)!r} as an atlas: {_first_line(exc)}") from None
+        raise AtlasError(f"cannot use {display_target(target)!r} as an atlas: {scrub(_first_line(exc), target)}") from None
     except ValueError as exc:  # a damaged page read as a value the driver cannot convert
         engine.dispose()
         raise damaged(target, _first_line(exc)) from None
@@ -386,19 +495,19 @@ def _check_sqlite_file(path: Path, target: str, *, create: bool) -> bool:
     """Refuse paths that cannot be an atlas; True if a non-empty file is already there."""
     if path.exists():
         if path.is_dir():
-            raise AtlasError(f"{target!r} is a folder, not an atlas file")
+            raise AtlasError(f"{display_target(target)!r} is a folder, not an atlas file")
         try:
             with path.open("rb") as fh:
                 head = fh.read(len(_SQLITE_MAGIC))
         except OSError as exc:
-            raise AtlasError(f"cannot read {target!r}: {exc.strerror}") from None
+            raise AtlasError(f"cannot read {display_target(target)!r}: {exc.strerror}") from None
         if head != _SQLITE_MAGIC and not (create and head == b""):
-            raise AtlasError(f"{target!r} is not an SQLite database (it may be corrupt or another kind of file)")
+            raise AtlasError(f"{display_target(target)!r} is not an SQLite database (it may be corrupt or another kind of file)")
         return head != b""
     if not create:
-        raise AtlasError(f"no atlas at {target!r} (build one with: dwell atlas build --db {target})")
+        raise AtlasError(f"no atlas at {display_target(target)!r} (build one with: dwell atlas build --db {display_target(target)})")
     if not path.parent.is_dir():
-        raise AtlasError(f"cannot create {target!r}: folder {str(path.parent)!r} does not exist")
+        raise AtlasError(f"cannot create {display_target(target)!r}: folder {str(path.parent)!r} does not exist")
     return False
 
 

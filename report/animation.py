@@ -7,10 +7,10 @@ plain geometry in the mechanism's length unit (y up); this module only draws.
 
 from __future__ import annotations
 
-import html
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from report.escape import script_json, text
 
 __all__ = ["Animation", "Frame", "write_animation"]
 
@@ -77,7 +77,7 @@ def _svg(animation: Animation, smil: bool) -> str:
     out = [
         f'<svg xmlns="http://www.w3.org/2000/svg" id="mech" viewBox="{x0:.6g} {-y1:.6g} {w:.6g} {h:.6g}" '
         f'width="640" height="{640 * h / w:.0f}" style="background:#fff">',
-        f"<title>{html.escape(animation.title)}</title>",
+        f"<title>{text(animation.title)}</title>",
     ]
     for path in animation.paths:
         out.append(f'<polyline points="{_pts(path)}" fill="none" stroke="#999" stroke-dasharray="{3 * unit:.3g}" stroke-width="{unit:.3g}"/>')
@@ -97,7 +97,7 @@ def _svg(animation: Animation, smil: bool) -> str:
         frames = [_pts(f.links[k]) for f in animation.frames]
         out.append(f'<{tag} class="link" points="{frames[0]}" {fill} stroke="{color}" stroke-width="{5 * unit:.3g}" '
                    f'stroke-linejoin="round" stroke-linecap="round">{animate("points", frames)}'
-                   f"<title>{html.escape(animation.link_labels[k])}</title></{tag}>")
+                   f"<title>{text(animation.link_labels[k])}</title></{tag}>")
     for k, _ in enumerate(first.blocks):
         frames = [_pts(f.blocks[k]) for f in animation.frames]
         out.append(f'<polygon class="block" points="{frames[0]}" fill="#bcbd22" fill-opacity="0.6" stroke="#444" '
@@ -105,14 +105,14 @@ def _svg(animation: Animation, smil: bool) -> str:
     for label, (x, y) in animation.ground_pivots:
         s = 6 * unit
         out.append(f'<polygon points="{_pts([(x, y), (x - s, y - 1.6 * s), (x + s, y - 1.6 * s)])}" fill="#555"/>')
-        out.append(f'<text x="{x + s:.6g}" y="{-y + 3 * s:.6g}" font-size="{11 * unit:.3g}">{html.escape(label)}</text>')
+        out.append(f'<text x="{x + s:.6g}" y="{-y + 3 * s:.6g}" font-size="{11 * unit:.3g}">{text(label)}</text>')
     for k, _ in enumerate(first.joints):
         xs = [f"{f.joints[k][0]:.6g}" for f in animation.frames]
         ys = [f"{-f.joints[k][1]:.6g}" for f in animation.frames]
         out.append(f'<circle class="joint" cx="{xs[0]}" cy="{ys[0]}" r="{3.5 * unit:.3g}" fill="#fff" stroke="#000" '
                    f'stroke-width="{unit:.3g}">{animate("cx", xs)}{animate("cy", ys)}</circle>')
     # SMIL cannot change text, so the self-playing SVG shows no per-frame caption
-    caption = "" if smil and n > 1 else html.escape(first.caption)
+    caption = "" if smil and n > 1 else text(first.caption)
     out.append(f'<text id="caption" x="{x0 + 4 * unit:.6g}" y="{-y1 + 14 * unit:.6g}" font-size="{12 * unit:.3g}">{caption}</text>')
     out.append("</svg>")
     return "\n".join(out)
@@ -150,8 +150,8 @@ range.max = D.links.length - 1;
 range.addEventListener('input', () => show(Number(range.value)));
 button.addEventListener('click', play);
 play();
-""" % json.dumps(data, separators=(",", ":"))
-    title = html.escape(animation.title)
+""" % script_json(data)
+    title = text(animation.title)
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>{title}</title>
 <style>body{{font-family:sans-serif;margin:1em}} input[type=range]{{width:640px}}</style></head>

@@ -12,6 +12,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from report.escape import plot_text
+
 import numpy as np
 
 __all__ = ["CurvatureScene", "plot_curvature"]
@@ -100,7 +102,7 @@ def plot_curvature(scene: CurvatureScene, path: str | Path, title: str = "") -> 
     ax.grid(True, alpha=0.25)
     ax.legend(loc="upper right", fontsize=7, framealpha=0.85)
     if title:
-        ax.set_title(title, fontsize=10)
+        ax.set_title(plot_text(title), fontsize=10)
     fig.tight_layout()
     path = Path(path)
     fig.savefig(path, dpi=120)

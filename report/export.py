@@ -149,6 +149,8 @@ def _json_text(doc: dict) -> str:
         for k, c in enumerate(doc["candidates"]):
             c["cycle"] = f"@@cycle{k}@@"
         text = json.dumps(doc, indent=1, allow_nan=False, ensure_ascii=False)
+    except ValueError:
+        raise ValueError(f"the report would hold a non-finite number at {_non_finite(doc)}: nothing written") from None
     finally:
         for c, cyc in zip(doc["candidates"], cycles):
             c["cycle"] = cyc
@@ -159,7 +161,22 @@ def _json_text(doc: dict) -> str:
 
 
 def _compact(value: Any) -> str:
-    return json.dumps(value, separators=(",", ":"), allow_nan=False, ensure_ascii=False)
+    try:
+        return json.dumps(value, separators=(",", ":"), allow_nan=False, ensure_ascii=False)
+    except ValueError:
+        raise ValueError(f"the report would hold a non-finite number at {_non_finite(value)}: nothing written") from None
+
+
+def _non_finite(value: Any, where: str = "") -> str | None:
+    """The JSON path of the first NaN or infinity in ``value`` (None if there is none)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return where or "top level"
+    items = value.items() if isinstance(value, dict) else enumerate(value) if isinstance(value, list | tuple) else ()
+    for key, v in items:
+        found = _non_finite(v, f"{where}/{key}")
+        if found:
+            return found
+    return None
 
 
 def sixbar_from_json(doc: dict) -> SixBar:
@@ -261,9 +278,11 @@ def _readme(request: Request, stems: Sequence[str]) -> str:
 
 
 def write_report(candidates: list[Candidate], request: Request, out_dir: Path, *,
-                 step_deg: float = 1.0) -> list[Path]:
+                 step_deg: float = 1.0, option: str = "report folder") -> list[Path]:
     """Write the report of ``candidates`` (ranked, in the user's units) for ``request`` into
-    ``out_dir`` (created if missing; files of the same names are replaced).
+    ``out_dir``: written into a temporary sibling folder that replaces ``out_dir`` when
+    complete (:func:`report.folder.staged_folder`; a folder holding files the tool did not
+    write is refused).
 
     Parameters
     ----------
@@ -274,6 +293,8 @@ def write_report(candidates: list[Candidate], request: Request, out_dir: Path, *
     out_dir : Path
     step_deg : float
         Crank step of the cycle tables and the animation (deg, a divisor of 360).
+    option : str
+        How messages name the folder (e.g. ``"--out"``).
 
     Returns
     -------
@@ -286,8 +307,11 @@ def write_report(candidates: list[Candidate], request: Request, out_dir: Path, *
     ValueError
         No candidates, two with the same rank, or a ``step_deg`` that does not divide 360° —
         before anything is written.
+    report.folder.ReportFolderError
+        ``out_dir`` holds other files, or writing failed (disk full …): ``out_dir`` is as before.
     """
     from report.dxf import write_dxf
+    from report.folder import MARKER, check_report_folder, staged_folder
     from report.html_page import PageEntry, render_page
     from report.sixbar_drawing import draw_sixbar, sixbar_geometry
     from report.sixbar_plots import plot_candidate
@@ -304,25 +328,28 @@ def write_report(candidates: list[Candidate], request: Request, out_dir: Path, *
     csv_text = _csv_text(candidates)
     stems = [safe_stem(c) for c in candidates]
 
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    final = Path(out_dir)
+    check_report_folder(final, option)
     written = []
-    for name, text in (("candidates.json", json_text), ("candidates.csv", csv_text),
-                       ("README.txt", _readme(request, stems))):
-        (out / name).write_text(text, encoding="utf-8")
-        written.append(out / name)
+    # all files go into a temporary sibling renamed into place at the end (report/folder.py)
+    with staged_folder(final, option) as out:
+        for name, text in (("candidates.json", json_text), ("candidates.csv", csv_text),
+                           ("README.txt", _readme(request, stems))):
+            (out / name).write_text(text, encoding="utf-8")
+            written.append(out / name)
 
-    entries = []
-    for c, cyc, stem in zip(candidates, cycles, stems):
-        geom = sixbar_geometry(c, cyc)
-        plots = plot_candidate(c, cyc, geom, out / stem, min_transmission=request.min_transmission)
-        drawing = draw_sixbar(geom, out / f"{stem}-drawing.svg")
-        dxf = write_dxf(geom, out / f"{stem}-drawing.dxf")
-        files = [p for pf in plots.values() for p in (pf.png, pf.svg)] + [drawing, dxf]
-        written += files
-        entries.append(PageEntry(c, cyc, geom, {k: pf.svg_text for k, pf in plots.items()},
-                                 [p.name for p in files]))
-    page = out / "index.html"
-    page.write_text(render_page(request, entries), encoding="utf-8")
-    written.append(page)
-    return written
+        entries = []
+        for c, cyc, stem in zip(candidates, cycles, stems):
+            geom = sixbar_geometry(c, cyc)
+            plots = plot_candidate(c, cyc, geom, out / stem, min_transmission=request.min_transmission)
+            drawing = draw_sixbar(geom, out / f"{stem}-drawing.svg")
+            dxf = write_dxf(geom, out / f"{stem}-drawing.dxf")
+            files = [p for pf in plots.values() for p in (pf.png, pf.svg)] + [drawing, dxf]
+            written += files
+            entries.append(PageEntry(c, cyc, geom, {k: pf.svg_text for k, pf in plots.items()},
+                                     [p.name for p in files]))
+        page = out / "index.html"
+        page.write_text(render_page(request, entries), encoding="utf-8")
+        written.append(page)
+        (out / MARKER).write_text("\n".join(p.name for p in written) + "\n", encoding="utf-8")
+    return [final / p.name for p in written]

@@ -24,8 +24,6 @@ the page started as JSON into ``<pre id="selftest">`` (readable with ``chromium 
 
 from __future__ import annotations
 
-import html
-import json
 import math
 import re
 from dataclasses import dataclass, field
@@ -33,6 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from report.cycle import Cycle
+from report.escape import script_json, text
 from report.sixbar_drawing import SLOT_MARGIN, SixBarGeometry
 from synth.candidates import Candidate, Request
 
@@ -56,19 +55,14 @@ class PageEntry:
     files: list[str] = field(default_factory=list)
 
 
-def _esc(value: object) -> str:
-    """Text or attribute value escaped for HTML (quotes included)."""
-    return html.escape(str(value), quote=True)
+_esc = text  # the one escaping helper (report/escape.py), short name for the many f-strings
 
 
 def _num(x: float, digits: int = 6) -> str:
     return f"{x:.{digits}g}"
 
 
-def _json_script(data: object) -> str:
-    """JSON safe inside ``<script>``: no ``</script>``, no HTML-significant characters."""
-    text = json.dumps(data, separators=(",", ":"), allow_nan=False)
-    return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
+_json_script = script_json
 
 
 # --------------------------------------------------------------------------------------------
@@ -212,12 +206,12 @@ def _mechanism_svg(entry: PageEntry, data: dict) -> str:
         # D often sits near B0: its label goes on the other side
         lx, anchor = (px - 1.3 * s, "end") if name == "D" else (px + 1.3 * s, "start")
         out.append(f'<text class="label fixed" x="{lx:.7g}" y="{py + 2.4 * s:.7g}" text-anchor="{anchor}" '
-                   f'font-size="{13 * u:.4g}">{name}</text>')
+                   f'font-size="{13 * u:.4g}">{_esc(name)}</text>')
     joints = {"A": A, "B": B, "P": P} | ({"Q": data["Q"][0]} if kind == "RRR" else {})
     for name, p in joints.items():
-        out.append(f'<circle class="joint j-{name}" cx="{p[0]:.7g}" cy="{p[1]:.7g}" r="{3.6 * u:.4g}"/>')
-        out.append(f'<text class="label l-{name}" x="{p[0] + 6 * u:.7g}" y="{p[1] - 6 * u:.7g}" '
-                   f'font-size="{13 * u:.4g}">{name}</text>')
+        out.append(f'<circle class="joint j-{_esc(name)}" cx="{p[0]:.7g}" cy="{p[1]:.7g}" r="{3.6 * u:.4g}"/>')
+        out.append(f'<text class="label l-{_esc(name)}" x="{p[0] + 6 * u:.7g}" y="{p[1] - 6 * u:.7g}" '
+                   f'font-size="{13 * u:.4g}">{_esc(name)}</text>')
     out.append("</svg>")
     return "\n".join(out)
 

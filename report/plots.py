@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from report.escape import plot_text
+
 from report.motion_table import MotionTable
 
 __all__ = ["plot_motion"]
@@ -25,13 +27,13 @@ def plot_motion(table: MotionTable, outputs: list[str], path: str | Path, title:
     for ax, name in zip(axes, outputs):
         col = table.column(name)
         ax.plot(phi.values, col.values, lw=1.6)
-        ax.set_ylabel(f"{col.label or col.name} [{col.unit}]", fontsize=9)
+        ax.set_ylabel(plot_text(f"{col.label or col.name} [{col.unit}]"), fontsize=9)
         ax.axhline(0.0, color="0.6", lw=0.6)
         ax.grid(True, alpha=0.3)
     axes[-1].set_xlabel(f"crank angle [{phi.unit}]")
     axes[-1].set_xlim(phi.values.min(), phi.values.max())
     if title:
-        axes[0].set_title(title, fontsize=10)
+        axes[0].set_title(plot_text(title), fontsize=10)
     fig.tight_layout()
     path = Path(path)
     fig.savefig(path, dpi=120)

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from report.cycle import Cycle
+from report.escape import plot_text
 from report.sixbar_drawing import SixBarGeometry, guide_path
 from synth.candidates import Candidate
 
@@ -43,9 +44,7 @@ class PlotFiles:
     svg_text: str
 
 
-def _text(s: str) -> str:
-    """User text shown literally by matplotlib (a ``$`` would start mathtext)."""
-    return s.replace("$", r"\$")
+_text = plot_text  # user text shown literally by matplotlib (report/escape.py)
 
 
 def _closed(phi_deg: np.ndarray, y: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

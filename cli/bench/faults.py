@@ -431,18 +431,24 @@ def _check_postgres(url: str) -> None:
     from sqlalchemy.engine import make_url
     from sqlalchemy.exc import ArgumentError, SQLAlchemyError
 
+    from db.engine import AtlasError, check_url, display_target, scrub
+
+    try:
+        check_url(url)  # an ambiguous password would reach the driver as a host name
+    except AtlasError as exc:
+        raise InputError(f"--postgres: {exc}") from None
     try:
         if make_url(url).get_backend_name() != "postgresql":
-            raise InputError(f"--postgres must be a postgresql:// URL, got {url!r}")
+            raise InputError(f"--postgres must be a postgresql:// URL, got {display_target(url)!r}")
         engine = create_engine(url)
     except (ArgumentError, ImportError, ValueError) as exc:
-        raise InputError(f"--postgres: cannot use {url!r}: {exc}") from None
+        raise InputError(f"--postgres: cannot use {display_target(url)!r}: {scrub(str(exc), url)}") from None
     try:
         with engine.connect() as conn:
             conn.execute(text("select 1"))
     except SQLAlchemyError as exc:
         first = str(getattr(exc, "orig", None) or exc).splitlines()[0]
-        raise InputError(f"--postgres: cannot connect to the server: {first}") from None
+        raise InputError(f"--postgres: cannot connect to the server: {scrub(first, url)}") from None
     finally:
         engine.dispose()
 

@@ -105,13 +105,13 @@ def _percentile(values: list[float], q: float) -> float:
 def query(db, repeat, top, plot):
     """Query latency: a fixed set of requests against an atlas, p50/p95 and where the time goes."""
     from cli.query import answer
-    from db.engine import open_atlas
+    from db.engine import display_target, open_atlas
 
     engine = open_atlas(db, readonly=True)
     try:
         atlas = _atlas_facts(engine)
         if atlas["preset"] != "standard":
-            click.echo(f"dwell: note: {db} holds the {atlas['preset']!r} sweep; the floor is set for 'standard'", err=True)
+            click.echo(f"dwell: note: {display_target(db)} holds the {atlas['preset']!r} sweep; the floor is set for 'standard'", err=True)
         answer(engine, _request(REQUESTS[0], top))  # warm-up: imports, SQLite page cache
         rows, every = [], []
         for r in REQUESTS:

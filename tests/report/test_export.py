@@ -50,7 +50,8 @@ def test_every_documented_file_is_written_and_not_empty(report_dir, candidates):
     for c in candidates:
         expected |= {f"{safe_stem(c)}-{suffix}" for suffix in PER_CANDIDATE}
     assert {p.name for p in written} == expected
-    assert {p.name for p in out.iterdir()} == expected
+    assert {p.name for p in out.iterdir()} == expected | {".dwell-report"}  # + the list of files (report/folder.py)
+    assert (out / ".dwell-report").read_text().split() == [p.name for p in written]
     assert written[-1].name == "index.html"
     for p in written:
         assert p.parent == out and p.stat().st_size > 0, p

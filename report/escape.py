@@ -1,0 +1,49 @@
+"""The one place where text meets markup: every user string the tool writes into HTML, SVG or
+an inline ``<script>`` goes through these functions.
+
+User strings (joint and link names from a linkage file, candidate ids, titles, captions) are
+data, never markup: a name such as ``</script><script>alert(1)</script>`` must show as those
+characters and do nothing. Three contexts, three functions:
+
+- :func:`text` — element content and quoted attribute values in HTML and SVG (XML): ``& < > " '``
+  become character references, so a value can neither close its element nor its attribute.
+- :func:`plot_text` — text for matplotlib (titles, labels, annotations, legend entries): a
+  ``$`` would start mathtext, and an unbalanced formula raises while the figure is drawn.
+- :func:`script_json` — a JSON value written inside ``<script>`` (executable or
+  ``type="application/json"``): ``< > &`` and U+2028/U+2029 become ``\\uXXXX`` escapes, so
+  ``</script>`` or ``<!--`` can never appear and end or confuse the block; the result parses as
+  the same JSON. Non-finite numbers are refused (:class:`ValueError`): JSON has none.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+
+__all__ = ["plot_text", "script_json", "text"]
+
+# The characters that would let JSON text end a <script> element, open an HTML comment or end
+# a JavaScript string literal in older engines; each becomes a JSON \uXXXX escape.
+_SCRIPT_UNSAFE = str.maketrans({"<": "\\u003c", ">": "\\u003e", "&": "\\u0026",
+                                "\u2028": "\\u2028", "\u2029": "\\u2029"})
+
+
+def text(value: object) -> str:
+    """``value`` as text for HTML/SVG element content or a quoted attribute value."""
+    return html.escape(str(value), quote=True)
+
+
+def plot_text(value: object) -> str:
+    """``value`` as literal matplotlib text: every ``$`` escaped, so no mathtext is parsed
+    (matplotlib's SVG writer escapes markup characters itself)."""
+    return str(value).replace("$", r"\$")
+
+
+def script_json(value: object, *, indent: int | None = None) -> str:
+    """``value`` as JSON safe to place between ``<script>`` and ``</script>``.
+
+    Raises :class:`ValueError` for NaN or infinity (no output is produced).
+    """
+    separators = (",", ":") if indent is None else (",", ": ")
+    raw = json.dumps(value, separators=separators, indent=indent, allow_nan=False, ensure_ascii=False)
+    return raw.translate(_SCRIPT_UNSAFE)
