@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import numpy as np
 import pytest
 
 from atlas.build import build_atlas
@@ -144,3 +145,83 @@ def test_no_match_counts_rejections_and_loosens_to_the_nearest(source):
     field_of = {"dwell": {"dwell", "dwell_tol"}, "swing": {"swing", "swing_tol"},
                 "transmission": {"min_transmission"}, "link_ratio": {"max_link_ratio"}}
     assert changed <= set().union(*(field_of[k] for k in missed))
+
+
+# ---------------------------------------------------------------------------------------------
+# Exact dwell figures: the reported ends against a brute-force 0.001° crank grid
+# ---------------------------------------------------------------------------------------------
+
+FINE = 0.001  # degrees
+END_TOL = 0.005  # degrees: how close each end must be to where the band breaks
+
+
+def _fitted_sixbars(source, count):
+    """Acceptable six-bars fitted by the query to its segments for a spread of requests."""
+    out = []
+    for output in ("rpr", "rrr"):
+        for dwell, swing in ((30, 15), (45, 40), (60, 30), (75, 50), (90, 20), (120, 45)):
+            req = Request(dwell=dwell * DEG, dwell_tol=10 * DEG, swing=swing * DEG, output=output,
+                          min_transmission=20 * DEG, max_link_ratio=30)
+            out += [f.sixbar() for kind in kinds_for(req) for f in fit(req, select(source, req, (kind,)), kind)]
+    batch = SixBars.from_sixbars(out)
+    figs = sixbar_figures(batch, band=0.1 * DEG, footprint=False)
+    keep = [k for k, f in enumerate(figs) if f.acceptable and f.dwells and f.dwells[0].angle < 300 * DEG]
+    rng = np.random.default_rng(13)
+    return [out[k] for k in sorted(rng.choice(keep, size=min(count, len(keep)), replace=False))]
+
+
+def test_dwell_ends_and_deviation_window_agree_with_a_brute_force_grid(source):
+    """≥ 200 six-bars from the fit: on a 0.001° grid of the exact ψ (simulated there, nothing
+    refined), each reported dwell interval holds the band, no window longer by 0.005° holds it
+    anywhere on the turn, and neither end can be pushed out by 0.005°; the output deviation
+    over a window around the dwell is the brute-force minimum over its placements."""
+    from scipy.ndimage import maximum_filter1d, minimum_filter1d
+
+    from synth.sixbar import simulate
+
+    sixbars = _fitted_sixbars(source, 220)
+    assert len(sixbars) >= 200
+    band = 0.1 * DEG
+    batch = SixBars.from_sixbars(sixbars)
+    figs = sixbar_figures(batch, band=band, footprint=False)
+    lengths = np.array([0.8 * f.dwells[0].angle for f in figs])
+    m = round(360 / FINE)
+    phi = np.arange(m) * (FINE * DEG)
+    worst = {"shorter": 0.0, "excess": 0.0, "deviation": 0.0}
+    for k, sb in enumerate(sixbars):
+        f = sixbar_figures(sb, band=band, dwell_length=lengths[k])
+        psi = simulate(sb, phi, order=0).psi
+        d = f.dwells[0]
+
+        def spread(a, b):
+            i = np.arange(math.ceil(a / (FINE * DEG) - 1e-9), math.floor(b / (FINE * DEG) + 1e-9) + 1)
+            v = psi[i % m]
+            return v.max() - v.min()
+
+        worst["excess"] = max(worst["excess"], spread(d.start, d.end) - band)
+        step = END_TOL * DEG
+        for a, b in ((d.start - step, d.end), (d.start, d.end + step)):
+            assert spread(a, b) > band, f"six-bar {k}: an end of {np.degrees([d.start, d.end])} can move {END_TOL}°"
+        # the longest band on the grid: no cyclic window of angle + END_TOL within it
+        n = math.floor((d.angle / DEG + END_TOL) / FINE) + 1
+        longer = maximum_filter1d(psi, n, mode="wrap") - minimum_filter1d(psi, n, mode="wrap")
+        assert longer.min() > band, f"six-bar {k}: a band longer than {math.degrees(d.angle):.4f}° exists"
+        # how much shorter than the grid's longest (found by bisection on the window size)
+        lo_n, hi_n = round(d.angle / DEG / FINE) - 10, n
+        while lo_n < hi_n:
+            mid = (lo_n + hi_n + 1) // 2
+            ok = (maximum_filter1d(psi, mid, mode="wrap") - minimum_filter1d(psi, mid, mode="wrap")).min() <= band
+            lo_n, hi_n = (mid, hi_n) if ok else (lo_n, mid - 1)
+        worst["shorter"] = max(worst["shorter"], (lo_n - 1) * FINE * DEG - d.angle)
+        # deviation: every placement [s, s + L] on the grid that contains the dwell's middle
+        centre, L = 0.5 * (d.start + d.end), lengths[k]
+        nL = round(L / (FINE * DEG)) + 1
+        wide = maximum_filter1d(psi, nL, mode="wrap") - minimum_filter1d(psi, nL, mode="wrap")  # centred windows
+        starts = np.arange(math.ceil((centre - L) / (FINE * DEG)), math.floor(centre / (FINE * DEG)) + 1)
+        brute_dev = wide[(starts + nL // 2) % m].min()
+        worst["deviation"] = max(worst["deviation"], abs(f.deviations[0] - brute_dev))
+    print("worst vs the 0.001° grid (deg):", {k: math.degrees(v) for k, v in worst.items()})
+    assert worst["excess"] <= 1e-6 * DEG
+    assert worst["shorter"] <= END_TOL * DEG
+    # a placement within ~0.004° of the best: the deviation within a thousandth of a degree
+    assert worst["deviation"] <= 1e-3 * DEG
