@@ -725,7 +725,7 @@ def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: i
     output are told apart); the best pair is searched again twice at 1/8 of that spacing,
     re-centred (the interval slides to where another constraint binds); then each end is
     pushed outwards while the band holds, in two rounds of ``EXTEND_POINTS`` points
-    (h/2048, ~0.0002° on the 0.5° grid). The reported interval is conservative: every
+    (h/8192, ~0.00006° on the 0.5° grid). The reported interval is conservative: every
     evaluated point in it is within the band. Inside, the samples stand for ψ, each local
     extreme raised to the vertex of the parabola through it and its neighbours (a peak between
     samples would otherwise let the ends overreach). Checked against a brute-force 0.001° grid
