@@ -777,7 +777,10 @@ def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: i
     low, high = lo_in, hi_in
     if psi_at is not None:
         # every grid window that may hold the longest exact interval, refined; the longest kept
-        reach = _linear_reach(E, length, w_max, w_min, band_r)
+        wanted = np.zeros((R, m), bool)
+        for sc, nn in zip(scores, lens):
+            wanted |= sc >= (nn - 1)[:, None]
+        reach = _linear_reach(E, length, w_max, w_min, band_r, wanted & (length > 0))
         cand = np.stack([_near_longest(sc, nn, reach) for sc, nn in zip(scores, lens)], axis=1)  # (R, C, W)
         cs, ok = cand[..., 0, :], cand[..., 1, :].astype(bool)
         nn = np.broadcast_to(n[..., None], cs.shape)
@@ -810,26 +813,29 @@ def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: i
                           zero(low).reshape(shape), zero(high).reshape(shape), fnd.reshape(shape))
 
 
-def _linear_reach(E, length, w_max, w_min, band):
-    """(R, M) estimate, in grid steps, of how far the band reaches beyond the grid window from
-    each start: ψ taken linear between samples, the band's placement [y, y + band] ⊇ [min,
-    max] of the window chosen to maximise the reach on both sides (its best y is one of the
-    ends of its range or a neighbour sample's level). Ranks the candidate windows."""
+def _linear_reach(E, length, w_max, w_min, band, mask):
+    """(R, M) estimate, in grid steps, of how far the band reaches from each start where
+    ``mask`` holds (−inf elsewhere): the grid window plus what ψ, taken linear between
+    samples, adds on both sides, the band's placement [y, y + band] ⊇ [min, max] of the window
+    chosen to maximise the sum (its best y is an end of its range or a neighbour sample's
+    level). Ranks the candidate windows."""
     R, m = length.shape
     T = E.shape[1]
-    r = np.arange(R)[:, None]
-    i = np.arange(m)[None, :]
-    net = (E[:, T // 2] - E[:, 0])[:, None]
-    p_in, p_out = E[:, :m], np.where(i > 0, E[r, np.maximum(i - 1, 0)], E[:, m - 1: m] - net)
-    e = i + length - 1
-    q_in, q_out = E[r, np.minimum(e, T - 1)], E[r, np.minimum(e + 1, T - 1)]
-    b = band[:, None, None]
-    lo_y, hi_y = (w_max[..., None] - b), w_min[..., None]
-    ys = np.stack([w_max - band[:, None], w_min, p_out, p_out - band[:, None], q_out, q_out - band[:, None]], axis=-1)
+    rr, ii = np.nonzero(mask)
+    net = E[rr, T // 2] - E[rr, 0]
+    n = length[rr, ii]
+    p_in = E[rr, ii]
+    p_out = np.where(ii > 0, E[rr, np.maximum(ii - 1, 0)], E[rr, m - 1] - net)
+    e = ii + n - 1
+    q_in, q_out = E[rr, np.minimum(e, T - 1)], E[rr, np.minimum(e + 1, T - 1)]
+    b = band[rr][:, None]
+    hi, lo = w_max[rr, ii], w_min[rr, ii]
+    lo_y, hi_y = (hi - band[rr])[:, None], lo[:, None]
+    ys = np.stack([hi - band[rr], lo, p_out, p_out - band[rr], q_out, q_out - band[rr]], axis=-1)
     ys = np.clip(ys, lo_y, np.maximum(lo_y, hi_y))
 
     def frac(inside, outside, y):  # share of the step the line from inside to outside stays in [y, y + b]
-        ins, out = inside[..., None], outside[..., None]
+        ins, out = inside[:, None], outside[:, None]
         d = out - ins
         below = (ins - y) / np.where(out < y, -d, 1.0)
         above = (y + b - ins) / np.where(out > y + b, d, 1.0)
@@ -838,7 +844,9 @@ def _linear_reach(E, length, w_max, w_min, band):
 
     with np.errstate(invalid="ignore", divide="ignore"):
         est = frac(p_in, p_out, ys) + frac(q_in, q_out, ys)
-    return length - 1 + np.max(np.where(np.isfinite(est), est, 0.0), axis=-1)
+    out = np.full((R, m), -np.inf)
+    out[rr, ii] = n - 1 + np.max(np.where(np.isfinite(est), est, 0.0), axis=-1)
+    return out
 
 
 def _near_longest(length: NDArray[np.int64], longest: NDArray[np.int64], reach: F64) -> NDArray[np.int64]:
