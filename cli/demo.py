@@ -35,7 +35,7 @@ def demo(out_dir: str, target: str | None, workers: int | None) -> None:
     """Build the demo atlas, answer an RRR, an RPR and a double-dwell request, write reports."""
     from atlas.build import build_atlas
     from atlas.sweep import PRESETS
-    from cli.query import _table, answer, no_match_message, request_from_options
+    from cli.query import answer, no_match_message, request_from_options, table
     from db.engine import display_target, open_atlas
     from report.export import write_report
 
@@ -78,7 +78,7 @@ def demo(out_dir: str, target: str | None, workers: int | None) -> None:
             if not result.candidates:
                 click.echo(no_match_message(result))
                 continue
-            click.echo(_table(result))
+            click.echo(table(result))
             best = result.candidates[0]
             dwell = " and ".join(f"{math.degrees(d.angle):.2f}°" for d in best.figures.dwells[: request.dwells])
             click.echo(f"best: {best.id}: {best.sixbar.dyad.kind} output, dwell {dwell}, "

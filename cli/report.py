@@ -19,7 +19,7 @@ from cli.options import positive, probe_folder
 @click.option("--dwell", type=float, default=None, help="Requested dwell (°) for the output deviation window.")
 @click.option("--dwell-tolerance", type=float, default=0.1, show_default=True, help="Output band (°).")
 @click.option("--crank", type=float, default=1.0, show_default=True, callback=positive, help="Crank length (your unit).")
-@click.option("--min-transmission", type=float, default=30.0, show_default=True,
+@click.option("--min-transmission", type=click.FloatRange(0.0, 90.0, min_open=True, max_open=True), default=30.0, show_default=True,
               help="The query's smallest transmission angle (°): RRR fits are rebuilt with it.")
 @click.argument("more_ids", nargs=-1)
 def report(target, ids, out_dir, dwell, dwell_tolerance, crank, min_transmission, more_ids):

@@ -1,4 +1,5 @@
-"""Indexed candidate selection for the synthesis query.
+"""Indexed candidate selection for the synthesis query: :class:`AtlasSource` is the
+:class:`synth.query.SegmentSource` of an atlas.
 
 Short walks of ``ix_dwell_query`` (kind, level, dwell_angle) outwards from each wanted dwell
 angle, joined to their segment and linkage and filtered on the linkage's constraints, then one
@@ -9,48 +10,15 @@ from __future__ import annotations
 
 import json
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 from sqlalchemy import Engine, and_, bindparam, func, or_, select
 from sqlalchemy.orm import Session
 
 from db.engine import atlas_name, damaged
 from db.schema import Build, Dwell, Linkage, Segment
+from synth.query import DwellWindow, SegmentRow
 
-__all__ = ["DwellWindow", "SegmentRow", "nearest_dwell_angles", "select_segments", "tolerance_levels"]
-
-
-@dataclass(frozen=True, slots=True)
-class SegmentRow:
-    """A stored segment with the dwell row (one level; both parts for a double line) that
-    matched the request. Angles in radians, lengths in crank lengths."""
-
-    segment_id: int
-    kind: str
-    level: int
-    tolerance: float
-    b: float
-    c: float
-    d: float
-    branch: int
-    u: float
-    v: float
-    phi_gen: float
-    #: per part: (phi_start, phi_end, x, y, direction or None, radius or None)
-    parts: tuple[tuple[float, float, float, float, float | None, float | None], ...]
-    fourbar_transmission_min: float
-
-
-@dataclass(frozen=True, slots=True)
-class DwellWindow:
-    """Stored dwells wanted: at tolerance ``level`` (None: any level), with a dwell angle (rad)
-    in [low, high], the ``limit`` closest to ``target``."""
-
-    level: int | None
-    low: float
-    high: float
-    target: float
-    limit: int
+__all__ = ["AtlasSource", "DwellWindow", "SegmentRow", "nearest_dwell_angles", "select_segments", "tolerance_levels"]
 
 
 def select_segments(
@@ -168,3 +136,50 @@ def tolerance_levels(engine: Engine) -> list[tuple[int, float]]:
     with Session(engine) as s:
         spec = s.execute(select(Build.spec_json).order_by(Build.id.desc()).limit(1)).scalar()
     return [] if spec is None else list(enumerate(float(t) for t in json.loads(spec)["tolerances"]))
+
+
+def segment_row(engine: Engine, segment_id: int, level: int) -> SegmentRow | None:
+    """Segment ``segment_id`` with its dwell row(s) at ``level`` (``parts`` empty if it has
+    none there); None if the atlas has no such segment."""
+    with engine.connect() as conn:
+        seg = conn.execute(
+            select(Segment.id, Segment.kind, Segment.u, Segment.v, Segment.phi_gen, Linkage.b, Linkage.c, Linkage.d,
+                   Linkage.branch, Linkage.transmission_min)
+            .join(Linkage, Segment.linkage_id == Linkage.id).where(Segment.id == segment_id)
+        ).first()
+        if seg is None:
+            return None
+        dws = conn.execute(
+            select(Dwell.tolerance, Dwell.phi_start, Dwell.phi_end, Dwell.x, Dwell.y, Dwell.direction, Dwell.radius)
+            .where(Dwell.segment_id == segment_id, Dwell.level == level).order_by(Dwell.part)
+        ).all()
+    return SegmentRow(
+        segment_id=seg.id, kind=seg.kind, level=level, tolerance=dws[0].tolerance if dws else 0.0,
+        b=seg.b, c=seg.c, d=seg.d, branch=seg.branch, u=seg.u, v=seg.v, phi_gen=seg.phi_gen,
+        parts=tuple((dw.phi_start, dw.phi_end, dw.x, dw.y, dw.direction, dw.radius) for dw in dws),
+        fourbar_transmission_min=seg.transmission_min,
+    )
+
+
+class AtlasSource:
+    """The atlas behind ``engine`` as the query's :class:`synth.query.SegmentSource` (reads
+    only; the tolerance levels are read once)."""
+
+    def __init__(self, engine: Engine) -> None:
+        self.engine = engine
+        self._levels: list[tuple[int, float]] | None = None
+
+    def tolerance_levels(self) -> list[tuple[int, float]]:
+        if self._levels is None:
+            self._levels = tolerance_levels(self.engine)
+        return self._levels
+
+    def select_segments(self, kinds, windows, *, min_transmission, max_length, min_radius_ratio):
+        return select_segments(self.engine, kinds, windows, min_transmission=min_transmission,
+                               max_length=max_length, min_radius_ratio=min_radius_ratio)
+
+    def segment(self, segment_id: int, level: int) -> SegmentRow | None:
+        return segment_row(self.engine, segment_id, level)
+
+    def nearest_dwell_angles(self, kinds, target):
+        return nearest_dwell_angles(self.engine, kinds, target)

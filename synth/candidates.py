@@ -24,9 +24,11 @@ __all__ = ["Candidate", "Request", "candidate_id", "candidate_json", "parse_cand
 OUTPUTS = ("rpr", "rrr", "any")
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class Request:
-    """A dwell request. Angles in radians, lengths in the user's unit (crank = ``crank``).
+    """A dwell request, built with keywords. Angles in radians, lengths in the user's unit
+    (crank = ``crank``). The field defaults are the only definition of the request's defaults
+    (``dwell query`` shows them in degrees in its ``--help``).
 
     ``band`` is the total width of the output band that counts as standing still; ``swing``
     is required for one dwell and optional for two (then a constraint, ±``swing_tol``)."""

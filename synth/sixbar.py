@@ -68,12 +68,19 @@ _KINDS = ("RPR", "RRR")
 PIN_ON_PIVOT_EPS = 1e-9
 #: |sin| of the rod–rocker angle below this: RRR dyad toggle, its derivative system is singular.
 TOGGLE_EPS = 1e-12
-#: Dwell ends and window placements are refined on the exact path to this crank-angle step (rad).
+#: Crank-angle step (rad) that sets the subdivisions of one grid step in the first stage of the
+#: deviation window's placement (at most DWELL_FINE of them; a second stage refines ×DWELL_FINE/2).
 REFINE_STEP = math.radians(0.008)
 #: Most subdivisions of one grid step in a refinement (bounds the work on coarse grids).
 MAX_FINE = 128
 #: Elements of the (start, end) pair table of the dwell refinement evaluated at once.
 _PAIR_BUDGET = 1 << 21
+#: Exact points per grid step in the dwell's (start, end) pair search.
+DWELL_FINE = 16
+#: Grid windows refined per dwell (those that may hold the longest exact interval).
+CANDIDATES = 8
+#: Points per round of the final push of each dwell end (two rounds).
+EXTEND_POINTS = 8
 #: Transmission angle reported for the RPR output (rad): see :func:`simulate`.
 RPR_TRANSMISSION = 0.5 * math.pi
 
@@ -693,9 +700,9 @@ def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: i
         1: the longest interval. 2: the two longest disjoint intervals (a double-dwell
         mechanism), longest first.
     psi_at : callable, optional
-        Exact ψ(φ) (shape ``(..., K)`` → ``(..., K)``, any 2π branch). With it the ends are
-        refined on the exact path to ``REFINE_STEP`` (0.008°; h/``MAX_FINE`` on grids coarser
-        than ~350 samples) beyond the sample grid; without it the ends are sample angles.
+        Exact ψ(φ) (shape ``(..., K)`` → ``(..., K)``, any 2π branch). With it both ends are
+        refined on the exact path (see Notes) to well under 0.005° on the 0.5° grid; without
+        it the ends are sample angles.
     dpsi1 : (..., M) float, optional
         ψ′, used only to pick the 2π branch of the turn-closing step (as in :func:`simulate`).
 
@@ -708,13 +715,21 @@ def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: i
     -----
     On the grid, the longest window from every start sample is found at once by binary
     lifting over a sparse table of block maxima/minima (O(M log M), vectorised over rows and
-    starts). Its ends then lie in the two grid steps just outside it; both are subdivided into
-    K = ⌈h/REFINE_STEP⌉ parts, ψ is evaluated exactly there, and the pair of fine end points
-    that maximises the length under max − min ≤ band (with the interior's extremes) is taken.
-    The reported interval is conservative: every evaluated point in it is within the band, and
-    each true end lies less than one fine step beyond the reported one. Extremes strictly
-    inside the grid window are taken from the samples (in a dwell ψ is flat, the sample error
-    h²|ψ″|/8 is far below any band of interest).
+    starts). The longest exact interval need not sit in the longest grid window: one of
+    Λ ≥ (n − 1)·h holds at least n − 1 samples, so every start whose window holds ≥ n − 1
+    samples is a candidate; the ``CANDIDATES`` of them whose band reaches furthest with ψ
+    linear between samples are refined. For each, the start is searched in the step before
+    its first sample and the end in the two steps from its (n − 2)-th, on ``DWELL_FINE``
+    exact points per step, for the pair that maximises the length (ends ranked with ψ linear
+    beyond the last point inside, so that the many near-equal pairs of a slowly drifting
+    output are told apart); the best pair is searched again twice at 1/8 of that spacing,
+    re-centred (the interval slides to where another constraint binds); then each end is
+    pushed outwards while the band holds, in two rounds of ``EXTEND_POINTS`` points
+    (h/8192, ~0.00006° on the 0.5° grid). The reported interval is conservative: every
+    evaluated point in it is within the band. Inside, the samples stand for ψ, each local
+    extreme raised to the vertex of the parabola through it and its neighbours (a peak between
+    samples would otherwise let the ends overreach). Checked against a brute-force 0.001° grid
+    in ``tests/synth/test_query_stage.py``.
     """
     if count not in (1, 2):
         raise ValueError(f"count must be 1 or 2, not {count!r}")
@@ -729,13 +744,17 @@ def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: i
     d1 = None if dpsi1 is None else np.asarray(dpsi1, float).reshape(R, m)
     net = _net_change(P, d1, h)
     E = np.concatenate([P, P + net[:, None]], axis=1)  # ψ over two turns
-    tab_max, tab_min = _sparse_tables(E, m)
-    length, _, _ = _lifted_lengths(tab_max, tab_min, band_r, m)
+    # With the exact path at hand, each sample that is a local extreme stands for the vertex of
+    # the parabola through it and its neighbours: a peak between samples (h²|ψ″|/8) inside a
+    # dwell must not be missed once the ends are pushed to the band's edge.
+    upper, lower = _vertex_bounds(E) if psi_at is not None else (E, E)
+    tab_max, tab_min = _sparse_tables(upper, m, lower)
+    length, w_max, w_min = _lifted_lengths(tab_max, tab_min, band_r, m)
 
     rows = np.arange(R)
     s1 = np.argmax(length, axis=1)
     n1 = length[rows, s1]
-    starts, lens, found = [s1], [n1], [np.ones(R, bool)]
+    scores, starts, lens, found = [length], [s1], [n1], [np.ones(R, bool)]
     if count == 2:
         i = np.arange(m)[None, :]
         inside = np.mod(i - s1[:, None], m) < n1[:, None]
@@ -743,6 +762,7 @@ def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: i
         eff = np.where(inside, 0, np.minimum(length, gap))
         s2 = np.argmax(eff, axis=1)
         n2 = eff[rows, s2]
+        scores.append(eff)
         starts.append(s2)
         lens.append(n2)
         found.append(n2 > 0)
@@ -756,7 +776,30 @@ def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: i
     end = start + (n - 1) * h
     low, high = lo_in, hi_in
     if psi_at is not None:
-        start, end, low, high = _refine_dwell(E, s, n, hi_in, lo_in, band_r, phi0, h, psi_at, lead)
+        # every grid window that may hold the longest exact interval, refined; the longest kept
+        wanted = np.zeros((R, m), bool)
+        for sc, nn in zip(scores, lens):
+            wanted |= sc >= (nn - 1)[:, None]
+        reach = _linear_reach(E, length, w_max, w_min, band_r, wanted & (length > 0))
+        cand = np.stack([_near_longest(sc, nn, reach) for sc, nn in zip(scores, lens)], axis=1)  # (R, C, W)
+        cs, ok = cand[..., 0, :], cand[..., 1, :].astype(bool)
+        nn = np.broadcast_to(n[..., None], cs.shape)
+        c_start, c_end, *c_rest, c_reach = _refine_dwell(E, cs, nn, band_r, phi0, h, psi_at, lead, tab_max, tab_min)
+        best = np.argmax(np.where(ok, c_reach - c_start, -np.inf), axis=-1)[..., None]
+        pick = lambda x: np.take_along_axis(x, best, -1)[..., 0]
+        start, end, low, high = map(pick, (c_start, c_end, *c_rest[:2]))
+        # the best pair again, at 2/DWELL_FINE of its spacing, twice (re-centred): the interval
+        # may slide, one end gaining more than the other loses, to where another constraint binds
+        step = h / DWELL_FINE
+        for _ in range(2):
+            inner_hi, inner_lo = _samples_between(tab_max, tab_min, start + step, end - step, phi0, h)
+            start2, end2, low2, high2, _, _, _ = _refine_pair(
+                start, end, 0.5 * (low + high), inner_hi, inner_lo, band_r, step, psi_at, lead)
+            better = end2 - start2 > end - start
+            start, end = np.where(better, start2, start), np.where(better, end2, end)
+            low, high = np.where(better, low2, low), np.where(better, high2, high)
+        start, end, low, high = _extend_ends(start, end, low, high, band_r, 2 * step / DWELL_FINE, psi_at, lead)
+        start, end = np.where(whole, phi0 + s * h, start), np.where(whole, end, end)
         low, high = np.where(whole, lo_in, low), np.where(whole, hi_in, high)
     # A window covering the turn is the whole turn (no ends to refine).
     start = np.where(whole, phi0, start)
@@ -770,18 +813,82 @@ def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: i
                           zero(low).reshape(shape), zero(high).reshape(shape), fnd.reshape(shape))
 
 
-def _sparse_tables(E: F64, max_len: int) -> tuple[list[F64], list[F64]]:
-    """Level j holds the max/min of E over blocks [i, i + 2^j), for 2^j ≤ ``max_len``; the
-    tail where a block would run past the end is +inf/−inf, so such a block is never within
-    a band."""
-    tab_max, tab_min = [E], [E]
+def _linear_reach(E, length, w_max, w_min, band, mask):
+    """(R, M) estimate, in grid steps, of how far the band reaches from each start where
+    ``mask`` holds (−inf elsewhere): the grid window plus what ψ, taken linear between
+    samples, adds on both sides, the band's placement [y, y + band] ⊇ [min, max] of the window
+    chosen to maximise the sum (its best y is an end of its range or a neighbour sample's
+    level). Ranks the candidate windows."""
+    R, m = length.shape
+    T = E.shape[1]
+    rr, ii = np.nonzero(mask)
+    net = E[rr, T // 2] - E[rr, 0]
+    n = length[rr, ii]
+    p_in = E[rr, ii]
+    p_out = np.where(ii > 0, E[rr, np.maximum(ii - 1, 0)], E[rr, m - 1] - net)
+    e = ii + n - 1
+    q_in, q_out = E[rr, np.minimum(e, T - 1)], E[rr, np.minimum(e + 1, T - 1)]
+    b = band[rr][:, None]
+    hi, lo = w_max[rr, ii], w_min[rr, ii]
+    lo_y, hi_y = (hi - band[rr])[:, None], lo[:, None]
+    ys = np.stack([hi - band[rr], lo, p_out, p_out - band[rr], q_out, q_out - band[rr]], axis=-1)
+    ys = np.clip(ys, lo_y, np.maximum(lo_y, hi_y))
+
+    def frac(inside, outside, y):  # share of the step the line from inside to outside stays in [y, y + b]
+        ins, out = inside[:, None], outside[:, None]
+        d = out - ins
+        below = (ins - y) / np.where(out < y, -d, 1.0)
+        above = (y + b - ins) / np.where(out > y + b, d, 1.0)
+        f = np.where(out < y, below, np.where(out > y + b, above, 1.0))
+        return np.clip(f, 0.0, 1.0)
+
+    with np.errstate(invalid="ignore", divide="ignore"):
+        est = frac(p_in, p_out, ys) + frac(q_in, q_out, ys)
+    out = np.full((R, m), -np.inf)
+    out[rr, ii] = n - 1 + np.max(np.where(np.isfinite(est), est, 0.0), axis=-1)
+    return out
+
+
+def _near_longest(length: NDArray[np.int64], longest: NDArray[np.int64], reach: F64) -> NDArray[np.int64]:
+    """(R, 2, CANDIDATES): grid starts whose window holds at least ``longest`` − 1 samples —
+    those that can hold the longest exact interval (an interval of length Λ ≥ (longest − 1)·h
+    holds ≥ longest − 1 samples, and the window from its first sample holds them all) — the
+    largest linear ``reach`` first; row 1 flags which are real candidates."""
+    R, m = length.shape
+    ok = (length >= (longest - 1)[:, None]) & (length > 0)
+    key = np.where(ok, -reach, np.inf)
+    order = np.argsort(key, axis=1, kind="stable")[:, :CANDIDATES]
+    valid = np.take_along_axis(ok, order, 1)
+    valid[:, 0] = True  # something to refine in every row (a missing dwell is dropped later)
+    return np.stack([order, valid.astype(np.int64)], axis=1)
+
+
+def _vertex_bounds(E: F64) -> tuple[F64, F64]:
+    """(upper, lower): the samples, raised (lowered) at each local maximum (minimum) to the
+    vertex of the parabola through it and its two neighbours."""
+    ym, y0, yp = E[:, :-2], E[:, 1:-1], E[:, 2:]
+    den = ym - 2 * y0 + yp
+    lift = (ym - yp) ** 2 / (8 * np.where(den != 0, np.abs(den), 1.0))
+    peak = (den < 0) & (y0 >= ym) & (y0 >= yp)
+    dip = (den > 0) & (y0 <= ym) & (y0 <= yp)
+    upper, lower = E.copy(), E.copy()
+    upper[:, 1:-1] += np.where(peak, np.minimum(lift, np.abs(den)), 0.0)
+    lower[:, 1:-1] -= np.where(dip, np.minimum(lift, np.abs(den)), 0.0)
+    return upper, lower
+
+
+def _sparse_tables(E: F64, max_len: int, E_min: F64 | None = None) -> tuple[list[F64], list[F64]]:
+    """Level j holds the max of E (min of ``E_min``, default E) over blocks [i, i + 2^j), for
+    2^j ≤ ``max_len``; the tail where a block would run past the end is +inf/−inf, so such a
+    block is never within a band."""
+    tab_max, tab_min = [E], [E if E_min is None else E_min]
     j = 1
     T = E.shape[1]
     while (1 << j) <= max_len:
         half = 1 << (j - 1)
         pm, pn = tab_max[-1], tab_min[-1]
-        nm = np.empty_like(E)
-        nn = np.empty_like(E)
+        nm = np.empty_like(pm)
+        nn = np.empty_like(pn)
         np.maximum(pm[:, : T - half], pm[:, half:], out=nm[:, : T - half])
         np.minimum(pn[:, : T - half], pn[:, half:], out=nn[:, : T - half])
         nm[:, T - half:] = np.inf
@@ -840,65 +947,165 @@ def _eval_rewrapped(psi_at: PsiAt, at: F64, ref: F64, lead: tuple[int, ...]) -> 
     return _rewrap(vals.reshape(at.shape), ref)
 
 
-def _refine_dwell(E, s, n, hi_in, lo_in, band, phi0, h, psi_at, lead):
-    """Ends of the grid windows refined on the exact path (see :func:`dwell_intervals`)."""
-    R, C = s.shape
-    K = _fine_count(h)
-    t = np.arange(K + 1) / K  # fractions of one grid step
-    r = np.arange(R)[:, None]
+def _fine_path(E, first, steps, K, phi0, h, psi_at, lead):
+    """ψ on the exact path at K points per grid step over ``steps`` steps from sample ``first``
+    (index into the two-turn samples E; −1 is the last sample of the previous turn): crank
+    angles and values ``(R, C, steps·K + 1)``; sample points keep their sample values."""
+    R = E.shape[0]
     T = E.shape[1]
-    e = s + n - 1
-    # The sample before s: s − 1 may be −1, the last sample of the previous turn.
     net = E[:, T // 2] - E[:, 0]
-    y_before = np.where(s > 0, E[r, np.maximum(s - 1, 0)], E[r, np.mod(s - 1, T // 2)] - net[:, None])
-    y_s = E[r, s]
-    y_e = E[r, np.minimum(e, T - 1)]
-    y_after = E[r, np.minimum(e + 1, T - 1)]
-    left_at = phi0 + (s - 1)[..., None] * h + t * h  # (R, C, K+1), from sample s−1 to s
-    right_at = phi0 + e[..., None] * h + t * h  # from sample e to e+1
-    ref_l = y_before[..., None] + t * (y_s - y_before)[..., None]
-    ref_r = y_e[..., None] + t * (y_after - y_e)[..., None]
-    inner = slice(1, K)
-    both = np.concatenate([left_at[..., inner], right_at[..., inner]], axis=-1)
-    ref = np.concatenate([ref_l[..., inner], ref_r[..., inner]], axis=-1)
-    vals = _eval_rewrapped(psi_at, both, ref, lead)
-    lv = ref_l.copy()
-    rv = ref_r.copy()
-    lv[..., inner] = vals[..., : K - 1]
-    rv[..., inner] = vals[..., K - 1:]
-    lv[..., 0], lv[..., K] = y_before, y_s
-    rv[..., 0], rv[..., K] = y_e, y_after
-    # Start at left point jl keeps lv[jl:], end at right point jr keeps rv[:jr+1].
+    idx = first[..., None] + np.arange(steps + 1)  # (R, ..., steps+1)
+    r = np.arange(R).reshape((R,) + (1,) * (idx.ndim - 1))
+    y = np.where(idx >= 0, E[r, np.clip(idx, 0, T - 1)], E[r, np.mod(idx, T // 2)] - net.reshape(r.shape))
+    t = np.arange(steps * K + 1) / K  # in grid steps from ``first``
+    at = phi0 + (first[..., None] + t) * h
+    k, w = np.minimum(np.floor(t).astype(np.int64), steps - 1), t - np.minimum(np.floor(t), steps - 1)
+    ref = (1 - w) * y[..., k] + w * y[..., k + 1]  # linear between samples: the 2π branch to evaluate on
+    inner = (np.arange(t.size) % K) != 0
+    vals = ref.copy()
+    vals[..., inner] = _eval_rewrapped(psi_at, at[..., inner], ref[..., inner], lead)
+    return at, vals
+
+
+def _pair_search(left_at, lv, right_at, rv, hi_in, lo_in, band):
+    """The longest (start, end) pair of exact points, start among ``left_at`` and end among
+    ``right_at`` (each ascending, the left ones before the right ones), whose values and the
+    interior's extremes (``hi_in``, ``lo_in``: everything strictly between the two point sets)
+    stay within ``band``. Shapes ``(R, ...)`` plus the points axis. Returns start, end, low,
+    high, the extremes of what lies strictly inside (start, end) less one point at each end
+    (for a finer stage), and the end's linear estimate beyond the last point (ranks pairs)."""
+    R = lv.shape[0]
     sl_max = np.maximum.accumulate(lv[..., ::-1], axis=-1)[..., ::-1]
     sl_min = np.minimum.accumulate(lv[..., ::-1], axis=-1)[..., ::-1]
     pr_max = np.maximum.accumulate(rv, axis=-1)
     pr_min = np.minimum.accumulate(rv, axis=-1)
     Hl = np.maximum(hi_in[..., None], sl_max)
     Ll = np.minimum(lo_in[..., None], sl_min)
-    b = np.broadcast_to(band[:, None, None], Hl.shape[:2] + (1,))
+    b = np.broadcast_to(band.reshape((R,) + (1,) * (hi_in.ndim - 1)), hi_in.shape)[..., None]
     ok_l = (Hl - Ll) <= b
     ok_r = (pr_max - pr_min) <= b
-    j = np.arange(K + 1)
-    gain = j[None, :] - j[:, None]  # length gained (fine steps) by start jl, end jr
-    best = np.empty((R, C), np.int64)
-    # (jl, jr) pairs in row chunks, so that a coarse grid (large K) stays within memory.
-    chunk = max(1, _PAIR_BUDGET // ((K + 1) ** 2 * C))
+    nl, nr = lv.shape[-1], rv.shape[-1]
+    jl = np.empty(hi_in.shape, np.int64)
+    jr = np.empty(hi_in.shape, np.int64)
+    share = np.empty(hi_in.shape)
+    W = int(np.prod(hi_in.shape[1:]))
+    along = lambda x, j: np.take_along_axis(x, j[..., None], -1)[..., 0]
+    # (jl, jr) pairs in row chunks, so that many candidates stay within memory.
+    chunk = max(1, _PAIR_BUDGET // (nl * nr * W))
     for r0 in range(0, R, chunk):
         q = slice(r0, r0 + chunk)
         bq = b[q][..., None]
-        feasible = (ok_l[q][..., :, None] & ok_r[q][..., None, :]
-                    & ((Hl[q][..., :, None] - pr_min[q][..., None, :]) <= bq)
-                    & ((pr_max[q][..., None, :] - Ll[q][..., :, None]) <= bq))
-        score = np.where(feasible, gain, -(2 * K + 1))
-        best[q] = np.argmax(score.reshape(score.shape[0], C, -1), axis=-1)
-    jl, jr = np.divmod(best, K + 1)
-    start = phi0 + (s - 1) * h + jl * (h / K)
-    end = phi0 + e * h + jr * (h / K)
+        top = np.maximum(Hl[q][..., :, None], pr_max[q][..., None, :])
+        bottom = np.minimum(Ll[q][..., :, None], pr_min[q][..., None, :])
+        feasible = ok_l[q][..., :, None] & ok_r[q][..., None, :] & ((top - bottom) <= bq)
+        # for each start the feasible ends are a prefix (the range only grows): its last end,
+        # and the share of the next step the band still holds, ψ linear there — the lengths of
+        # pairs that the points alone would tie (a slowly drifting output gives many) differ
+        cnt = feasible.sum(axis=-1)
+        last = np.maximum(cnt - 1, 0)
+        has_next = cnt < nr
+        rq = np.broadcast_to(rv[q][..., None, :], feasible.shape)
+        u = along(rq, last)
+        v = along(rq, np.minimum(last + 1, nr - 1))
+        up, down = along(bottom, last) + b[q], along(top, last) - b[q]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            f = np.where(v > up, (up - u) / (v - u), np.where(v < down, (u - down) / (u - v), 0.0))
+        f = np.where(has_next & np.isfinite(f), np.clip(f, 0.0, 1.0), 0.0)
+        score = np.where(cnt > 0, last + f - np.arange(nl), -np.inf)
+        jl[q] = np.argmax(score, axis=-1)
+        jr[q] = along(last, jl[q])
+        share[q] = along(f, jl[q])
     take = lambda x, jj: np.take_along_axis(x, jj[..., None], -1)[..., 0]
+    start, end = take(left_at, jl), take(right_at, jr)
     high = np.maximum(take(Hl, jl), take(pr_max, jr))
     low = np.minimum(take(Ll, jl), take(pr_min, jr))
-    # The grid window itself (jl = K, jr = 0) is always feasible, so nothing is lost; an
-    # infeasible grid window (n = 1 and band below the step) keeps the sample.
+    # what lies strictly inside (start + one point, end − one point): a finer stage's interior
+    inner_hi = np.maximum(np.maximum(hi_in, np.where(jl + 1 < nl, take(sl_max, np.minimum(jl + 1, nl - 1)), -np.inf)),
+                          np.where(jr >= 1, take(pr_max, np.maximum(jr - 1, 0)), -np.inf))
+    inner_lo = np.minimum(np.minimum(lo_in, np.where(jl + 1 < nl, take(sl_min, np.minimum(jl + 1, nl - 1)), np.inf)),
+                          np.where(jr >= 1, take(pr_min, np.maximum(jr - 1, 0)), np.inf))
+    reach = end + share * (right_at[..., 1] - right_at[..., 0])  # the end, ψ linear beyond the last point
+    return start, end, low, high, inner_hi, inner_lo, reach
+
+
+def _refine_dwell(E, s, n, band, phi0, h, psi_at, lead, tab_max, tab_min):
+    """Each candidate grid window refined on the exact path (see :func:`dwell_intervals`):
+    start in [φ_{s−1}, φ_s], end in [φ_{e₀}, φ_{e₀+2}] with e₀ = s + n − 2, on ``DWELL_FINE``
+    points per grid step, the pair of points that maximises the length within the band.
+    Shapes ``(R, C, W)``; returns what :func:`_pair_search` returns."""
+    R = E.shape[0]
+    K = DWELL_FINE
+    e0 = s + np.maximum(n - 2, 0)
+    # samples strictly between the two regions: s+1 .. e0−1
+    n_in = e0 - s - 1
+    has_in = n_in >= 1
+    flat = lambda x: x.reshape(R, -1)
+    hi_in, lo_in = _range_query(tab_max, tab_min, flat(s + 1), flat(np.maximum(n_in, 1)))
+    hi_in = np.where(has_in, hi_in.reshape(s.shape), -np.inf)
+    lo_in = np.where(has_in, lo_in.reshape(s.shape), np.inf)
+    left_at, lv = _fine_path(E, s - 1, 1, K, phi0, h, psi_at, lead)
+    right_at, rv = _fine_path(E, e0, 2, K, phi0, h, psi_at, lead)
+    # A window of samples within the band (start at φ_s, end at φ_{e₀}) is among the pairs.
+    return _pair_search(left_at, lv, right_at, rv, hi_in, lo_in, band)
+
+
+def _samples_between(tab_max, tab_min, a, b, phi0, h):
+    """max/min of the (vertex-bounded) samples strictly inside (a, b), ∓inf if there are none;
+    a, b of shape (R, C) within the two turns of the tables."""
+    R = a.shape[0]
+    i0 = np.floor((a - phi0) / h).astype(np.int64) + 1
+    i1 = np.ceil((b - phi0) / h).astype(np.int64) - 1
+    T = tab_max[0].shape[1]
+    i0 = np.clip(i0, 0, T - 1)
+    count = np.minimum(i1, T - 1) - i0 + 1
+    hi, lo = _range_query(tab_max, tab_min, i0.reshape(R, -1), np.maximum(count, 1).reshape(R, -1))
+    return (np.where(count >= 1, hi.reshape(a.shape), -np.inf), np.where(count >= 1, lo.reshape(a.shape), np.inf))
+
+
+def _refine_pair(start, end, level, inner_hi, inner_lo, band, step, psi_at, lead):
+    """A finer pair search: start within ±``step`` of ``start``, end within ±``step`` of
+    ``end``, on ``DWELL_FINE`` + 1 exact points each (``inner_hi``/``inner_lo``: extremes of
+    what lies between; ``level``: a ψ inside the band, the 2π branch to evaluate on). Shapes
+    ``(R, C)``."""
+    t = np.linspace(-1.0, 1.0, DWELL_FINE + 1)
+    ref = np.broadcast_to(level[..., None], start.shape + t.shape)
+    left_at = start[..., None] + step * t
+    right_at = end[..., None] + step * t
+    both = _eval_rewrapped(psi_at, np.concatenate([left_at, right_at], axis=-1),
+                           np.concatenate([ref, ref], axis=-1), lead)
+    lv, rv = both[..., : t.size], both[..., t.size:]
+    return _pair_search(left_at, lv, right_at, rv, inner_hi, inner_lo, band)
+
+
+def _extend_ends(start, end, low, high, band, spacing, psi_at, lead):
+    """Each end pushed outwards on the exact path while the band holds, the start first, then
+    the end (which keeps the start maximal: a longer interval only adds constraints): two
+    rounds of ``EXTEND_POINTS`` points, over the ``spacing`` of the last pair search and then
+    over one of its parts, so that each end lies within spacing/EXTEND_POINTS² of where the
+    band breaks. Shapes ``(R, C)``."""
+    Q = EXTEND_POINTS
+    b = band[:, None]
+    q = np.arange(1, Q + 1) / Q
+    for side in (-1, 1):
+        step = spacing
+        for _ in range(2):
+            edge = start if side < 0 else end
+            at = edge[..., None] + side * step * q
+            ref = np.broadcast_to((0.5 * (low + high))[..., None], at.shape)
+            v = _eval_rewrapped(psi_at, at, ref, lead)
+            cmax = np.maximum(np.maximum.accumulate(v, axis=-1), high[..., None])
+            cmin = np.minimum(np.minimum.accumulate(v, axis=-1), low[..., None])
+            k = np.sum((cmax - cmin) <= b[..., None], axis=-1)  # leading points within the band
+            moved = k > 0
+            kk = np.maximum(k - 1, 0)[..., None]
+            edge = np.where(moved, np.take_along_axis(at, kk, -1)[..., 0], edge)
+            high = np.where(moved, np.take_along_axis(cmax, kk, -1)[..., 0], high)
+            low = np.where(moved, np.take_along_axis(cmin, kk, -1)[..., 0], low)
+            if side < 0:
+                start = edge
+            else:
+                end = edge
+            step = step / Q
     return start, end, low, high
 
 
@@ -923,7 +1130,8 @@ def output_deviation(phi: ArrayLike, psi: ArrayLike, center: ArrayLike, length: 
         Requested dwell length (rad), in (0, 2π − 2h].
     psi_at : callable, optional
         Exact ψ(φ) (see :func:`dwell_intervals`); the best grid placement is then refined on
-        the exact path to 2·``REFINE_STEP`` in s, with the window ends evaluated exactly.
+        the exact path in two stages (2h/``DWELL_FINE`` … then h/(4·``DWELL_FINE``²)·…, about
+        0.004° on the 0.5° grid), with the window ends evaluated exactly.
     dpsi1 : (..., M) float, optional
         ψ′, to pick the branch of the turn-closing step.
 
@@ -978,7 +1186,7 @@ def _refine_window(slab, i_lo, k, nL, L, c, dev, s_best, phi0, h, tab_max, tab_m
     """Window placement refined on the exact path around the best grid start, which sits at
     slab offset ``k`` (slab offset 0 is sample i_lo − 1)."""
     R = slab.shape[0]
-    K2 = 2 * _fine_count(h)
+    K2 = 2 * min(_fine_count(h), DWELL_FINE)
     t = np.arange(K2 + 1) / K2
     r = np.arange(R)[:, None]
     s_lo = phi0 + (i_lo - 2 + k) * h  # one step before the best grid start
@@ -1014,7 +1222,42 @@ def _refine_window(slab, i_lo, k, nL, L, c, dev, s_best, phi0, h, tab_max, tab_m
     # The fine placements contain the grid one; where the window is shorter than two steps
     # the start and end regions overlap and the split above does not hold: keep the grid.
     refined = (fine < np.inf) & (nL >= 2)
-    return np.where(refined, fine, dev), np.where(refined, f[r[:, 0], j], s_best)
+    # Again around the best fine start, ±one fine step on DWELL_FINE + 1 points (~0.004° on
+    # the 0.5° grid): between the two end regions lie the stage's own points (suffix of the
+    # starts beyond j + 1, prefix of the ends before j − 1) and the samples.
+    rr = r[:, 0]
+    d = 2 * h / K2
+    f_best = f[rr, j]
+    t3 = np.linspace(-1.0, 1.0, DWELL_FINE + 1)
+    f3 = f_best[:, None] + d * t3[None, :]
+    g3 = f3 + L[:, None]
+    allowed3 = (f3 >= (c - L)[:, None] - 1e-12) & (f3 <= c[:, None] + 1e-12)
+    at3 = np.concatenate([f3, g3], axis=1)
+    vals3 = _eval_rewrapped(psi_at, at3, ref_at(at3), lead)
+    fv3, gv3 = vals3[:, : t3.size], vals3[:, t3.size:]
+    a_off = (f_best + d - phi0) / h - (i_lo - 1)
+    b_off = (f_best - d + L - phi0) / h - (i_lo - 1)
+    i0 = np.floor(a_off).astype(np.int64) + 1
+    cnt = np.ceil(b_off).astype(np.int64) - 1 - i0 + 1
+    shi, slo = _range_query(tab_max, tab_min, i0[:, None], np.maximum(cnt, 1)[:, None])
+    mid_hi = np.where(cnt >= 1, shi[:, 0], -np.inf)
+    mid_lo = np.where(cnt >= 1, slo[:, 0], np.inf)
+    nxt, prv = np.minimum(j + 1, K2), np.maximum(j - 1, 0)
+    mid_hi = np.maximum(mid_hi, np.where(j + 1 <= K2, sf_max[rr, nxt], -np.inf))
+    mid_lo = np.minimum(mid_lo, np.where(j + 1 <= K2, sf_min[rr, nxt], np.inf))
+    mid_hi = np.maximum(mid_hi, np.where(j >= 1, pg_max[rr, prv], -np.inf))
+    mid_lo = np.minimum(mid_lo, np.where(j >= 1, pg_min[rr, prv], np.inf))
+    top3 = np.maximum(np.maximum(np.maximum.accumulate(fv3[:, ::-1], axis=1)[:, ::-1],
+                                 np.maximum.accumulate(gv3, axis=1)), mid_hi[:, None])
+    bot3 = np.minimum(np.minimum(np.minimum.accumulate(fv3[:, ::-1], axis=1)[:, ::-1],
+                                 np.minimum.accumulate(gv3, axis=1)), mid_lo[:, None])
+    rng3 = np.where(allowed3, top3 - bot3, np.inf)
+    j3 = np.argmin(rng3, axis=1)
+    fine3 = rng3[rr, j3]
+    finer = refined & (fine3 < fine) & (nL >= 4)
+    fine = np.where(finer, fine3, fine)
+    f_best = np.where(finer, f3[rr, j3], f_best)
+    return np.where(refined, fine, dev), np.where(refined, f_best, s_best)
 
 
 # --------------------------------------------------------------------------------------------

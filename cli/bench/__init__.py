@@ -13,6 +13,7 @@ SUBCOMMANDS = {
     "atlas": "cli.bench.atlas:atlas",
     "query": "cli.bench.query:query",
     "faults": "cli.bench.faults:faults",
+    "coverage": "cli.bench.coverage:coverage",
 }
 
 

@@ -1,0 +1,177 @@
+"""``dwell bench coverage``: which requests an atlas answers, over the grid of issue #13.
+
+Single dwells (RPR and RRR): dwell {30, 45, 60, 75, 90, 105, 120, 150}° × swing {10, 20, 30,
+45, 60, 90}°; double dwells (RPR, ``--dwells 2 --dwell-tol 5``, no swing): dwell {10, 20, 30,
+45, 60, 75, 90, 120}°. Every cell is one :func:`synth.query.answer` with the query's default
+constraints and ``--top``, against one open atlas (as ``dwell bench query``). Reported per
+cell: the candidates found, the best output deviation over the requested dwell (degrees) and
+the time; per family the cells with ≥ 1 and ≥ 3 candidates. A table on stdout, or ``--json``;
+``--plot FILE.png`` draws the grids as heat maps.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import click
+
+from cli.atlas import db_option
+from cli.options import writable_file
+
+SINGLE_DWELLS = (30, 45, 60, 75, 90, 105, 120, 150)
+SWINGS = (10, 20, 30, 45, 60, 90)
+DOUBLE_DWELLS = (10, 20, 30, 45, 60, 75, 90, 120)
+DOUBLE_TOL = 5.0
+FAMILIES = ("rpr", "rrr", "double")
+
+
+@dataclass(frozen=True, slots=True)
+class Cell:
+    """One request of the grid, in the command's units (degrees)."""
+
+    family: str
+    dwell: float
+    swing: float | None
+
+    def request(self, top: int):
+        from cli.query import request_from_options
+
+        if self.family == "double":
+            return request_from_options(self.dwell, DOUBLE_TOL, None, None, "rpr", 2, top=top)
+        return request_from_options(self.dwell, None, self.swing, None, self.family, 1, top=top)
+
+
+def cells() -> list[Cell]:
+    """The grid, family by family, dwell-major."""
+    out = [Cell(fam, d, s) for fam in ("rpr", "rrr") for d in SINGLE_DWELLS for s in SWINGS]
+    return out + [Cell("double", d, None) for d in DOUBLE_DWELLS]
+
+
+def _row(cell: Cell, result, seconds: float) -> dict:
+    devs = [max(c.figures.deviations) for c in result.candidates if c.figures.deviations]
+    return {
+        "family": cell.family,
+        "dwell_deg": cell.dwell,
+        "swing_deg": cell.swing,
+        "candidates": len(result.candidates),
+        "best_deviation_deg": None if not devs else round(math.degrees(min(devs)), 5),
+        "best": result.candidates[0].id if result.candidates else None,
+        "failed": None if result.no_match is None else result.no_match.failed,
+        "ms": round(1000 * seconds, 1),
+    }
+
+
+def summary(rows: list[dict]) -> dict:
+    """Per family: cells, cells with ≥ 1 and with ≥ 3 candidates."""
+    out = {}
+    for fam in FAMILIES:
+        mine = [r for r in rows if r["family"] == fam]
+        out[fam] = {"cells": len(mine), "answered": sum(r["candidates"] >= 1 for r in mine),
+                    "three_or_more": sum(r["candidates"] >= 3 for r in mine)}
+    return out
+
+
+@click.command("coverage")
+@db_option
+@click.option("--top", type=click.IntRange(1, 1000), default=10, show_default=True, help="Candidates per query.")
+@click.option("--json", "as_json", is_flag=True, help="JSON on stdout instead of a table.")
+@click.option("--plot", type=click.Path(dir_okay=False), callback=writable_file(".png"), default=None,
+              help="Write the grids as heat maps of the candidates found (PNG).")
+def coverage(db, top, as_json, plot):
+    """Coverage of the dwell × swing grid (RPR, RRR) and the double-dwell row: candidates, best deviation, time."""
+    from cli.bench.query import _atlas_facts
+    from db.engine import open_atlas
+    from db.queries import AtlasSource
+    from synth.query import answer
+
+    engine = open_atlas(db, readonly=True)
+    try:
+        atlas = _atlas_facts(engine)
+        source = AtlasSource(engine)
+        rows = []
+        start = time.perf_counter()
+        for cell in cells():
+            request = cell.request(top)
+            t0 = time.perf_counter()
+            result = answer(request, source)
+            rows.append(_row(cell, result, time.perf_counter() - t0))
+        total = time.perf_counter() - start
+    finally:
+        engine.dispose()
+    report = {"benchmark": "coverage", "atlas": atlas, "top": top, "seconds": round(total, 2),
+              "summary": summary(rows), "cells": rows}
+    if as_json:
+        click.echo(json.dumps(report, indent=2, allow_nan=False))
+    else:
+        click.echo(table(report))
+    s = report["summary"]
+    click.echo("dwell bench coverage: " + ", ".join(
+        f"{fam} {v['three_or_more']}/{v['cells']} cells with ≥ 3 ({v['answered']} with ≥ 1)" for fam, v in s.items())
+        + f" in {total:.1f} s", err=True)
+    if plot:
+        _plot(report, Path(plot))
+
+
+def table(report: dict) -> str:
+    """Per family a grid: rows dwell, columns swing, each cell ``candidates/best deviation``;
+    then each cell's time."""
+    lines = [f"coverage of {report['atlas']['preset']} ({report['atlas']['linkages']} linkages), top {report['top']}: "
+             "candidates found, best output deviation (°) [ms]"]
+    rows = report["cells"]
+    for fam in FAMILIES:
+        mine = [r for r in rows if r["family"] == fam]
+        cols = sorted({r["swing_deg"] for r in mine}, key=lambda x: -1 if x is None else x)
+        head = "swing →" if fam != "double" else f"±{DOUBLE_TOL:g}°"
+        lines.append("")
+        lines.append(f"{fam.upper():<8}{head:>8}" + "".join(
+            f"{'' if c is None else f'{c:g}°':>20}" for c in cols))
+        for d in sorted({r["dwell_deg"] for r in mine}):
+            cells_ = {r["swing_deg"]: r for r in mine if r["dwell_deg"] == d}
+            text = []
+            for c in cols:
+                r = cells_[c]
+                dev = "-" if r["best_deviation_deg"] is None else f"{r['best_deviation_deg']:.3f}"
+                text.append(f"{r['candidates']:>3}/{dev:<6}[{r['ms']:>5.0f}]")
+            lines.append(f"dwell {d:>4g}°     " + "".join(f"{t:>20}" for t in text))
+        v = report["summary"][fam]
+        lines.append(f"{fam}: {v['three_or_more']}/{v['cells']} cells with ≥ 3 candidates, {v['answered']} with ≥ 1")
+    return "\n".join(lines)
+
+
+def _plot(report: dict, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    rows = report["cells"]
+    top = report["top"]
+    fig, axes = plt.subplots(1, 3, figsize=(12, 4.2), width_ratios=[6, 6, 1.6], constrained_layout=True)
+    for ax, fam in zip(axes, FAMILIES):
+        mine = [r for r in rows if r["family"] == fam]
+        dwells = sorted({r["dwell_deg"] for r in mine})
+        swings = sorted({r["swing_deg"] for r in mine}, key=lambda x: -1 if x is None else x)
+        grid = np.zeros((len(dwells), len(swings)))
+        for r in mine:
+            grid[dwells.index(r["dwell_deg"]), swings.index(r["swing_deg"])] = r["candidates"]
+        im = ax.imshow(grid, cmap="viridis", vmin=0, vmax=top, aspect="auto", origin="lower")
+        for i in range(len(dwells)):
+            for j in range(len(swings)):
+                n = int(grid[i, j])
+                ax.text(j, i, str(n), ha="center", va="center", fontsize=8, color="white" if n < 0.6 * top else "black")
+        ax.set_yticks(range(len(dwells)), [f"{d:g}°" for d in dwells])
+        ax.set_xticks(range(len(swings)), ["—" if s is None else f"{s:g}°" for s in swings])
+        ax.set_xlabel("swing" if fam != "double" else f"two dwells ±{DOUBLE_TOL:g}°")
+        v = report["summary"][fam]
+        ax.set_title(f"{fam.upper()}: ≥3 in {v['three_or_more']}/{v['cells']}", fontsize=10)
+    axes[0].set_ylabel("dwell")
+    fig.colorbar(im, ax=axes, shrink=0.8, label=f"candidates (top {top})")
+    atlas = report["atlas"]
+    fig.suptitle(f"dwell query coverage: {atlas['linkages']} linkages ({atlas['preset']})", fontsize=11)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)

@@ -1,0 +1,459 @@
+"""The synthesis query as a library stage: a :class:`~synth.candidates.Request` in, ranked
+six-bars out (pure: no click, no ORM, no I/O — segments are read through a
+:class:`SegmentSource`, which ``db.queries.AtlasSource`` implements over an engine).
+
+Pipeline (:func:`answer`): the segments whose stored dwell (any tolerance level) lies near the
+request (:meth:`SegmentSource.select_segments`) → output dyads fitted to every segment in one
+batch per kind (``synth.dyad``: RPR on straight segments, RPR at the lines' intersection for
+double Ball points, RRR on arcs) → a necessary screen on the crank grid
+(:func:`~synth.candidates.screen`) → the full figures of the survivors from the exact
+simulation (:func:`~synth.sixbar.sixbar_figures`) → the six-bars that meet the request →
+ranked (:func:`~synth.candidates.rank`), one per segment and output type and one of a mirror
+pair. Lengths are crank-normalised until the end, then scaled to ``request.crank``.
+
+When nothing meets the request the result carries a :class:`NoMatch`: how many fitted six-bars
+each constraint rejected, the nearest six-bar and the request that it would meet.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from synth.candidates import Candidate, Request, candidate_id, parse_candidate_id, rank, screen
+from synth.sixbar import OutputDyad, SixBar, SixBarFigures, SixBars, crank_grid, sixbar_figures
+
+__all__ = [
+    "CONSTRAINTS",
+    "DwellWindow",
+    "NoMatch",
+    "QueryResult",
+    "RebuildError",
+    "SegmentRow",
+    "SegmentSource",
+    "answer",
+    "rebuild",
+]
+
+#: Crank samples of the exact simulation (0.5°); the figures refine beyond it.
+SAMPLES = 720
+#: Crank samples of the path the dyads are fitted to (1°): a fitted swing is within ~0.01° of
+#: the simulated one, which is what the request is checked against.
+FIT_SAMPLES = 360
+#: Segments taken from the atlas per kind and tolerance level, closest to that level's target first.
+PER_LEVEL = 10
+#: Output link lengths (crank lengths) tried in the band conversion of ``_select``.
+REACHES = (2.0, 5.0, 12.0)
+#: The request's constraints, in the order a no-match names them (see :func:`violations`).
+CONSTRAINTS = ("assembly", "dwell", "swing", "transmission", "link_ratio")
+
+
+# --------------------------------------------------------------------------------------------
+# What the query reads
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class SegmentRow:
+    """A stored segment with the dwell row (one level; both parts for a double line) that
+    matched the request. Angles in radians, lengths in crank lengths."""
+
+    segment_id: int
+    kind: str
+    level: int
+    tolerance: float
+    b: float
+    c: float
+    d: float
+    branch: int
+    u: float
+    v: float
+    phi_gen: float
+    #: per part: (phi_start, phi_end, x, y, direction or None, radius or None)
+    parts: tuple[tuple[float, float, float, float, float | None, float | None], ...]
+    fourbar_transmission_min: float
+
+
+@dataclass(frozen=True, slots=True)
+class DwellWindow:
+    """Stored dwells wanted: at tolerance ``level`` (None: any level), with a dwell angle (rad)
+    in [low, high], the ``limit`` closest to ``target``."""
+
+    level: int | None
+    low: float
+    high: float
+    target: float
+    limit: int
+
+
+class SegmentSource(Protocol):
+    """Where the query reads segments from (an atlas; ``db.queries.AtlasSource``)."""
+
+    def tolerance_levels(self) -> list[tuple[int, float]]:
+        """(level, path tolerance in crank lengths) pairs, in level order."""
+
+    def select_segments(self, kinds: tuple[str, ...], windows: Sequence[DwellWindow], *,
+                        min_transmission: float, max_length: float, min_radius_ratio: float) -> list[SegmentRow]:
+        """Segments of ``kinds`` whose stored dwell lies in one of ``windows`` (each window's
+        closest first, a segment once, at the level of its first match), of linkages whose
+        transmission angle stays ≥ ``min_transmission`` (rad) and whose links are ≤
+        ``max_length`` (cranks); an arc's radius in [longest link · ``min_radius_ratio``,
+        ``max_length``]."""
+
+    def segment(self, segment_id: int, level: int) -> SegmentRow | None:
+        """The segment with its dwell row(s) at ``level``; None if the atlas has no such
+        segment; a row with empty ``parts`` if it has no dwell at that level."""
+
+    def nearest_dwell_angles(self, kinds: tuple[str, ...], target: float) -> tuple[float | None, float | None]:
+        """The stored dwell angles (rad) of ``kinds`` just below and just above ``target``."""
+
+
+# --------------------------------------------------------------------------------------------
+# What the query answers
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class NoMatch:
+    """Why nothing met a request.
+
+    Attributes
+    ----------
+    fitted : int
+        Fitted six-bars examined (0: no stored segment was near the request).
+    rejected : dict
+        Per constraint of :data:`CONSTRAINTS`, how many of them it rejected (a six-bar can
+        fail several; ``assembly`` counts those that do not assemble over the turn, toggle or
+        revolve, which are not checked further).
+    nearest : Candidate or None
+        The six-bar closest to meeting the request (the smallest sum of its excesses over the
+        limits, angles in degrees, the link ratio in percent of the limit), in the user's units.
+    would_meet : Request or None
+        The request loosened just enough for ``nearest`` to meet it.
+    """
+
+    fitted: int
+    rejected: dict[str, int]
+    nearest: Candidate | None
+    would_meet: Request | None
+
+    @property
+    def failed(self) -> str | None:
+        """The constraint that rejected the most six-bars (None if nothing was fitted)."""
+        if not self.fitted:
+            return None
+        return max(CONSTRAINTS, key=lambda k: (self.rejected.get(k, 0), -CONSTRAINTS.index(k)))
+
+
+@dataclass(frozen=True, slots=True)
+class QueryResult:
+    request: Request
+    candidates: list[Candidate]
+    considered: int  #: segments fitted
+    simulated: int  #: six-bars simulated
+    nearest: tuple[float | None, float | None]  #: stored dwell angles (rad) around the request when empty
+    seconds: dict[str, float]
+    no_match: NoMatch | None = None
+
+
+class RebuildError(ValueError):
+    """A candidate id that cannot be rebuilt from this atlas (message names the id)."""
+
+
+# --------------------------------------------------------------------------------------------
+# Stages
+# --------------------------------------------------------------------------------------------
+
+
+def kinds_for(request: Request) -> tuple[str, ...]:
+    """Segment kinds a request draws on."""
+    if request.dwells == 2:
+        return ("double_line",)
+    return {"rpr": ("line",), "rrr": ("arc",), "any": ("line", "arc")}[request.output]
+
+
+def select(source: SegmentSource, request: Request, kinds: tuple[str, ...]) -> list[SegmentRow]:
+    """Segments worth fitting, per kind and tolerance level.
+
+    A six-bar's dwell is measured with an output band (an angle), a segment's with a path band
+    ε (a length): the output stands still while the coupler point stays within about
+    ε* = R·band/2 of the segment's line or circle, R the output link's length (slot reach or
+    rocker), a few cranks. Dwells grow like ε^¼ (four-point contact), so at level ε_ℓ the
+    segment dwell that gives the requested six-bar dwell is about dwell·(ε_ℓ/ε*)^¼; each level
+    is searched around its own target, generously — the simulation decides."""
+    windows = []
+    # the stored dwells closest to the request at any level, then each level's own target
+    width = request.dwell_tol + math.radians(10.0)
+    windows.append(DwellWindow(None, request.dwell - width, request.dwell + width, request.dwell, 2 * PER_LEVEL))
+    for (level, eps), reach in itertools.product(source.tolerance_levels(), REACHES):
+        target = request.dwell * (eps / (reach * request.band / 2)) ** 0.25
+        width = request.dwell_tol + 0.2 * target
+        windows.append(DwellWindow(level, target - width, target + width, target, PER_LEVEL))
+    # constraints the four-bar alone already decides (crank = 1, the shortest link); an arc's
+    # radius becomes the rod, which must not be the link that breaks the ratio
+    rows = []
+    for kind in kinds:
+        rows += source.select_segments((kind,), windows, min_transmission=request.min_transmission,
+                                       max_length=request.max_link_ratio,
+                                       min_radius_ratio=1.0 / request.max_link_ratio)
+    return rows
+
+
+@dataclass(frozen=True, slots=True)
+class Fitted:
+    """One fitted output dyad: the segment row it came from, the output tag of its id
+    (``rpr``, ``rrr``, ``dbl``), the fit's slot, the dyad (crank-normalised) and, for RRR,
+    where the moving pivot rests during the dwell."""
+
+    row: SegmentRow
+    output: str
+    slot: int
+    dyad: OutputDyad
+    rest: complex | None = None
+
+    def sixbar(self) -> SixBar:
+        r = self.row
+        return SixBar(1.0, r.b, r.c, r.d, r.branch, r.u, r.v, self.dyad)
+
+
+def _paths(rows: Sequence[SegmentRow], phi: np.ndarray) -> np.ndarray:
+    from kinematics.fourbar import fourbar_motion
+
+    b = np.array([r.b for r in rows])[:, None]
+    c = np.array([r.c for r in rows])[:, None]
+    d = np.array([r.d for r in rows])[:, None]
+    br = np.array([r.branch for r in rows])[:, None]
+    uv = np.array([complex(r.u, r.v) for r in rows])[:, None]
+    motion = fourbar_motion(1.0, b, c, d, phi, br, order=0)
+    return motion.A + motion.e_theta * uv
+
+
+def fit(request: Request, rows: Sequence[SegmentRow], kind: str) -> list[Fitted]:
+    """Every dyad found for ``rows`` (all of segment kind ``kind``), in row and slot order."""
+    from synth.dyad import fit_rpr, fit_rrr, rpr_double
+
+    if not rows:
+        return []
+    phi = crank_grid(FIT_SAMPLES)
+    out = []
+    if kind == "double_line":
+        line1 = (np.array([complex(r.parts[0][2], r.parts[0][3]) for r in rows]), np.array([r.parts[0][4] for r in rows]))
+        line2 = (np.array([complex(r.parts[1][2], r.parts[1][3]) for r in rows]), np.array([r.parts[1][4] for r in rows]))
+        found = rpr_double(line1, line2)
+        for i, r in enumerate(rows):
+            dyad = found.dyad((i,))
+            if dyad is not None:
+                out.append(Fitted(r, "dbl", 0, dyad))
+        return out
+    paths = _paths(rows, phi)
+    start = np.array([r.parts[0][0] for r in rows])
+    end = np.array([r.parts[0][1] for r in rows])
+    point = np.array([complex(r.parts[0][2], r.parts[0][3]) for r in rows])
+    if kind == "line":
+        direction = np.array([r.parts[0][4] for r in rows])
+        found = fit_rpr(point, direction, phi, paths, (start, end), request.swing)
+        for i, r in enumerate(rows):
+            for slot in range(found.found.shape[-1]):
+                if found.found[i, slot]:
+                    out.append(Fitted(r, "rpr", slot, OutputDyad.rpr(complex(found.pivot[i, slot]))))
+    else:
+        radius = np.array([r.parts[0][5] for r in rows])
+        found = fit_rrr(point, radius, phi, paths, (start, end), request.swing, request.min_transmission, keep=2)
+        for i, r in enumerate(rows):
+            for slot in range(found.found.shape[-1]):
+                if found.found[i, slot]:
+                    dyad = OutputDyad.rrr(complex(found.pivot[i, slot]), float(found.rocker[i, slot]),
+                                          float(found.rod[i, slot]), int(found.branch[i, slot]))
+                    out.append(Fitted(r, "rrr", slot, dyad, complex(point[i])))
+    return out
+
+
+def violations(request: Request, f: SixBarFigures) -> dict[str, float]:
+    """How far the figures ``f`` (crank-normalised) miss each constraint of ``request``: 0 where
+    met. ``assembly`` is 1 for a six-bar that does not assemble over the turn, toggles or
+    revolves, or has fewer dwells than asked (then nothing else is measured); the angles'
+    excesses in degrees; the link ratio's in percent of the limit."""
+    out = dict.fromkeys(CONSTRAINTS, 0.0)
+    if not f.acceptable or len(f.dwells) < request.dwells:
+        out["assembly"] = 1.0
+        return out
+    out["dwell"] = max(max(0.0, math.degrees(abs(d.angle - request.dwell) - request.dwell_tol))
+                       for d in f.dwells[: request.dwells])
+    if request.swing is not None:
+        out["swing"] = max(0.0, math.degrees(abs(f.swing - request.swing) - request.swing_tol))
+    out["transmission"] = max(0.0, math.degrees(request.min_transmission
+                                                - min(f.transmission_fourbar, f.transmission_output)))
+    out["link_ratio"] = max(0.0, 100.0 * (f.link_ratio / request.max_link_ratio - 1.0))
+    return out
+
+
+def meets(request: Request, f: SixBarFigures) -> bool:
+    """Whether the figures ``f`` (crank-normalised) meet ``request`` and its constraints."""
+    if not f.acceptable or len(f.dwells) < request.dwells:
+        return False
+    if any(abs(d.angle - request.dwell) > request.dwell_tol for d in f.dwells[: request.dwells]):
+        return False
+    if request.swing is not None and abs(f.swing - request.swing) > request.swing_tol:
+        return False
+    if min(f.transmission_fourbar, f.transmission_output) < request.min_transmission:
+        return False
+    return f.link_ratio <= request.max_link_ratio
+
+
+def _scaled_figures(f: SixBarFigures, scale: float) -> SixBarFigures:
+    return dataclasses.replace(f, footprint=f.footprint * scale**2, bounds=tuple(x * scale for x in f.bounds))
+
+
+def _candidate(request: Request, fitted: Fitted, f: SixBarFigures) -> Candidate:
+    r = fitted.row
+    return Candidate(
+        id=candidate_id(r.segment_id, fitted.output, fitted.slot, r.level, request.swing),
+        segment_id=r.segment_id,
+        sixbar=fitted.sixbar().scaled(request.crank),
+        figures=_scaled_figures(f, request.crank),
+        dwell_position=None if fitted.rest is None else fitted.rest * request.crank,
+    )
+
+
+def _figures(request: Request, sixbars: list[SixBar], *, footprint: bool = True) -> list[SixBarFigures]:
+    return sixbar_figures(SixBars.from_sixbars(sixbars), band=request.band, dwell_length=request.dwell,
+                          dwells=request.dwells, samples=SAMPLES, footprint=footprint)
+
+
+def simulate(request: Request, fitted: Sequence[Fitted]) -> tuple[list[Candidate], int]:
+    """The candidates among ``fitted`` that meet ``request`` (unranked), and how many six-bars
+    were simulated."""
+    if not fitted:
+        return [], 0
+    sixbars = [f.sixbar() for f in fitted]
+    # the full figures only for six-bars that pass the (necessary) test on the crank grid
+    passed = screen(request, SixBars.from_sixbars(sixbars), SAMPLES)
+    kept = [(f, sb) for f, sb, p in zip(fitted, sixbars, passed) if p]
+    if not kept:
+        return [], len(passed)
+    figures = _figures(request, [sb for _, sb in kept])
+    out = [_candidate(request, f, fig) for (f, _), fig in zip(kept, figures) if meets(request, fig)]
+    return out, len(passed)
+
+
+def _loosened(request: Request, f: SixBarFigures) -> Request:
+    """``request`` loosened just enough for a six-bar with figures ``f`` to meet it: the dwell
+    and swing moved to the six-bar's own (rounded to 0.01°, tolerances kept), the limits
+    widened to its transmission (down to the whole degree) and link ratio (up to 0.01)."""
+    change: dict = {}
+    excess = violations(request, f)
+    if excess["dwell"] > 0:
+        angles = [d.angle for d in f.dwells[: request.dwells]]
+        change["dwell"] = math.radians(round(math.degrees(sum(angles) / len(angles)), 2))
+        spread = max(abs(a - change["dwell"]) for a in angles)
+        change["dwell_tol"] = max(request.dwell_tol, math.radians(math.ceil(math.degrees(spread) * 100) / 100))
+    if excess["swing"] > 0:
+        change["swing"] = math.radians(round(math.degrees(f.swing), 2))
+        change["swing_tol"] = max(request.swing_tol, math.radians(0.01))
+    if excess["transmission"] > 0:
+        mu = min(f.transmission_fourbar, f.transmission_output)
+        change["min_transmission"] = math.radians(math.floor(math.degrees(mu)))
+    if excess["link_ratio"] > 0:
+        change["max_link_ratio"] = math.ceil(f.link_ratio * 100) / 100
+    try:
+        return dataclasses.replace(request, **change)
+    except ValueError:
+        return request
+
+
+def diagnose(request: Request, fitted: Sequence[Fitted]) -> NoMatch:
+    """Why none of ``fitted`` meets ``request`` (see :class:`NoMatch`); simulates them all."""
+    rejected = dict.fromkeys(CONSTRAINTS, 0)
+    if not fitted:
+        return NoMatch(0, rejected, None, None)
+    figures = _figures(request, [f.sixbar() for f in fitted], footprint=False)
+    best, best_excess = None, math.inf
+    for fit_, fig in zip(fitted, figures):
+        excess = violations(request, fig)
+        for k, x in excess.items():
+            rejected[k] += x > 0
+        total = math.inf if excess["assembly"] else sum(excess.values())
+        if total < best_excess:
+            best, best_excess = (fit_, fig), total
+    if best is None:
+        return NoMatch(len(fitted), rejected, None, None)
+    fit_, fig = best
+    loose = _loosened(request, fig)
+    return NoMatch(len(fitted), rejected, dataclasses.replace(_candidate(loose, fit_, fig), rank=1), loose)
+
+
+def answer(request: Request, source: SegmentSource) -> QueryResult:
+    """Ranked candidates for ``request`` from ``source`` (a pure read)."""
+    clock: dict[str, float] = {}
+    t0 = time.perf_counter()
+    kinds = kinds_for(request)
+    rows = select(source, request, kinds)
+    t1 = time.perf_counter()
+    clock["select"] = t1 - t0
+    fitted: list[Fitted] = []
+    for kind in kinds:
+        fitted += fit(request, [r for r in rows if r.kind == kind], kind)
+    t2 = time.perf_counter()
+    clock["fit"] = t2 - t1
+    candidates, simulated = simulate(request, fitted)
+    t3 = time.perf_counter()
+    clock["simulate"] = t3 - t2
+    # one six-bar per segment and output type (the best-ranked fit), and one of a mirror pair:
+    # the two assembly branches of a four-bar are mirror images with the same figures
+    seen: set = set()
+    unique = []
+    for c in rank(request, candidates):
+        sb = c.sixbar
+        mirror = (round(sb.b, 9), round(sb.c, 9), round(sb.d, 9), sb.dyad.kind, round(sb.u, 3), round(abs(sb.v), 3))
+        key = (c.segment_id, c.id.split("-")[1][:3])
+        if key not in seen and mirror not in seen:
+            seen.update((key, mirror))
+            unique.append(c)
+    top = [dataclasses.replace(c, rank=i + 1) for i, c in enumerate(unique[: request.top])]
+    clock["rank"] = time.perf_counter() - t3
+    nearest: tuple[float | None, float | None] = (None, None)
+    no_match = None
+    if not top:
+        nearest = source.nearest_dwell_angles(kinds, request.dwell)
+        t4 = time.perf_counter()
+        no_match = diagnose(request, fitted)
+        # the diagnosis simulates the fits the screen dropped: simulation time of this answer
+        clock["simulate"] += time.perf_counter() - t4
+    return QueryResult(request, top, len({r.segment_id for r in rows}), simulated, nearest, clock, no_match)
+
+
+def rebuild(ids: Sequence[str], source: SegmentSource, request: Request) -> list[Candidate]:
+    """The candidates named by ``ids`` (from an earlier query), re-fitted and re-simulated.
+
+    ``request`` gives the output band, the deviation window (its dwell), the crank length and
+    the minimum transmission the RRR fit used; its other limits are ignored — the figures of a
+    rebuilt six-bar are shown whatever they are. Raises :class:`RebuildError` naming the id."""
+    out = []
+    for text in ids:
+        try:
+            seg_id, output, slot, level, swing = parse_candidate_id(text)
+        except ValueError as exc:
+            raise RebuildError(str(exc)) from None
+        req = dataclasses.replace(request, swing=swing, dwells=2 if output == "dbl" else 1,
+                                  output="rpr" if output in ("rpr", "dbl") else "rrr")
+        row = source.segment(seg_id, level)
+        if row is None:
+            raise RebuildError(f"no segment {seg_id} in this atlas (candidate {text!r})")
+        found = None
+        if row.parts:
+            fitted = [f for f in fit(req, [row], row.kind) if f.output == output and f.slot == slot]
+            loose = dataclasses.replace(req, dwell_tol=2 * math.pi - req.dwell - 1e-9, swing_tol=math.pi - 1e-9,
+                                        min_transmission=0.0, max_link_ratio=1e12)
+            cands, _ = simulate(loose, fitted)
+            found = dataclasses.replace(cands[0], id=text.strip()) if cands else None
+        if found is None:
+            raise RebuildError(f"candidate {text!r} cannot be rebuilt from this atlas (no fit for that slot and level)")
+        out.append(dataclasses.replace(found, rank=len(out) + 1))
+    return out

@@ -1,0 +1,70 @@
+"""``dwell bench coverage`` on a small built atlas: the grid of issue #13, each cell the query's
+own answer, a summary that counts the cells, a heat map."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from atlas.build import build_atlas
+from atlas.sweep import PRESETS
+from cli.bench.coverage import DOUBLE_DWELLS, SINGLE_DWELLS, SWINGS
+from cli.main import main
+
+
+@pytest.fixture(scope="module")
+def atlas_path(tmp_path_factory) -> str:
+    path = str(tmp_path_factory.mktemp("atlas") / "demo.sqlite")
+    build_atlas(path, PRESETS["demo"].replace(samples=384), workers=1, progress=False)
+    return path
+
+
+def run(capsys, *args):
+    code = main(list(args))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_coverage_grid_matches_the_query_cell_by_cell(capsys, atlas_path, tmp_path):
+    plot = tmp_path / "coverage.png"
+    code, out, err = run(capsys, "bench", "coverage", "--db", atlas_path, "--top", "5", "--json", "--plot", str(plot))
+    assert code == 0, err
+    doc = json.loads(out)
+    cells = doc["cells"]
+    assert len(cells) == 2 * len(SINGLE_DWELLS) * len(SWINGS) + len(DOUBLE_DWELLS)
+    assert {(c["dwell_deg"], c["swing_deg"]) for c in cells if c["family"] == "rrr"} == {
+        (d, s) for d in SINGLE_DWELLS for s in SWINGS}
+    assert [c["dwell_deg"] for c in cells if c["family"] == "double"] == list(DOUBLE_DWELLS)
+    for fam, v in doc["summary"].items():
+        mine = [c for c in cells if c["family"] == fam]
+        assert v == {"cells": len(mine), "answered": sum(c["candidates"] >= 1 for c in mine),
+                     "three_or_more": sum(c["candidates"] >= 3 for c in mine)}
+    assert all(0 <= c["candidates"] <= 5 and c["ms"] > 0 for c in cells)
+    assert all((c["best_deviation_deg"] is None) == (c["candidates"] == 0) for c in cells)
+    assert doc["summary"]["rpr"]["answered"] >= 10, "the demo sweep answers many RPR cells"
+    # two cells against `dwell query` itself: same candidates, same best deviation
+    for cell, args in (
+        (next(c for c in cells if c["family"] == "rpr" and c["candidates"] > 0), []),
+        (next(c for c in cells if c["family"] == "double" and c["candidates"] > 0), ["--dwells", "2"]),
+    ):
+        extra = ["--swing", f"{cell['swing_deg']:g}", "--output", "rpr"] if cell["swing_deg"] else \
+            ["--dwell-tol", "5", "--output", "rpr"]
+        code, out, _ = run(capsys, "query", "--db", atlas_path, "--dwell", f"{cell['dwell_deg']:g}", *extra, *args,
+                           "--top", "5", "--json")
+        got = json.loads(out)["candidates"]
+        assert len(got) == cell["candidates"] and got[0]["id"] == cell["best"]
+        best = min(max(d["output_deviation_deg"] for d in c["dwells"]) for c in got)
+        assert best == pytest.approx(cell["best_deviation_deg"], abs=1e-5)
+    assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "rpr" in err and "cells with ≥ 3" in err
+
+
+def test_coverage_table_and_bad_input(capsys, atlas_path, tmp_path):
+    code, out, err = run(capsys, "bench", "coverage", "--db", atlas_path, "--top", "3")
+    assert code == 0, err
+    assert out.startswith("coverage of demo") and "RRR" in out and "DOUBLE" in out
+    code, out, err = run(capsys, "bench", "coverage", "--db", atlas_path, "--top", "0")
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1
+    code, out, err = run(capsys, "bench", "coverage", "--db", str(tmp_path / "none.sqlite"))
+    assert code == 2 and out == ""
