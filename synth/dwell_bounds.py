@@ -58,6 +58,8 @@ _LINE, _ARC = 0, 1
 _ITERATIONS = 12
 #: Re-linearisations of each fit (the circle's start is a three-point circle, not the optimum).
 _RELINEARISE = 3
+#: Fitted circles larger than this (crank lengths) are not trusted (cancellation in |z − c| − r).
+_MAX_RADIUS = 1e6
 
 
 @dataclass(frozen=True, slots=True)
@@ -104,16 +106,42 @@ def _start_geometry(z: C128, kind: int):
     return centre, direction, np.abs(z0 - centre)
 
 
+def _least_squares_circle(z: C128):
+    """Algebraic (Kåsa) least-squares circle of each row: |z|² ≈ 2·Re(conj(c)·z) + k."""
+    zc = z - z.mean(axis=1, keepdims=True)  # centred for conditioning
+    cols = np.stack([2 * zc.real, 2 * zc.imag, np.ones(zc.shape)], axis=-1)  # (n, s, 3)
+    M = np.einsum("nsi,nsj->nij", cols, cols) + 1e-12 * np.eye(3)
+    rhs = np.einsum("nsi,ns->ni", cols, np.abs(zc) ** 2)
+    x = np.linalg.solve(M, rhs[..., None])[..., 0]
+    centre = x[:, 0] + 1j * x[:, 1]
+    radius = np.sqrt(np.maximum(x[:, 2] + np.abs(centre) ** 2, 0.0))
+    return centre + z.mean(axis=1), radius
+
+
 def minimum_zone_halfwidth(z: C128, kind: int) -> F64:
     """Half-width of an (approximately) minimum-zone line (``kind`` 0) or annulus (1) of each
     row of path samples ``z`` (n, samples), with ``synth.segments``' fitter: the peak
-    |deviation| on the samples from the fitted geometry (an upper estimate of the optimum)."""
-    point, direction, radius = _start_geometry(z, kind)
-    best = np.full(z.shape[0], np.inf)
-    for _ in range(_RELINEARISE):
-        point, direction, radius = _fit(z, kind, point, direction, radius, _ITERATIONS)
-        h = np.abs(path_deviation(z, kind, point[:, None], direction[:, None], radius[:, None])).max(axis=1)
-        best = np.minimum(best, h)
+    |deviation| on the samples from the fitted geometry (an upper estimate of the optimum).
+
+    The fit is linearised about its start, so it is re-linearised and started twice (arcs:
+    from the three-point circle and from the algebraic least-squares circle); the smaller
+    peak is kept."""
+    starts = [_start_geometry(z, kind)]
+    if kind == _ARC:
+        point, direction, _ = starts[0]
+        centre, radius = _least_squares_circle(z)
+        ok = np.isfinite(centre) & np.isfinite(radius) & (radius > 0)
+        starts.append((np.where(ok, centre, starts[0][0]), direction, np.where(ok, radius, starts[0][2])))
+    # a line is the limit of circles: its half-width bounds the annulus's
+    best = minimum_zone_halfwidth(z, _LINE) if kind == _ARC else np.full(z.shape[0], np.inf)
+    for point, direction, radius in starts:
+        for _ in range(_RELINEARISE):
+            point, direction, radius = _fit(z, kind, point, direction, radius, _ITERATIONS)
+            h = np.abs(path_deviation(z, kind, point[:, None], direction[:, None], radius[:, None])).max(axis=1)
+            # |z − c| − r loses every digit for a huge radius (a fit running off to a line):
+            # such a circle proves nothing, the line above stands for it
+            valid = np.isfinite(h) & (np.abs(radius) < _MAX_RADIUS) & np.isfinite(point)
+            best = np.minimum(best, np.where(valid, h, np.inf))
     return best
 
 

@@ -185,3 +185,48 @@ def test_swing_bounds_closed_forms():
     # RRR: diameter ≤ chord + 2ρ
     assert rrr_min_swing(3.0, 0.5, 1.0, 1.0) == pytest.approx(2 * math.asin(1.0))
     assert rrr_min_swing(0.5, 0.5, 1.0, 1.0) == 0.0
+
+
+@given(
+    pivot=st.complex_numbers(max_magnitude=5.0), mid=st.floats(-math.pi, math.pi),
+    band=st.floats(math.radians(0.01), math.radians(5.0)), r_lo=st.floats(0.2, 2.0), r_span=st.floats(0.1, 10.0),
+    rocker=st.floats(0.2, 10.0), rod=st.floats(0.2, 10.0), seed=st.integers(0, 2**32 - 1),
+)
+def test_lemmas_on_random_outputs(pivot, mid, band, r_lo, r_span, rocker, rod, seed):
+    """The two lemmas on their own: points P whose output angle stays within the band lie
+    within r·sin(β/2) of a line (RPR) and within 2L·sin(β/4) of a circle (RRR); the fitter's
+    half-width (the profile's measure) respects both."""
+    rng = np.random.default_rng(seed)
+    t = np.sort(rng.uniform(0, 1, 21))
+    psi = mid - band / 2 + band * rng.uniform(0, 1, 21)
+    r = r_lo + r_span * t  # the pin moves outwards along the slot as the crank turns
+    P = pivot + r * np.exp(1j * psi)
+    assert minimum_zone_halfwidth(P[None, :], 0)[0] <= r.max() * math.sin(band / 2) * (1 + 1e-9) + 1e-12
+    # RRR: Q on the rocker's arc within the band, P at distance ρ from Q in a smoothly turning
+    # direction, Q moving smoothly as on a real dwell (on rough random points the annulus
+    # fitter, a linearised Lawson fit, can miss the optimum: hypothesis found 0.38 against a
+    # bound of 0.35 with ρ = 2.5, L = 9, β = 4.5°)
+    psi = mid + band / 2 * np.sin(3 * t + rng.uniform(0, 2 * math.pi))
+    Q = pivot + rocker * np.exp(1j * psi)
+    P = Q + rod * np.exp(1j * (mid + 0.5 + 0.8 * t))
+    assert minimum_zone_halfwidth(P[None, :], 1)[0] <= 2 * rocker * math.sin(band / 4) * (1 + 1e-6) + 1e-12
+
+
+def test_profile_is_monotone_and_never_below_the_stored_dwells():
+    """L(ε) is non-decreasing, and at the atlas's own levels it is at least the dwell
+    find_segments stored (that interval contains the generating angle and passed a fit of
+    half-width ≤ ε on the dense path)."""
+    b, c, d = 3.0, 2.5, 3.0
+    found = find_segments(np.array([b]), np.array([c]), np.array([d]), np.array([1]), SEARCH)
+    tols = np.array(found.tolerances)
+    checked = 0
+    for i in [*np.flatnonzero(found.kind == 0)[:2], *np.flatnonzero(found.kind == 1)[:2]]:
+        p = deviation_profile(b, c, d, 1, complex(found.uv[i]), float(found.phi_gen[i]), int(found.kind[i]),
+                              levels=np.r_[tols, 1e-5, 1e-1], step=STEP)
+        assert np.all(np.diff(p.length) >= 0)
+        stored = found.phi_end[i, :, 0] - found.phi_start[i, :, 0]
+        at = np.searchsorted(p.levels, tols)
+        has = found.has_dwell[i, :, 0]
+        assert np.all(p.length[at][has] >= stored[has] - 1e-9)
+        checked += int(has.sum())
+    assert checked >= 6
