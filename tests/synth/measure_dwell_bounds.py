@@ -1,17 +1,17 @@
 """Measurements behind docs/complete-query.md §6–7 (not a test: run by hand, ~2 min on 2 cores).
 
-    .venv/bin/python tests/synth/measure_dwell_bounds.py [necessity|levels|stored] [N]
+    .venv/bin/python tests/synth/measure_dwell_bounds.py [necessity [N [SEED]]|levels|stored]
 """
 
 import sys
 
-def necessity(count):
+def necessity(count, seed=2026):
     import math, time, sys, numpy as np
     sys.path.insert(0, __import__('os').path.dirname(__file__))
     import test_dwell_bounds as T
     from synth.dwell_bounds import dwell_bound, path_tolerance, deviation_profile, PROFILE_LEVELS
     from synth.segments import find_segments
-    rng = np.random.default_rng(2026)
+    rng = np.random.default_rng(seed)
     viol = {"rpr": 0, "rrr": 0}; n = {"rpr": 0, "rrr": 0}; else_ = 0
     ratio = {k: {"rpr": [], "rrr": []} for k in (17, 9, 5, 3)}
     swing_viol = 0
@@ -105,7 +105,7 @@ def stored():
 if __name__ == "__main__":
     what = sys.argv[1] if len(sys.argv) > 1 else "necessity"
     if what == "necessity":
-        necessity(int(sys.argv[2]) if len(sys.argv) > 2 else 40)
+        necessity(int(sys.argv[2]) if len(sys.argv) > 2 else 40, int(sys.argv[3]) if len(sys.argv) > 3 else 2026)
     elif what == "levels":
         levels()
     else:
