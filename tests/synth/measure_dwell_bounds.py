@@ -1,6 +1,6 @@
 """Measurements behind docs/complete-query.md §6–7 (not a test: run by hand, ~2 min on 2 cores).
 
-    .venv/bin/python tests/synth/measure_dwell_bounds.py [necessity [N [SEED]]|levels|stored]
+    .venv/bin/python tests/synth/measure_dwell_bounds.py [necessity [N [SEED]]|levels|stored|staircase]
 """
 
 import sys
@@ -102,11 +102,37 @@ def stored():
                 x[:, 1].min(), np.median(x[:, 1]), x[:, 1].max(), np.median(x[:, 2]), x[:, 2].max()))
 
 
+def staircase(count=20):
+    """Cost per segment of the batched staircase profile (9 levels) on every segment of
+    ``count`` random linkages, per kind, at 1° and 2°."""
+    import math, time, numpy as np
+    from synth.segments import find_segments, SegmentSearch
+    from synth.dwell_bounds import deviation_profiles
+    rng = np.random.default_rng(5)
+    B = []
+    while len(B) < count:
+        b, c, d = rng.uniform(1.5, 5.0, 3); l = max(b, c, d)
+        if 1 + l <= b + c + d - l: B.append((b, c, d))
+    b, c, d = (np.array(x) for x in zip(*B)); br = np.ones(count, int)
+    s = find_segments(b, c, d, br, SegmentSearch())
+    for kind in (0, 1):
+        rows = np.flatnonzero(s.kind == kind); L = s.linkage[rows]
+        for step in (1.0, 2.0):
+            t = time.perf_counter()
+            deviation_profiles(b[L], c[L], d[L], br[L], s.uv[rows], s.phi_gen[rows], kind,
+                               levels=np.logspace(-5, -1, 9), step=math.radians(step))
+            dt = time.perf_counter() - t
+            print(f"kind {kind}: {rows.size} segments, step {step}°: {1e3 * dt / max(rows.size, 1):.1f} ms/segment")
+
+
 if __name__ == "__main__":
     what = sys.argv[1] if len(sys.argv) > 1 else "necessity"
     if what == "necessity":
         necessity(int(sys.argv[2]) if len(sys.argv) > 2 else 40, int(sys.argv[3]) if len(sys.argv) > 3 else 2026)
     elif what == "levels":
         levels()
+    elif what == "staircase":
+        staircase()
     else:
         stored()
+

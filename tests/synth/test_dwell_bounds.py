@@ -18,6 +18,8 @@ from hypothesis import strategies as st
 from synth.dwell_bounds import (
     curve_extent,
     deviation_profile,
+    deviation_profiles,
+    STAIRCASE_SLACK,
     dwell_bound,
     minimum_zone_halfwidth,
     path_tolerance,
@@ -230,3 +232,22 @@ def test_profile_is_monotone_and_never_below_the_stored_dwells():
         assert np.all(p.length[at][has] >= stored[has] - 1e-9)
         checked += int(has.sum())
     assert checked >= 6
+
+
+@pytest.mark.parametrize("kind", [0, 1])
+def test_staircase_profile_never_below_the_exhaustive_one(kind):
+    """The batched staircase walk (the affordable one) is an upper estimate of the exhaustive
+    search, at most its slack above it."""
+    b, c, d = np.array([3.0, 2.5]), np.array([2.5, 2.0]), np.array([3.0, 2.8])
+    found = find_segments(b, c, d, np.array([1, 1]), SEARCH)
+    rows = np.flatnonzero(found.kind == kind)[:4]
+    link = found.linkage[rows]
+    levels = np.logspace(-5, -1, 9)
+    walk = deviation_profiles(b[link], c[link], d[link], np.ones(rows.size, int), found.uv[rows],
+                              found.phi_gen[rows], kind, levels=levels, step=STEP)
+    for q, i in enumerate(rows):
+        every = deviation_profile(float(b[link[q]]), float(c[link[q]]), float(d[link[q]]), 1, complex(found.uv[i]),
+                                  float(found.phi_gen[i]), kind, levels=levels, step=STEP)
+        capped = every.length < 2 * math.pi
+        assert np.all(walk.length[q] >= every.length - 1e-9)
+        assert np.all(walk.length[q][capped] <= every.length[capped] + (STAIRCASE_SLACK + 2) * STEP + 1e-9)
