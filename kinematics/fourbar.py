@@ -1,6 +1,6 @@
 """Planar four-bar: assembly, Grashof type, closed-form derivatives w.r.t. the crank angle.
 
-Conventions (``shared/design/product.md``): ground pivots A0 = 0 (crank) and B0 = d on the
+Conventions (README, *Conventions*): ground pivots A0 = 0 (crank) and B0 = d on the
 +x axis; crank a (A0→A), coupler b (A→B), rocker c (B0→B); crank angle φ counter-clockwise
 from +x; coupler angle θ = arg(B − A), rocker angle γ = arg(B − B0). Branch +1 puts B to the
 left of the directed line A→B0. Points are complex numbers (x + iy).
@@ -200,7 +200,7 @@ class FourBarMotion:
         """Path of the coupler point p = u + iv (coupler frame: origin A, x-axis A→B).
 
         Returns ``(z, z′, z″, z‴)[: order + 1]``, complex128, derivatives w.r.t. φ
-        (curvature.md §1: z = A + w, w = e^{iθ}p; z′ = A′ + iθ′w; z″ = A″ + (iθ″ − θ′²)w;
+        (docs/curvature.md §1: z = A + w, w = e^{iθ}p; z′ = A′ + iθ′w; z″ = A″ + (iθ″ − θ′²)w;
         z‴ = A‴ + (iθ‴ − 3θ′θ″ − iθ′³)w). ``u, v`` broadcast against the motion's shape.
         """
         if order > len(self.dtheta):
@@ -254,14 +254,14 @@ def fourbar_motion(
     sin β = √((c−b+r)(c+b−r)(b+r−c)(b+r+c))/(2br) avoids the cancellation of √(1 − cos²β)
     near toggles. e^{iγ} = (b·e^{iθ} − R)/c, and sin(θ − γ) = −|R|·sin β / c.
 
-    Derivatives solve i·b·x·e^{iθ} − i·c·y·e^{iγ} = Q_k (curvature.md §1):
+    Derivatives solve i·b·x·e^{iθ} − i·c·y·e^{iγ} = Q_k (docs/curvature.md §1):
     x = −Re(Q_k e^{−iγ})/(b sin(θ−γ)), y = −Re(Q_k e^{−iθ})/(c sin(θ−γ)), with
     Q_1 = R′, Q_2 = R″ + bθ′²e^{iθ} − cγ′²e^{iγ},
     Q_3 = R‴ + b(3θ′θ″ + iθ′³)e^{iθ} − c(3γ′γ″ + iγ′³)e^{iγ}.
 
     References
     ----------
-    ``shared/design/curvature.md`` §1 (checked there against 40-digit arithmetic).
+    ``docs/curvature.md`` §1 (checked there against 40-digit arithmetic).
     """
     mode = check_on_degenerate(on_degenerate)
     if order not in (0, 1, 2, 3):

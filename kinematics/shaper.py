@@ -1,6 +1,6 @@
 """Crank / guide-rod / slider (quick-return shaper): assembly, derivatives, limit positions.
 
-Conventions (``shared/cases/classic_mechanisms.md`` §1): crank pivot A = 0, x axis
+Conventions (``docs/cases/classic_mechanisms.md`` §1): crank pivot A = 0, x axis
 perpendicular to the frame line AC, guide-rod pivot C = (0, −h). Crank AB = l1 at φ1
 (counter-clockwise from +x); block 2 is pinned to the crank at B and slides on the guide rod
 3, s2 = |CB|, φ3 = arg(B − C) in (0, π); rod CD = l3; link DE = l4 at φ4; slider 5 at
@@ -125,7 +125,7 @@ def check_shaper(l1: float, l3: float, l4: float, h: float, e: float, branch: in
 
     References
     ----------
-    ``shared/cases/classic_mechanisms.md`` §1 gives the first three; the fourth is needed as
+    ``docs/cases/classic_mechanisms.md`` §1 gives the first three; the fourth is needed as
     soon as e is small or negative.
     """
     check_lengths(l1=l1, l3=l3, l4=l4, h=h)
@@ -213,7 +213,7 @@ def shaper_motion(
 
     References
     ----------
-    ``shared/cases/classic_mechanisms.md`` §1 (with ω1 = 1, ε1 = 0; its a2 and a5 correct a
+    ``docs/cases/classic_mechanisms.md`` §1 (with ω1 = 1, ε1 = 0; its a2 and a5 correct a
     widely circulated program that has ω1² for ω3² in a2 and the wrong sign of l4·ω4² in a5).
     """
     mode = check_on_degenerate(on_degenerate)

@@ -1,6 +1,6 @@
 """Offset slider-crank: assembly, closed-form derivatives w.r.t. the crank angle, limit positions.
 
-Conventions (``shared/cases/classic_mechanisms.md`` §2): crank pivot A = 0, crank AB = l1 at
+Conventions (``docs/cases/classic_mechanisms.md`` §2): crank pivot A = 0, crank AB = l1 at
 φ1 (counter-clockwise from +x), connecting rod BC = l2 at φ2, slider C on a straight guide.
 In the guide frame (x′ along the guide direction u(α)) the guide line is y′ = −e — e > 0 puts
 it below A, i.e. to the right of the guide direction — and C = (s3, −e). The guide inclination
@@ -174,7 +174,7 @@ def slider_crank_motion(
 
     References
     ----------
-    ``shared/cases/classic_mechanisms.md`` §2 (the same expressions with ω1 = 1, ε1 = 0),
+    ``docs/cases/classic_mechanisms.md`` §2 (the same expressions with ω1 = 1, ε1 = 0),
     checked there against 40-digit finite differences; P204101 in ``classic_mechanisms.json``
     for the inclined guide.
     """

@@ -58,11 +58,11 @@ def ball_point_offset(t1: ArrayLike, t2: ArrayLike, t3: ArrayLike) -> tuple[C128
 
     Notes
     -----
-    Ball's point makes z″ and z‴ parallel to z′ (κ = 0 and dκ/dφ = 0, curvature.md §1), i.e.
+    Ball's point makes z″ and z‴ parallel to z′ (κ = 0 and dκ/dφ = 0, docs/curvature.md §1), i.e.
     z″ = λz′ and z‴ = μz′ with real λ, μ. With z′ = iE(1 + θ′ŵ), z″ = E(c₂ŵ − 1),
     z‴ = E(c₃ŵ − i), c₂ = iθ″ − θ′², c₃ = iθ‴ − 3θ′θ″ − iθ′³, eliminating ŵ cancels the
     λμ term and leaves a real 2×2 linear system for (λ, μ); back-substitution gives ŵ = n/m.
-    Unlike I + r_B·u_B (curvature.md §2) it needs no angle and no division by θ′ before the
+    Unlike I + r_B·u_B (docs/curvature.md §2) it needs no angle and no division by θ′ before the
     end, so the Ball-point track stays smooth up to the pole at infinity. The two forms agree
     to rounding (tests/synth/test_contract.py).
     """
@@ -109,13 +109,13 @@ def ball_point(pole: Pole, *, on_degenerate: str = "flag") -> BallPoint:
     Notes
     -----
     Computed as z_B = A + E·n/m (:func:`ball_point_offset`), the same point as
-    curvature.md's α_B = arg(θ′Z3 − 3θ″Z2) + π/2, r_B = R2(α_B)/θ′². Its velocity is
+    docs/curvature.md's α_B = arg(θ′Z3 − 3θ″Z2) + π/2, r_B = R2(α_B)/θ′². Its velocity is
     z′ = iE·G(θ′ − θ′² + iθ″)/k with m = θ′k, and its distance from the pole over the
     inflection-circle diameter is |sin(α_B − pole tangent)| = θ′²|G|/|m|.
 
     References
     ----------
-    ``shared/design/curvature.md`` §2, "Ball's point".
+    ``docs/curvature.md`` §2, "Ball's point".
     """
     mode = check_on_degenerate(on_degenerate)
     t1, t2, t3 = pole.dtheta

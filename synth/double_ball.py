@@ -100,7 +100,7 @@ def theta4(motion: FourBarMotion) -> F64:
     -----
     Differentiating the loop b·e^{iθ} − c·e^{iγ} = R(φ) a fourth time, with
     (e^{iθ})⁗ = (iθ⁗ − 4θ′θ‴ − 3θ″² − 6iθ′²θ″ + θ′⁴)e^{iθ} and R⁗ = −a·e^{iφ}, gives the
-    curvature.md §1 system with
+    docs/curvature.md §1 system with
 
     .. math::
 
@@ -178,7 +178,7 @@ def double_ball_points(
 
     References
     ----------
-    ``shared/design/curvature.md`` §2, "Double Ball point".
+    ``docs/curvature.md`` §2, "Double Ball point".
     """
     mode = check_on_degenerate(on_degenerate)
     if samples < 64:

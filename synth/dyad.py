@@ -1,4 +1,4 @@
-"""Output dyads fitted to a dwell segment of a coupler curve (curvature.md §4).
+"""Output dyads fitted to a dwell segment of a coupler curve (docs/curvature.md §4).
 
 * **RPR** for a straight segment: the slot pivot D on the segment's line, beyond the stretch the
   coupler point covers during the dwell, at the distance that gives the requested swing of
@@ -344,7 +344,7 @@ def rpr_double(line1: tuple[ArrayLike, ArrayLike], line2: tuple[ArrayLike, Array
     -----
     P₁ + t₁e₁ = P₂ + t₂e₂ gives t₁ = Im(ē₂(P₂ − P₁)) / Im(ē₂e₁); Im(ē₂e₁) = sin(δ₁ − δ₂)
     below ``PARALLEL_EPS`` is parallel. With D there, ψ = arg(P − D) is constant along both
-    straight stretches: two dwells per turn (curvature.md §4).
+    straight stretches: two dwells per turn (docs/curvature.md §4).
     """
     p1, d1 = (np.asarray(x) for x in line1)
     p2, d2 = (np.asarray(x) for x in line2)

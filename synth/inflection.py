@@ -47,7 +47,7 @@ def inflection_circle(pole: Pole, *, on_degenerate: str = "flag") -> InflectionC
 
     References
     ----------
-    ``shared/design/curvature.md`` §2, "Inflection circle".
+    ``docs/curvature.md`` §2, "Inflection circle".
     """
     mode = check_on_degenerate(on_degenerate)
     t1 = pole.dtheta[0]
@@ -108,7 +108,7 @@ def euler_savary(pole: Pole, z: ArrayLike, *, on_degenerate: str = "flag") -> Cu
 
     References
     ----------
-    ``shared/design/curvature.md`` §2, "Centre point" (Euler–Savary).
+    ``docs/curvature.md`` §2, "Centre point" (Euler–Savary).
     """
     mode = check_on_degenerate(on_degenerate)
     z = np.asarray(z, np.complex128)

@@ -139,7 +139,7 @@ def line_scan(pole: Pole, alpha: ArrayLike, *, on_degenerate: str = "flag") -> C
 
     Notes
     -----
-    For u = e^{iα}, R2 = Re(ū Z2), I2 = Im(ū Z2), R3 = Re(ū Z3) (curvature.md §2):
+    For u = e^{iα}, R2 = Re(ū Z2), I2 = Im(ū Z2), R3 = Re(ū Z3) (docs/curvature.md §2):
 
     .. math::
 
@@ -156,7 +156,7 @@ def line_scan(pole: Pole, alpha: ArrayLike, *, on_degenerate: str = "flag") -> C
 
     References
     ----------
-    ``shared/design/curvature.md`` §2, "Cubic of stationary curvature", "Centre point",
+    ``docs/curvature.md`` §2, "Cubic of stationary curvature", "Centre point",
     "Line scanning"; the textbook form 1/r = 1/(M sin ψ) + 1/(N cos ψ) is the same curve.
     """
     mode = check_on_degenerate(on_degenerate)

@@ -1,7 +1,7 @@
 """The pole (instant centre) of the coupler motion and its derivatives: the instantaneous
 invariants every other curvature quantity is built from.
 
-All quantities are derivatives with respect to the crank angle φ (curvature.md §1–2); points
+All quantities are derivatives with respect to the crank angle φ (docs/curvature.md §1–2); points
 are complex numbers in the fixed frame (A0 = 0, B0 = d on the +x axis). Kernels broadcast
 like :func:`kinematics.fourbar.fourbar_motion` and never return NaN/inf: degenerate instants
 carry :class:`~kinematics.status.Status` flags in a ``uint16`` status array (``synth/`` uses
@@ -36,7 +36,7 @@ Rounding-error estimate of θ′, θ″, θ‴
 ``Pole.dtheta_error`` is a first-order estimate of the absolute float64 error of the coupler
 angle's derivatives, from which :func:`synth.line_scan.line_scan` estimates the error of each
 conjugate pair (see ``synth.line_scan.ACCURACY``). With κ the loop condition (above),
-D = b·|sin(θ − γ)| and the magnitudes of the terms of the derivative systems of curvature.md §1,
+D = b·|sin(θ − γ)| and the magnitudes of the terms of the derivative systems of docs/curvature.md §1,
 
     T1 = a/D,   T2 = (a + b·θ′² + c·γ′²)/D,
     T3 = (a + b·(3|θ′θ″| + |θ′|³) + c·(3|γ′γ″| + |γ′|³))/D,
@@ -225,7 +225,7 @@ def pole(motion: FourBarMotion, *, on_degenerate: str = "flag") -> Pole:
     Notes
     -----
     With E = a·e^{iφ} (so A′ = iE, A″ = −E, A‴ = −iE), the pole offset from the crank pin
-    w_P = i·A′/θ′ and the pole derivatives of curvature.md §2 simplify to
+    w_P = i·A′/θ′ and the pole derivatives of docs/curvature.md §2 simplify to
 
     .. math::
 
@@ -237,7 +237,7 @@ def pole(motion: FourBarMotion, *, on_degenerate: str = "flag") -> Pole:
 
     References
     ----------
-    ``shared/design/curvature.md`` §2 (pole, Z2, Z3), checked against 40-digit arithmetic in
+    ``docs/curvature.md`` §2 (pole, Z2, Z3), checked against 40-digit arithmetic in
     ``tests/synth/test_accuracy.py``.
     """
     mode = check_on_degenerate(on_degenerate)

@@ -1,6 +1,6 @@
 """Dwell segments of coupler curves: candidates from curvature theory, measured on the exact path.
 
-Candidates (curvature.md §2) for each linkage (crank a = 1):
+Candidates (docs/curvature.md §2) for each linkage (crank a = 1):
 
 * **line**: Ball's point at every crank step (four-point contact with its tangent line);
 * **arc**: the circle point on each scan ray through the pole at every crank step (four
@@ -8,7 +8,7 @@ Candidates (curvature.md §2) for each linkage (crank a = 1):
   point);
 * **double_line**: every double Ball point (Ball's point at two crank angles), both stretches.
 
-Each candidate is measured on its exact path z(φ) = A(φ) + e^{iθ(φ)}·p (curvature.md §3): at
+Each candidate is measured on its exact path z(φ) = A(φ) + e^{iθ(φ)}·p (docs/curvature.md §3): at
 every tolerance level ε (band half-width, crank lengths) its **dwell interval** is the largest
 crank interval around the generating angle on which z stays within ε of a line (or circle)
 *fitted to that interval* — an approximately minimum-zone fit (a Lawson-iterated Chebyshev fit,

@@ -2,8 +2,8 @@
 exactly over the crank turn, and the figures a user is shown about it.
 
 The six-bar is a four-bar (crank a, coupler b, rocker c, ground d, assembly branch; coupler
-point p = u + iv in the coupler frame, product.md conventions) whose coupler point P drives
-one of two output dyads (curvature.md §4):
+point p = u + iv in the coupler frame, the README's conventions) whose coupler point P drives
+one of two output dyads (docs/curvature.md §4):
 
 * **RPR** (slotted rocker): a slot on the output rocker passes through the fixed pivot D; the
   pin at P slides in it. Output angle ψ = arg(P − D).
@@ -363,7 +363,7 @@ def simulate(sixbar: SixBar | SixBars, phi: ArrayLike, *, order: int = 2, on_deg
     Notes
     -----
     Four-bar and coupler point: :func:`kinematics.fourbar.fourbar_motion` and
-    :meth:`~kinematics.fourbar.FourBarMotion.coupler_point` (curvature.md §1).
+    :meth:`~kinematics.fourbar.FourBarMotion.coupler_point` (docs/curvature.md §1).
 
     RPR: with W = P − D, ψ = Im log W, so ψ′ = Im(P′/W), ψ″ = Im(P″/W − (P′/W)²). The force of
     the slot on the block is normal to the slot, which runs through D, so it is always normal
@@ -377,13 +377,13 @@ def simulate(sixbar: SixBar | SixBars, phi: ArrayLike, *, order: int = 2, on_deg
     (Heron, no cancellation at a toggle), sin(χ − ψ) = −r·s·sin β/L. Each derivative order
     solves i·ρ·χ⁽ᵏ⁾e^{iχ} − i·L·ψ⁽ᵏ⁾e^{iψ} = Q_k with
     ψ⁽ᵏ⁾ = −Re(Q_k e^{−iχ})/(L sin(χ − ψ)), χ⁽ᵏ⁾ = −Re(Q_k e^{−iψ})/(ρ sin(χ − ψ)),
-    Q_1 = −P′, Q_2 = −P″ + ρχ′²e^{iχ} − Lψ′²e^{iψ} (the four-bar's system of curvature.md §1
+    Q_1 = −P′, Q_2 = −P″ + ρχ′²e^{iχ} − Lψ′²e^{iψ} (the four-bar's system of docs/curvature.md §1
     with b, c, θ, γ → ρ, L, χ, ψ). Transmission angle at Q: the angle between e^{iχ} and
     e^{iψ}, folded to [0, π/2].
 
     References
     ----------
-    ``shared/design/curvature.md`` §1 (loop derivatives) and §4 (output dyads).
+    ``docs/curvature.md`` §1 (loop derivatives) and §4 (output dyads).
     """
     mode = check_on_degenerate(on_degenerate)
     if order not in (0, 1, 2):

@@ -1,4 +1,4 @@
-"""Shared test fixtures: the public reference cases in ``../shared/cases``."""
+"""Shared test fixtures: the public reference cases in ``docs/cases`` (part of the repo)."""
 
 from __future__ import annotations
 
@@ -15,14 +15,13 @@ settings.register_profile("ci", derandomize=True, print_blob=True)
 if os.environ.get("CI"):
     settings.load_profile("ci")
 
-CASES_FILE = Path(__file__).resolve().parents[1].parent / "shared" / "cases" / "classic_mechanisms.json"
+CASES_FILE = Path(__file__).resolve().parents[1] / "docs" / "cases" / "classic_mechanisms.json"
 
 
 @pytest.fixture(scope="session")
 def reference_cases() -> dict[str, dict]:
-    """Cases of ``shared/cases/classic_mechanisms.json`` by name (skips if absent)."""
-    if not CASES_FILE.exists():
-        pytest.skip(f"reference cases not found at {CASES_FILE}")
+    """Cases of ``docs/cases/classic_mechanisms.json`` by name (a missing file fails the tests
+    that use it: the cases ship with the repo, a silent skip would hide them)."""
     data = json.loads(CASES_FILE.read_text())
     return {case["name"]: case for case in data["cases"]}
 

@@ -31,7 +31,7 @@ from report.motion_table import Column, MotionTable
 def shaper(l1, l3, l4, h, e, branch, phi, phi_from, phi_to, phi_step, rpm, omega, cw, crank_alpha, as_json, plot, draw, units):
     """Analyse a quick-return shaper: crank pivot A=(0,0), rod pivot C=(0,-h), slider E=(s5,-e).
 
-    Formulas: shared/cases/classic_mechanisms.md section 1 (s2 block on the rod, phi3 rod,
+    Formulas: docs/cases/classic_mechanisms.md section 1 (s2 block on the rod, phi3 rod,
     phi4 link DE, s5 slider); angles CCW from +x.
     """
     br = int(branch)

@@ -51,7 +51,7 @@ def xy(z: complex) -> tuple[float, float]:
 def slider_crank(l1, l2, e, guide_angle, branch, phi, phi_from, phi_to, phi_step, rpm, omega, cw, crank_alpha, as_json, plot, draw, units):
     """Analyse an offset slider-crank: crank pivot A=(0,0), slider C=(s3,-e); angles CCW from +x.
 
-    Formulas: shared/cases/classic_mechanisms.md section 2 (phi1 crank, phi2 rod, s3 slider).
+    Formulas: docs/cases/classic_mechanisms.md section 2 (phi1 crank, phi2 rod, s3 slider).
     """
     br = int(branch)
     # whole turns off first, exactly (fmod by 360 is exact): in radians, 1e18 degrees would

@@ -144,7 +144,7 @@ def residuals(jet: LoopJet, a, results: dict, circle_angles=None) -> dict[str, n
     * Ball's point: Newton correction to the exact κ = dκ/dφ = 0 point;
     * circle points: distance to the exact dκ/dφ = 0 locus;
     * centre points: against the centre point on the returned ray from this reference's pole
-      derivatives (curvature.md's r₀ in longdouble; the 40-digit tests check that formula
+      derivatives (docs/curvature.md's r₀ in longdouble; the 40-digit tests check that formula
       against the centre of curvature itself). The conjugate of the *rounded* circle point is
       no yardstick: near the pole it moves ~(r₀/r_c)² times faster than the circle point;
     * Euler–Savary centres: against the centre of curvature of the given point.

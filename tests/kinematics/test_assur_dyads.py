@@ -21,7 +21,7 @@ from kinematics.assur import (
 from kinematics.fourbar import fourbar_motion
 from kinematics.status import Status
 
-# -- the dyad, four-bar and slider-crank cases of shared/cases/classic_mechanisms.json ----------
+# -- the dyad, four-bar and slider-crank cases of docs/cases/classic_mechanisms.json ----------
 
 
 def _solver_rows(case):

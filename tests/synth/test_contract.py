@@ -220,7 +220,7 @@ def test_pole_at_infinity_is_flagged_near_a_zero_of_theta_prime():
 
 
 def test_ball_point_closed_form_equals_the_pole_formula():
-    """curvature.md §2: α_B = arg(θ′Z3 − 3θ″Z2) + π/2, r_B = R2(α_B)/θ′²."""
+    """docs/curvature.md §2: α_B = arg(θ′Z3 − 3θ″Z2) + π/2, r_B = R2(α_B)/θ′²."""
     for phi in np.linspace(0.2, 6.2, 13):
         pl = _pole_at(phi)
         if pl.status:
