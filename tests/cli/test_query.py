@@ -99,6 +99,7 @@ def test_double_dwell_request(capsys, atlas_path):
                          "--json")
     assert code == 0, err
     cands = json.loads(out)["candidates"]
+    assert cands, "the demo atlas answers a 30° double dwell (issue 13's example)"
     for cand in cands:
         assert len(cand["dwells"]) == 2
         for dw in cand["dwells"]:

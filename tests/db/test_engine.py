@@ -75,9 +75,17 @@ def test_create_then_reopen(atlas):
     again.dispose()
 
 
-def test_schema_version_is_2():
-    # 1 was recorded before the lock columns, the stored digest and 64-bit ids: such atlases are refused
-    assert SCHEMA_VERSION == 2
+def test_an_older_schema_is_refused_with_rebuild(atlas):
+    """An atlas written by an older schema (fewer stored columns) is one line saying to rebuild."""
+    target, engine = atlas
+    with engine.begin() as conn:
+        conn.execute(update(Meta).where(Meta.key == "schema_version").values(value=str(SCHEMA_VERSION - 1)))
+    engine.dispose()
+    with pytest.raises(AtlasError) as err:
+        open_atlas(target)
+    message = str(err.value)
+    assert f"schema version {SCHEMA_VERSION - 1}, older than {SCHEMA_VERSION}; rebuild the atlas" in message
+    assert "\n" not in message
 
 
 @pytest.mark.parametrize("bad", [float("nan"), float("inf"), float("-inf"), 1e301])

@@ -126,11 +126,13 @@ def _pole_at(phi):
 def test_rays_through_a_and_b_give_their_circles():
     """Closed form: A moves on a circle of radius a about A0, B on one of radius c about B0."""
     a, b, c, d = CRANK_ROCKER
+    checked = 0
     for phi in np.linspace(0.1, 6.0, 9):
         motion = fourbar_motion(a, b, c, d, phi)
         pl = pole(motion)
         if pl.status:
             continue
+        checked += 1
         for joint, pivot, radius, uv in ((motion.A, 0j, a, 0j), (motion.B, complex(d), c, complex(b))):
             alpha = np.angle(joint - pl.point)
             pair = line_scan(pl, alpha)
@@ -139,6 +141,7 @@ def test_rays_through_a_and_b_give_their_circles():
             assert abs(pair.center_point - pivot) < 1e-11 * (1 + abs(joint - pl.point))
             assert pair.radius == pytest.approx(radius, rel=1e-11)
             assert abs(pair.circle_point_uv - uv) < 1e-11
+    assert checked == 9  # a crank-rocker has a finite pole at every crank angle
 
 
 def test_euler_savary_agrees_with_line_scanning_and_with_the_joints():
@@ -221,10 +224,12 @@ def test_pole_at_infinity_is_flagged_near_a_zero_of_theta_prime():
 
 def test_ball_point_closed_form_equals_the_pole_formula():
     """docs/curvature.md §2: α_B = arg(θ′Z3 − 3θ″Z2) + π/2, r_B = R2(α_B)/θ′²."""
+    checked = 0
     for phi in np.linspace(0.2, 6.2, 13):
         pl = _pole_at(phi)
         if pl.status:
             continue
+        checked += 1
         t1, t2 = pl.dtheta[0], pl.dtheta[1]
         u = np.exp(1j * (np.angle(t1 * pl.z3 - 3 * t2 * pl.z2) + np.pi / 2))
         z = pl.point + (np.conj(u) * pl.z2).real / t1**2 * u
@@ -232,3 +237,4 @@ def test_ball_point_closed_form_equals_the_pole_formula():
         assert abs(ball.point - z) < 1e-12 * (1 + abs(z))
         z_dot = fourbar_motion(*CRANK_ROCKER, phi).coupler_point(ball.uv.real, ball.uv.imag, order=1)[1]
         assert abs(ball.tangent - z_dot / abs(z_dot)) < 1e-12
+    assert checked == 13  # a crank-rocker has a finite pole at every crank angle
