@@ -187,11 +187,15 @@ def probe_folder(path: Path, option: str) -> None:
                 break
 
 
+#: The length unit's name: labels, and the DXF's ``$INSUNITS`` (report.dxf.INSUNITS).
+units_option = click.option("--units", default="mm", show_default=True,
+                            help="Name of the length unit (labels; mm, cm, m, in, ft … also set the DXF's units).")
+
 output_options = _stack(
     click.option("--json", "as_json", is_flag=True, help="Print one JSON document instead of the table."),
     click.option("--plot", type=click.Path(dir_okay=False), callback=writable_file(".png", ".svg"),
                  help="Write the motion diagrams (displacement, velocity, acceleration) to FILE.png|.svg."),
     click.option("--draw", type=click.Path(dir_okay=False), callback=writable_file(".svg", ".png"),
                  help="Draw the mechanism at the first crank angle to FILE.svg."),
-    click.option("--units", default="mm", show_default=True, help="Name of the length unit (labels only)."),
+    units_option,
 )

@@ -15,7 +15,7 @@ from pathlib import Path
 import click
 
 from cli.errors import InputError
-from cli.options import positive
+from cli.options import positive, units_option
 from synth.candidates import Request, candidate_json
 from synth.query import SAMPLES, QueryResult, RebuildError
 
@@ -195,8 +195,9 @@ TRANSMISSION_RANGE = click.FloatRange(0.0, 90.0, min_open=True, max_open=True)
 @click.option("--json", "as_json", is_flag=True, help="JSON on stdout instead of a table.")
 @click.option("--report", "report_dir", type=click.Path(file_okay=False), default=None,
               help="Also write the report of the candidates to this folder.")
+@units_option
 def query(target, dwell, dwell_tol, swing, swing_tol, output, dwells, dwell_tolerance, crank, min_transmission,
-          max_link_ratio, top, as_json, report_dir):
+          max_link_ratio, top, as_json, report_dir, units):
     """Ranked six-bars for a requested dwell and swing (see README: ranking)."""
     request = request_from_options(dwell, dwell_tol, swing, swing_tol, output.lower(), dwells, dwell_tolerance, crank,
                                    min_transmission, max_link_ratio, top)
@@ -221,7 +222,7 @@ def query(target, dwell, dwell_tol, swing, swing_tol, output, dwells, dwell_tole
     if report_dir is not None and result.candidates:
         from report.export import write_report
 
-        written = write_report(result.candidates, request, Path(report_dir))
+        written = write_report(result.candidates, request, Path(report_dir), units=units)
         click.echo(f"report: {len(written)} files in {report_dir}", err=True)
 
 

@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from cli.errors import InputError
-from cli.options import positive, probe_folder
+from cli.options import positive, probe_folder, units_option
 
 
 @click.command("report")
@@ -21,8 +21,9 @@ from cli.options import positive, probe_folder
 @click.option("--crank", type=float, default=1.0, show_default=True, callback=positive, help="Crank length (your unit).")
 @click.option("--min-transmission", type=click.FloatRange(0.0, 90.0, min_open=True, max_open=True), default=30.0, show_default=True,
               help="The query's smallest transmission angle (°): RRR fits are rebuilt with it.")
+@units_option
 @click.argument("more_ids", nargs=-1)
-def report(target, ids, out_dir, dwell, dwell_tolerance, crank, min_transmission, more_ids):
+def report(target, ids, out_dir, dwell, dwell_tolerance, crank, min_transmission, units, more_ids):
     """Write JSON, CSV, plots, drawings, DXF and an animated HTML page for the candidates."""
     from cli.query import rebuild, request_from_options
     from db.engine import open_atlas
@@ -50,7 +51,7 @@ def report(target, ids, out_dir, dwell, dwell_tolerance, crank, min_transmission
         candidates = rebuild(engine, names, request)
     finally:
         engine.dispose()
-    written = write_report(candidates, request, out, option="--out")  # all files or none (report/folder.py)
+    written = write_report(candidates, request, out, option="--out", units=units)  # all files or none (report/folder.py)
     for c in candidates:
         dw = " and ".join(f"{math.degrees(d.angle):.2f}°" for d in c.figures.dwells)
         click.echo(f"{c.rank}. {c.id}: {c.sixbar.dyad.kind}, dwell {dw}, swing {math.degrees(c.figures.swing):.2f}°")

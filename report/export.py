@@ -278,7 +278,7 @@ def _readme(request: Request, stems: Sequence[str]) -> str:
 
 
 def write_report(candidates: list[Candidate], request: Request, out_dir: Path, *,
-                 step_deg: float = 1.0, option: str = "report folder") -> list[Path]:
+                 step_deg: float = 1.0, option: str = "report folder", units: str = "") -> list[Path]:
     """Write the report of ``candidates`` (ranked, in the user's units) for ``request`` into
     ``out_dir``: written into a temporary sibling folder that replaces ``out_dir`` when
     complete (:func:`report.folder.staged_folder`; a folder holding files the tool did not
@@ -295,6 +295,9 @@ def write_report(candidates: list[Candidate], request: Request, out_dir: Path, *
         Crank step of the cycle tables and the animation (deg, a divisor of 360).
     option : str
         How messages name the folder (e.g. ``"--out"``).
+    units : str
+        Name of the candidates' length unit (``""`` unitless): drawing labels and the DXF's
+        ``$INSUNITS``.
 
     Returns
     -------
@@ -340,7 +343,7 @@ def write_report(candidates: list[Candidate], request: Request, out_dir: Path, *
 
         entries = []
         for c, cyc, stem in zip(candidates, cycles, stems):
-            geom = sixbar_geometry(c, cyc)
+            geom = sixbar_geometry(c, cyc, units=units)
             plots = plot_candidate(c, cyc, geom, out / stem, min_transmission=request.min_transmission)
             drawing = draw_sixbar(geom, out / f"{stem}-drawing.svg")
             dxf = write_dxf(geom, out / f"{stem}-drawing.dxf")

@@ -32,6 +32,7 @@ import numpy as np
 
 from report.cycle import Cycle
 from report.escape import script_json, text
+from report.palette import BLOCK, CURVE, DWELL, LINK_COLORS
 from report.sixbar_drawing import SLOT_MARGIN, SixBarGeometry
 from synth.candidates import Candidate, Request
 
@@ -365,8 +366,21 @@ def _candidate_section(entry: PageEntry) -> str:
 </section>"""
 
 
+def _palette_css() -> str:
+    """The links' colours of :mod:`report.palette` (the SVG drawing's and the DXF's) as CSS."""
+    rules = [f":root{{--dwell:{DWELL}}}",
+             f"svg.mech .crank{{stroke:{LINK_COLORS['crank']}}}",
+             f"svg.mech .coupler{{fill:{LINK_COLORS['coupler']};stroke:{LINK_COLORS['coupler']}}}",
+             f"svg.mech .rocker{{stroke:{LINK_COLORS['rocker']}}}",
+             f"svg.mech .rod{{stroke:{LINK_COLORS['rod']}}}",
+             f"svg.mech .output-link{{stroke:{LINK_COLORS['output']}}}",
+             f"svg.mech .block{{fill:{BLOCK}}}",
+             f"svg.mech .coupler-curve{{stroke:{CURVE}}}"]
+    return "\n".join(rules) + "\n"
+
+
 _CSS = """
-:root{--dwell:#d62728;--ink:#222;--muted:#666;--line:#ddd}
+:root{--ink:#222;--muted:#666;--line:#ddd}
 *{box-sizing:border-box}
 body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,"Helvetica Neue",Arial,sans-serif;color:var(--ink)}
 body{margin:0 auto;padding:1.2em 1.5em;max-width:1400px;line-height:1.35}
@@ -375,7 +389,7 @@ h2{font-size:1.2em;margin:.2em 0 .6em;display:flex;gap:.6em;align-items:center}
 code{font-family:ui-monospace,"SFMono-Regular",Menlo,Consolas,monospace;font-size:.92em}
 .request{color:var(--muted);margin:.3em 0 1em}
 table{border-collapse:collapse;font-size:.9em}
-table.summary{width:100%;margin-bottom:1.5em}
+table.summary{width:100%;margin-bottom:1.5em;display:block;overflow-x:auto}
 table.summary th,table.summary td{border-bottom:1px solid var(--line);padding:.3em .6em}
 table.summary th,table.summary td{text-align:right;white-space:nowrap}
 table.summary th:nth-child(2),table.summary td:nth-child(2){text-align:left}
@@ -390,19 +404,15 @@ table.dimensions td{padding:.18em 0;font-variant-numeric:tabular-nums}
 svg.mech{display:block;width:100%;max-width:560px;height:auto}
 svg.mech{background:#fcfcfd;border:1px solid var(--line);border-radius:6px}
 svg.mech line,svg.mech polygon,svg.mech polyline,svg.mech circle,svg.mech rect{vector-effect:non-scaling-stroke}
-svg.mech .coupler-curve{fill:none;stroke:#9a9a9a;stroke-width:1px;stroke-dasharray:4 3}
+svg.mech .coupler-curve{fill:none;stroke-width:1px;stroke-dasharray:4 3}
 svg.mech .dwell-stretch{fill:none;stroke:var(--dwell);stroke-opacity:.45;stroke-width:7px}
 svg.mech .dwell-stretch{stroke-linecap:round;stroke-linejoin:round}
 svg.mech .q-path{fill:none;stroke:#2ca02c;stroke-opacity:.35;stroke-width:1px}
 svg.mech .ground{stroke:#777;stroke-width:1px;stroke-dasharray:8 3 2 3}
 svg.mech .crank,svg.mech .rocker,svg.mech .rod,svg.mech .output-link{stroke-width:5px;stroke-linecap:round}
-svg.mech .crank{stroke:#1f77b4}
-svg.mech .coupler{fill:#ff7f0e;fill-opacity:.22;stroke:#ff7f0e;stroke-width:4px;stroke-linejoin:round}
-svg.mech .rocker{stroke:#2ca02c}
-svg.mech .rod{stroke:#8c564b}
-svg.mech .output-link{stroke:#9467bd}
+svg.mech .coupler{fill-opacity:.22;stroke-width:4px;stroke-linejoin:round}
 svg.mech .output-link.dwelling{stroke:var(--dwell);stroke-width:7px}
-svg.mech .block{fill:#bcbd22;fill-opacity:.75;stroke:#444;stroke-width:1px}
+svg.mech .block{fill-opacity:.75;stroke:#444;stroke-width:1px}
 svg.mech .ground-pivot{fill:#555}
 svg.mech .pivot,svg.mech .joint{fill:#fff;stroke:#111;stroke-width:1.5px}
 svg.mech .label{fill:#333;font-family:inherit}
@@ -411,7 +421,9 @@ svg.mech .label.fixed{font-weight:600}
 .controls button{font:inherit;min-width:5em;padding:.25em .8em;cursor:pointer}
 .controls button{border:1px solid #999;border-radius:4px;background:#fff}
 .controls input[type=range]{flex:1;min-width:120px}
-.phi-readout{font-variant-numeric:tabular-nums;min-width:13em}
+.phi-readout{font-variant-numeric:tabular-nums;min-width:0;overflow-wrap:anywhere}
+.controls{flex-wrap:wrap}
+@media (max-width:520px){body{padding:.6em .5em}.anim,.dims{min-width:0;flex-basis:100%}}
 .dwell-flag{visibility:hidden;color:#fff;background:var(--dwell);border-radius:.6em;padding:.05em .6em;font-size:.85em}
 section.is-dwelling .dwell-flag{visibility:visible}
 svg.strip{display:block;width:100%;max-width:640px;height:auto;cursor:pointer}
@@ -425,12 +437,12 @@ svg.strip .tick{stroke:#999}
 svg.strip .tick-label,svg.strip .axis-label{font-size:11px;fill:#555;font-family:inherit}
 details.plots summary{cursor:pointer;color:var(--muted);margin:.8em 0 .4em}
 .plot-row{display:flex;flex-wrap:wrap;gap:1em}
-figure.plot{margin:0;flex:1 1 420px;max-width:620px}
+figure.plot{margin:0;flex:1 1 300px;min-width:0;max-width:620px}
 figure.plot svg{width:100%;height:auto}
 figure.plot svg *{stroke-linejoin:round;stroke-linecap:butt}
 .files{font-size:.85em;color:var(--muted);word-break:break-all}
 pre#selftest{white-space:pre-wrap;font-size:.75em}
-"""
+""" + _palette_css()
 
 # First script in the page: records every error (script, resource, promise) and console error
 # from the start, and runs the self-test when asked (see the module docstring).

@@ -16,14 +16,15 @@ from pathlib import Path
 import numpy as np
 
 from report.cycle import Cycle
+from report.labels import Box, place_labels
+from report.palette import BLOCK, CURVE, DWELL, GROUND, GUIDE, LINK_COLORS
 from synth.candidates import Candidate
 from synth.sixbar import simulate
 
 __all__ = ["Link", "SixBarGeometry", "draw_sixbar", "guide_path", "sixbar_geometry"]
 
-#: Label offsets (points) of the fixed pivots: D often sits near B0, so it is labelled on the
-#: other side.
-_FIXED_LABEL_OFFSET = {"A0": (7, -14), "B0": (7, -14), "D": (-16, 6)}
+#: Gap (points) between a joint and its label; joint labels' font size (points).
+_LABEL_GAP, _LABEL_SIZE = 4.0, 9
 #: The slot of an RPR rocker is drawn this much longer than the farthest pin position.
 SLOT_MARGIN = 1.08
 
@@ -65,6 +66,10 @@ class SixBarGeometry:
     kind : {"RPR", "RRR"}
     psi : float
         Output angle at the drawn position (rad).
+    title : str
+    units : str
+        Name of the length unit (e.g. ``"mm"``; ``""`` unitless): labels and the DXF's
+        ``$INSUNITS``.
     """
 
     phi: float
@@ -78,6 +83,7 @@ class SixBarGeometry:
     kind: str
     psi: float
     title: str = field(default="")
+    units: str = field(default="")
 
     def extent(self) -> float:
         """Largest side of the bounding box of everything drawn (length, > 0)."""
@@ -111,9 +117,10 @@ def _runs(mask: np.ndarray) -> list[np.ndarray]:
     return out
 
 
-def sixbar_geometry(candidate: Candidate, cycle: Cycle, phi: float | None = None) -> SixBarGeometry:
+def sixbar_geometry(candidate: Candidate, cycle: Cycle, phi: float | None = None, *, units: str = "") -> SixBarGeometry:
     """The geometry of ``candidate`` at crank angle ``phi`` (rad; default: mid first dwell,
-    or 0 without a dwell), positions from the exact simulation at that angle."""
+    or 0 without a dwell), positions from the exact simulation at that angle; ``units`` names
+    the candidate's length unit."""
     sb, f = candidate.sixbar, candidate.figures
     if phi is None:
         phi = 0.5 * (f.dwells[0].start + f.dwells[0].end) if f.dwells else 0.0
@@ -150,7 +157,8 @@ def sixbar_geometry(candidate: Candidate, cycle: Cycle, phi: float | None = None
     ground = [("A0–B0 (d)", sb.d), ("A0–D", abs(D)), ("B0–D", abs(D - sb.d))]
     title = f"#{candidate.rank} {candidate.id} ({sb.dyad.kind}) at φ = {math.degrees(phi) % 360:.1f}°"
     return SixBarGeometry(phi=phi, fixed=fixed, joints=joints, links=links, ground=ground, curve=cycle.P.copy(),
-                          dwell_stretches=stretches, guide=guide, kind=sb.dyad.kind, psi=psi, title=title)
+                          dwell_stretches=stretches, guide=guide, kind=sb.dyad.kind, psi=psi, title=title,
+                          units=units)
 
 
 def _mid_dwell(figures) -> float:
@@ -161,8 +169,11 @@ def draw_sixbar(geom: SixBarGeometry, path: str | Path) -> Path:
     """Draw the six-bar to ``path`` (SVG or PNG by suffix): links labelled with their lengths,
     fixed pivots A0, B0, D and joints A, B, P (Q) labelled, the coupler curve with the dwell
     stretch highlighted and its line (RPR) or arc (RRR). Same look as
-    :func:`report.drawing.draw_sketch` (which has no notion of a dwell to highlight)."""
+    :func:`report.drawing.draw_sketch` (which has no notion of a dwell to highlight); colours
+    from :mod:`report.palette`; joint labels placed so that none overlaps another, a joint or
+    the legend (:func:`report.labels.place_labels`, measured with the renderer)."""
     import matplotlib
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     from matplotlib.patches import Circle, Polygon, Rectangle
     from matplotlib.transforms import Affine2D
@@ -173,44 +184,69 @@ def draw_sixbar(geom: SixBarGeometry, path: str | Path) -> Path:
         span = geom.extent()
         size = 0.025 * span
         c = geom.curve
-        ax.plot(np.append(c.real, c.real[0]), np.append(c.imag, c.imag[0]), lw=0.8, ls="--", color="tab:gray",
+        ax.plot(np.append(c.real, c.real[0]), np.append(c.imag, c.imag[0]), lw=0.8, ls="--", color=CURVE,
                 label="coupler curve of P")
         for i, s in enumerate(geom.dwell_stretches):
-            ax.plot(s.real, s.imag, lw=3.5, color="tab:red", alpha=0.55, solid_capstyle="round",
+            ax.plot(s.real, s.imag, lw=3.5, color=DWELL, alpha=0.55, solid_capstyle="round",
                     label="dwell stretch" if i == 0 else None)
         _draw_guide(ax, geom, span)
         a0, b0 = geom.fixed["A0"], geom.fixed["B0"]
-        ax.plot([a0.real, b0.real], [a0.imag, b0.imag], color="0.35", lw=1.0, ls="-.")
-        for i, link in enumerate(geom.links):
+        ax.plot([a0.real, b0.real], [a0.imag, b0.imag], color=GROUND, lw=1.0, ls="-.")
+        for link in geom.links:
             pts = np.asarray(link.points)
-            color = f"C{i % 10}"
+            color = LINK_COLORS[link.name]
             if link.name == "coupler":
                 ax.add_patch(Polygon(np.c_[pts.real, pts.imag], closed=True, alpha=0.2, color=color))
             ax.plot(pts.real, pts.imag, lw=3, color=color, solid_capstyle="round", label=link.label)
         if geom.kind == "RPR":
             P = geom.joints["P"]
-            rect = Rectangle((P.real - 1.5 * size, P.imag - size), 3 * size, 2 * size, alpha=0.6, color="tab:olive")
+            rect = Rectangle((P.real - 1.5 * size, P.imag - size), 3 * size, 2 * size, alpha=0.6, color=BLOCK)
             rect.set_transform(Affine2D().rotate_around(P.real, P.imag, geom.psi) + ax.transData)
             ax.add_patch(rect)
-        for label, z in geom.fixed.items():
+        for z in geom.fixed.values():
             x, y = z.real, z.imag
             ax.add_patch(Polygon([(x, y), (x - size, y - 1.6 * size), (x + size, y - 1.6 * size)], color="0.3"))
             ax.add_patch(Circle((x, y), 0.45 * size, facecolor="white", edgecolor="black", zorder=5))
-            ax.annotate(label, (x, y), textcoords="offset points", xytext=_FIXED_LABEL_OFFSET[label], fontsize=9,
-                        weight="bold")
-        for label, z in geom.joints.items():
+        for z in geom.joints.values():
             ax.add_patch(Circle((z.real, z.imag), 0.4 * size, facecolor="white", edgecolor="black", zorder=5))
-            ax.annotate(label, (z.real, z.imag), textcoords="offset points", xytext=(6, 6), fontsize=9)
         ground = ", ".join(f"{name} = {_fmt(v)}" for name, v in geom.ground)
         ax.set_xlabel(f"ground: {ground}", fontsize=8)
         ax.set_aspect("equal", adjustable="datalim")
         ax.grid(True, alpha=0.25)
         ax.set_title(geom.title.replace("$", r"\$"), fontsize=10)  # a user's id is text, not mathtext
-        ax.legend(fontsize=7, loc="best", framealpha=0.8)
+        legend = ax.legend(fontsize=7, loc="best", framealpha=0.8)
         fig.tight_layout()
+        _place_joint_labels(fig, ax, legend, geom, FigureCanvasAgg(fig))
         path = Path(path)
         fig.savefig(path, dpi=120, metadata=_metadata(path))
     return path
+
+
+def _place_joint_labels(fig, ax, legend, geom: SixBarGeometry, canvas) -> None:
+    """Annotate every pivot and joint where its label overlaps no other label, no joint symbol
+    and not the legend: sizes measured by the renderer after the layout, boxes in display
+    pixels, offsets converted to points (what ``annotate`` takes)."""
+    canvas.draw()  # the final layout (equal aspect, legend position) before measuring
+    renderer = canvas.get_renderer()
+    points = {**geom.fixed, **geom.joints}
+    fixed = set(geom.fixed)
+    px_per_pt = fig.dpi / 72.0
+    anchors, sizes, texts = [], [], []
+    for label, z in points.items():
+        x, y = ax.transData.transform((z.real, z.imag))
+        text = ax.annotate(label, (z.real, z.imag), textcoords="offset points", xytext=(0, 0), fontsize=_LABEL_SIZE,
+                           weight="bold" if label in fixed else "normal", va="baseline", ha="left")
+        ext = text.get_window_extent(renderer)
+        anchors.append((float(x), float(y)))
+        sizes.append((ext.width, ext.height))
+        texts.append((text, ext.x0 - x, ext.y0 - y))  # the text's box relative to its anchor at offset 0
+    symbol = 0.6 * _LABEL_SIZE * px_per_pt
+    obstacles = [Box.around(x, y, symbol) for x, y in anchors]
+    lb = legend.get_window_extent(renderer)
+    obstacles.append(Box(lb.x0, lb.y0, lb.x1, lb.y1))
+    boxes = place_labels(anchors, sizes, gap=_LABEL_GAP * px_per_pt, obstacles=obstacles)
+    for (text, dx, dy), (x, y), box in zip(texts, anchors, boxes):
+        text.xyann = ((box.x0 - dx - x) / px_per_pt, (box.y0 - dy - y) / px_per_pt)
 
 
 def _metadata(path: Path) -> dict:
@@ -249,7 +285,7 @@ def _draw_guide(ax, geom: SixBarGeometry, span: float) -> None:
     """The RPR slot's line at mid-dwell or the RRR rod's arc about Q's rest position."""
     pts, arc = guide_path(geom)
     label = "slot line at mid-dwell" if arc is None else "dwell arc (radius ρ about Q at rest)"
-    ax.plot(pts.real, pts.imag, color="tab:purple", lw=1.0, ls=":", label=label)
+    ax.plot(pts.real, pts.imag, color=GUIDE, lw=1.0, ls=":", label=label)
     if arc is not None:
         c = complex(geom.guide[1])
-        ax.plot([c.real], [c.imag], "+", color="tab:purple", ms=8)
+        ax.plot([c.real], [c.imag], "+", color=GUIDE, ms=8)

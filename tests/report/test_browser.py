@@ -122,3 +122,69 @@ def test_screenshot_is_written_as_an_artifact(report_dir, tmp_path):
     img = mpimg.imread(shot)
     assert img.shape[:2] == (2400, 1280)
     assert float(np.std(img[..., :3])) > 0.05  # a page, not a blank
+
+
+#: Measures the page's layout after load into <pre id="layout"> (injected into a copy of the page).
+_LAYOUT_PROBE = """<script>
+window.addEventListener('load', function () {
+  var r = function (el) { var b = el.getBoundingClientRect(); return [b.left, b.right, b.width]; };
+  var table = document.querySelector('table.summary');
+  var out = {
+    inner: window.innerWidth, page: document.documentElement.scrollWidth,
+    table: table ? {client: table.clientWidth, scroll: table.scrollWidth, box: r(table)} : null,
+    plots: Array.from(document.querySelectorAll('figure.plot')).map(r),
+    mechs: Array.from(document.querySelectorAll('svg.mech')).map(r),
+    controls: Array.from(document.querySelectorAll('.controls')).map(r),
+    main: r(document.body)
+  };
+  window.parent.postMessage(JSON.stringify(out), '*');
+});
+</script>"""
+
+#: Chromium's headless window is at least 500 px wide: the page is shown in a 420 px iframe of
+#: a host page, which writes what the probe posts into <pre id="layout">.
+_HOST = """<!DOCTYPE html><html><body style="margin:0">
+<iframe src="{src}" style="width:420px;height:1600px;border:0;display:block"></iframe>
+<script>window.addEventListener('message', function (e) {{
+  var pre = document.createElement('pre'); pre.id = 'layout'; pre.textContent = e.data; document.body.appendChild(pre);
+}});</script></body></html>"""
+
+
+def test_page_is_usable_420_px_wide(report_dir, tmp_path):
+    """At 420 px the page does not overflow sideways: the summary table scrolls inside its own
+    box, plots and the mechanism take the full width, the controls stay on screen. A screenshot
+    (the page in a 420 px frame) is written as the artifact ``report-420px.png``."""
+    out, _ = report_dir
+    page, host = out / "layout-probe.html", out / "layout-host.html"
+    page.write_text((out / "index.html").read_text(encoding="utf-8").replace("</body>", _LAYOUT_PROBE + "</body>"),
+                    encoding="utf-8")
+    host.write_text(_HOST.format(src=page.name), encoding="utf-8")
+    artifacts = Path(os.environ.get("DWELL_TEST_ARTIFACTS", REPO / "test-artifacts"))
+    artifacts.mkdir(parents=True, exist_ok=True)
+    shot = artifacts / "report-420px.png"
+    shot.unlink(missing_ok=True)
+    try:
+        proc = _chromium(tmp_path, "--window-size=600,900", "--virtual-time-budget=2000", "--dump-dom",
+                         url=host.as_uri())
+        _chromium(tmp_path, "--window-size=600,1600", "--virtual-time-budget=1500", f"--screenshot={shot}",
+                  url=host.as_uri())
+    finally:
+        page.unlink()
+        host.unlink()
+    m = re.search(r'<pre id="layout">(.*?)</pre>', proc.stdout, flags=re.S)
+    assert m, proc.stderr[-3000:]
+    layout = json.loads(html.unescape(m.group(1)))
+    inner = layout["inner"]
+    assert inner == 420
+    assert layout["page"] <= inner  # nothing pushes the page wider than the window
+    table = layout["table"]
+    assert table["box"][1] <= inner + 0.5 and table["client"] <= inner  # the table's box fits …
+    assert table["scroll"] >= table["client"]  # … and its columns scroll inside it
+    content = layout["main"][2]
+    for left, right, width in layout["plots"] + layout["mechs"]:
+        assert right <= inner + 0.5 and left >= -0.5
+    for left, right, width in layout["plots"]:
+        assert width >= 0.8 * content - 40  # full width, not a thumbnail beside another
+    for left, right, width in layout["controls"]:
+        assert right <= inner + 0.5
+    assert shot.exists() and shot.stat().st_size > 5_000
