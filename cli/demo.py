@@ -38,11 +38,14 @@ def demo(out_dir: str, target: str | None, workers: int | None) -> None:
     from cli.query import answer, no_match_message, request_from_options, table
     from db.engine import display_target, open_atlas
     from report.export import write_report
+    from report.folder import check_report_folder
 
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise click.BadParameter(f"{out_dir!r} exists and is not a folder", param_hint="--out")
     probe_folder(out, "--out")
+    for name in DEMO_REQUESTS:  # report folders holding the user's own files: refused before the build
+        check_report_folder(out / name, "--out")
     made = [p for p in (out, *out.parents) if not p.exists()]  # what mkdir makes, innermost first
     out.mkdir(parents=True, exist_ok=True)
     target = target or str(out / "demo-atlas.sqlite")
@@ -84,8 +87,7 @@ def demo(out_dir: str, target: str | None, workers: int | None) -> None:
             click.echo(f"best: {best.id}: {best.sixbar.dyad.kind} output, dwell {dwell}, "
                        f"swing {math.degrees(best.figures.swing):.2f}°")
             folder = out / name
-            folder.mkdir(exist_ok=True)
-            write_report(result.candidates, request, folder)
+            write_report(result.candidates, request, folder, option="--out")
             written.append(folder / "index.html")
     finally:
         engine.dispose()

@@ -233,5 +233,7 @@ def _check_report_dir(path: Path) -> None:
     if not parent.exists():
         raise InputError(f"--report: folder {str(parent)!r} does not exist")
     from cli.options import probe_folder
+    from report.folder import check_report_folder
 
     probe_folder(path, "--report")
+    check_report_folder(path, "--report")  # a folder of the user's own files: refused before the query runs

@@ -154,6 +154,28 @@ def test_report_into_a_folder_with_other_files_is_refused(capsys, tmp_path, smal
     assert sorted(p.name for p in out.iterdir()) == ["thesis.tex"]
 
 
+def test_query_report_into_a_folder_with_other_files_is_refused_before_the_query(capsys, tmp_path, small_atlas):
+    path, _ = small_atlas
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "thesis.tex").write_text("mine")
+    code = main(["query", "--db", path, "--dwell", "45", "--swing", "40", "--output", "rpr", "--report", str(out)])
+    stdout, err = capsys.readouterr()
+    assert code == 2 and "thesis.tex" in err and "--report" in err and len(err.strip().splitlines()) == 1
+    assert stdout == ""  # refused before the query ran: no table printed
+    assert sorted(p.name for p in out.iterdir()) == ["thesis.tex"]
+
+
+def test_demo_refuses_a_report_folder_of_the_users_before_building(capsys, tmp_path):
+    out = tmp_path / "dwell-out"
+    (out / "rpr").mkdir(parents=True)
+    (out / "rpr" / "notes.txt").write_text("mine")
+    code = main(["demo", "--out", str(out)])
+    stdout, err = capsys.readouterr()
+    assert code == 2 and "notes.txt" in err and len(err.strip().splitlines()) == 1
+    assert sorted(p.name for p in out.rglob("*")) == ["notes.txt", "rpr"]  # no atlas built, nothing else made
+
+
 def test_killed_report_leaves_the_old_or_the_new_report(tmp_path, small_atlas):
     """SIGKILL at a random moment of `dwell report` over an existing report: the folder is
     always byte-identical to the old complete report or to the new complete one."""
