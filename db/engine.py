@@ -74,7 +74,7 @@ from sqlalchemy import (
 from sqlalchemy.engine import URL, make_url
 from sqlalchemy.exc import ArgumentError, DatabaseError, DBAPIError, OperationalError
 
-from db.schema import APPLICATION, SCHEMA_VERSION, Base, Build, Meta, Shard
+from db.schema import APPLICATION, SCHEMA_VERSION, Base, Build, Linkage, Meta, Shard
 
 __all__ = [
     "AtlasError", "atlas_name", "check_url", "damaged", "database_url", "display_target", "open_atlas",
@@ -597,6 +597,21 @@ def _check_schema(conn: Connection, tables: set[str], target: str) -> None:
         if problem:
             raise damaged(target, f"table {table.name} does not match the schema of this dwell-atlas ({problem})")
     _check_json(conn, target)
+    _check_builds(conn, target)
+
+
+def _check_builds(conn: Connection, target: str) -> None:
+    """The linkages belong to a build row: the lowest and highest ``linkage.build_id`` (two
+    index look-ups, whatever the atlas's size) name existing builds. ``atlas info --verify``
+    finds every orphan; this catches the usual damage (a build row deleted) on every open,
+    where the query would otherwise answer "no six-bar" from an atlas that has them."""
+    lo, hi = conn.execute(select(func.min(Linkage.build_id), func.max(Linkage.build_id))).one()
+    if lo is None:
+        return
+    builds = set(conn.execute(select(Build.id)).scalars())
+    missing = sorted({lo, hi} - builds)
+    if missing:
+        raise damaged(target, f"its linkages name build {missing[0]}, which has no row in the build table")
 
 
 def _type_family(type_: Any) -> str:
