@@ -64,8 +64,9 @@ class _Atlas:
     admin_url: str | None = None  # PostgreSQL: the server database to drop this one from
     name: str | None = None
 
-    def shard_indices(self) -> set[int] | None:
-        """Shard indices stored now (None when there is no readable atlas yet)."""
+    def _rows(self, sql: str) -> list[tuple] | None:
+        """Rows of ``sql`` read without changing anything (None when there is no readable
+        atlas yet: SQLite opened read-only, no file made)."""
         if self.kind == "sqlite":
             import sqlite3
 
@@ -74,7 +75,7 @@ class _Atlas:
             try:
                 con = sqlite3.connect(f"file:{self.target}?mode=ro", uri=True, timeout=30)
                 try:
-                    return {r[0] for r in con.execute("select shard_index from shard")}
+                    return con.execute(sql).fetchall()
                 finally:
                     con.close()
             except sqlite3.Error:
@@ -85,37 +86,21 @@ class _Atlas:
         engine = create_engine(self.target)
         try:
             with engine.connect() as conn:
-                return {r[0] for r in conn.execute(text("select shard_index from shard"))}
+                return [tuple(r) for r in conn.execute(text(sql))]
         except SQLAlchemyError:
             return None
         finally:
             engine.dispose()
+
+    def shard_indices(self) -> set[int] | None:
+        """Shard indices stored now (None when there is no readable atlas yet)."""
+        rows = self._rows("select shard_index from shard")
+        return None if rows is None else {r[0] for r in rows}
 
     def builder_holds_lock(self) -> bool | None:
         """Whether a build is in progress with its builder lock held (None: unreadable)."""
-        sql = "select count(*) from build where status = 'building' and lock_token is not null"
-        if self.kind == "sqlite":
-            import sqlite3
-
-            try:
-                con = sqlite3.connect(f"file:{self.target}?mode=ro", uri=True, timeout=30)
-                try:
-                    return con.execute(sql).fetchone()[0] > 0
-                finally:
-                    con.close()
-            except sqlite3.Error:
-                return None
-        from sqlalchemy import create_engine, text
-        from sqlalchemy.exc import SQLAlchemyError
-
-        engine = create_engine(self.target)
-        try:
-            with engine.connect() as conn:
-                return conn.execute(text(sql)).scalar() > 0
-        except SQLAlchemyError:
-            return None
-        finally:
-            engine.dispose()
+        rows = self._rows("select count(*) from build where status = 'building' and lock_token is not null")
+        return None if rows is None else rows[0][0] > 0
 
     def drop(self) -> None:
         if self.kind == "sqlite":
