@@ -14,6 +14,7 @@ SUBCOMMANDS = {
     "query": "cli.bench.query:query",
     "faults": "cli.bench.faults:faults",
     "coverage": "cli.bench.coverage:coverage",
+    "sixbar": "cli.bench.sixbar:sixbar",
 }
 
 

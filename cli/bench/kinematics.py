@@ -1,8 +1,9 @@
 """``dwell bench kinematics``: four-bar positions with three derivative orders per second.
 
-Time and error side by side: throughput for n linkages × M crank angles, and the float64
-error against the same closed form evaluated in extended precision (numpy longdouble) plus
-the loop-closure residual |B − B0| − c.
+Time and error side by side: throughput for n linkages × M crank angles, its ratio to the
+plain numpy closed form of the positions alone timed in the same run (:mod:`cli.bench.plain`;
+a ratio means the same on any machine), and the float64 error against the same closed form
+evaluated in extended precision (numpy longdouble) plus the loop-closure residual |B − B0| − c.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import time
 import click
 import numpy as np
 
+from cli.bench.plain import fourbar_positions
 from kinematics.fourbar import fourbar_motion
 
 #: Linkages per call when streaming a large sweep (what an atlas shard does): the output of
@@ -98,6 +100,10 @@ def kinematics(sizes: str, angles: int, repeat: int, seed: int) -> None:
                 fourbar_motion(a[s], b[s], c[s], d[s], phi, 1, order=3)
 
         t_stream = _best_time(streamed, repeat, loops)
+        t_plain = _best_time(lambda: fourbar_positions(a, b, c, d, phi), repeat, loops)
+        # the yardstick computes the same θ (all sweeps are crank-rockers: every position closes)
+        theta = np.angle(fourbar_motion(a, b, c, d, phi, 1, order=0).e_theta)
+        agree = float(np.max(np.abs(np.angle(np.exp(1j * (theta - fourbar_positions(a, b, c, d, phi)))))))
         results.append({
             "n": n,
             "positions": positions,
@@ -106,12 +112,18 @@ def kinematics(sizes: str, angles: int, repeat: int, seed: int) -> None:
             "single_call_positions_per_s": positions / t_single,
             "streamed_s": t_stream,
             "streamed_positions_per_s": positions / t_stream,
+            "plain_numpy_positions_only_per_s": positions / t_plain,
+            "ratio_to_plain_numpy": t_plain / min(t_single, t_stream),
+            "plain_numpy_max_abs_theta_difference_rad": agree,
         })
         click.echo(f"n={n}: {positions / t_stream / 1e6:.2f} M positions/s streamed, "
-                   f"{positions / t_single / 1e6:.2f} M single call", err=True)
+                   f"{positions / t_single / 1e6:.2f} M single call; plain numpy positions only "
+                   f"{positions / t_plain / 1e6:.2f} M (ratio {t_plain / min(t_single, t_stream):.2f})", err=True)
     doc = {
         "benchmark": "kinematics",
-        "what": "four-bar positions with theta, gamma and their 1st-3rd crank-angle derivatives",
+        "what": "four-bar positions with theta, gamma and their 1st-3rd crank-angle derivatives; "
+                "ratio_to_plain_numpy: the best of single call and streamed against the plain numpy "
+                "law-of-cosines theta alone (cli/bench/plain.py), same run",
         "angles_per_linkage": angles,
         "stream_batch_linkages": STREAM_BATCH,
         "cores_used": 1,

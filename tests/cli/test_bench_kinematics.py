@@ -16,6 +16,10 @@ def test_bench_kinematics_json(capsys):
     for r in doc["results"]:
         assert r["positions"] == r["n"] * 36
         assert r["streamed_positions_per_s"] > 0 and r["single_call_positions_per_s"] > 0
+        # the yardstick computes the same coupler angle, and the ratio is its time over ours
+        assert r["plain_numpy_max_abs_theta_difference_rad"] < 1e-12
+        best = max(r["streamed_positions_per_s"], r["single_call_positions_per_s"])
+        assert abs(r["ratio_to_plain_numpy"] - best / r["plain_numpy_positions_only_per_s"]) < 1e-9 * r["ratio_to_plain_numpy"]
     errors = doc["max_error_vs_extended_precision"]
     assert set(errors) >= {"theta", "dtheta1", "dtheta2", "dtheta3", "dgamma3", "loop_residual"}
     # float64 closed form against extended precision: a few ulps, scaled by the derivatives
@@ -25,3 +29,45 @@ def test_bench_kinematics_json(capsys):
 def test_bench_kinematics_bad_sizes(capsys):
     assert main(["bench", "kinematics", "--n", "ten"]) == 2
     assert "--n" in capsys.readouterr().err
+
+
+def test_bench_sixbar_json(capsys):
+    """Six-bar positions against the plain numpy closed form: every random RRR six-bar
+    assembles at every angle, both give the same ψ, and the ratio is their rates' quotient."""
+    code = main(["bench", "sixbar", "--n", "1,30", "--angles", "36", "--repeat", "1"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    doc = json.loads(out)
+    assert [r["n"] for r in doc["results"]] == [1, 30]
+    for r in doc["results"]:
+        assert r["positions"] == r["assembled_positions"] == r["n"] * 36
+        assert r["max_abs_psi_difference_rad"] < 1e-12
+        quotient = r["ours_positions_per_s"] / r["plain_numpy_positions_per_s"]
+        assert abs(r["ratio_to_plain_numpy"] - quotient) < 1e-9 * quotient
+
+
+def test_plain_sixbar_matches_a_hand_built_one():
+    """The yardstick's ψ at one angle against a six-bar assembled by hand (independent: points
+    found by intersecting circles in the frame of their centres' line)."""
+    import numpy as np
+
+    from cli.bench.plain import sixbar_rrr_positions
+
+    a, b, c, d, u, v = 1.0, 3.0, 2.5, 3.0, 1.0, 1.0
+    D, L, rho, phi = complex(6.0, 1.0), 2.0, 4.0, 0.7
+
+    def meet(p1, r1, p2, r2, left_of):
+        """The intersection of two circles left of the directed line p1 → left_of."""
+        # on the line through both: x along p1→p2; solve |x|=r1, |x−|p2−p1||=r2
+        e = (p2 - p1) / abs(p2 - p1)
+        x = (r1**2 - r2**2 + abs(p2 - p1) ** 2) / (2 * abs(p2 - p1))
+        y = np.sqrt(r1**2 - x**2)
+        points = [p1 + e * complex(x, s * y) for s in (1, -1)]
+        return next(q for q in points if (np.conj(left_of - p1) * (q - p1)).imag > 0)
+
+    A = a * np.exp(1j * phi)
+    B = meet(A, b, complex(d), c, complex(d))
+    P = A + (B - A) / b * complex(u, v)
+    Q = meet(P, rho, D, L, D)
+    psi = float(sixbar_rrr_positions(a, b, c, d, u, v, D, L, rho, np.array([phi]))[0])
+    assert abs(np.angle(np.exp(1j * (psi - np.angle(Q - D))))) < 1e-12
