@@ -25,6 +25,20 @@ __all__ = ["PRESETS", "SweepLinkages", "SweepSpec", "SweepSpecError", "sweep_lin
 
 #: Tolerance levels a sweep may have: dwell ids leave room for 32 (``atlas.shard.DWELLS_PER_SEGMENT``).
 MAX_TOLERANCE_LEVELS = 32
+#: Accepted ranges of a sweep's fields (the command line shows and checks the same ones).
+#: Proportions (crank = 1): beyond 1:1000 a four-bar is a drawing error, not a mechanism.
+PROPORTION_RANGE = (1e-3, 1e3)
+SAMPLES_RANGE = (1, 2**31)
+#: Crank step of the search (°): finer than 0.05° (7 200 steps a turn) adds no dwell the
+#: refinement does not already find, and multiplies the build's time.
+CRANK_STEP_RANGE_DEG = (0.05, 30.0)
+RAYS_RANGE = (1, 3600)
+#: Band half-widths (crank lengths): below 1e-9 the band is float noise on the path.
+TOLERANCE_RANGE = (1e-9, 1.0)
+SHARD_SIZE_RANGE = (1, 1_000_000)
+#: Peak memory of :func:`sweep_linkages` per Sobol point (bytes; 145–214 measured with
+#: tracemalloc at 2^18–2^20 points): what the driver's budget check multiplies.
+SWEEP_BYTES_PER_SAMPLE = 230
 
 
 class SweepSpecError(ValueError):
@@ -76,28 +90,30 @@ class SweepSpec:
     def __post_init__(self) -> None:
         for field in ("b", "c", "d"):
             lo, hi = getattr(self, field)
-            if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo <= hi):
-                raise SweepSpecError(f"range {field} must satisfy 0 < low <= high, got ({lo:g}, {hi:g})")
-        if not 1 <= self.samples <= 2**31:
+            if not (math.isfinite(lo) and math.isfinite(hi) and PROPORTION_RANGE[0] <= lo <= hi <= PROPORTION_RANGE[1]):
+                raise SweepSpecError(f"range {field} must satisfy {PROPORTION_RANGE[0]:g} <= low <= high <= "
+                                     f"{PROPORTION_RANGE[1]:g} (crank = 1), got ({lo:g}, {hi:g})")
+        if not SAMPLES_RANGE[0] <= self.samples <= SAMPLES_RANGE[1]:
             raise SweepSpecError(f"samples must be between 1 and 2^31, got {self.samples}")
         if self.seed < 0:  # numpy's seed sequence takes non-negative integers only
             raise SweepSpecError(f"seed must be >= 0, got {self.seed}")
         if not self.branches or any(b not in (1, -1) for b in self.branches) or len(set(self.branches)) != len(self.branches):
             raise SweepSpecError(f"branches must be distinct values from (1, -1), got {self.branches}")
-        if not 0 < self.crank_step_deg <= 30:
-            raise SweepSpecError(f"crank_step_deg must be in (0, 30], got {self.crank_step_deg:g}")
-        if not 1 <= self.rays <= 3600:
+        if not CRANK_STEP_RANGE_DEG[0] <= self.crank_step_deg <= CRANK_STEP_RANGE_DEG[1]:
+            raise SweepSpecError(f"crank_step_deg must be in [{CRANK_STEP_RANGE_DEG[0]:g}, {CRANK_STEP_RANGE_DEG[1]:g}], "
+                                 f"got {self.crank_step_deg:g}")
+        if not RAYS_RANGE[0] <= self.rays <= RAYS_RANGE[1]:
             raise SweepSpecError(f"rays must be between 1 and 3600, got {self.rays}")
-        if not self.tolerances or any(not (0 < t < 1) for t in self.tolerances):
-            raise SweepSpecError(f"tolerances must be in (0, 1) crank lengths, got {self.tolerances}")
+        if not self.tolerances or any(not (TOLERANCE_RANGE[0] <= t < TOLERANCE_RANGE[1]) for t in self.tolerances):
+            raise SweepSpecError(f"tolerances must be in [{TOLERANCE_RANGE[0]:g}, 1) crank lengths, got {self.tolerances}")
         if list(self.tolerances) != sorted(self.tolerances):
             raise SweepSpecError("tolerances must be in increasing order")
         if len(self.tolerances) > MAX_TOLERANCE_LEVELS:
             raise SweepSpecError(f"at most {MAX_TOLERANCE_LEVELS} tolerances, got {len(self.tolerances)}")
         if not 0 < self.min_dwell_deg < 360:
             raise SweepSpecError(f"min_dwell_deg must be in (0, 360), got {self.min_dwell_deg:g}")
-        if self.shard_size < 1:
-            raise SweepSpecError(f"shard_size must be >= 1, got {self.shard_size}")
+        if not SHARD_SIZE_RANGE[0] <= self.shard_size <= SHARD_SIZE_RANGE[1]:
+            raise SweepSpecError(f"shard_size must be between 1 and {SHARD_SIZE_RANGE[1]}, got {self.shard_size}")
 
     def to_dict(self) -> dict[str, Any]:
         return {k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(self).items()}

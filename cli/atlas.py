@@ -13,6 +13,10 @@ from typing import Any
 
 import click
 
+from atlas.sweep import SAMPLES_RANGE, SHARD_SIZE_RANGE, SWEEP_BYTES_PER_SAMPLE
+from cli.budget import check_memory
+from cli.options import PROPORTION, RAYS, SEARCH_STEP_DEG, SEED, Bounded, Count
+
 __all__ = ["DEFAULT_DB", "atlas", "db_option", "sweep_spec_from_options"]
 
 #: The atlas used when neither ``--db`` nor ``$DWELL_ATLAS`` is given (relative to the cwd).
@@ -72,16 +76,19 @@ def _tolerances(text: str | None) -> tuple[float, ...] | None:
 @atlas.command("build")
 @db_option
 @click.option("--preset", default="demo", show_default=True, help="Named sweep: demo (seconds), standard, large.")
-@click.option("--samples", type=int, default=None, help="Sobol points drawn, before the crank-rocker filter.")
-@click.option("--seed", type=int, default=None, help="Scrambling seed of the sweep.")
-@click.option("--b", "b_range", nargs=2, type=float, default=None, metavar="LOW HIGH", help="Coupler length range (crank = 1).")
-@click.option("--c", "c_range", nargs=2, type=float, default=None, metavar="LOW HIGH", help="Rocker length range (crank = 1).")
-@click.option("--d", "d_range", nargs=2, type=float, default=None, metavar="LOW HIGH", help="Ground length range (crank = 1).")
-@click.option("--crank-step", type=float, default=None, metavar="DEG", help="Crank-angle step of the candidate search.")
-@click.option("--rays", type=int, default=None, help="Scan rays through the pole per crank step.")
+@click.option("--samples", type=Count(*SAMPLES_RANGE, "Sobol points"), default=None,
+              help="Sobol points drawn, before the crank-rocker filter.")
+@click.option("--seed", type=SEED, default=None, help="Scrambling seed of the sweep.")
+@click.option("--b", "b_range", nargs=2, type=PROPORTION, default=None, metavar="LOW HIGH", help="Coupler length range (crank = 1).")
+@click.option("--c", "c_range", nargs=2, type=PROPORTION, default=None, metavar="LOW HIGH", help="Rocker length range (crank = 1).")
+@click.option("--d", "d_range", nargs=2, type=PROPORTION, default=None, metavar="LOW HIGH", help="Ground length range (crank = 1).")
+@click.option("--crank-step", type=SEARCH_STEP_DEG, default=None, metavar="DEG", help="Crank-angle step of the candidate search.")
+@click.option("--rays", type=RAYS, default=None, help="Scan rays through the pole per crank step.")
 @click.option("--tolerances", default=None, metavar="T1,T2,..", help="Band half-widths (crank lengths), increasing.")
-@click.option("--min-dwell", type=float, default=None, metavar="DEG", help="Shortest dwell kept.")
-@click.option("--shard-size", type=int, default=None, help="Proportions per shard (unit of work, commit and resume).")
+@click.option("--min-dwell", type=Bounded(0.0, 360.0, "a dwell in degrees", low_open=True, high_open=True), default=None,
+              metavar="DEG", help="Shortest dwell kept.")
+@click.option("--shard-size", type=Count(*SHARD_SIZE_RANGE, "proportions per shard"), default=None,
+              help="Proportions per shard (unit of work, commit and resume).")
 @click.option("--all-linkages", is_flag=True, help="Keep every proportion, not only crank-rockers.")
 @click.option("--workers", type=click.IntRange(min=1), default=None,
               help=f"Worker processes of the local engine (default: all CPUs, here {_default_workers()}); "
@@ -113,6 +120,8 @@ def build(db, preset, samples, seed, b_range, c_range, d_range, crank_step, rays
         "min_dwell_deg": min_dwell, "shard_size": shard_size,
         "crank_rockers_only": False if all_linkages else None,
     })
+    check_memory(spec.samples * SWEEP_BYTES_PER_SAMPLE, f"drawing {spec.samples:,} Sobol points",
+                 "lower --samples (the large preset draws 2 097 152)")
     if engine == "local":
         summary = build_atlas(db, spec, workers=workers or _default_workers(), replace=replace, progress=progress,
                               log=_log)

@@ -14,7 +14,7 @@ import json
 import click
 import numpy as np
 
-from cli.options import finite, fourbar_options, writable_file
+from cli.options import ANGLE_DEG, fourbar_options, writable_file
 from kinematics.fourbar import GrashofType, crank_range, fourbar_motion, grashof_type
 from kinematics.status import Status, describe_status, reason
 from synth.ball import ball_point
@@ -43,7 +43,7 @@ def _skips(what: str, flags: int) -> list[dict[str, str]]:
 
 @click.command("curvature")
 @fourbar_options
-@click.option("--phi", type=float, required=True, callback=finite, help="Crank angle [deg], CCW from +x.")
+@click.option("--phi", type=ANGLE_DEG, required=True, help="Crank angle [deg], CCW from +x.")
 @click.option("--rays", type=click.IntRange(0, 100_000), default=12, show_default=True,
               help="Rays through the pole for line scanning, evenly spaced over 180 deg from +x.")
 @click.option("--double-ball", "with_double_ball", is_flag=True,

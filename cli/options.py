@@ -9,15 +9,21 @@ from pathlib import Path
 import click
 import numpy as np
 
+from atlas.sweep import CRANK_STEP_RANGE_DEG, PROPORTION_RANGE, RAYS_RANGE
 from kinematics.timing import crank_speed
 
 __all__ = [
-    "bounded",
+    "ANGLE_DEG",
+    "COORDINATE",
+    "LENGTH",
+    "SEED",
+    "STEP_DEG",
+    "Bounded",
+    "Count",
     "crank_angle_options",
     "crank_angles_deg",
     "fourbar_options",
     "output_options",
-    "positive",
     "probe_folder",
     "speed_options",
     "speed_from_options",
@@ -39,53 +45,92 @@ def _stack(*decorators: Callable) -> Callable:
 LENGTH_RANGE = (1e-150, 1e150)
 
 
-def positive(ctx: click.Context, param: click.Parameter, value: float | None) -> float | None:
-    """Callback: a finite length > 0, within :data:`LENGTH_RANGE`."""
-    lo, hi = LENGTH_RANGE
-    if value is not None and not (np.isfinite(value) and value > 0):
-        raise click.BadParameter(f"must be a finite number > 0, got {value:g}", ctx, param)
-    if value is not None and not lo <= value <= hi:
-        raise click.BadParameter(f"must be between {lo:g} and {hi:g} (a length), got {value:g}", ctx, param)
-    return value
+class Bounded(click.FloatRange):
+    """A finite float in a range, shown in ``--help`` (click prints the bounds) and checked at
+    the command line: ``nan``, ``inf``, subnormal and out-of-range values are one line naming
+    the option, its range and what it means (``what``), exit 2.
+
+    One instance per kind of value below (:data:`LENGTH`, :data:`ANGLE_DEG`, …): every numeric
+    option takes its range from here, so a kind has one range everywhere."""
+
+    def __init__(self, low: float | None, high: float | None, what: str, *, low_open: bool = False,
+                 high_open: bool = False) -> None:
+        super().__init__(low, high, min_open=low_open, max_open=high_open)
+        self.what = what
+
+    def convert(self, value, param, ctx):
+        number = click.FLOAT.convert(value, param, ctx)
+        if not np.isfinite(number):
+            self.fail(f"must be a finite number ({self.what}), got {value!r}", param, ctx)
+        try:
+            return super().convert(number, param, ctx)
+        except click.BadParameter:
+            lo = "" if self.min is None else f"{self.min:g} {'<' if self.min_open else '<='} "
+            hi = "" if self.max is None else f" {'<' if self.max_open else '<='} {self.max:g}"
+            self.fail(f"must be {lo}x{hi} ({self.what}), got {number:g}", param, ctx)
 
 
-def finite(ctx: click.Context, param: click.Parameter, value: float | None) -> float | None:
-    if value is not None and not np.isfinite(value):
-        raise click.BadParameter(f"must be a finite number, got {value:g}", ctx, param)
-    return value
+class Count(click.IntRange):
+    """A whole number in a range (shown in ``--help``); a huge or malformed integer is one line."""
+
+    def __init__(self, low: int, high: int, what: str) -> None:
+        super().__init__(low, high)
+        self.what = what
+
+    def convert(self, value, param, ctx):
+        text = str(value).strip()
+        if len(text) > 30:  # '9' * 400: not parsed (Python limits int() to 4300 digits anyway)
+            self.fail(f"must be a whole number from {self.min} to {self.max} ({self.what}), got {text[:20]}…", param, ctx)
+        try:
+            return super().convert(value, param, ctx)
+        except click.BadParameter:
+            self.fail(f"must be a whole number from {self.min} to {self.max} ({self.what}), got {text!r}", param, ctx)
+
+
+#: A length (link, offset magnitude): squares and products of two stay finite, normal floats.
+LENGTH = Bounded(*LENGTH_RANGE, "a length")
+#: A signed coordinate or offset (your length unit).
+COORDINATE = Bounded(-1e150, 1e150, "a coordinate")
+#: A crank angle or other angle in degrees: ±100 turns (more is a typing error, and keeps the
+#: number of steps of a --from/--to/--step range a small integer).
+ANGLE_DEG = Bounded(-36_000.0, 36_000.0, "an angle in degrees, ±100 turns")
+#: A step of crank angles (degrees): at least 1e-6° (a million steps per degree at most).
+STEP_DEG = Bounded(1e-6, 36_000.0, "a step in degrees")
+#: A value of a linkage file's input (degrees for an angle, your unit for a slide) and its step.
+INPUT_VALUE = Bounded(-1e12, 1e12, "an angle in degrees or a length")
+INPUT_STEP = Bounded(1e-9, 1e12, "a step in degrees or a length")
+#: A sweep's proportions (crank = 1), the search's crank step and rays (atlas/sweep.py's ranges).
+PROPORTION = Bounded(*PROPORTION_RANGE, "a length in cranks")
+SEARCH_STEP_DEG = Bounded(*CRANK_STEP_RANGE_DEG, "a crank step of the search in degrees")
+RAYS = Count(*RAYS_RANGE, "rays through the pole")
+#: A seed of a random generator.
+SEED = Count(0, 2**63 - 1, "a seed")
 
 
 #: Largest input speed (rpm, rad/s, length/s) and acceleration: with lengths up to 1e150 the
 #: accelerations (L·ω²) and jerks (L·ω³) of the output stay finite.
 MAX_SPEED, MAX_ACCELERATION = 1e50, 1e100
-
-
-def bounded(limit: float) -> Callable:
-    """Callback: a finite number of magnitude at most ``limit``."""
-
-    def check(ctx: click.Context, param: click.Parameter, value: float | None) -> float | None:
-        finite(ctx, param, value)
-        if value is not None and abs(value) > limit:
-            raise click.BadParameter(f"must be at most {limit:g} in magnitude, got {value:g}", ctx, param)
-        return value
-
-    return check
+#: Speeds (rpm, rad/s, length/s) and accelerations on the command line (signed).
+SPEED = Bounded(-MAX_SPEED, MAX_SPEED, "a speed")
+ACCELERATION = Bounded(-MAX_ACCELERATION, MAX_ACCELERATION, "an acceleration")
+#: A positive crank speed in rev/min (lists of speeds to compare).
+RPM = Bounded(0.0, MAX_SPEED, "a speed in rev/min", low_open=True)
 
 
 fourbar_options = _stack(
-    click.option("--a", type=float, required=True, callback=positive, help="Crank length A0-A."),
-    click.option("--b", type=float, required=True, callback=positive, help="Coupler length A-B."),
-    click.option("--c", type=float, required=True, callback=positive, help="Rocker length B0-B."),
-    click.option("--d", type=float, required=True, callback=positive, help="Ground length A0-B0."),
+    click.option("--a", type=LENGTH, required=True, help="Crank length A0-A."),
+    click.option("--b", type=LENGTH, required=True, help="Coupler length A-B."),
+    click.option("--c", type=LENGTH, required=True, help="Rocker length B0-B."),
+    click.option("--d", type=LENGTH, required=True, help="Ground length A0-B0."),
     click.option("--branch", type=click.Choice(["1", "-1"]), default="1", show_default=True,
                  help="Assembly branch: 1 puts B left of the line A->B0, -1 right."),
 )
 
 crank_angle_options = _stack(
-    click.option("--phi", type=float, default=None, callback=finite, help="One crank angle [deg]."),
-    click.option("--from", "phi_from", type=float, default=None, callback=finite, help="First crank angle [deg] (default 0)."),
-    click.option("--to", "phi_to", type=float, default=None, callback=finite, help="Last crank angle [deg] (default 360, excluded when a full turn)."),
-    click.option("--step", "phi_step", type=float, default=None, callback=finite, help="Crank angle step [deg] (default 30)."),
+    click.option("--phi", type=ANGLE_DEG, default=None, help="One crank angle [deg]."),
+    click.option("--from", "phi_from", type=ANGLE_DEG, default=None, help="First crank angle [deg] (default 0)."),
+    click.option("--to", "phi_to", type=ANGLE_DEG, default=None, help="Last crank angle [deg] (default 360, excluded when a full turn)."),
+    click.option("--step", "phi_step", type=STEP_DEG, default=None, help="Crank angle step [deg] (default 30)."),
 )
 
 
@@ -105,9 +150,10 @@ def crank_angles_deg(phi: float | None, phi_from: float | None, phi_to: float | 
         raise click.BadParameter(f"--step must be > 0, got {step:g}")
     if stop < start:
         raise click.BadParameter(f"--to ({stop:g}) must not be below --from ({start:g})")
-    count = int(np.floor((stop - start) / step + 1e-9)) + 1
-    if count > 1_000_000:
-        raise click.BadParameter(f"--from/--to/--step give {count} crank angles; at most 1000000")
+    steps = (stop - start) / step
+    if not steps < 1_000_000:  # checked as a float: a tiny step must not overflow the count
+        raise click.BadParameter(f"--from/--to/--step give {steps + 1:.3g} crank angles; at most 1000000")
+    count = int(np.floor(steps + 1e-9)) + 1
     angles = start + step * np.arange(count)
     turns = (stop - start) / 360.0
     full_turns = round(turns) >= 1 and abs(turns - round(turns)) < 1e-12  # (a sliver of a degree is no turn)
@@ -117,10 +163,10 @@ def crank_angles_deg(phi: float | None, phi_from: float | None, phi_to: float | 
 
 
 speed_options = _stack(
-    click.option("--rpm", type=float, default=None, callback=bounded(MAX_SPEED), help="Crank speed [rev/min] (default 60)."),
-    click.option("--omega", type=float, default=None, callback=bounded(MAX_SPEED), help="Crank speed [rad/s]."),
+    click.option("--rpm", type=SPEED, default=None, help="Crank speed [rev/min] (default 60)."),
+    click.option("--omega", type=SPEED, default=None, help="Crank speed [rad/s]."),
     click.option("--cw", is_flag=True, help="Crank turns clockwise (default counter-clockwise)."),
-    click.option("--alpha", "crank_alpha", type=float, default=0.0, show_default=True, callback=bounded(MAX_ACCELERATION),
+    click.option("--alpha", "crank_alpha", type=ACCELERATION, default=0.0, show_default=True,
                  help="Crank angular acceleration [rad/s^2], signed like the speed."),
 )
 

@@ -15,7 +15,7 @@ from pathlib import Path
 import click
 
 from cli.errors import InputError
-from cli.options import positive, units_option
+from cli.options import LENGTH, Bounded, Count, units_option
 from synth.candidates import Request, candidate_json
 from synth.query import SAMPLES, QueryResult, RebuildError
 
@@ -167,31 +167,42 @@ def no_match_json(result: QueryResult) -> dict:
     return doc
 
 
-#: Transmission angles the RRR fit accepts (degrees, both ends open).
-TRANSMISSION_RANGE = click.FloatRange(0.0, 90.0, min_open=True, max_open=True)
+#: The request's values on the command line (degrees unless said): their ranges, shown in
+#: --help. synth.candidates.Request checks the same meaning again for library callers; the
+#: floors here keep a value meaningful (a 1e-320° swing is no mechanism) and the numerics quiet.
+DWELL_DEG = Bounded(0.0, 360.0, "a dwell in degrees", low_open=True, high_open=True)
+DWELL_TOL_DEG = Bounded(0.0, 360.0, "a dwell error in degrees", high_open=True)
+SWING_DEG = Bounded(0.01, 180.0, "a swing in degrees", high_open=True)
+SWING_TOL_DEG = Bounded(0.0, 180.0, "a swing error in degrees", high_open=True)
+BAND_DEG = Bounded(1e-4, 180.0, "an output band in degrees", high_open=True)
+#: Transmission angles the RRR fit accepts (degrees): from 0.001° (5e-324° became 0 rad, which
+#: the fit refuses; found by tests/cli/test_option_ranges.py) to below 90°.
+TRANSMISSION_RANGE = Bounded(0.001, 90.0, "a transmission angle in degrees", high_open=True)
+LINK_RATIO = Bounded(1.0, 1e6, "a longest/shortest link ratio")
+TOP = Count(1, 1000, "candidates")
 
 
 @click.command("query")
 @click.option("--db", "target", required=True, help="Atlas: SQLite file path or SQLAlchemy URL.")
-@click.option("--dwell", type=float, required=True, help="Dwell angle (degrees of crank rotation).")
-@click.option("--dwell-tol", type=float, default=default_deg("dwell_tol"), show_default=True,
+@click.option("--dwell", type=DWELL_DEG, required=True, help="Dwell angle (degrees of crank rotation).")
+@click.option("--dwell-tol", type=DWELL_TOL_DEG, default=default_deg("dwell_tol"), show_default=True,
               help="Allowed dwell-angle error (°).")
-@click.option("--swing", type=float, default=None, help="Output swing (°); required for one dwell.")
-@click.option("--swing-tol", type=float, default=default_deg("swing_tol"), show_default=True,
+@click.option("--swing", type=SWING_DEG, default=None, help="Output swing (°); required for one dwell.")
+@click.option("--swing-tol", type=SWING_TOL_DEG, default=default_deg("swing_tol"), show_default=True,
               help="Allowed swing error (°).")
 @click.option("--output", type=str, default=_DEFAULTS["output"], show_default=True,
               help="Output dyad: rpr, rrr or any.")
-@click.option("--dwells", type=int, default=_DEFAULTS["dwells"], show_default=True,
+@click.option("--dwells", type=Count(1, 2, "dwells per turn"), default=_DEFAULTS["dwells"], show_default=True,
               help="Dwells per turn: 1, or 2 (double Ball point, RPR).")
-@click.option("--dwell-tolerance", type=float, default=default_deg("band"), show_default=True,
+@click.option("--dwell-tolerance", type=BAND_DEG, default=default_deg("band"), show_default=True,
               help="Total width (°) of the output band that counts as a dwell.")
-@click.option("--crank", type=float, default=_DEFAULTS["crank"], show_default=True, callback=positive,
+@click.option("--crank", type=LENGTH, default=_DEFAULTS["crank"], show_default=True,
               help="Crank length (your unit).")
 @click.option("--min-transmission", type=TRANSMISSION_RANGE, default=default_deg("min_transmission"),
               show_default=True, help="Smallest transmission angle (°).")
-@click.option("--max-link-ratio", type=float, default=_DEFAULTS["max_link_ratio"], show_default=True,
+@click.option("--max-link-ratio", type=LINK_RATIO, default=_DEFAULTS["max_link_ratio"], show_default=True,
               help="Largest longest/shortest link ratio.")
-@click.option("--top", type=int, default=_DEFAULTS["top"], show_default=True, help="Candidates returned.")
+@click.option("--top", type=TOP, default=_DEFAULTS["top"], show_default=True, help="Candidates returned.")
 @click.option("--json", "as_json", is_flag=True, help="JSON on stdout instead of a table.")
 @click.option("--report", "report_dir", type=click.Path(file_okay=False), default=None,
               help="Also write the report of the candidates to this folder.")

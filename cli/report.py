@@ -8,7 +8,8 @@ from pathlib import Path
 import click
 
 from cli.errors import InputError
-from cli.options import positive, probe_folder, units_option
+from cli.options import LENGTH, probe_folder, units_option
+from cli.query import BAND_DEG, DWELL_DEG, TRANSMISSION_RANGE
 
 
 @click.command("report")
@@ -16,10 +17,10 @@ from cli.options import positive, probe_folder, units_option
 @click.option("--candidates", "ids", required=True, multiple=True,
               help="Candidate id(s) from `dwell query` (repeat the option or separate with spaces).")
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False), help="Folder for the report.")
-@click.option("--dwell", type=float, default=None, help="Requested dwell (°) for the output deviation window.")
-@click.option("--dwell-tolerance", type=float, default=0.1, show_default=True, help="Output band (°).")
-@click.option("--crank", type=float, default=1.0, show_default=True, callback=positive, help="Crank length (your unit).")
-@click.option("--min-transmission", type=click.FloatRange(0.0, 90.0, min_open=True, max_open=True), default=30.0, show_default=True,
+@click.option("--dwell", type=DWELL_DEG, default=None, help="Requested dwell (°) for the output deviation window.")
+@click.option("--dwell-tolerance", type=BAND_DEG, default=0.1, show_default=True, help="Output band (°).")
+@click.option("--crank", type=LENGTH, default=1.0, show_default=True, help="Crank length (your unit).")
+@click.option("--min-transmission", type=TRANSMISSION_RANGE, default=30.0, show_default=True,
               help="The query's smallest transmission angle (°): RRR fits are rebuilt with it.")
 @units_option
 @click.argument("more_ids", nargs=-1)

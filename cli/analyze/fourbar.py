@@ -7,7 +7,7 @@ import numpy as np
 
 from cli.analyze.emit import emit_motion
 from cli.analyze.fourbar_stats import run_stats, stats_options
-from cli.options import crank_angle_options, crank_angles_deg, fourbar_options, output_options, speed_from_options, speed_options
+from cli.options import COORDINATE, crank_angle_options, crank_angles_deg, fourbar_options, output_options, speed_from_options, speed_options
 from kinematics.fourbar import GrashofType, check_lengths, crank_range, fourbar_motion, grashof_type, rocker_limits, transmission_angle
 from kinematics.timing import time_derivatives
 from report.drawing import Sketch
@@ -16,7 +16,7 @@ from report.motion_table import Column, MotionTable
 
 @click.command("fourbar")
 @fourbar_options
-@click.option("--point", nargs=2, type=float, default=None, metavar="U V",
+@click.option("--point", nargs=2, type=COORDINATE, default=None, metavar="U V",
               help="Coupler point in the coupler frame (origin A, x-axis along A->B).")
 @crank_angle_options
 @speed_options

@@ -16,6 +16,7 @@ from pathlib import Path
 import click
 import numpy as np
 
+from cli.options import LENGTH, RPM
 from kinematics.fourbar import check_lengths
 from kinematics.fourbar_stats import CLUTCHES, minimise_cv, output_speed_stats
 from kinematics.status import Status
@@ -24,17 +25,25 @@ from report.motion_table import Column, MotionTable
 __all__ = ["run_stats", "stats_options"]
 
 
-def _positive_list(ctx: click.Context, param: click.Parameter, value: str | None) -> list[float] | None:
-    """Callback: ``"1,2.5,4"`` → [1.0, 2.5, 4.0], each finite and > 0."""
-    if value is None:
-        return None
-    try:
-        out = [float(x) for x in value.split(",") if x.strip()]
-    except ValueError:
-        raise click.BadParameter(f"expected comma-separated numbers, got {value!r}", ctx, param) from None
-    if not out or not all(np.isfinite(x) and x > 0 for x in out):
-        raise click.BadParameter(f"expected finite numbers > 0, got {value!r}", ctx, param)
-    return out
+#: Most values of --crank-lengths and of --rpms: the table has one row per pair of them.
+MAX_LIST = 1000
+
+
+def _list_of(kind) -> Callable:
+    """Callback: ``"1,2.5,4"`` → [1.0, 2.5, 4.0], each value checked as ``kind`` (a
+    :class:`cli.options.Bounded`: its range), at most :data:`MAX_LIST` of them."""
+
+    def check(ctx: click.Context, param: click.Parameter, value: str | None) -> list[float] | None:
+        if value is None:
+            return None
+        items = [x for x in value.split(",") if x.strip()]
+        if not items:
+            raise click.BadParameter(f"expected comma-separated numbers, got {value!r}", ctx, param)
+        if len(items) > MAX_LIST:
+            raise click.BadParameter(f"at most {MAX_LIST} values, got {len(items)}", ctx, param)
+        return [kind.convert(x, param, ctx) for x in items]
+
+    return check
 
 
 def _bounds(ctx: click.Context, param: click.Parameter, value: tuple[str, ...]) -> dict[str, tuple[float, float]]:
@@ -43,14 +52,13 @@ def _bounds(ctx: click.Context, param: click.Parameter, value: tuple[str, ...]) 
     for item in value:
         name, _, rng = item.partition("=")
         lo, _, hi = rng.partition(":")
-        try:
-            pair = (float(lo), float(hi))
-        except ValueError:
-            raise click.BadParameter(f"expected NAME=LOW:HIGH (e.g. a=10:30), got {item!r}", ctx, param) from None
         if name not in ("a", "b", "c", "d"):
             raise click.BadParameter(f"{name!r} is not a link length (use a, b, c or d)", ctx, param)
-        if not (np.isfinite(pair[0]) and np.isfinite(pair[1]) and 0 < pair[0] <= pair[1]):
-            raise click.BadParameter(f"bounds must satisfy 0 < LOW <= HIGH, got {item!r}", ctx, param)
+        if not _:
+            raise click.BadParameter(f"expected NAME=LOW:HIGH (e.g. a=10:30), got {item!r}", ctx, param)
+        pair = (LENGTH.convert(lo, param, ctx), LENGTH.convert(hi, param, ctx))
+        if not pair[0] <= pair[1]:
+            raise click.BadParameter(f"bounds must satisfy LOW <= HIGH, got {item!r}", ctx, param)
         out[name] = pair
     return out
 
@@ -60,9 +68,9 @@ def stats_options(f: Callable) -> Callable:
     options = [
         click.option("--stats", is_flag=True,
                      help="Output-speed statistics over a turn (pulsating-transmission stage) instead of the motion table."),
-        click.option("--crank-lengths", callback=_positive_list, metavar="L1,L2,..",
+        click.option("--crank-lengths", callback=_list_of(LENGTH), metavar="L1,L2,..",
                      help="With --stats: crank lengths to compare (default --a)."),
-        click.option("--rpms", callback=_positive_list, metavar="N1,N2,..",
+        click.option("--rpms", callback=_list_of(RPM), metavar="N1,N2,..",
                      help="With --stats: input speeds [rev/min] to compare (default --rpm, or 60)."),
         click.option("--phases", type=click.IntRange(min=1, max=12), default=1, show_default=True,
                      help="With --stats: identical stages driven 360/N deg apart onto one output."),

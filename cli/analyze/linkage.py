@@ -16,7 +16,7 @@ import click
 import numpy as np
 
 from cli.errors import InputError
-from cli.options import MAX_SPEED, bounded, finite, output_options, speed_from_options, speed_options, writable_file
+from cli.options import INPUT_STEP, INPUT_VALUE, SPEED, output_options, speed_from_options, speed_options, writable_file
 from kinematics.assur import (
     Assembly,
     Linkage,
@@ -48,12 +48,12 @@ ANIMATION_POSITIONS = 181
 
 @click.command("linkage")
 @click.argument("file", type=click.Path(exists=True, dir_okay=False))
-@click.option("--input", "input_values", type=float, multiple=True, metavar="DEG|LEN", callback=lambda c, p, v: [finite(c, p, x) for x in v],
+@click.option("--input", "input_values", type=INPUT_VALUE, multiple=True, metavar="DEG|LEN",
               help="Value of an input ([[inputs]] order; deg for angles). Repeat for several inputs. "
                    "With --from/--to/--step the first input sweeps and --input gives the others.")
-@click.option("--from", "x_from", type=float, default=None, callback=finite, help="First value of the first input [deg or length].")
-@click.option("--to", "x_to", type=float, default=None, callback=finite, help="Last value of the first input [deg or length].")
-@click.option("--step", "x_step", type=float, default=None, callback=finite, help="Step of the first input (default 30 deg, or 1/12 of a slide's range).")
+@click.option("--from", "x_from", type=INPUT_VALUE, default=None, help="First value of the first input [deg or length].")
+@click.option("--to", "x_to", type=INPUT_VALUE, default=None, help="Last value of the first input [deg or length].")
+@click.option("--step", "x_step", type=INPUT_STEP, default=None, help="Step of the first input (default 30 deg, or 1/12 of a slide's range).")
 @click.option("--configuration", type=click.IntRange(min=1), default=1, show_default=True,
               help="Assembly configuration to follow, numbered as --all-configurations lists them at the first position.")
 @click.option("--all-configurations", "all_configurations", is_flag=True, help="List every assembly configuration at each position.")
@@ -61,7 +61,7 @@ ANIMATION_POSITIONS = 181
 @click.option("--output", "output_name", default=None, metavar="NAME",
               help="Output for --limits and --plot: a link (its angle) or a prismatic pair (its slide). Default: [output] of the file.")
 @speed_options
-@click.option("--speed", "slide_speed", type=float, default=1.0, show_default=True, callback=bounded(MAX_SPEED),
+@click.option("--speed", "slide_speed", type=SPEED, default=1.0, show_default=True,
               help="Speed of a slide input [length/s] (angle inputs use --rpm/--omega).")
 @output_options
 @click.option("--animate", type=click.Path(dir_okay=False), callback=writable_file(".html", ".svg"),
@@ -193,9 +193,10 @@ def _input_grid(mech: Linkage, values, x_from, x_to, x_step, sweep_given) -> np.
         raise click.BadParameter(f"--step must be > 0, got {step:g}", param_hint="--step")
     if stop < start:
         raise click.BadParameter(f"--to ({stop:g}) must not be below --from ({start:g})", param_hint="--to")
-    count = int(np.floor((stop - start) / step + 1e-9)) + 1 if stop > start else 1
-    if count > 100_000:
-        raise click.BadParameter(f"--from/--to/--step give {count} positions; at most 100000", param_hint="--step")
+    steps = (stop - start) / step if stop > start else 0.0
+    if not steps < 100_000:  # checked as a float: a tiny step must not overflow the count
+        raise click.BadParameter(f"--from/--to/--step give {steps:.3g} positions; at most 100000", param_hint="--step")
+    count = int(np.floor(steps + 1e-9)) + 1
     grid = start + step * np.arange(count)
     turns = (stop - start) / 360.0
     if angle and round(turns) >= 1 and abs(turns - round(turns)) < 1e-12 and np.isclose(grid[-1], stop):

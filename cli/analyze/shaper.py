@@ -9,7 +9,7 @@ import numpy as np
 
 from cli.analyze.emit import emit_motion
 from cli.analyze.slider_crank import BRANCH_HELP, limits_summary, xy
-from cli.options import crank_angle_options, crank_angles_deg, finite, output_options, positive, speed_from_options, speed_options
+from cli.options import COORDINATE, LENGTH, crank_angle_options, crank_angles_deg, output_options, speed_from_options, speed_options
 from kinematics.shaper import check_shaper, shaper_limits, shaper_motion
 from kinematics.timing import time_derivatives
 from report.drawing import Sketch
@@ -17,12 +17,12 @@ from report.motion_table import Column, MotionTable
 
 
 @click.command("shaper")
-@click.option("--crank", "l1", type=float, required=True, callback=positive, help="Crank length AB (l1).")
-@click.option("--rod", "l3", type=float, required=True, callback=positive, help="Guide rod length CD (l3).")
-@click.option("--link", "l4", type=float, required=True, callback=positive, help="Link length DE (l4).")
-@click.option("--height", "h", type=float, required=True, callback=positive,
+@click.option("--crank", "l1", type=LENGTH, required=True, help="Crank length AB (l1).")
+@click.option("--rod", "l3", type=LENGTH, required=True, help="Guide rod length CD (l3).")
+@click.option("--link", "l4", type=LENGTH, required=True, help="Link length DE (l4).")
+@click.option("--height", "h", type=LENGTH, required=True,
               help="Height h of the crank pivot A above the rod pivot C=(0,-h).")
-@click.option("--offset", "e", type=float, default=0.0, show_default=True, callback=finite,
+@click.option("--offset", "e", type=COORDINATE, default=0.0, show_default=True,
               help="Slider line y = -e (positive: below the crank pivot A).")
 @click.option("--branch", type=click.Choice(["1", "-1"]), default="1", show_default=True, help=BRANCH_HELP)
 @crank_angle_options

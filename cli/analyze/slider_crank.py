@@ -9,7 +9,7 @@ import click
 import numpy as np
 
 from cli.analyze.emit import emit_motion
-from cli.options import crank_angle_options, crank_angles_deg, finite, output_options, positive, speed_from_options, speed_options
+from cli.options import ANGLE_DEG, COORDINATE, LENGTH, crank_angle_options, crank_angles_deg, output_options, speed_from_options, speed_options
 from kinematics.slider_crank import SliderLimits, slider_crank_limits, slider_crank_motion, slider_crank_range
 from kinematics.timing import time_derivatives
 from report.drawing import Sketch
@@ -38,11 +38,11 @@ def xy(z: complex) -> tuple[float, float]:
 
 
 @click.command("slider-crank")
-@click.option("--crank", "l1", type=float, required=True, callback=positive, help="Crank length AB (l1).")
-@click.option("--rod", "l2", type=float, required=True, callback=positive, help="Connecting rod length BC (l2).")
-@click.option("--offset", "e", type=float, default=0.0, show_default=True, callback=finite,
+@click.option("--crank", "l1", type=LENGTH, required=True, help="Crank length AB (l1).")
+@click.option("--rod", "l2", type=LENGTH, required=True, help="Connecting rod length BC (l2).")
+@click.option("--offset", "e", type=COORDINATE, default=0.0, show_default=True,
               help="Guide offset e: the guide is y = -e (positive: below the crank pivot A).")
-@click.option("--guide-angle", type=float, default=0.0, show_default=True, callback=finite,
+@click.option("--guide-angle", type=ANGLE_DEG, default=0.0, show_default=True,
               help="Inclination of the guide [deg]; the offset is then to the right of the guide direction.")
 @click.option("--branch", type=click.Choice(["1", "-1"]), default="1", show_default=True, help=BRANCH_HELP)
 @crank_angle_options

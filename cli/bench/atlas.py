@@ -31,7 +31,8 @@ import numpy as np
 
 from atlas.shard import DWELLS_PER_SEGMENT, SEGMENTS_PER_LINKAGE
 from atlas.sweep import PRESETS, sweep_linkages
-from cli.options import writable_file
+from cli.budget import check_time
+from cli.options import RAYS, SEARCH_STEP_DEG, writable_file
 from kinematics.fourbar import fourbar_motion
 from synth.segments import KINDS, SegmentSearch, find_segments, path_deviation
 
@@ -39,14 +40,23 @@ DEFAULT_RESOLUTIONS = "4:18,3:24,2:36,1.5:48"
 FLOOR = 100.0  # linkages/s on 2 cores at the standard resolution (issue #4)
 
 
+#: Fastest build rate assumed when estimating ``--build`` (linkages/s per worker): about 5x
+#: the measured rate, so the estimate is a lower bound on the time.
+FASTEST_BUILD_RATE = 1000.0
+
+
 def _resolutions(text: str) -> list[tuple[float, int]]:
+    """``"4:18,3:24"`` → [(4.0, 18), (3.0, 24)], each step and ray count in the search's ranges."""
     out = []
-    for item in text.split(","):
-        try:
-            step, rays = item.split(":")
-            out.append((float(step), int(rays)))
-        except ValueError:
-            raise click.BadParameter(f"expected STEP:RAYS pairs separated by commas, got {item!r}") from None
+    items = text.split(",")
+    if len(items) > 64:
+        raise click.BadParameter(f"at most 64 STEP:RAYS pairs, got {len(items)}", param_hint="--resolutions")
+    for item in items:
+        step, sep, rays = item.partition(":")
+        if not sep:
+            raise click.BadParameter(f"expected STEP:RAYS pairs separated by commas, got {item!r}",
+                                     param_hint="--resolutions")
+        out.append((SEARCH_STEP_DEG.convert(step, None, None), RAYS.convert(rays, None, None)))
     return out
 
 
@@ -92,9 +102,10 @@ def _best(found, n_links: int, levels: int) -> np.ndarray:
 @click.option("--preset", type=click.Choice(sorted(PRESETS)), default="standard", show_default=True)
 @click.option("--proportions", type=click.IntRange(1, 100_000), default=32, show_default=True,
               help="Proportions of the sweep searched (each on both branches).")
-@click.option("--resolutions", default=DEFAULT_RESOLUTIONS, show_default=True, help="STEP:RAYS pairs (degrees, rays).")
-@click.option("--reference-step", type=float, default=0.75, show_default=True, help="Crank step (°) of the reference search.")
-@click.option("--reference-rays", type=int, default=96, show_default=True, help="Rays of the reference search.")
+@click.option("--resolutions", default=DEFAULT_RESOLUTIONS, show_default=True,
+              help="STEP:RAYS pairs (degrees, rays; each in the ranges of --reference-step and --reference-rays).")
+@click.option("--reference-step", type=SEARCH_STEP_DEG, default=0.75, show_default=True, help="Crank step (°) of the reference search.")
+@click.option("--reference-rays", type=RAYS, default=96, show_default=True, help="Rays of the reference search.")
 @click.option("--dwell-samples", type=click.IntRange(0, 10_000), default=60, show_default=True,
               help="Stored dwells re-measured independently per resolution.")
 @click.option("--build", "build_samples", type=click.IntRange(0, 2**24), default=0, show_default=True,
@@ -105,8 +116,16 @@ def _best(found, n_links: int, levels: int) -> np.ndarray:
 def atlas(preset, proportions, resolutions, reference_step, reference_rays, dwell_samples, build_samples, workers, plot):
     """Atlas build: linkages/s and segments/s against dwell error, per search resolution."""
     spec = PRESETS[preset]
-    pairs = _resolutions(resolutions)
+    try:
+        pairs = _resolutions(resolutions)
+    except click.BadParameter as exc:
+        exc.param_hint = "--resolutions"
+        raise
     sweep = sweep_linkages(spec)
+    if build_samples:
+        linkages = build_samples * len(sweep) / spec.samples * len(spec.branches)
+        check_time(linkages / (FASTEST_BUILD_RATE * workers), f"--build {build_samples} (about {linkages:,.0f} linkages)",
+                   "lower --build (the standard atlas is 32 768 samples)")
     n = min(proportions, len(sweep))
     b, c, d = (np.repeat(x[:n], len(spec.branches)) for x in (sweep.b, sweep.c, sweep.d))
     br = np.tile(np.asarray(spec.branches), n)

@@ -19,7 +19,9 @@ import time
 import click
 import numpy as np
 
+from cli.options import SEED
 from cli.bench import reference
+from cli.budget import check_memory, check_time
 from kinematics.fourbar import fourbar_motion
 from synth.ball import ball_point
 from synth.double_ball import double_ball_points
@@ -29,6 +31,8 @@ from synth.pole import pole
 
 STAGES = ("fourbar_motion", "pole", "inflection_circle", "ball_point", "line_scan")
 FLOOR = 500_000
+#: Peak memory per conjugate pair of one call (bytes; 60–75 measured with tracemalloc).
+BYTES_PER_PAIR = 100
 
 
 def crank_rockers(n: int, seed: int) -> tuple[np.ndarray, ...]:
@@ -98,14 +102,21 @@ def _errors(seed: int, rays: int) -> dict[str, float]:
               help="Timed runs (the best is kept: the machine is shared).")
 @click.option("--double-ball-linkages", "n_double", type=click.IntRange(0, 100_000), default=20, show_default=True,
               help="Linkages for the double-Ball-point search timing.")
-@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True, help="Seed of the random cases (>= 0).")
+@click.option("--seed", type=SEED, default=0, show_default=True, help="Seed of the random cases (>= 0).")
 def curvature(linkages, angles, rays, batch, repeat, n_double, seed):
     """Instants/s (pole + inflection circle + Ball point + conjugate pairs) and double-Ball time (JSON)."""
+    check_memory(min(batch, linkages) * angles * rays * BYTES_PER_PAIR,
+                 f"--batch {batch} × --angles {angles} × --rays {rays} conjugate pairs per call", "lower --batch or --rays")
     links = crank_rockers(linkages, seed)
     phi = np.linspace(0, 2 * np.pi, angles, endpoint=False)[:, None]
     alpha = np.pi * np.arange(rays) / rays
     instants = linkages * angles
     _run(tuple(x[:1] for x in links), phi, alpha, batch)  # warm-up
+    # one batch timed, the whole run estimated from it (repeat timed runs + staged run + errors)
+    first = min(batch, linkages)
+    seconds = _run(tuple(x[:first] for x in links), phi, alpha, batch) * (linkages / first) * (repeat + 2)
+    check_time(seconds, f"--linkages {linkages} × --angles {angles} × --rays {rays} × --repeat {repeat}",
+               "lower --linkages, --angles, --rays or --repeat")
     best = min(_run(links, phi, alpha, batch) for _ in range(repeat))
     clock = dict.fromkeys(STAGES, 0.0)
     _run(links, phi, alpha, batch, clock)

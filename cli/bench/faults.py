@@ -46,6 +46,7 @@ from pathlib import Path
 import click
 
 from cli.errors import InputError
+from cli.options import SEED
 
 #: Sweep options of every build (the demo preset's search settings, fewer proportions).
 PRESET = "demo"
@@ -443,7 +444,7 @@ def _check_postgres(url: str) -> None:
               help="Kill-and-resume trials per database kind.")
 @click.option("--kills", "max_kills", type=click.IntRange(1, 20), default=2, show_default=True,
               help="Most kills per trial (each trial draws 1..K).")
-@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the kill schedule.")
+@click.option("--seed", type=SEED, default=0, show_default=True, help="Seed of the kill schedule.")
 @click.option("--db-kind", type=click.Choice(["sqlite", "postgresql", "both"]), default="sqlite", show_default=True)
 @click.option("--postgres", "postgres_url", envvar="DWELL_TEST_POSTGRES", show_envvar=True, default=None,
               metavar="URL", help="PostgreSQL server (a database there; trials create and drop their own).")

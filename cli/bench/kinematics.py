@@ -16,7 +16,9 @@ import time
 import click
 import numpy as np
 
+from cli.options import SEED
 from cli.bench.plain import fourbar_positions
+from cli.budget import check_memory, check_time
 from kinematics.fourbar import fourbar_motion
 
 #: Linkages per call when streaming a large sweep (what an atlas shard does): the output of
@@ -24,6 +26,12 @@ from kinematics.fourbar import fourbar_motion
 STREAM_BATCH = 2048
 #: Each timed run covers at least this many positions, so that a 0.1 ms call is not timed alone.
 MIN_POSITIONS_PER_RUN = 200_000
+#: Peak memory of one order-3 call per position (bytes; 70 measured with tracemalloc, with
+#: room for the plain-numpy yardstick's temporaries).
+BYTES_PER_POSITION = 120
+#: Fastest rate assumed in the time estimate (positions/s: ~3x the best measured), so the
+#: estimate is a lower bound.
+FASTEST_POSITIONS_PER_S = 1e8
 
 
 def _sweep(n: int, seed: int) -> tuple[np.ndarray, ...]:
@@ -75,7 +83,7 @@ def _accuracy(samples: int, angles: int, seed: int) -> dict[str, float]:
               help="Comma-separated numbers of linkages.")
 @click.option("--angles", default=360, show_default=True, type=click.IntRange(1, 100_000), help="Crank angles per linkage.")
 @click.option("--repeat", default=3, show_default=True, type=click.IntRange(1, 100), help="Timed runs per size (best is kept).")
-@click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0), help="Seed of the random linkages (>= 0).")
+@click.option("--seed", type=SEED, default=0, show_default=True, help="Seed of the random linkages (>= 0).")
 def kinematics(sizes: str, angles: int, repeat: int, seed: int) -> None:
     """Four-bar positions + 3 derivative orders per second (one core), with their error."""
     try:
@@ -85,6 +93,11 @@ def kinematics(sizes: str, angles: int, repeat: int, seed: int) -> None:
     if not ns or min(ns) < 1 or max(ns) > 1_000_000:
         raise click.BadParameter("--n values must be between 1 and 1000000")
     phi = np.linspace(0, 2 * np.pi, angles, endpoint=False)
+    check_memory(max(ns) * angles * BYTES_PER_POSITION, f"{max(ns):,} linkages × {angles:,} angles in one call",
+                 "lower --n or --angles")
+    runs = sum(max(n * angles, MIN_POSITIONS_PER_RUN) for n in ns) * (2 * repeat + 1)
+    check_time(runs / FASTEST_POSITIONS_PER_S, f"--n {sizes} × --angles {angles} × --repeat {repeat}",
+               "lower --n, --angles or --repeat")
     results = []
     for n in ns:
         a, b, c, d = _sweep(n, seed)

@@ -28,6 +28,8 @@ from pathlib import Path
 import click
 import numpy as np
 
+from cli.budget import check_time
+
 from cli.atlas import db_option
 from cli.options import writable_file
 
@@ -110,9 +112,14 @@ def query(db, repeat, top, plot):
     engine = open_atlas(db, readonly=True)
     try:
         atlas = _atlas_facts(engine)
+        answer(engine, _request(REQUESTS[0], top))  # warm-up: imports, SQLite page cache
+        # one timed answer of the first request, then the whole run's estimate against the budget
+        t0 = time.perf_counter()
+        answer(engine, _request(REQUESTS[0], top))
+        check_time((time.perf_counter() - t0) * repeat * len(REQUESTS),
+                   f"--repeat {repeat} × {len(REQUESTS)} requests (--top {top}) on this atlas", "lower --repeat or --top")
         if atlas["preset"] != "standard":
             click.echo(f"dwell: note: {display_target(db)} holds the {atlas['preset']!r} sweep; the floor is set for 'standard'", err=True)
-        answer(engine, _request(REQUESTS[0], top))  # warm-up: imports, SQLite page cache
         rows, every = [], []
         for r in REQUESTS:
             request = _request(r, top)

@@ -16,9 +16,14 @@ import platform
 import click
 import numpy as np
 
-from cli.bench.kinematics import MIN_POSITIONS_PER_RUN, _best_time, _sweep
+from cli.options import SEED
+from cli.bench.kinematics import FASTEST_POSITIONS_PER_S, MIN_POSITIONS_PER_RUN, _best_time, _sweep
+from cli.budget import check_memory, check_time
 from cli.bench.plain import sixbar_rrr_positions
 from synth.sixbar import SixBars, simulate
+
+#: Peak memory of simulate(order=0) per position (bytes; 229 measured with tracemalloc).
+SIXBAR_BYTES_PER_POSITION = 300
 
 
 def random_rrr_sixbars(n: int, seed: int) -> SixBars:
@@ -53,7 +58,7 @@ def _plain(s: SixBars, phi):
 @click.option("--n", "sizes", default="1,100,10000", show_default=True, help="Comma-separated numbers of six-bars.")
 @click.option("--angles", default=360, show_default=True, type=click.IntRange(1, 3600), help="Crank angles per six-bar.")
 @click.option("--repeat", default=3, show_default=True, type=click.IntRange(1, 100), help="Timed runs per size (best is kept).")
-@click.option("--seed", default=0, show_default=True, type=click.IntRange(0, 2**32 - 1), help="Seed of the random six-bars.")
+@click.option("--seed", type=SEED, default=0, show_default=True, help="Seed of the random six-bars.")
 def sixbar(sizes: str, angles: int, repeat: int, seed: int) -> None:
     """Six-bar positions per second (one core), as a ratio to plain numpy in the same run."""
     try:
@@ -63,6 +68,11 @@ def sixbar(sizes: str, angles: int, repeat: int, seed: int) -> None:
     if not ns or min(ns) < 1 or max(ns) > 100_000:
         raise click.BadParameter("--n values must be between 1 and 100000")
     phi = np.linspace(0, 2 * np.pi, angles, endpoint=False)
+    check_memory(max(ns) * angles * SIXBAR_BYTES_PER_POSITION, f"{max(ns):,} six-bars × {angles:,} angles in one call",
+                 "lower --n or --angles")
+    runs = sum(max(n * angles, MIN_POSITIONS_PER_RUN) for n in ns) * 2 * repeat
+    check_time(runs / FASTEST_POSITIONS_PER_S, f"--n {sizes} × --angles {angles} × --repeat {repeat}",
+               "lower --n, --angles or --repeat")
     results = []
     for n in ns:
         six = random_rrr_sixbars(n, seed)

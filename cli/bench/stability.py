@@ -29,6 +29,7 @@ import time
 import click
 import numpy as np
 
+from cli.options import SEED
 from cli.bench import reference
 from cli.bench.curvature import crank_rockers
 from kinematics.fourbar import fourbar_motion
@@ -261,7 +262,7 @@ def _raise_mode_check(cases: dict[str, np.ndarray], count: int = 200) -> dict[st
 @click.command("stability")
 @click.option("--n", "n_cases", type=click.IntRange(1, 10_000_000), default=100_000, show_default=True,
               help="Number of cases.")
-@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True, help="Seed of the random cases (>= 0).")
+@click.option("--seed", type=SEED, default=0, show_default=True, help="Seed of the random cases (>= 0).")
 def stability(n_cases: int, seed: int) -> None:
     """Random and adversarial cases: flags per reason, NaN/inf, exceptions, residuals (JSON)."""
     click.echo(json.dumps(stability_summary(n_cases, seed), indent=1))

@@ -117,7 +117,7 @@ def test_text_tables_plot_drawing_animation(tmp_path, capsys):
         (["{fourbar}", "--configuration", "3"], "configuration 3 does not exist"),
         (["{fourbar}", "--input", "10", "--input", "20"], "--input"),
         (["{fourbar}", "--output", "nope", "--limits"], "no link or prismatic pair named 'nope'"),
-        (["{fourbar}", "--step", "0"], "--step must be > 0"),
+        (["{fourbar}", "--step", "0"], "Invalid value for '--step': must be 1e-09 <= x"),
         (["{fourbar}", "--from", "90", "--to", "10"], "must not be below"),
         (["{fourbar}", "--plot", "x.txt"], "--plot"),
         (["{fourbar}", "--animate", "x.png"], "--animate"),

@@ -252,7 +252,7 @@ def test_help_shows_the_request_defaults_and_ranges(capsys):
     flat = " ".join(out.split())
     r = Request(dwell=1.0, swing=0.5)
     assert f"[default: {math.degrees(r.dwell_tol):g}" in flat.replace(".0]", "]").replace(".0;", ";")
-    assert "0.0<x<90.0" in flat
+    assert "0.001<=x<90.0" in flat and "0.01<=x<180.0" in flat  # --min-transmission, --swing
     assert f"default: {r.top}" in flat
 
 

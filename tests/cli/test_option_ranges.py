@@ -1,0 +1,80 @@
+"""Every numeric option of every command against the value classes of issue 17: subnormals,
+±0, −1, ±1e308, inf/nan text, a 400-digit integer and the empty string.
+
+Exhaustive, not sampled: each (command, option, value) is run in-process on top of the
+command's valid base line (``test_fuzz.BASE``), with the fuzz tests' contract
+(``test_fuzz.run_and_check``): exit 0 or 2, no traceback, one ``dwell: error:`` line on exit 2
+and the folder byte-identical after it; complete files after exit 0. Where the parsed line
+would be a long run (``test_fuzz.AFFORDABLE``) only the option parser is run, which must refuse
+or accept without an exception other than click's usage errors. The tally is printed.
+
+Numeric options are found by walking the click tree (``test_fuzz.COMMANDS``): every option
+whose type is a float or int (ranges included) and the list options that carry numbers.
+"""
+
+from __future__ import annotations
+
+import click
+import pytest
+from test_fuzz import AFFORDABLE, BASE, COMMANDS, EXAMPLES, _parsed, run_and_check, small_atlas, world_for  # noqa: F401
+
+#: The value classes of issue 17.
+VALUES = ["5e-324", "1e-320", "0", "-0", "-1", "1e308", "-1e308", "inf", "-inf", "nan", "9" * 400, ""]
+#: Text options that hold numbers, and how a value is placed in them.
+NUMBER_LISTS = {"--n": "1,{v}", "--crank-lengths": "1,{v}", "--rpms": "{v}", "--tolerances": "0.001,{v}",
+                "--resolutions": "{v}:6", "--cv-bounds": "a={v}:2"}
+#: The analyze commands' list options act only with --stats.
+NEEDS = {"--crank-lengths": ["--stats"], "--rpms": ["--stats"], "--cv-bounds": ["--stats"]}
+
+
+def _numeric(param: click.Parameter) -> bool:
+    kind = param.type
+    return isinstance(kind, click.types.FloatParamType | click.types.IntParamType) or param.opts[0] in NUMBER_LISTS
+
+
+CASES = [(path, param) for path, command in COMMANDS.items() if not isinstance(command, click.Group)
+         for param in command.params if isinstance(param, click.Option) and not param.is_flag and _numeric(param)]
+
+
+def test_every_numeric_option_is_found():
+    names = {(" ".join(path), param.opts[0]) for path, param in CASES}
+    assert {("query", "--crank"), ("report", "--crank"), ("analyze fourbar", "--step"), ("analyze linkage", "--from"),
+            ("atlas build", "--crank-step"), ("atlas build", "--samples"), ("bench atlas", "--reference-step"),
+            ("bench atlas", "--resolutions"), ("bench kinematics", "--n"), ("bench curvature", "--rays"),
+            ("bench query", "--repeat"), ("query", "--min-transmission"), ("curvature", "--phi")} <= names
+    assert len(CASES) >= 90
+
+
+#: Base lines for commands the fuzz tests give none (their argument is a file).
+FILES = {("analyze", "linkage"): [str(EXAMPLES / "fourbar.toml")]}
+
+
+def _argv(path, param, value: str) -> list[str]:
+    base = BASE.get(path, FILES.get(path, []))
+    if base and isinstance(base[0], list):
+        base = base[0]
+    name = param.opts[0]
+    text = NUMBER_LISTS.get(name, "{v}").format(v=value)
+    return [*base, *NEEDS.get(name, []), name, *([text] * max(param.nargs, 1))]
+
+
+@pytest.mark.parametrize("path", sorted({path for path, _ in CASES}), ids=" ".join)
+def test_hostile_values_of_every_numeric_option(small_atlas, path, capsys):  # noqa: F811 - the fixture
+    tally = {"run": 0, "exit 2": 0, "parser only": 0}
+    for p, param in CASES:
+        if p != path:
+            continue
+        for value in VALUES:
+            argv = _argv(path, param, value)
+            parsed = _parsed(path, [a.replace("{candidate}", "1-rpr0.0@20") for a in argv])
+            affordable = AFFORDABLE.get(path)
+            if parsed is not None and (affordable is None or not affordable(parsed)):
+                tally["parser only"] += 1  # accepted by the parser, too long to run here
+                continue
+            with world_for(small_atlas) as world:
+                rc, _, _ = run_and_check(world, path, argv)
+            tally["run"] += 1
+            tally["exit 2"] += rc == 2
+    with capsys.disabled():
+        print(f"\n{' '.join(path)}: {tally}")
+    assert tally["run"] + tally["parser only"] > 0
