@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import stat
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -182,6 +184,41 @@ def speed_from_options(rpm: float | None, omega: float | None, cw: bool) -> floa
     return crank_speed(rpm=rpm, omega=omega, clockwise=cw)
 
 
+def special_file(path: Path) -> str | None:
+    """What ``path`` is if it exists and is not a regular file or a folder ("a FIFO", "a
+    device", "a socket"), else None. Reading or writing such a file blocks or never ends, so
+    every user path is checked with ``os.stat`` (which opens nothing) first."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return None
+    if stat.S_ISFIFO(mode):
+        return "a FIFO (named pipe)"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "a device"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    return None
+
+
+def readable_text(path: Path, option: str, limit: int) -> str:
+    """The UTF-8 text of the regular file ``path`` of at most ``limit`` bytes, or one
+    :class:`~cli.errors.InputError` naming ``option``: not a regular file, too large,
+    unreadable or not UTF-8."""
+    from cli.errors import InputError
+
+    kind = special_file(path)
+    if kind is not None:
+        raise InputError(f"{option} {str(path)!r} is {kind}, not a file")
+    try:
+        size = path.stat().st_size
+        if size > limit:
+            raise InputError(f"{option} {str(path)!r} has {size:,} bytes; at most {limit:,}")
+        return path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read {str(path)!r}: {exc}") from None
+
+
 def writable_file(*suffixes: str) -> Callable:
     """Callback: a path whose folder exists and whose suffix is one of ``suffixes``."""
 
@@ -195,6 +232,9 @@ def writable_file(*suffixes: str) -> Callable:
             raise click.BadParameter(f"folder {str(path.parent)!r} does not exist", ctx, param)
         if path.exists() and path.is_dir():
             raise click.BadParameter(f"{value!r} is a folder", ctx, param)
+        kind = special_file(path)
+        if kind is not None:  # opening it would block until another process reads
+            raise click.BadParameter(f"{value!r} is {kind}, not a file", ctx, param)
         try:  # fail now, not after the work: open it as the writer will, then leave it as it was
             if path.exists():
                 with path.open("ab"):

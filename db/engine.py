@@ -496,6 +496,8 @@ def _check_sqlite_file(path: Path, target: str, *, create: bool) -> bool:
     if path.exists():
         if path.is_dir():
             raise AtlasError(f"{display_target(target)!r} is a folder, not an atlas file")
+        if not path.is_file():  # a FIFO, device or socket: opening it would block or never end
+            raise AtlasError(f"{display_target(target)!r} is not a regular file (a FIFO, device or socket), not an atlas")
         try:
             with path.open("rb") as fh:
                 head = fh.read(len(_SQLITE_MAGIC))

@@ -49,6 +49,10 @@ _SAMPLE_DEPTH = {"theta": 40, "gamma": 24, "edge": 24}
 #: Seeds whose two crank angles differ by less than this (rad) are one pass of the track
 #: crossing itself in rounding noise, not two passes: dropped before refinement.
 _SAME_PASS = 1e-6
+#: Speed of the Ball-point track |dp_B/dφ| (per radian, relative to the linkage size) below
+#: which it counts as standing still: rounding noise, 1e-16–1e-13 on kites; a moving track's
+#: slowest samples (near a cusp) are far above it at 4096 samples a turn.
+STILL_SPEED = 1e-9
 
 
 @dataclass(frozen=True, slots=True)
@@ -130,6 +134,11 @@ def _track(a, b, c, d, branch, phi) -> tuple[C128, C128, F64, NDArray[np.bool_]]
     p = rot * w
     dp = rot * (1j * (1.0 - t1) * w + dw)
     ok = (m.status == 0) & (loop_condition(m) <= MAX_CONDITION) & np.isfinite(p) & np.isfinite(dp) & (t1 != 0)
+    # a track that stands still (a kite a = b, c = d parks the Ball point on one spot for
+    # much of the turn) moves by rounding noise only: every sample of it is "near" every
+    # other, which made the crossing search and its Newton seeds quadratic (15 s, 3 GB)
+    size = np.maximum(np.maximum(a, b), np.maximum(c, d))
+    ok &= np.abs(dp) > STILL_SPEED * size
     return np.where(ok, p, 0j), np.where(ok, dp, 0j), t1, ok
 
 

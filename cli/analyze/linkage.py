@@ -15,9 +15,18 @@ from pathlib import Path
 import click
 import numpy as np
 
-from cli.errors import InputError
-from cli.options import INPUT_STEP, INPUT_VALUE, SPEED, output_options, speed_from_options, speed_options, writable_file
+from cli.options import (
+    INPUT_STEP,
+    INPUT_VALUE,
+    SPEED,
+    output_options,
+    readable_text,
+    speed_from_options,
+    speed_options,
+    writable_file,
+)
 from kinematics.assur import (
+    MAX_CONFIGURATIONS,
     Assembly,
     Linkage,
     LinkageMotion,
@@ -32,6 +41,7 @@ from kinematics.assur import (
     loop_closure,
     output_series,
 )
+from kinematics.assur.linkage_file import MAX_CHARS
 from kinematics.status import AssemblyError, Status
 from report.animation import Animation, Frame, write_animation
 from report.drawing import Sketch, draw_sketch
@@ -54,7 +64,7 @@ ANIMATION_POSITIONS = 181
 @click.option("--from", "x_from", type=INPUT_VALUE, default=None, help="First value of the first input [deg or length].")
 @click.option("--to", "x_to", type=INPUT_VALUE, default=None, help="Last value of the first input [deg or length].")
 @click.option("--step", "x_step", type=INPUT_STEP, default=None, help="Step of the first input (default 30 deg, or 1/12 of a slide's range).")
-@click.option("--configuration", type=click.IntRange(min=1), default=1, show_default=True,
+@click.option("--configuration", type=click.IntRange(1, MAX_CONFIGURATIONS), default=1, show_default=True,
               help="Assembly configuration to follow, numbered as --all-configurations lists them at the first position.")
 @click.option("--all-configurations", "all_configurations", is_flag=True, help="List every assembly configuration at each position.")
 @click.option("--limits", is_flag=True, help="Find the limit positions of the output (where its velocity vanishes).")
@@ -71,10 +81,7 @@ def linkage(ctx, file, input_values, x_from, x_to, x_step, configuration, all_co
             rpm, omega, cw, crank_alpha, slide_speed, as_json, plot, draw, units, animate):
     """Analyse the planar linkage described in FILE (TOML, or JSON if it ends in .json)."""
     path = Path(file)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"cannot read {file}: {exc}") from None
+    text = readable_text(path, "FILE", 4 * MAX_CHARS)  # UTF-8: up to 4 bytes a character
     try:
         mech = linkage_from_text(text, "json" if path.suffix.lower() == ".json" else "toml")
         dec = decompose(mech)
@@ -99,12 +106,18 @@ def linkage(ctx, file, input_values, x_from, x_to, x_step, configuration, all_co
         "name": mech.name, "file": str(file), "length_unit": units, "dof": mech.dof,
         "inputs": [_input_info(mech, i) for i in range(k)], "groups": groups,
         "configurations_at_first_position": len(found),
+        # True when the listing stopped at MAX_CONFIGURATIONS (a chain of n dyads has 2^n)
+        "configurations_capped": len(found) >= MAX_CONFIGURATIONS,
     }
 
     if all_configurations:
         if limits or plot is not None or draw is not None or animate is not None:
             raise click.UsageError("--limits, --plot, --draw and --animate follow one configuration; "
                                    "leave out --all-configurations")
+        if len(found) >= MAX_CONFIGURATIONS:
+            raise click.UsageError(f"{mech.name} has more than {MAX_CONFIGURATIONS} assembly configurations at "
+                                   f"{_inputs_text(mech, inputs[0])}: --all-configurations lists at most "
+                                   f"{MAX_CONFIGURATIONS}; follow one with --configuration N")
         table = _configurations_table(mech, dec, inputs, units, mechanism)
         _print(table, as_json, f"{mech.name}: every assembly configuration", key="configurations")
         return

@@ -21,11 +21,20 @@ from kinematics.assur.model import (
     PrismaticPair,
     RevolutePair,
 )
-from kinematics.assur.positions import Assembly, assemble, configurations, loop_closure
+from kinematics.assur.positions import (
+    MAX_CONFIGURATIONS,
+    Assembly,
+    ConfigurationLimit,
+    assemble,
+    configurations,
+    loop_closure,
+)
 from kinematics.assur.topology import AssurGroup, Body, Decomposition, decompose
 from kinematics.assur.velocity import LinkageMotion, linkage_motion
 
 __all__ = [
+    "MAX_CONFIGURATIONS",
+    "ConfigurationLimit",
     "GROUND",
     "Assembly",
     "AssurGroup",

@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 import tomllib
 from collections.abc import Mapping
 from typing import Any
@@ -50,7 +51,7 @@ from kinematics.assur.model import (
     RevolutePair,
 )
 
-__all__ = ["linkage_from_mapping", "linkage_from_text"]
+__all__ = ["MAX_CHARS", "MAX_DEPTH", "MAX_LINKS", "linkage_from_mapping", "linkage_from_text", "nesting_depth"]
 
 _TOP_KEYS = {"name", "units", "ground", "links", "prismatic", "inputs", "output"}
 _LINK_KEYS = {"joints", "length", "points"}
@@ -60,6 +61,51 @@ _OUTPUT_KEYS = {"link", "joint"}
 #: Joints closer than this (relative to the linkage size) count as one point.
 _COINCIDENT = 1e-12
 
+#: Limits of a description, each refused in one line before the work it would cause (a real
+#: linkage is far inside them): characters of the text, nesting of arrays and tables (a
+#: description nests 3 deep; parsers recurse per level), links and ground points, points of one
+#: link, prismatic pairs, inputs.
+MAX_CHARS = 1_000_000
+MAX_DEPTH = 16
+MAX_LINKS = 1000
+MAX_POINTS_PER_LINK = 100
+MAX_PRISMATIC = 1000
+MAX_INPUTS = 100
+
+
+def _shown(value: Any) -> str:
+    """``repr(value)`` cut to 60 characters: an error line stays a line."""
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def nesting_depth(text: str, fmt: str) -> int:
+    """Deepest nesting of ``[``/``{`` in a TOML or JSON text, outside strings and comments
+    (a TOML table header counts while it is open)."""
+    toml = fmt == "toml"
+    depth = deepest = 0
+    i, n = 0, len(text)
+    while i < n:
+        ch = text[i]
+        if ch == '"' or (toml and ch == "'"):
+            quote = ch * 3 if toml and text.startswith(ch * 3, i) else ch
+            i += len(quote)
+            while i < n and not text.startswith(quote, i):
+                i += 2 if ch == '"' and text[i] == "\\" else 1
+            i += len(quote)
+            continue
+        if toml and ch == "#":
+            end = text.find("\n", i)
+            i = n if end < 0 else end
+            continue
+        if ch in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif ch in "]}":
+            depth -= 1
+        i += 1
+    return deepest
+
 
 def linkage_from_text(text: str, fmt: str = "toml") -> Linkage:
     """Parse a TOML (``fmt="toml"``) or JSON (``fmt="json"``) description and validate it.
@@ -67,18 +113,20 @@ def linkage_from_text(text: str, fmt: str = "toml") -> Linkage:
     Raises :class:`LinkageFileError` (an :class:`~kinematics.status.AssemblyError`) with one
     line naming the problem.
     """
-    if fmt == "toml":
-        try:
-            data = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as exc:
-            raise LinkageFileError(f"not valid TOML: {exc}") from None
-    elif fmt == "json":
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise LinkageFileError(f"not valid JSON: {exc}") from None
-    else:
+    if fmt not in ("toml", "json"):
         raise ValueError(f"fmt must be 'toml' or 'json', not {fmt!r}")
+    if len(text) > MAX_CHARS:
+        raise LinkageFileError(f"the description has {len(text):,} characters; at most {MAX_CHARS:,}")
+    depth = nesting_depth(text, fmt)
+    if depth > MAX_DEPTH:
+        raise LinkageFileError(f"arrays/tables nest {depth} deep; a description nests at most {MAX_DEPTH} deep")
+    try:
+        data = tomllib.loads(text) if fmt == "toml" else json.loads(text)
+    except (tomllib.TOMLDecodeError, json.JSONDecodeError) as exc:
+        raise LinkageFileError(f"not valid {fmt.upper()}: {exc}") from None
+    except ValueError:  # an integer of more than 4 300 digits (Python's limit of int())
+        raise LinkageFileError(f"not valid {fmt.upper()}: an integer has more than "
+                               f"{sys.get_int_max_str_digits()} digits") from None
     return linkage_from_mapping(data)
 
 
@@ -93,18 +141,25 @@ def linkage_from_mapping(data: Any) -> Linkage:
     ground_raw = data.get("ground", {})
     if not isinstance(ground_raw, Mapping):
         raise LinkageFileError("[ground] must be a table of point = [x, y]")
+    if len(ground_raw) > MAX_LINKS:
+        raise LinkageFileError(f"[ground] has {len(ground_raw)} points; at most {MAX_LINKS}")
     links: list[Link] = [Link(GROUND, {str(k): _point(v, f"ground point {k!r}") for k, v in ground_raw.items()})]
 
     links_raw = data.get("links", {})
     if not isinstance(links_raw, Mapping) or not links_raw:
         raise LinkageFileError("[links] must define at least one moving link")
+    if len(links_raw) > MAX_LINKS:
+        raise LinkageFileError(f"[links] defines {len(links_raw)} links; at most {MAX_LINKS}")
     for lname, spec in links_raw.items():
         if lname == GROUND:
             raise LinkageFileError(f"link name {GROUND!r} is reserved for the fixed link; use [ground]")
         links.append(_link(str(lname), spec))
     index = {link.name: i for i, link in enumerate(links)}
 
-    prismatic = [_prismatic(k, spec, links, index) for k, spec in enumerate(_array(data, "prismatic"))]
+    prismatic_raw = _array(data, "prismatic")
+    if len(prismatic_raw) > MAX_PRISMATIC:
+        raise LinkageFileError(f"{len(prismatic_raw)} [[prismatic]] pairs; at most {MAX_PRISMATIC}")
+    prismatic = [_prismatic(k, spec, links, index) for k, spec in enumerate(prismatic_raw)]
     point_names = {p for link in links for p in link.points}
     seen_pairs: set[str] = set()
     for pair in prismatic:
@@ -115,6 +170,8 @@ def linkage_from_mapping(data: Any) -> Linkage:
         seen_pairs.add(pair.joint)
 
     inputs_raw = _array(data, "inputs")
+    if len(inputs_raw) > MAX_INPUTS:
+        raise LinkageFileError(f"{len(inputs_raw)} [[inputs]]; at most {MAX_INPUTS}")
     centres = _compound_centres(inputs_raw, index)
     revolute = _revolute_pairs(links, centres)
     pairs = tuple(revolute + prismatic)
@@ -141,7 +198,7 @@ def _no_unknown_keys(spec: Mapping, allowed: set[str], where: str) -> None:
 
 def _text(value: Any, where: str) -> str:
     if not isinstance(value, str):
-        raise LinkageFileError(f"{where} must be a string, got {value!r}")
+        raise LinkageFileError(f"{where} must be a string, got {_shown(value)}")
     return value
 
 
@@ -151,20 +208,20 @@ MAX_MAGNITUDE = 1e150
 
 def _number(value: Any, where: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise LinkageFileError(f"{where} must be a finite number, got {value!r}")
+        raise LinkageFileError(f"{where} must be a finite number, got {_shown(value)}")
     try:
         x = float(value)
     except OverflowError:  # an integer beyond float range
         x = math.inf
     if not math.isfinite(x) or abs(x) > MAX_MAGNITUDE:
         raise LinkageFileError(f"{where} must be a finite number of magnitude at most {MAX_MAGNITUDE:g}, "
-                               f"got {value!r}")
+                               f"got {_shown(value)}")
     return x
 
 
 def _point(value: Any, where: str) -> complex:
     if not isinstance(value, (list, tuple)) or len(value) != 2:
-        raise LinkageFileError(f"{where} must be [x, y], got {value!r}")
+        raise LinkageFileError(f"{where} must be [x, y], got {_shown(value)}")
     return complex(_number(value[0], f"{where} x"), _number(value[1], f"{where} y"))
 
 
@@ -188,7 +245,7 @@ def _link(name: str, spec: Any) -> Link:
         if "length" not in spec:
             raise LinkageFileError(f"{where}: 'joints' needs 'length' (the distance between them)")
         if not isinstance(joints, list) or len(joints) != 2 or not all(isinstance(j, str) for j in joints):
-            raise LinkageFileError(f"{where}: 'joints' must name two joints, got {joints!r}")
+            raise LinkageFileError(f"{where}: 'joints' must name two joints, got {_shown(joints)}")
         if joints[0] == joints[1]:
             raise LinkageFileError(f"{where}: 'joints' names {joints[0]!r} twice")
         length = _number(spec["length"], f"{where} 'length'")
@@ -198,6 +255,8 @@ def _link(name: str, spec: Any) -> Link:
     extra = spec.get("points", {})
     if not isinstance(extra, Mapping):
         raise LinkageFileError(f"{where}: 'points' must be a table of name = [x, y]")
+    if len(extra) > MAX_POINTS_PER_LINK:
+        raise LinkageFileError(f"{where} has {len(extra)} points; at most {MAX_POINTS_PER_LINK}")
     for pname, value in extra.items():
         if pname in points:
             raise LinkageFileError(f"{where}: point {pname!r} is already placed by 'joints'")
@@ -207,7 +266,7 @@ def _link(name: str, spec: Any) -> Link:
 
 def _link_ref(value: Any, index: Mapping[str, int], where: str) -> int:
     if not isinstance(value, str) or value not in index:
-        raise LinkageFileError(f"{where}: no link named {value!r} (links: {', '.join(index)})")
+        raise LinkageFileError(f"{where}: no link named {_shown(value)} (links: {_shown(list(index))})")
     return index[value]
 
 
@@ -215,7 +274,7 @@ def _place(value: Any, link: Link, where: str) -> complex:
     """A point of ``link``: its name, or [x, y] in its frame."""
     if isinstance(value, str):
         if value not in link.points:
-            raise LinkageFileError(f"{where}: link {link.name!r} has no point {value!r}")
+            raise LinkageFileError(f"{where}: link {link.name!r} has no point {_shown(value)}")
         return link.points[value]
     return _point(value, where)
 

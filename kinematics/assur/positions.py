@@ -23,9 +23,22 @@ from kinematics.assur.model import Linkage, RevolutePair
 from kinematics.assur.pairs import Joint, Pin, Sleeve, Slide, sleeve, slide_from_block, slide_from_guide
 from kinematics.assur.topology import AssurGroup, Decomposition, decompose
 from kinematics.assur.triads import leg_equation, leg_pose, solve_triad
-from kinematics.status import Status
+from kinematics.status import AssemblyError, Status
 
-__all__ = ["Assembly", "assemble", "configurations", "loop_closure"]
+__all__ = ["MAX_CONFIGURATIONS", "MAX_PARTIAL_CONFIGURATIONS", "Assembly", "ConfigurationLimit", "assemble",
+           "configurations", "loop_closure"]
+
+#: Most configurations :func:`configurations` lists at one position (a chain of n dyads has 2ⁿ:
+#: 18 dyads took 75 s and 600 MB to list 262 144 of them).
+MAX_CONFIGURATIONS = 1024
+#: Most partial configurations (a choice for the first groups) tried while listing: bounds the
+#: work when deep groups fail to assemble on most branches.
+MAX_PARTIAL_CONFIGURATIONS = 100_000
+
+
+class ConfigurationLimit(AssemblyError):
+    """The configurations at a position are more than can be listed (one line: how many groups,
+    the limit, and how to follow one configuration instead)."""
 
 _DYAD_SOLVERS = {
     "RRR": dyads.solve_rrr,
@@ -250,24 +263,38 @@ def _prepare(linkage: Linkage, inputs) -> tuple[Decomposition, np.ndarray]:
 # -- all configurations at one position ---------------------------------------------------------
 
 
-def configurations(linkage: Linkage, inputs, *, decomposition: Decomposition | None = None) -> list[Assembly]:
-    """Every configuration that assembles at one input position (``inputs``: k values).
+def configurations(linkage: Linkage, inputs, *, decomposition: Decomposition | None = None,
+                   limit: int = MAX_CONFIGURATIONS) -> list[Assembly]:
+    """The configurations that assemble at one input position (``inputs``: k values): all of
+    them, or the first ``limit`` (the list then has exactly ``limit`` items; the caller can tell).
 
     Ordered by group: branch +1 before −1, triad roots by increasing angle of the ternary link.
-    An empty list means the linkage cannot assemble there.
+    An empty list means the linkage cannot assemble there. Raises :class:`ConfigurationLimit`
+    when more than :data:`MAX_PARTIAL_CONFIGURATIONS` partial choices would have to be tried.
     """
     dec, values = _prepare(linkage, inputs) if decomposition is None else (decomposition, np.asarray(inputs, float).reshape(1, -1))
     if values.shape[0] != 1:
         raise ValueError("configurations() takes one input position")
     out: list[Assembly] = []
-    for state, choice in _branches(linkage, dec, values, 0, _State(linkage, dec, values), ()):
+    tried = [0]
+    for state, choice in _branches(linkage, dec, values, 0, _State(linkage, dec, values), (), tried):
         found = Assembly(values.copy(), state.r.copy(), state.e.copy(), state.status.copy(), choice)
         if loop_closure(linkage, found)[0] <= _CLOSURE * linkage.length_scale:  # checked, not assumed
             out.append(found)
+            if len(out) >= limit:
+                break
     return out
 
 
-def _branches(linkage, dec, values, g, state: _State, choice) -> Iterator[tuple[_State, tuple[int, ...]]]:
+def _branches(linkage, dec, values, g, state: _State, choice, tried: list[int]) -> Iterator[tuple[_State, tuple[int, ...]]]:
+    """Depth first over the groups' choices; ``tried`` counts partial configurations."""
+    tried[0] += 1
+    if tried[0] > MAX_PARTIAL_CONFIGURATIONS:
+        dyads = sum(gr.is_dyad for gr in dec.groups)
+        raise ConfigurationLimit(
+            f"{linkage.name}: its {dyads} dyad(s) and {len(dec.groups) - dyads} triad(s) have up to "
+            f"2^{dyads}·6^{len(dec.groups) - dyads} assembly configurations; {MAX_PARTIAL_CONFIGURATIONS} partial "
+            "ones were tried without finding enough that assemble (it may not assemble at this position)")
     if g == len(dec.groups):
         yield state, choice
         return
@@ -280,14 +307,14 @@ def _branches(linkage, dec, values, g, state: _State, choice) -> Iterator[tuple[
             if status[0] & Status.NOT_ASSEMBLABLE or (branch == -1 and status[0] & Status.TOGGLE):
                 continue
             trial.status |= status
-            yield from _branches(linkage, dec, values, g + 1, trial, choice + (branch,))
+            yield from _branches(linkage, dec, values, g + 1, trial, choice + (branch,), tried)
         return
     views, roots = _triad_roots(state, group)
     for n in range(roots.position.size):
         trial = _copy(state)
         rows = np.zeros(1, int)
         _set_triad(trial, group, views, rows, roots.X[n:n + 1], roots.e[n:n + 1])
-        yield from _branches(linkage, dec, values, g + 1, trial, choice + (n + 1,))
+        yield from _branches(linkage, dec, values, g + 1, trial, choice + (n + 1,), tried)
 
 
 def _copy(state: _State) -> _State:

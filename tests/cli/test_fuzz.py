@@ -258,10 +258,7 @@ AFFORDABLE = {
     ("analyze", "slider-crank"): _angles_ok,
     ("analyze", "shaper"): _angles_ok,
     ("analyze", "linkage"): lambda p: _count(p.get("x_from"), p.get("x_to"), p.get("x_step")) <= 400,
-    # a kite (a = b, c = d or a = d, b = c) parks its Ball-point track on one point: its double
-    # Ball point search takes seconds and a GB (a known limit, not what this file looks for)
-    ("curvature",): lambda p: p["rays"] <= 500 and not (
-        p["with_double_ball"] and (p["a"] == p["b"] and p["c"] == p["d"] or p["a"] == p["d"] and p["b"] == p["c"])),
+    ("curvature",): lambda p: p["rays"] <= 500,
     ("atlas", "build"): _atlas_build_ok,
     ("atlas", "info"): lambda p: True,
     ("query",): lambda p: p["report_dir"] is None or p["top"] <= 2,

@@ -6,8 +6,11 @@ import json
 import tomllib
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from assur_builders import EXAMPLES
+from linkage_chains import chain_of_dyads
 from kinematics.assur import LinkageFileError, decompose, linkage_from_mapping, linkage_from_text
 from kinematics.status import AssemblyError
 
@@ -144,3 +147,77 @@ def test_actuator_input_fuses_two_moving_links():
     dec = decompose(lk)
     assert [g.kind for g in dec.groups] == ["RRR"]
     assert dec.body_name(lk, dec.groups[0].bodies[1]) == "cylinder+rod"
+
+
+# -- limits: every hostile file is one LinkageFileError line, before the work it would cause ----
+
+
+@pytest.mark.parametrize("text, fmt, message", [
+    ('{"name": ' + "[" * 100_000 + "]" * 100_000 + "}", "json", "nest 100001 deep; a description nests at most 16"),
+    ("name = " + "[" * 5000 + "]" * 5000, "toml", "nest 5000 deep"),
+    ("# " + "x" * 1_000_001, "toml", "characters; at most 1,000,000"),
+    ("[links.c]\njoints = ['A', 'B']\nlength = " + "9" * 5000, "toml", "an integer has more than 4300 digits"),
+    ('{"links": {"c": {"joints": ["A", "B"], "length": ' + "9" * 5000 + "}}}", "json", "more than 4300 digits"),
+    ("[links.c]\njoints = ['A', 'B']\nlength = " + "9" * 400, "toml", "'length' must be a finite number of magnitude"),
+    (chain_of_dyads(600), "toml", "[links] defines 1201 links; at most 1000"),
+    ("[links.c]\npoints = {" + ", ".join(f"P{i} = [0, {i}]" for i in range(101)) + "}", "toml",
+     "link 'c' has 101 points; at most 100"),
+])
+def test_hostile_descriptions_are_one_line(text, fmt, message):
+    with pytest.raises(LinkageFileError) as err:
+        linkage_from_text(text, fmt)
+    assert message in str(err.value) and "\n" not in str(err.value) and len(str(err.value)) < 300
+
+
+def test_nesting_depth_skips_strings_and_comments():
+    from kinematics.assur.linkage_file import nesting_depth
+
+    assert nesting_depth('a = [[1, 2], [3]]\n[[inputs]]\nx = "[[[[" # [[[[\n', "toml") == 2
+    assert nesting_depth('{"a": ["[[[", {"b": 1}]}', "json") == 3
+    assert nesting_depth("s = '''[[[['''\nt = \"\\\"[[\"", "toml") == 0
+
+
+def test_a_chain_of_dyads_lists_at_most_max_configurations():
+    """18 dyads: 2^18 = 262 144 configurations took 75 s to list; now the first 1024, in order."""
+    import numpy as np
+
+    from kinematics.assur import MAX_CONFIGURATIONS, configurations
+
+    lk = linkage_from_text(chain_of_dyads(18))
+    found = configurations(lk, [np.radians(30)])
+    assert len(found) == MAX_CONFIGURATIONS
+    # depth first, branch +1 before -1: the last group varies fastest
+    assert [f.choice[-10:] for f in found[:2]] == [(1,) * 10, (1,) * 9 + (-1,)]
+    small = linkage_from_text(chain_of_dyads(3))
+    assert len(configurations(small, [np.radians(30)])) == 8  # all of them when fewer
+
+
+def test_too_many_partial_configurations_is_one_line(monkeypatch):
+    import numpy as np
+
+    from kinematics.assur import ConfigurationLimit, configurations
+    from kinematics.assur import positions
+
+    monkeypatch.setattr(positions, "MAX_PARTIAL_CONFIGURATIONS", 50)
+    with pytest.raises(ConfigurationLimit) as err:
+        configurations(linkage_from_text(chain_of_dyads(12)), [np.radians(30)])
+    assert "12 dyad(s) and 0 triad(s) have up to 2^12·6^0 assembly configurations; 50 partial" in str(err.value)
+
+
+hostile_text = st.one_of(
+    st.integers(0, 3000).map(lambda n: "name = " + "[" * n + "]" * n),
+    st.integers(1, 6000).map(lambda n: "[links.c]\njoints = ['A', 'B']\nlength = " + "9" * n),
+    st.integers(0, 1500).map(lambda n: "[ground]\n" + "\n".join(f"G{i} = [{i}, 0]" for i in range(n))),
+    st.integers(0, 2000).map(lambda n: "\n".join(f"[links.l{i}]\njoints = ['A{i}', 'B{i}']\nlength = 1" for i in range(n))),
+    st.text(max_size=200),
+    st.binary(max_size=200).map(lambda b: b.decode("latin-1")),
+)
+
+
+@settings(max_examples=60, deadline=None)
+@given(hostile_text, st.sampled_from(["toml", "json"]))
+def test_any_description_is_a_linkage_or_one_line(text, fmt):
+    try:
+        linkage_from_text(text, fmt)
+    except LinkageFileError as exc:
+        assert "\n" not in str(exc) and len(str(exc)) < 400
