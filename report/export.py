@@ -15,6 +15,7 @@ Files (``NN`` the rank, zero-padded; ``ID`` the candidate id made filesystem-saf
 * ``NN-ID-motion``, ``-coupler``, ``-transmission`` ``.png`` and ``.svg`` — the plots
   (:data:`report.sixbar_plots.PLOTS`);
 * ``NN-ID-drawing.svg`` and ``NN-ID-drawing.dxf`` — the six-bar at mid-dwell, labelled;
+* ``NN-ID.toml`` — the six-bar as a linkage file for ``dwell analyze linkage``;
 * ``index.html`` — the candidates with animations, plots and dimensions.
 """
 
@@ -256,7 +257,8 @@ def _readme(request: Request, stems: Sequence[str]) -> str:
              ("candidates.csv", "one row per candidate (columns below)")]
     files += [(f"NN-ID-{name}.png/.svg", what) for name, what in PLOTS.items()]
     files += [("NN-ID-drawing.svg", "the six-bar at mid-dwell, pivots and link lengths labelled"),
-              ("NN-ID-drawing.dxf", "the same geometry for CAD (unitless: the request's unit), layers:")]
+              ("NN-ID.toml", "the six-bar as a linkage file: dwell analyze linkage NN-ID.toml (see its header)"),
+              ("NN-ID-drawing.dxf", "the same geometry for CAD ($INSUNITS from --units), layers:")]
     files += [(f"  {name}", what) for name, (_, what) in LAYERS.items()]
     width = max(len(n) for n, _ in files)
     lines += [f"{name:<{width}}  {what}" for name, what in files]
@@ -316,6 +318,7 @@ def write_report(candidates: list[Candidate], request: Request, out_dir: Path, *
     from report.dxf import write_dxf
     from report.folder import MARKER, check_report_folder, staged_folder
     from report.html_page import PageEntry, render_page
+    from report.linkage_toml import linkage_toml
     from report.sixbar_drawing import draw_sixbar, sixbar_geometry
     from report.sixbar_plots import plot_candidate
 
@@ -347,7 +350,9 @@ def write_report(candidates: list[Candidate], request: Request, out_dir: Path, *
             plots = plot_candidate(c, cyc, geom, out / stem, min_transmission=request.min_transmission)
             drawing = draw_sixbar(geom, out / f"{stem}-drawing.svg")
             dxf = write_dxf(geom, out / f"{stem}-drawing.dxf")
-            files = [p for pf in plots.values() for p in (pf.png, pf.svg)] + [drawing, dxf]
+            toml = out / f"{stem}.toml"
+            toml.write_text(linkage_toml(c, units), encoding="utf-8")
+            files = [p for pf in plots.values() for p in (pf.png, pf.svg)] + [drawing, dxf, toml]
             written += files
             entries.append(PageEntry(c, cyc, geom, {k: pf.svg_text for k, pf in plots.items()},
                                      [p.name for p in files]))

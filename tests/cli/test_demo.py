@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 
+from linkage_checks import check_linkage_files
+
 from cli.main import main
 
 
@@ -18,6 +20,13 @@ def test_demo_answers_every_request_and_writes_reports(tmp_path, capsys):
         assert best["output"]["type"] == kind
         assert len(best["dwells"]) == dwells
         assert (out / name / "index.html").stat().st_size > 10_000
+    # every candidate's linkage file, solved by dwell analyze linkage, gives its figures (issue 14)
+    def run(argv):
+        assert main(argv) == 0
+        return capsys.readouterr().out
+
+    checked = sum(check_linkage_files(out / name, run) for name in ("rrr", "rpr", "double"))
+    assert checked >= 3
     # a second run reuses the atlas (nothing to rebuild) and gives the same answers
     first = (out / "rpr" / "candidates.csv").read_text()
     assert main(["demo", "--out", str(out)]) == 0

@@ -1,0 +1,139 @@
+"""A candidate six-bar as a linkage description file (``docs/linkage-files.md``), so that
+``dwell analyze linkage`` — an independent solver (Assur groups, its own closed forms) — can
+check it and analyse it further (velocities, accelerations, limit positions, animation).
+
+The file names the ground pivots A0 = (0, 0), B0 = (d, 0) and D, the crank A0–A, the coupler
+triangle A–B–P in its own frame (origin A, x-axis along A→B: the coupler point is (u, v)), the
+rocker B0–B and the output dyad: RRR rod P–Q and output rocker D–Q; RPR a block pinned at P
+sliding on the slotted output link pivoted at D. The input is the crank angle; the output the
+output link's angle. The assembly configuration that is the candidate's (its four-bar and dyad
+branches) is found by solving the file at the first crank angle and matching joint positions;
+its number is written in the file's header comment with the command line that reproduces it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from synth.candidates import Candidate
+from synth.sixbar import simulate
+
+__all__ = ["linkage_configuration", "linkage_toml"]
+
+
+def _num(x: float) -> str:
+    """A float as TOML writes it back exactly (repr round-trips)."""
+    return repr(float(x))
+
+
+def _pair(z: complex) -> str:
+    return f"[{_num(z.real)}, {_num(z.imag)}]"
+
+
+def _body(candidate: Candidate, units: str) -> list[str]:
+    sb = candidate.sixbar
+    rrr = sb.dyad.kind == "RRR"
+    lines = [
+        f"name = {_quoted(f'six-bar {candidate.id}')}",
+        f"units = {_quoted(units or 'mm')}",
+        "",
+        "[ground]",
+        "A0 = [0.0, 0.0]",
+        f"B0 = [{_num(sb.d)}, 0.0]",
+        f"D = {_pair(sb.dyad.pivot)}",
+        "",
+        "[links.crank]",
+        'joints = ["A0", "A"]',
+        f"length = {_num(sb.a)}",
+        "",
+        "[links.coupler]            # frame: origin A, x-axis along A->B; P is the coupler point",
+        f"points = {{ A = [0.0, 0.0], B = [{_num(sb.b)}, 0.0], P = [{_num(sb.u)}, {_num(sb.v)}] }}",
+        "",
+        "[links.rocker]",
+        'joints = ["B0", "B"]',
+        f"length = {_num(sb.c)}",
+        "",
+    ]
+    if rrr:
+        lines += [
+            "[links.rod]",
+            'joints = ["P", "Q"]',
+            f"length = {_num(sb.dyad.rod)}",
+            "",
+            "[links.output]             # the output rocker: its angle is the output",
+            'joints = ["D", "Q"]',
+            f"length = {_num(sb.dyad.rocker)}",
+            "",
+        ]
+    else:
+        lines += [
+            "[links.output]             # the slotted output link: frame origin D, x-axis along the slot",
+            "points = { D = [0.0, 0.0] }",
+            "",
+            "[links.block]              # the slider, pinned to the coupler at P",
+            "points = { P = [0.0, 0.0] }",
+            "",
+            "[[prismatic]]",
+            'name = "slot"',
+            'guide = "output"',
+            'block = "block"',
+            'through = "D"',
+            "angle = 0",
+            "",
+        ]
+    lines += ["[[inputs]]", 'joint = "A0"', 'link = "crank"', "", "[output]", 'link = "output"']
+    return lines
+
+
+def _quoted(text: str) -> str:
+    """A TOML basic string (JSON's escaping is TOML-compatible for basic strings)."""
+    import json
+
+    return json.dumps(text, ensure_ascii=False)
+
+
+def linkage_configuration(candidate: Candidate, text: str) -> int:
+    """The number (1-based, as ``--configuration`` takes it) of the file's assembly
+    configuration that is the candidate's: joint positions matched at crank angle 0."""
+    from kinematics.assur import configurations, linkage_from_text
+
+    mech = linkage_from_text(text)
+    motion = simulate(candidate.sixbar, np.array([0.0]), order=0)
+    want = {"B": complex(motion.fourbar.B[0]), "P": complex(motion.z[0][0])}
+    if candidate.sixbar.dyad.kind == "RRR":
+        want["Q"] = complex(motion.moving_pivot[0])
+    size = max(candidate.sixbar.a, candidate.sixbar.b, candidate.sixbar.c, candidate.sixbar.d)
+    best, best_miss = 1, math.inf
+    for k, asm in enumerate(configurations(mech, [0.0]), start=1):
+        miss = 0.0
+        for name, z in want.items():
+            link = next(i for i, lk in enumerate(mech.links) if name in lk.points)
+            miss = max(miss, abs(complex(asm.point(link, mech.links[link].points[name])[0]) - z))
+        if miss < best_miss:
+            best, best_miss = k, miss
+    if best_miss > 1e-6 * size:
+        raise ValueError(f"no configuration of the linkage file matches candidate {candidate.id!r} "
+                         f"(closest misses by {best_miss:.3g})")
+    return best
+
+
+def linkage_toml(candidate: Candidate, units: str = "") -> str:
+    """The linkage description of ``candidate`` (its lengths in the user's units), with a
+    header comment saying how to reproduce its figures with ``dwell analyze linkage``."""
+    body = "\n".join(_body(candidate, units)) + "\n"
+    config = linkage_configuration(candidate, body)
+    f = candidate.figures
+    dwells = ", ".join(f"{math.degrees(d.start) % 360:.3f}..{math.degrees(d.start) % 360 + math.degrees(d.angle):.3f} deg"
+                       for d in f.dwells)
+    header = [
+        f"# Candidate {candidate.id!r} (rank {candidate.rank}), written by dwell report.",
+        f"# swing {math.degrees(f.swing):.6f} deg; dwell(s) {dwells};",
+        f"# min transmission: four-bar {math.degrees(f.transmission_fourbar):.3f} deg, "
+        f"output {math.degrees(f.transmission_output):.3f} deg.",
+        "# Reproduce with: dwell analyze linkage THIS_FILE --configuration "
+        f"{config} --from 0 --to 360 --step 1",
+        "",
+    ]
+    return "\n".join(header) + body
