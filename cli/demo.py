@@ -21,7 +21,8 @@ DEMO_REQUESTS = {
     # the demo sweep is small: its RRR answers need rockers up to 20 cranks long
     "rrr": {"dwell": 60.0, "swing": 30.0, "output": "rrr", "max_link_ratio": 20.0},
     "rpr": {"dwell": 45.0, "swing": 40.0, "output": "rpr"},
-    "double": {"dwell": 30.0, "dwell_tol": 5.0, "dwells": 2, "output": "rpr"},
+    # 50°: the demo atlas's 30° double dwells all run the slider over its own pivot (--min-arm)
+    "double": {"dwell": 50.0, "dwell_tol": 5.0, "dwells": 2, "output": "rpr"},
 }
 TOP = 3
 

@@ -15,7 +15,7 @@ from pathlib import Path
 import click
 
 from cli.errors import InputError
-from cli.options import LENGTH, Bounded, Count, units_option
+from cli.options import LENGTH, RPM, Bounded, Count, units_option
 from synth.candidates import Request, candidate_json
 from synth.query import SAMPLES, QueryResult, RebuildError
 
@@ -53,7 +53,8 @@ def request_from_options(dwell: float, dwell_tol: float | None = None, swing: fl
                          swing_tol: float | None = None, output: str | None = None, dwells: int | None = None,
                          dwell_tolerance: float | None = None, crank: float | None = None,
                          min_transmission: float | None = None, max_link_ratio: float | None = None,
-                         top: int | None = None) -> Request:
+                         top: int | None = None, *, min_arm: float | None = None, min_clearance: float | None = None,
+                         rpm: float | None = None, max_accel: float | None = None) -> Request:
     """A :class:`Request` from the command's units (degrees); None takes the field's default.
     A bad value is the user's error (one line naming the option)."""
     # the deviation window must hold at least two samples of the simulation's crank grid
@@ -62,7 +63,10 @@ def request_from_options(dwell: float, dwell_tol: float | None = None, swing: fl
                          f"every {360.0 / SAMPLES:g}°), got {dwell:g}")
     given = {"dwell": math.radians(dwell), "dwell_tol": _rad(dwell_tol), "swing": _rad(swing),
              "swing_tol": _rad(swing_tol), "output": output, "dwells": dwells, "band": _rad(dwell_tolerance),
-             "crank": crank, "min_transmission": _rad(min_transmission), "max_link_ratio": max_link_ratio, "top": top}
+             "crank": crank, "min_transmission": _rad(min_transmission), "max_link_ratio": max_link_ratio, "top": top,
+             "min_arm": min_arm, "min_clearance": min_clearance, "rpm": rpm}
+    if max_accel is not None:
+        given["max_accel"] = max_accel
     try:
         return Request(**{k: v for k, v in given.items() if v is not None})
     except ValueError as exc:
@@ -79,23 +83,35 @@ def table(result: QueryResult) -> str:
             f"{math.degrees(req.dwell_tol):g}°" + ("" if req.swing is None else f", swing {math.degrees(req.swing):g}°")
             + f" (output band {math.degrees(req.band):g}°; {result.considered} segments fitted, {result.simulated} simulated)")
     lines = [head]
-    cols = f"{'rank':>4}  {'id':<26} {'out':<3} {'dwell °':>15} {'dev °':>7} {'swing °':>8} {'μ4 °':>6} {'μout °':>6} {'ratio':>6}  a b c d"
+    cols = (f"{'rank':>4}  {'id':<26} {'out':<3} {'dwell °':>15} {'dev °':>7} {'swing °':>8} {'μ4 °':>6} {'μout °':>6} "
+            f"{'ratio':>6} {'arm':>7} {'clear':>7} {'α rad/s²':>9}  a b c d")
     lines.append(cols)
     for c in result.candidates:
         f, sb = c.figures, c.sixbar
         dw = "/".join(f"{math.degrees(d.angle):.2f}" for d in f.dwells[: req.dwells])
         dev = max(f.deviations) if f.deviations else 0.0
+        b = f.build
+        arm = "-" if b is None or b.arm is None else f"{b.arm:.4g}"
+        clear = "-" if b is None else f"{b.clearance:.4g}"
+        accel = "-" if b is None else f"{b.dynamics(req.rpm)[1]:.4g}"
+        mu_out = "slot" if sb.dyad.kind == "RPR" else f"{math.degrees(f.transmission_output):.1f}"
         lines.append(
             f"{c.rank:>4}  {c.id:<26} {sb.dyad.kind:<3} {dw:>15} {math.degrees(dev):>7.3f} {math.degrees(f.swing):>8.2f} "
-            f"{math.degrees(f.transmission_fourbar):>6.1f} {math.degrees(f.transmission_output):>6.1f} "
-            f"{f.link_ratio:>6.2f}  {sb.a:.4g} {sb.b:.4g} {sb.c:.4g} {sb.d:.4g}"
+            f"{math.degrees(f.transmission_fourbar):>6.1f} {mu_out:>6} "
+            f"{f.link_ratio:>6.2f} {arm:>7} {clear:>7} {accel:>9}  {sb.a:.4g} {sb.b:.4g} {sb.c:.4g} {sb.d:.4g}"
         )
+    lines.append(f"dev: output deviation over the requested dwell; μ4, μout: smallest transmission angles "
+                 f"(four-bar, output dyad; a slotted rocker's is 90°); arm: slider to slot pivot (RPR); clear: "
+                 f"smallest clearance to a fixed pivot; α: peak output acceleration at {req.rpm:g} rpm; lengths "
+                 f"in crank = {req.crank:g}")
     return "\n".join(lines)
 
 
 #: How a no-match names each constraint (synth.query.CONSTRAINTS).
 _CONSTRAINT_NAMES = {"assembly": "assembly (toggles, revolves or misses a dwell)", "dwell": "dwell angle",
-                     "swing": "swing", "transmission": "transmission angle", "link_ratio": "link ratio"}
+                     "swing": "swing", "transmission": "transmission angle", "link_ratio": "link ratio",
+                     "arm": "slider's torque arm (--min-arm)", "clearance": "clearance to the fixed pivots",
+                     "acceleration": "output acceleration"}
 
 
 def _options_changed(before: Request, after: Request) -> str:
@@ -104,10 +120,11 @@ def _options_changed(before: Request, after: Request) -> str:
     for name, option, deg in (("dwell", "--dwell", True), ("dwell_tol", "--dwell-tol", True),
                               ("swing", "--swing", True), ("swing_tol", "--swing-tol", True),
                               ("min_transmission", "--min-transmission", True),
-                              ("max_link_ratio", "--max-link-ratio", False)):
+                              ("max_link_ratio", "--max-link-ratio", False), ("min_arm", "--min-arm", False),
+                              ("min_clearance", "--min-clearance", False), ("max_accel", "--max-accel", False)):
         old, new = getattr(before, name), getattr(after, name)
         if new != old and new is not None:
-            out.append(f"{option} {round(math.degrees(new) if deg else new, 2):g}")
+            out.append(f"{option} {round(math.degrees(new) if deg else new, 3):g}")
     return " ".join(out)
 
 
@@ -162,7 +179,7 @@ def no_match_json(result: QueryResult) -> dict:
         "nearest_stored_dwell_deg": [None if x is None else math.degrees(x) for x in (below, above)],
     }
     if nm is not None and nm.nearest is not None:
-        doc["nearest"] = candidate_json(nm.nearest)
+        doc["nearest"] = candidate_json(nm.nearest, result.request.rpm)
         doc["would_meet"] = nm.would_meet.to_json()
     return doc
 
@@ -179,6 +196,8 @@ BAND_DEG = Bounded(1e-4, 180.0, "an output band in degrees", high_open=True)
 #: the fit refuses; found by tests/cli/test_option_ranges.py) to below 90°.
 TRANSMISSION_RANGE = Bounded(0.001, 90.0, "a transmission angle in degrees", high_open=True)
 LINK_RATIO = Bounded(1.0, 1e6, "a longest/shortest link ratio")
+CRANKS = Bounded(0.0, 1e3, "a length in crank lengths")
+ACCEL_LIMIT = Bounded(1e-9, 1e100, "an angular acceleration in rad/s²")
 TOP = Count(1, 1000, "candidates")
 
 
@@ -203,15 +222,23 @@ TOP = Count(1, 1000, "candidates")
 @click.option("--max-link-ratio", type=LINK_RATIO, default=_DEFAULTS["max_link_ratio"], show_default=True,
               help="Largest longest/shortest link ratio.")
 @click.option("--top", type=TOP, default=_DEFAULTS["top"], show_default=True, help="Candidates returned.")
+@click.option("--min-arm", type=CRANKS, default=_DEFAULTS["min_arm"], show_default=True,
+              help="Smallest distance of an RPR slider from its slot pivot over the turn (crank lengths).")
+@click.option("--min-clearance", type=CRANKS, default=_DEFAULTS["min_clearance"], show_default=True,
+              help="Smallest distance of a moving joint or output link from a fixed pivot (crank lengths).")
+@click.option("--rpm", type=RPM, default=_DEFAULTS["rpm"], show_default=True,
+              help="Crank speed for the output's peak velocity, acceleration and jerk (rev/min).")
+@click.option("--max-accel", type=ACCEL_LIMIT, default=None, help="Largest peak output acceleration (rad/s²) at --rpm.")
 @click.option("--json", "as_json", is_flag=True, help="JSON on stdout instead of a table.")
 @click.option("--report", "report_dir", type=click.Path(file_okay=False), default=None,
               help="Also write the report of the candidates to this folder.")
 @units_option
 def query(target, dwell, dwell_tol, swing, swing_tol, output, dwells, dwell_tolerance, crank, min_transmission,
-          max_link_ratio, top, as_json, report_dir, units):
+          max_link_ratio, top, min_arm, min_clearance, rpm, max_accel, as_json, report_dir, units):
     """Ranked six-bars for a requested dwell and swing (see README: ranking)."""
     request = request_from_options(dwell, dwell_tol, swing, swing_tol, output.lower(), dwells, dwell_tolerance, crank,
-                                   min_transmission, max_link_ratio, top)
+                                   min_transmission, max_link_ratio, top, min_arm=min_arm, min_clearance=min_clearance,
+                                   rpm=rpm, max_accel=max_accel)
     if report_dir is not None:
         _check_report_dir(Path(report_dir))
     from db.engine import open_atlas
@@ -222,7 +249,7 @@ def query(target, dwell, dwell_tol, swing, swing_tol, output, dwells, dwell_tole
     finally:
         engine.dispose()
     if as_json:
-        doc = {"request": request.to_json(), "candidates": [candidate_json(c) for c in result.candidates]}
+        doc = {"request": request.to_json(), "candidates": [candidate_json(c, request.rpm) for c in result.candidates]}
         if not result.candidates:
             doc["no_match"] = no_match_json(result)
         click.echo(json.dumps(doc, indent=2, allow_nan=False))

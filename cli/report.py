@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from cli.errors import InputError
-from cli.options import LENGTH, probe_folder, units_option
+from cli.options import LENGTH, RPM, probe_folder, units_option
 from cli.query import BAND_DEG, DWELL_DEG, TRANSMISSION_RANGE
 
 
@@ -22,9 +22,11 @@ from cli.query import BAND_DEG, DWELL_DEG, TRANSMISSION_RANGE
 @click.option("--crank", type=LENGTH, default=1.0, show_default=True, help="Crank length (your unit).")
 @click.option("--min-transmission", type=TRANSMISSION_RANGE, default=30.0, show_default=True,
               help="The query's smallest transmission angle (°): RRR fits are rebuilt with it.")
+@click.option("--rpm", type=RPM, default=60.0, show_default=True,
+              help="Crank speed for the output's peak velocity, acceleration and jerk (rev/min).")
 @units_option
 @click.argument("more_ids", nargs=-1)
-def report(target, ids, out_dir, dwell, dwell_tolerance, crank, min_transmission, units, more_ids):
+def report(target, ids, out_dir, dwell, dwell_tolerance, crank, min_transmission, rpm, units, more_ids):
     """Write JSON, CSV, plots, drawings, DXF and an animated HTML page for the candidates."""
     from cli.query import rebuild, request_from_options
     from db.engine import open_atlas
@@ -46,7 +48,7 @@ def report(target, ids, out_dir, dwell, dwell_tolerance, crank, min_transmission
     probe_folder(out, "--out")
     # the deviation window: the requested dwell, or the rebuilt six-bar's own dwell
     request = request_from_options(dwell if dwell is not None else 60.0, 2.0, 30.0, 0.5, "any", 1, dwell_tolerance,
-                                   crank, min_transmission, 1e12, len(names))
+                                   crank, min_transmission, 1e12, len(names), rpm=rpm)
     engine = open_atlas(target, readonly=True)
     try:
         candidates = rebuild(engine, names, request)

@@ -126,7 +126,7 @@ def report_json(request: Request, candidates: Sequence[Candidate], cycles: Seque
     (:func:`synth.candidates.candidate_json`) plus its ``cycle`` table."""
     items = []
     for c, cyc in zip(candidates, cycles, strict=True):
-        doc = candidate_json(c)
+        doc = candidate_json(c, request.rpm)
         doc["cycle"] = {"step_deg": float(step_deg), **cycle_json(cyc, c.sixbar.dyad.kind)}
         items.append(doc)
     return _clean({

@@ -35,7 +35,7 @@ MARKER = ".dwell-report"
 
 # The names a report writes (export.write_report): fixed files and NN-<safe id>-<what>.<ext>.
 _REPORT_FILE = re.compile(r"(index\.html|candidates\.json|candidates\.csv|README\.txt"
-                          r"|\d{2,}-[A-Za-z0-9._-]+\.(png|svg|dxf))")
+                          r"|\d{2,}-[A-Za-z0-9._-]+\.(png|svg|dxf|toml))")
 
 
 class ReportFolderError(Exception):

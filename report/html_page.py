@@ -269,7 +269,8 @@ def _request_line(request: Request) -> str:
              f"dwell band {_num(math.degrees(r.band))}°",
              f"crank {_num(r.crank)}",
              f"transmission ≥ {_num(math.degrees(r.min_transmission))}°",
-             f"link ratio ≤ {_num(r.max_link_ratio)}"]
+             f"link ratio ≤ {_num(r.max_link_ratio)}",
+             f"slider arm ≥ {_num(r.min_arm)} cranks · clearance ≥ {_num(r.min_clearance)} cranks"]
     return " · ".join(_esc(p) for p in parts)
 
 
@@ -295,8 +296,9 @@ def _summary_table(entries: list[PageEntry]) -> str:
             + "</tr></thead><tbody>" + "\n".join(rows) + "</tbody></table>")
 
 
-def _dimensions_table(entry: PageEntry) -> str:
-    """Every dimension and figure of one candidate (lengths in the user's unit)."""
+def _dimensions_table(entry: PageEntry, rpm: float) -> str:
+    """Every dimension and figure of one candidate (lengths in the user's unit; the output's
+    peak rates at ``rpm``)."""
     c = entry.candidate
     sb, f, dy = c.sixbar, c.figures, c.sixbar.dyad
 
@@ -321,8 +323,17 @@ def _dimensions_table(entry: PageEntry) -> str:
     rows += [("swing", f"{math.degrees(f.swing):.4f}°"),
              ("min transmission, four-bar", f"{math.degrees(f.transmission_fourbar):.2f}°"),
              ("min transmission, output", f"{math.degrees(f.transmission_output):.2f}°"),
-             ("link ratio", _num(f.link_ratio, 4)), ("footprint (hull area)", _num(f.footprint, 5)),
-             ("segment", str(int(c.segment_id)))]
+             ("link ratio", _num(f.link_ratio, 4)), ("footprint (hull area)", _num(f.footprint, 5))]
+    if f.build is not None:
+        b = f.build
+        if b.arm is not None:
+            rows += [("slider to slot pivot, smallest (torque arm)", _num(b.arm)),
+                     ("slot length used, |P − D|", f"{_num(b.slot[0])} … {_num(b.slot[1])}")]
+        speed, accel, jerk = b.dynamics(rpm)
+        rows += [("clearance to the fixed pivots", f"{_num(b.clearance)} ({b.clearance_between})"),
+                 (f"output peak speed / acceleration / jerk at {_num(rpm)} rpm",
+                  f"{_num(speed, 4)} rad/s · {_num(accel, 4)} rad/s² · {_num(jerk, 4)} rad/s³")]
+    rows.append(("segment", str(int(c.segment_id))))
     body = "".join(f"<tr><th>{_esc(k)}</th><td>{_esc(v)}</td></tr>" for k, v in rows)
     return f'<table class="dimensions">{body}</table>'
 
@@ -332,7 +343,7 @@ def _dimensions_table(entry: PageEntry) -> str:
 # --------------------------------------------------------------------------------------------
 
 
-def _candidate_section(entry: PageEntry) -> str:
+def _candidate_section(entry: PageEntry, rpm: float) -> str:
     c = entry.candidate
     rank = int(c.rank)
     sid = f"cand-{rank}"
@@ -356,7 +367,7 @@ def _candidate_section(entry: PageEntry) -> str:
 </div>
 {_strip_svg(entry, data)}
 </div>
-<div class="dims">{_dimensions_table(entry)}</div>
+<div class="dims">{_dimensions_table(entry, rpm)}</div>
 </div>
 <details class="plots" open><summary>Plots</summary>
 <div class="plot-row">{plots}</div>
@@ -610,7 +621,7 @@ _MAIN_JS = """
 def render_page(request: Request, entries: list[PageEntry], *,
                 title: str = "Dwell Atlas — candidate six-bars") -> str:
     """The whole page as one string (UTF-8 text, no external resources)."""
-    sections = "\n".join(_candidate_section(e) for e in entries)
+    sections = "\n".join(_candidate_section(e, request.rpm) for e in entries)
     return f"""<!DOCTYPE html>
 <html lang="en">
 <head>

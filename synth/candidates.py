@@ -2,11 +2,13 @@
 
 A :class:`Request` is what the designer asks (angles in radians here, degrees at the CLI); a
 :class:`Candidate` is a six-bar in the user's units with its figures from the exact
-simulation. Ranking: non-dominated sorting (Pareto layers) on four objectives — dwell
+simulation. Ranking: non-dominated sorting (Pareto layers) on five objectives — dwell
 accuracy |dwell − requested|, output deviation over the requested dwell window, the worst
-transmission angle (four-bar or output, larger is better) and compactness (footprint area
-over crank²) — then, inside a layer, a score: the sum of the four objectives each scaled to
-a designer's unit (the dwell tolerance, the dwell band, 45° of transmission, 100 crank²).
+transmission angle (four-bar or output, larger is better), compactness (footprint area
+over crank²) and the output's peak angular acceleration (peak |ψ″|, rad/rad²) — then, inside
+a layer, a score: the sum of the five objectives each scaled to a designer's unit (the dwell
+tolerance, the dwell band, 45° of transmission, 100 crank², 1 rad/rad² — 39.5 rad/s² at
+60 rpm).
 """
 
 from __future__ import annotations
@@ -44,6 +46,13 @@ class Request:
     min_transmission: float = math.radians(30.0)
     max_link_ratio: float = 10.0
     top: int = 10
+    #: Buildability (synth.buildability): the RPR slider's smallest distance to its slot pivot
+    #: and every joint's/output link's to a fixed pivot, in crank lengths; the output's peak
+    #: angular acceleration (rad/s², None: no limit) at ``rpm`` rev/min of the crank.
+    min_arm: float = 0.2
+    min_clearance: float = 0.1
+    rpm: float = 60.0
+    max_accel: float | None = None
 
     def __post_init__(self) -> None:
         bad = ValueError
@@ -75,6 +84,13 @@ class Request:
             raise bad(f"--max-link-ratio must be at least 1, got {self.max_link_ratio:g}")
         if self.top < 1:
             raise bad(f"--top must be at least 1, got {self.top}")
+        for name, value in (("--min-arm", self.min_arm), ("--min-clearance", self.min_clearance)):
+            if not (math.isfinite(value) and value >= 0):
+                raise bad(f"{name} must be a length in cranks >= 0, got {value:g}")
+        if not (math.isfinite(self.rpm) and self.rpm > 0):
+            raise bad(f"--rpm must be > 0, got {self.rpm:g}")
+        if self.max_accel is not None and not (math.isfinite(self.max_accel) and self.max_accel > 0):
+            raise bad(f"--max-accel must be > 0 rad/s^2, got {self.max_accel:g}")
 
     def to_json(self) -> dict:
         return {
@@ -89,6 +105,10 @@ class Request:
             "min_transmission_deg": math.degrees(self.min_transmission),
             "max_link_ratio": self.max_link_ratio,
             "top": self.top,
+            "min_arm_cranks": self.min_arm,
+            "min_clearance_cranks": self.min_clearance,
+            "rpm": self.rpm,
+            "max_accel_rad_s2": self.max_accel,
         }
 
 
@@ -173,15 +193,17 @@ def parse_candidate_id(text: str) -> tuple[int, str, int, int, float | None]:
 
 
 def objectives(request: Request, figures: list[SixBarFigures]) -> np.ndarray:
-    """(n, 4) objectives to minimise: dwell error (rad), output deviation (rad), −worst
-    transmission (rad), footprint / crank² (dimensionless)."""
+    """(n, 5) objectives to minimise: dwell error (rad), output deviation (rad), −worst
+    transmission (rad), footprint / crank² (dimensionless), peak |ψ″| (rad/rad²: the output's
+    peak angular acceleration over ω², the same ranking at any crank speed)."""
     rows = []
     for f in figures:
         err = max(abs(d.angle - request.dwell) for d in f.dwells) if f.dwells else math.pi
         dev = max(f.deviations) if f.deviations else 0.0
         mu = min(f.transmission_fourbar, f.transmission_output)
-        rows.append((err, dev, -mu, f.footprint / request.crank**2))
-    return np.array(rows, dtype=float).reshape(-1, 4)
+        accel = f.build.peak_rates[1] if f.build is not None else 0.0
+        rows.append((err, dev, -mu, f.footprint / request.crank**2, accel))
+    return np.array(rows, dtype=float).reshape(-1, 5)
 
 
 def _pareto_layers(obj: np.ndarray) -> np.ndarray:
@@ -208,8 +230,8 @@ def rank(request: Request, candidates: list[Candidate]) -> list[Candidate]:
         return []
     obj = objectives(request, [c.figures for c in candidates])
     layer = _pareto_layers(obj)
-    scale = np.array([max(request.dwell_tol, math.radians(0.5)), request.band, math.radians(45.0), 100.0])
-    score = (obj + np.array([0.0, 0.0, math.pi / 2, 0.0])) / scale
+    scale = np.array([max(request.dwell_tol, math.radians(0.5)), request.band, math.radians(45.0), 100.0, 1.0])
+    score = (obj + np.array([0.0, 0.0, math.pi / 2, 0.0, 0.0])) / scale
     total = score.sum(axis=1)
     order = sorted(range(len(candidates)), key=lambda i: (layer[i], total[i], candidates[i].id))
     return [
@@ -217,7 +239,7 @@ def rank(request: Request, candidates: list[Candidate]) -> list[Candidate]:
     ]
 
 
-def candidate_json(c: Candidate) -> dict:
+def candidate_json(c: Candidate, rpm: float = 60.0) -> dict:
     """The query's JSON shape for one candidate (lengths in the user's unit, angles in degrees,
     fixed frame with A0 = (0, 0) and B0 = (d, 0))."""
     sb, f = c.sixbar, c.figures
@@ -249,5 +271,18 @@ def candidate_json(c: Candidate) -> dict:
                              "output_min": math.degrees(f.transmission_output)},
         "link_ratio": f.link_ratio,
         "footprint": f.footprint,
+        "buildability": _buildability_json(f, rpm),
         "segment_id": c.segment_id,
     }
+
+
+def _buildability_json(f: SixBarFigures, rpm: float) -> dict | None:
+    """The buildability figures (lengths in the user's unit) and the output's peak rates at
+    ``rpm``; None where they were not computed."""
+    b = f.build
+    if b is None:
+        return None
+    speed, accel, jerk = b.dynamics(rpm)
+    return {"arm": b.arm, "slot_used": None if b.slot is None else list(b.slot), "clearance": b.clearance,
+            "clearance_between": b.clearance_between, "rpm": rpm, "peak_output_speed_rad_s": speed,
+            "peak_output_accel_rad_s2": accel, "peak_output_jerk_rad_s3": jerk}

@@ -52,7 +52,7 @@ PER_LEVEL = 10
 #: Output link lengths (crank lengths) tried in the band conversion of ``_select``.
 REACHES = (2.0, 5.0, 12.0)
 #: The request's constraints, in the order a no-match names them (see :func:`violations`).
-CONSTRAINTS = ("assembly", "dwell", "swing", "transmission", "link_ratio")
+CONSTRAINTS = ("assembly", "dwell", "swing", "transmission", "link_ratio", "arm", "clearance", "acceleration")
 
 
 # --------------------------------------------------------------------------------------------
@@ -291,6 +291,13 @@ def violations(request: Request, f: SixBarFigures) -> dict[str, float]:
     out["transmission"] = max(0.0, math.degrees(request.min_transmission
                                                 - min(f.transmission_fourbar, f.transmission_output)))
     out["link_ratio"] = max(0.0, 100.0 * (f.link_ratio / request.max_link_ratio - 1.0))
+    b = f.build
+    if b is not None:
+        # shortfalls in crank lengths (the figures are crank-normalised), excess in rad/s²
+        out["arm"] = 0.0 if b.arm is None else max(0.0, request.min_arm - b.arm)
+        out["clearance"] = max(0.0, request.min_clearance - b.clearance)
+        if request.max_accel is not None:
+            out["acceleration"] = max(0.0, b.dynamics(request.rpm)[1] - request.max_accel)
     return out
 
 
@@ -304,11 +311,18 @@ def meets(request: Request, f: SixBarFigures) -> bool:
         return False
     if min(f.transmission_fourbar, f.transmission_output) < request.min_transmission:
         return False
+    b = f.build
+    if b is not None:
+        if (b.arm is not None and b.arm < request.min_arm) or b.clearance < request.min_clearance:
+            return False
+        if request.max_accel is not None and b.dynamics(request.rpm)[1] > request.max_accel:
+            return False
     return f.link_ratio <= request.max_link_ratio
 
 
 def _scaled_figures(f: SixBarFigures, scale: float) -> SixBarFigures:
-    return dataclasses.replace(f, footprint=f.footprint * scale**2, bounds=tuple(x * scale for x in f.bounds))
+    return dataclasses.replace(f, footprint=f.footprint * scale**2, bounds=tuple(x * scale for x in f.bounds),
+                               build=None if f.build is None else f.build.scaled(scale))
 
 
 def _candidate(request: Request, fitted: Fitted, f: SixBarFigures) -> Candidate:
@@ -362,6 +376,12 @@ def _loosened(request: Request, f: SixBarFigures) -> Request:
         change["min_transmission"] = math.radians(math.floor(math.degrees(mu)))
     if excess["link_ratio"] > 0:
         change["max_link_ratio"] = math.ceil(f.link_ratio * 100) / 100
+    if excess["arm"] > 0:
+        change["min_arm"] = math.floor(f.build.arm * 1000) / 1000
+    if excess["clearance"] > 0:
+        change["min_clearance"] = math.floor(f.build.clearance * 1000) / 1000
+    if excess["acceleration"] > 0:
+        change["max_accel"] = math.ceil(f.build.dynamics(request.rpm)[1] * 100) / 100
     try:
         return dataclasses.replace(request, **change)
     except ValueError:
@@ -450,7 +470,8 @@ def rebuild(ids: Sequence[str], source: SegmentSource, request: Request) -> list
         if row.parts:
             fitted = [f for f in fit(req, [row], row.kind) if f.output == output and f.slot == slot]
             loose = dataclasses.replace(req, dwell_tol=2 * math.pi - req.dwell - 1e-9, swing_tol=math.pi - 1e-9,
-                                        min_transmission=0.0, max_link_ratio=1e12)
+                                        min_transmission=0.0, max_link_ratio=1e12, min_arm=0.0, min_clearance=0.0,
+                                        max_accel=None)
             cands, _ = simulate(loose, fitted)
             found = dataclasses.replace(cands[0], id=text.strip()) if cands else None
         if found is None:

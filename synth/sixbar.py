@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Literal, NamedTuple
+from typing import TYPE_CHECKING, Literal, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -37,6 +37,9 @@ from kinematics.status import (
     check_on_degenerate,
     raise_on_flags,
 )
+
+if TYPE_CHECKING:
+    from synth.buildability import Buildability
 
 __all__ = [
     "Dwell",
@@ -1298,6 +1301,8 @@ class SixBarFigures:
         Bounding box of the same points.
     status : int
         :class:`Status` flags met anywhere on the turn (OK = 0).
+    build : Buildability or None
+        Torque arm, slot used, clearance and output rate peaks (:mod:`synth.buildability`).
     """
 
     dwells: tuple[Dwell, ...]
@@ -1310,6 +1315,7 @@ class SixBarFigures:
     footprint: float
     bounds: tuple[float, float, float, float]
     status: int
+    build: Buildability | None = None
 
     @property
     def revolving(self) -> bool:
@@ -1396,6 +1402,9 @@ def sixbar_figures(sixbar: SixBar | SixBars, *, band: float, dwell_length: float
     # 1° chord (~4e-5 of the area for a circle), and halves the GEOS time.
     thin = np.concatenate([fixed] + [np.broadcast_to(p, motion.psi.shape)[:, ::2] for p in paths], axis=1)
     area = _hull_areas(thin) if footprint else np.zeros(N)
+    from synth.buildability import buildability  # (it reads this module's types)
+
+    build = buildability(batch, motion)
 
     out = []
     for k in range(N):
@@ -1406,7 +1415,7 @@ def sixbar_figures(sixbar: SixBar | SixBars, *, band: float, dwell_length: float
             transmission_fourbar=float(mu_fb[k]), transmission_output=float(mu_out[k]),
             link_ratio=float(ratio[k]), footprint=float(area[k]),
             bounds=(float(xmin[k]), float(ymin[k]), float(xmax[k]), float(ymax[k])),
-            status=int(status[k]),
+            status=int(status[k]), build=build[k],
         ))
     return out[0] if single else out
 

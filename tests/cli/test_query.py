@@ -94,16 +94,20 @@ def test_rpr_request_candidates_resimulated_independently(capsys, atlas_path):
         assert cand["dwells"][0]["dwell_deg"] - 2 * STEP <= ref["dwell_deg"] <= cand["dwells"][0]["dwell_deg"] + 0.02
 
 
-def test_double_dwell_request(capsys, atlas_path):
-    code, out, err = run(capsys, "query", "--db", atlas_path, "--dwell", "30", "--dwell-tol", "5", "--dwells", "2",
-                         "--json")
+@pytest.mark.parametrize("dwell, min_arm", [(50, "0.2"), (30, "0")])
+def test_double_dwell_request(capsys, atlas_path, dwell, min_arm):
+    """The demo's double dwell (50°), and 30° (issue 13's example) once the slider may run over
+    its own pivot (--min-arm 0: issue 14's unbuildable candidate)."""
+    code, out, err = run(capsys, "query", "--db", atlas_path, "--dwell", str(dwell), "--dwell-tol", "5", "--dwells", "2",
+                         "--min-arm", min_arm, "--json")
     assert code == 0, err
     cands = json.loads(out)["candidates"]
-    assert cands, "the demo atlas answers a 30° double dwell (issue 13's example)"
+    assert cands, f"the demo atlas answers a {dwell}° double dwell"
     for cand in cands:
         assert len(cand["dwells"]) == 2
+        assert cand["buildability"]["arm"] >= float(min_arm)
         for dw in cand["dwells"]:
-            assert abs(dw["dwell_deg"] - 30) <= 5
+            assert abs(dw["dwell_deg"] - dwell) <= 5
         ref = _independent(cand, 0.1)
         assert ref["swing_deg"] == pytest.approx(cand["swing_deg"], abs=0.01)
 
@@ -162,7 +166,7 @@ def test_missing_or_foreign_database(capsys, tmp_path):
 PG_REQUESTS = [
     ["--dwell", "45", "--swing", "40", "--output", "rpr", "--top", "3"],
     ["--dwell", "60", "--swing", "30", "--output", "rrr", "--max-link-ratio", "20", "--top", "3"],
-    ["--dwell", "30", "--dwell-tol", "5", "--dwells", "2", "--top", "3"],
+    ["--dwell", "50", "--dwell-tol", "5", "--dwells", "2", "--top", "3"],
 ]
 
 
@@ -279,3 +283,11 @@ def test_no_match_names_the_failed_constraint_and_the_nearest_six_bar(capsys, at
     lines = err.strip().splitlines()
     assert "dwell angle failed most" in lines[0] and lines[1].strip().startswith("nearest:")
     assert lines[2].strip().startswith("it meets: --dwell ")
+
+
+def test_an_unbuildable_double_dwell_is_refused_by_the_default_arm(capsys, atlas_path):
+    """Issue 14: the 30° double-dwell candidate brings its slider within 0.02 cranks of its
+    slot pivot; the default --min-arm refuses it and the no-match says what would admit it."""
+    code, out, err = run(capsys, "query", "--db", atlas_path, "--dwell", "30", "--dwell-tol", "5", "--dwells", "2")
+    assert code == 0 and out == ""
+    assert "torque arm (--min-arm)" in err and "it meets: --min-arm 0.0" in err

@@ -29,6 +29,7 @@ from synth.sixbar import simulate, sixbar_figures
 DEG = math.pi / 180
 PER_CANDIDATE = ("motion.png", "motion.svg", "coupler.png", "coupler.svg", "transmission.png", "transmission.svg",
                  "drawing.svg", "drawing.dxf")
+#: and NN-ID.toml, the linkage file (no suffix after the id)
 
 
 def _strict_json(path: Path) -> dict:
@@ -48,7 +49,7 @@ def test_every_documented_file_is_written_and_not_empty(report_dir, candidates):
     out, written = report_dir
     expected = {"candidates.json", "candidates.csv", "README.txt", "index.html"}
     for c in candidates:
-        expected |= {f"{safe_stem(c)}-{suffix}" for suffix in PER_CANDIDATE}
+        expected |= {f"{safe_stem(c)}-{suffix}" for suffix in PER_CANDIDATE} | {f"{safe_stem(c)}.toml"}
     assert {p.name for p in written} == expected
     assert {p.name for p in out.iterdir()} == expected | {".dwell-report"}  # + the list of files (report/folder.py)
     assert (out / ".dwell-report").read_text().split() == [p.name for p in written]

@@ -143,7 +143,8 @@ def test_no_match_counts_rejections_and_loosens_to_the_nearest(source):
     missed = {k for k, x in violations(request, nm.nearest.figures).items() if x > 0}
     changed = {f.name for f in dataclasses.fields(Request) if getattr(request, f.name) != getattr(nm.would_meet, f.name)}
     field_of = {"dwell": {"dwell", "dwell_tol"}, "swing": {"swing", "swing_tol"},
-                "transmission": {"min_transmission"}, "link_ratio": {"max_link_ratio"}}
+                "transmission": {"min_transmission"}, "link_ratio": {"max_link_ratio"}, "arm": {"min_arm"},
+                "clearance": {"min_clearance"}, "acceleration": {"max_accel"}}
     assert changed <= set().union(*(field_of[k] for k in missed))
 
 
