@@ -13,7 +13,7 @@ from typing import Any
 
 import click
 
-from atlas.sweep import SAMPLES_RANGE, SHARD_SIZE_RANGE, SWEEP_BYTES_PER_SAMPLE
+from atlas.sweep import PRESETS, SAMPLES_RANGE, SHARD_SIZE_RANGE, SWEEP_BYTES_PER_SAMPLE
 from cli.budget import check_memory
 from cli.options import PROPORTION, RAYS, SEARCH_STEP_DEG, SEED, Bounded, Count
 
@@ -75,7 +75,8 @@ def _tolerances(text: str | None) -> tuple[float, ...] | None:
 
 @atlas.command("build")
 @db_option
-@click.option("--preset", default="demo", show_default=True, help="Named sweep: demo (seconds), standard, large.")
+@click.option("--preset", type=click.Choice(sorted(PRESETS)), default="demo", show_default=True,
+              help="Named sweep: demo (seconds), standard (~20 000 linkages), large (> 1 000 000).")
 @click.option("--samples", type=Count(*SAMPLES_RANGE, "Sobol points"), default=None,
               help="Sobol points drawn, before the crank-rocker filter.")
 @click.option("--seed", type=SEED, default=None, help="Scrambling seed of the sweep.")

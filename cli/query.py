@@ -16,7 +16,7 @@ import click
 
 from cli.errors import InputError
 from cli.options import LENGTH, RPM, Bounded, Count, units_option
-from synth.candidates import Request, candidate_json
+from synth.candidates import OUTPUTS, Request, candidate_json
 from synth.query import SAMPLES, QueryResult, RebuildError
 
 __all__ = ["answer", "no_match_json", "no_match_message", "query", "rebuild", "request_from_options", "table"]
@@ -202,15 +202,16 @@ TOP = Count(1, 1000, "candidates")
 
 
 @click.command("query")
-@click.option("--db", "target", required=True, help="Atlas: SQLite file path or SQLAlchemy URL.")
+@click.option("--db", "target", required=True, envvar="DWELL_ATLAS", show_envvar=True, metavar="PATH|URL",
+              help="Atlas: SQLite file path or SQLAlchemy URL.")
 @click.option("--dwell", type=DWELL_DEG, required=True, help="Dwell angle (degrees of crank rotation).")
 @click.option("--dwell-tol", type=DWELL_TOL_DEG, default=default_deg("dwell_tol"), show_default=True,
               help="Allowed dwell-angle error (°).")
 @click.option("--swing", type=SWING_DEG, default=None, help="Output swing (°); required for one dwell.")
 @click.option("--swing-tol", type=SWING_TOL_DEG, default=default_deg("swing_tol"), show_default=True,
               help="Allowed swing error (°).")
-@click.option("--output", type=str, default=_DEFAULTS["output"], show_default=True,
-              help="Output dyad: rpr, rrr or any.")
+@click.option("--output", type=click.Choice(OUTPUTS, case_sensitive=False), default=_DEFAULTS["output"],
+              show_default=True, help="Output dyad.")
 @click.option("--dwells", type=Count(1, 2, "dwells per turn"), default=_DEFAULTS["dwells"], show_default=True,
               help="Dwells per turn: 1, or 2 (double Ball point, RPR).")
 @click.option("--dwell-tolerance", type=BAND_DEG, default=default_deg("band"), show_default=True,

@@ -13,7 +13,8 @@ from cli.query import BAND_DEG, DWELL_DEG, TRANSMISSION_RANGE
 
 
 @click.command("report")
-@click.option("--db", "target", required=True, help="Atlas: SQLite file path or SQLAlchemy URL.")
+@click.option("--db", "target", required=True, envvar="DWELL_ATLAS", show_envvar=True, metavar="PATH|URL",
+              help="Atlas: SQLite file path or SQLAlchemy URL.")
 @click.option("--candidates", "ids", required=True, multiple=True,
               help="Candidate id(s) from `dwell query` (repeat the option or separate with spaces).")
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False), help="Folder for the report.")

@@ -94,15 +94,15 @@ class Request:
 
     def to_json(self) -> dict:
         return {
-            "dwell_deg": math.degrees(self.dwell),
-            "dwell_tol_deg": math.degrees(self.dwell_tol),
-            "swing_deg": None if self.swing is None else math.degrees(self.swing),
-            "swing_tol_deg": math.degrees(self.swing_tol),
+            "dwell_deg": _typed_degrees(self.dwell),
+            "dwell_tol_deg": _typed_degrees(self.dwell_tol),
+            "swing_deg": None if self.swing is None else _typed_degrees(self.swing),
+            "swing_tol_deg": _typed_degrees(self.swing_tol),
             "output": self.output,
             "dwells": self.dwells,
-            "dwell_tolerance_deg": math.degrees(self.band),
+            "dwell_tolerance_deg": _typed_degrees(self.band),
             "crank": self.crank,
-            "min_transmission_deg": math.degrees(self.min_transmission),
+            "min_transmission_deg": _typed_degrees(self.min_transmission),
             "max_link_ratio": self.max_link_ratio,
             "top": self.top,
             "min_arm_cranks": self.min_arm,
@@ -110,6 +110,12 @@ class Request:
             "rpm": self.rpm,
             "max_accel_rad_s2": self.max_accel,
         }
+
+
+def _typed_degrees(angle: float) -> float:
+    """``angle`` (rad) in degrees as the user typed it: 12 significant digits, so that 30°
+    read in and converted back prints 30, not 29.999999999999996."""
+    return float(f"{math.degrees(angle):.12g}")
 
 
 @dataclass(frozen=True, slots=True)

@@ -210,7 +210,7 @@ def test_another_sweep_is_refused_then_replaced(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("args, message", [
-    (["--preset", "nope"], "unknown preset 'nope' (choose from demo, large, standard)"),
+    (["--preset", "nope"], "Invalid value for '--preset': 'nope' is not one of 'demo', 'large', 'standard'"),
     (["--samples", "-5"], "Invalid value for '--samples': must be a whole number from 1 to 2147483648"),
     (["--b", "3", "2"], "range b must satisfy 0.001 <= low <= high <= 1000 (crank = 1), got (3, 2)"),
     (["--c", "-1", "2"], "Invalid value for '--c': must be 0.001 <= x <= 1000 (a length in cranks), got -1"),
