@@ -44,6 +44,28 @@ def _sweep(n: int, seed: int) -> tuple[np.ndarray, ...]:
     return np.ones((n, 1)), b[:, None], c[:, None], d[:, None]
 
 
+def sizes_option(sizes: str, most: int) -> list[int]:
+    """``--n``: comma-separated whole numbers from 1 to ``most`` (else one line, exit 2)."""
+    try:
+        ns = [int(x) for x in sizes.split(",") if x.strip()]
+    except ValueError:
+        raise click.BadParameter(f"--n must be comma-separated whole numbers, got {sizes!r}") from None
+    if not ns or min(ns) < 1 or max(ns) > most:
+        raise click.BadParameter(f"--n values must be between 1 and {most}")
+    return ns
+
+
+def check_positions(ns: list[int], angles: int, repeat: int, bytes_per_position: float, passes: int,
+                    things: str) -> None:
+    """Refuse (cli.budget) a run whose one call over ``max(ns) × angles`` positions needs too
+    much memory, or whose ``passes`` timed passes per repeat would take too long."""
+    check_memory(max(ns) * angles * bytes_per_position, f"{max(ns):,} {things} × {angles:,} angles in one call",
+                 "lower --n or --angles")
+    runs = sum(max(n * angles, MIN_POSITIONS_PER_RUN) for n in ns) * passes
+    check_time(runs / FASTEST_POSITIONS_PER_S, f"--n {','.join(map(str, ns))} × --angles {angles} × --repeat {repeat}",
+               "lower --n, --angles or --repeat")
+
+
 def _best_time(fn, repeat: int, loops: int = 1) -> float:
     """Best over ``repeat`` runs of the mean time of ``loops`` calls (timeit's method)."""
     best = float("inf")
@@ -86,18 +108,9 @@ def _accuracy(samples: int, angles: int, seed: int) -> dict[str, float]:
 @click.option("--seed", type=SEED, default=0, show_default=True, help="Seed of the random linkages (>= 0).")
 def kinematics(sizes: str, angles: int, repeat: int, seed: int) -> None:
     """Four-bar positions + 3 derivative orders per second (one core), with their error."""
-    try:
-        ns = [int(x) for x in sizes.split(",") if x.strip()]
-    except ValueError:
-        raise click.BadParameter(f"--n must be comma-separated whole numbers, got {sizes!r}") from None
-    if not ns or min(ns) < 1 or max(ns) > 1_000_000:
-        raise click.BadParameter("--n values must be between 1 and 1000000")
+    ns = sizes_option(sizes, 1_000_000)
     phi = np.linspace(0, 2 * np.pi, angles, endpoint=False)
-    check_memory(max(ns) * angles * BYTES_PER_POSITION, f"{max(ns):,} linkages × {angles:,} angles in one call",
-                 "lower --n or --angles")
-    runs = sum(max(n * angles, MIN_POSITIONS_PER_RUN) for n in ns) * (2 * repeat + 1)
-    check_time(runs / FASTEST_POSITIONS_PER_S, f"--n {sizes} × --angles {angles} × --repeat {repeat}",
-               "lower --n, --angles or --repeat")
+    check_positions(ns, angles, repeat, BYTES_PER_POSITION, 2 * repeat + 1, "linkages")
     results = []
     for n in ns:
         a, b, c, d = _sweep(n, seed)

@@ -17,8 +17,7 @@ import click
 import numpy as np
 
 from cli.options import SEED
-from cli.bench.kinematics import FASTEST_POSITIONS_PER_S, MIN_POSITIONS_PER_RUN, _best_time, _sweep
-from cli.budget import check_memory, check_time
+from cli.bench.kinematics import MIN_POSITIONS_PER_RUN, _best_time, _sweep, check_positions, sizes_option
 from cli.bench.plain import sixbar_rrr_positions
 from synth.sixbar import SixBars, simulate
 
@@ -61,18 +60,9 @@ def _plain(s: SixBars, phi):
 @click.option("--seed", type=SEED, default=0, show_default=True, help="Seed of the random six-bars.")
 def sixbar(sizes: str, angles: int, repeat: int, seed: int) -> None:
     """Six-bar positions per second (one core), as a ratio to plain numpy in the same run."""
-    try:
-        ns = [int(x) for x in sizes.split(",") if x.strip()]
-    except ValueError:
-        raise click.BadParameter(f"--n must be comma-separated whole numbers, got {sizes!r}") from None
-    if not ns or min(ns) < 1 or max(ns) > 100_000:
-        raise click.BadParameter("--n values must be between 1 and 100000")
+    ns = sizes_option(sizes, 100_000)
     phi = np.linspace(0, 2 * np.pi, angles, endpoint=False)
-    check_memory(max(ns) * angles * SIXBAR_BYTES_PER_POSITION, f"{max(ns):,} six-bars × {angles:,} angles in one call",
-                 "lower --n or --angles")
-    runs = sum(max(n * angles, MIN_POSITIONS_PER_RUN) for n in ns) * 2 * repeat
-    check_time(runs / FASTEST_POSITIONS_PER_S, f"--n {sizes} × --angles {angles} × --repeat {repeat}",
-               "lower --n, --angles or --repeat")
+    check_positions(ns, angles, repeat, SIXBAR_BYTES_PER_POSITION, 2 * repeat, "six-bars")
     results = []
     for n in ns:
         six = random_rrr_sixbars(n, seed)
