@@ -73,18 +73,29 @@ def request_from_options(dwell: float, dwell_tol: float | None = None, swing: fl
         raise InputError(str(exc)) from None
 
 
+def _sixbar_text(sb) -> str:
+    """a b c d, P (u, v), D (x, y) and for an RRR L ρ: the whole six-bar on one line."""
+    g = lambda x: f"{x:.4g}"  # noqa: E731
+    text = f"{g(sb.a)} {g(sb.b)} {g(sb.c)} {g(sb.d)}  P({g(sb.u)}, {g(sb.v)})  D({g(sb.dyad.pivot.real)}, {g(sb.dyad.pivot.imag)})"
+    if sb.dyad.kind == "RRR":
+        text += f"  L {g(sb.dyad.rocker)} ρ {g(sb.dyad.rod)}"
+    return text
+
+
 def _rad(x: float | None) -> float | None:
     return None if x is None else math.radians(x)
 
 
-def table(result: QueryResult) -> str:
+def table(result: QueryResult, units: str = "") -> str:
+    """The ranked candidates as a text table (lengths in the user's unit ``units``), with a
+    legend line."""
     req = result.request
     head = (f"{len(result.candidates)} six-bar(s) for {req.dwells} dwell(s) of {math.degrees(req.dwell):g}° ± "
             f"{math.degrees(req.dwell_tol):g}°" + ("" if req.swing is None else f", swing {math.degrees(req.swing):g}°")
             + f" (output band {math.degrees(req.band):g}°; {result.considered} segments fitted, {result.simulated} simulated)")
     lines = [head]
     cols = (f"{'rank':>4}  {'id':<26} {'out':<3} {'dwell °':>15} {'dev °':>7} {'swing °':>8} {'μ4 °':>6} {'μout °':>6} "
-            f"{'ratio':>6} {'arm':>7} {'clear':>7} {'α rad/s²':>9}  a b c d")
+            f"{'ratio':>6} {'arm':>7} {'clear':>7} {'α rad/s²':>9}  six-bar")
     lines.append(cols)
     for c in result.candidates:
         f, sb = c.figures, c.sixbar
@@ -98,12 +109,13 @@ def table(result: QueryResult) -> str:
         lines.append(
             f"{c.rank:>4}  {c.id:<26} {sb.dyad.kind:<3} {dw:>15} {math.degrees(dev):>7.3f} {math.degrees(f.swing):>8.2f} "
             f"{math.degrees(f.transmission_fourbar):>6.1f} {mu_out:>6} "
-            f"{f.link_ratio:>6.2f} {arm:>7} {clear:>7} {accel:>9}  {sb.a:.4g} {sb.b:.4g} {sb.c:.4g} {sb.d:.4g}"
+            f"{f.link_ratio:>6.2f} {arm:>7} {clear:>7} {accel:>9}  {_sixbar_text(sb)}"
         )
     lines.append(f"dev: output deviation over the requested dwell; μ4, μout: smallest transmission angles "
                  f"(four-bar, output dyad; a slotted rocker's is 90°); arm: slider to slot pivot (RPR); clear: "
-                 f"smallest clearance to a fixed pivot; α: peak output acceleration at {req.rpm:g} rpm; lengths "
-                 f"in crank = {req.crank:g}")
+                 f"smallest clearance to a fixed pivot; α: peak output acceleration at {req.rpm:g} rpm; six-bar: "
+                 f"a b c d (crank, coupler, rocker, ground), P = coupler point (u, v) in the coupler frame, D = output "
+                 f"pivot, RRR rocker L and rod ρ; lengths in {units or 'your unit'} (crank = {req.crank:g})")
     return "\n".join(lines)
 
 
@@ -161,7 +173,8 @@ def no_match_message(result: QueryResult) -> str:
                 f"(now {math.degrees(req.min_transmission):g}°) or another --swing")
     hint = " and ".join(f"{math.degrees(x):.1f}°" for x in near)
     return (f"{head}; " + (f"the closest dwells the atlas holds are {hint}: " if near else "")
-            + "try a wider --dwell-tol, a larger --dwell-tolerance, or a larger atlas")
+            + "try a wider --dwell-tol (the error allowed on the dwell angle) or a larger atlas; a wider "
+              "--band would count a less still output as a dwell")
 
 
 def no_match_json(result: QueryResult) -> dict:
@@ -214,7 +227,7 @@ TOP = Count(1, 1000, "candidates")
               show_default=True, help="Output dyad.")
 @click.option("--dwells", type=Count(1, 2, "dwells per turn"), default=_DEFAULTS["dwells"], show_default=True,
               help="Dwells per turn: 1, or 2 (double Ball point, RPR).")
-@click.option("--dwell-tolerance", type=BAND_DEG, default=default_deg("band"), show_default=True,
+@click.option("--band", "--dwell-tolerance", "dwell_tolerance", type=BAND_DEG, default=default_deg("band"), show_default=True,
               help="Total width (°) of the output band that counts as a dwell.")
 @click.option("--crank", type=LENGTH, default=_DEFAULTS["crank"], show_default=True,
               help="Crank length (your unit).")
@@ -255,7 +268,7 @@ def query(target, dwell, dwell_tol, swing, swing_tol, output, dwells, dwell_tole
             doc["no_match"] = no_match_json(result)
         click.echo(json.dumps(doc, indent=2, allow_nan=False))
     elif result.candidates:
-        click.echo(table(result))
+        click.echo(table(result, units))
     if not result.candidates:
         click.echo(f"dwell: {no_match_message(result)}", err=True)
     if report_dir is not None and result.candidates:

@@ -19,7 +19,8 @@ from cli.query import BAND_DEG, DWELL_DEG, TRANSMISSION_RANGE
               help="Candidate id(s) from `dwell query` (repeat the option or separate with spaces).")
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False), help="Folder for the report.")
 @click.option("--dwell", type=DWELL_DEG, default=None, help="Requested dwell (°) for the output deviation window.")
-@click.option("--dwell-tolerance", type=BAND_DEG, default=0.1, show_default=True, help="Output band (°).")
+@click.option("--band", "--dwell-tolerance", "dwell_tolerance", type=BAND_DEG, default=0.1, show_default=True,
+              help="Total width (°) of the output band that counts as a dwell.")
 @click.option("--crank", type=LENGTH, default=1.0, show_default=True, help="Crank length (your unit).")
 @click.option("--min-transmission", type=TRANSMISSION_RANGE, default=30.0, show_default=True,
               help="The query's smallest transmission angle (°): RRR fits are rebuilt with it.")

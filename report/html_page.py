@@ -318,7 +318,9 @@ def _dimensions_table(entry: PageEntry, rpm: float) -> str:
             rows.append(("Q at rest (dwell)", xy(c.dwell_position)))
     for k, d in enumerate(f.dwells):
         dev = f" · deviation {math.degrees(f.deviations[k]):.4f}°" if k < len(f.deviations) else ""
-        span = f"{math.degrees(d.angle):.3f}° over φ = {math.degrees(d.start):.2f}° … {math.degrees(d.end):.2f}°"
+        # both ends in [0°, 360°): a dwell over φ = 0 reads 354.58° … 39.56°, not … 399.56°
+        span = (f"{math.degrees(d.angle):.3f}° over φ = {math.degrees(d.start) % 360:.2f}° … "
+                f"{math.degrees(d.end) % 360:.2f}°")
         rows.append((f"dwell {k + 1}", span + dev))
     rows += [("swing", f"{math.degrees(f.swing):.4f}°"),
              ("min transmission, four-bar", f"{math.degrees(f.transmission_fourbar):.2f}°"),

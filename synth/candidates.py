@@ -75,7 +75,7 @@ class Request:
         if self.dwells * self.dwell >= 2 * math.pi:
             raise bad(f"{self.dwells} dwell(s) of {math.degrees(self.dwell):g} degrees do not fit in one turn")
         if not (math.isfinite(self.band) and 0 < self.band < math.pi):
-            raise bad(f"--dwell-tolerance must be between 0 and 180 degrees (exclusive), got {math.degrees(self.band):g}")
+            raise bad(f"--band must be between 0 and 180 degrees (exclusive), got {math.degrees(self.band):g}")
         if not (math.isfinite(self.crank) and self.crank > 0):
             raise bad(f"--crank must be a positive length, got {self.crank:g}")
         if not (math.isfinite(self.min_transmission) and 0 <= self.min_transmission < math.pi / 2):
