@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import stat
+import sys
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -65,11 +66,15 @@ class Bounded(click.FloatRange):
         if not np.isfinite(number):
             self.fail(f"must be a finite number ({self.what}), got {value!r}", param, ctx)
         try:
-            return super().convert(number, param, ctx)
+            number = super().convert(number, param, ctx)
         except click.BadParameter:
             lo = "" if self.min is None else f"{self.min:g} {'<' if self.min_open else '<='} "
             hi = "" if self.max is None else f" {'<' if self.max_open else '<='} {self.max:g}"
             self.fail(f"must be {lo}x{hi} ({self.what}), got {number:g}", param, ctx)
+        if number != 0 and abs(number) < sys.float_info.min:  # subnormal: no precision left
+            self.fail(f"must be 0 or at least {sys.float_info.min:.3g} in magnitude ({self.what}), got {number:g}",
+                      param, ctx)
+        return number
 
 
 class Count(click.IntRange):
@@ -116,7 +121,7 @@ MAX_SPEED, MAX_ACCELERATION = 1e50, 1e100
 SPEED = Bounded(-MAX_SPEED, MAX_SPEED, "a speed")
 ACCELERATION = Bounded(-MAX_ACCELERATION, MAX_ACCELERATION, "an acceleration")
 #: A positive crank speed in rev/min (lists of speeds to compare).
-RPM = Bounded(0.0, MAX_SPEED, "a speed in rev/min", low_open=True)
+RPM = Bounded(1e-6, MAX_SPEED, "a speed in rev/min")
 
 
 fourbar_options = _stack(
