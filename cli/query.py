@@ -16,7 +16,8 @@ import click
 
 from cli.errors import InputError
 from cli.options import LENGTH, RPM, Bounded, Count, units_option
-from synth.candidates import OUTPUTS, Request, candidate_json
+from report.candidate_json import candidate_json, request_json
+from synth.candidates import OUTPUTS, Request
 from synth.query import SAMPLES, QueryResult, RebuildError
 
 __all__ = ["answer", "no_match_json", "no_match_message", "query", "rebuild", "request_from_options", "table"]
@@ -177,7 +178,7 @@ def no_match_message(result: QueryResult) -> str:
               "--band would count a less still output as a dwell")
 
 
-def no_match_json(result: QueryResult) -> dict:
+def no_match_json(result: QueryResult, units: str = "mm") -> dict:
     """The ``no_match`` object of ``--json`` (the same facts as :func:`no_match_message`)."""
     nm = result.no_match
     below, above = result.nearest
@@ -192,8 +193,8 @@ def no_match_json(result: QueryResult) -> dict:
         "nearest_stored_dwell_deg": [None if x is None else math.degrees(x) for x in (below, above)],
     }
     if nm is not None and nm.nearest is not None:
-        doc["nearest"] = candidate_json(nm.nearest, result.request.rpm)
-        doc["would_meet"] = nm.would_meet.to_json()
+        doc["nearest"] = candidate_json(nm.nearest, result.request.rpm, units)
+        doc["would_meet"] = request_json(nm.would_meet, units)
     return doc
 
 
@@ -263,9 +264,10 @@ def query(target, dwell, dwell_tol, swing, swing_tol, output, dwells, dwell_tole
     finally:
         engine.dispose()
     if as_json:
-        doc = {"request": request.to_json(), "candidates": [candidate_json(c, request.rpm) for c in result.candidates]}
+        doc = {"request": request_json(request, units),
+               "candidates": [candidate_json(c, request.rpm, units) for c in result.candidates]}
         if not result.candidates:
-            doc["no_match"] = no_match_json(result)
+            doc["no_match"] = no_match_json(result, units)
         click.echo(json.dumps(doc, indent=2, allow_nan=False))
     elif result.candidates:
         click.echo(table(result, units))

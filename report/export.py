@@ -31,11 +31,10 @@ from pathlib import Path
 from typing import Any
 
 from report.cycle import CYCLE_COLUMNS, Cycle, cycle_json, sixbar_cycle
-from synth.candidates import Candidate, Request, candidate_json
-from synth.sixbar import OutputDyad, SixBar
+from report.candidate_json import candidate_json, request_json
+from synth.candidates import Candidate, Request
 
-__all__ = ["CSV_COLUMNS", "MAX_DWELLS", "candidate_row", "csv_header", "report_json", "safe_stem",
-           "sixbar_from_json", "write_report"]
+__all__ = ["CSV_COLUMNS", "MAX_DWELLS", "candidate_row", "csv_header", "report_json", "safe_stem", "write_report"]
 
 #: Dwells per turn a report has columns for (a double Ball point gives two).
 MAX_DWELLS = 2
@@ -45,7 +44,7 @@ def _dwell_columns(k: int) -> tuple[tuple[str, str, str], ...]:
     return (
         (f"dwell{k}_deg", "deg", f"length of dwell {k} (crank angle over which ψ stays within the band)"),
         (f"dwell{k}_start_deg", "deg", f"crank angle where dwell {k} starts, in [0, 360)"),
-        (f"dwell{k}_end_deg", "deg", f"crank angle where dwell {k} ends (start + length, may pass 360)"),
+        (f"dwell{k}_end_deg", "deg", f"crank angle where dwell {k} ends, in [0, 360) (less than the start when it passes 0)"),
         (f"dwell{k}_deviation_deg", "deg",
          f"output deviation (peak-to-peak ψ) over a window of the requested dwell length around dwell {k}"),
     )
@@ -77,7 +76,7 @@ CSV_COLUMNS: tuple[tuple[str, str, str], ...] = (
     ("swing_deg", "deg", "output swing, max ψ - min ψ over the turn"),
     ("output_deviation_deg", "deg", "largest of the dwells' output deviations (the ranking's objective)"),
     ("transmission_fourbar_min_deg", "deg", "smallest four-bar transmission angle over the turn, in [0, 90]"),
-    ("transmission_output_min_deg", "deg", "smallest output transmission angle over the turn (RPR: 90)"),
+    ("transmission_output_min_deg", "deg", "smallest output transmission angle over the turn (RRR; empty for RPR, whose slot transmits at 90)"),
     ("link_ratio", "", "longest over shortest link length"),
     ("footprint", "length^2", "area of the convex hull of the pivots and joint paths"),
 )
@@ -121,16 +120,16 @@ def _clean(value: Any) -> Any:
 
 
 def report_json(request: Request, candidates: Sequence[Candidate], cycles: Sequence[Cycle],
-                step_deg: float = 1.0) -> dict:
+                step_deg: float = 1.0, units: str = "") -> dict:
     """The ``candidates.json`` document: the request, and per candidate the query's JSON shape
-    (:func:`synth.candidates.candidate_json`) plus its ``cycle`` table."""
+    (:func:`report.candidate_json.candidate_json`, lengths in ``units``) plus its ``cycle`` table."""
     items = []
     for c, cyc in zip(candidates, cycles, strict=True):
-        doc = candidate_json(c, request.rpm)
+        doc = candidate_json(c, request.rpm, units)
         doc["cycle"] = {"step_deg": float(step_deg), **cycle_json(cyc, c.sixbar.dyad.kind)}
         items.append(doc)
     return _clean({
-        "request": request.to_json(),
+        "request": request_json(request, units),
         "conventions": {
             "lengths": "request unit (crank = request.crank)",
             "angles": "degrees; psi derivatives per radian of crank",
@@ -180,18 +179,6 @@ def _non_finite(value: Any, where: str = "") -> str | None:
     return None
 
 
-def sixbar_from_json(doc: dict) -> SixBar:
-    """The six-bar of one candidate of ``candidates.json`` (or of the query's ``--json``)."""
-    fb, out = doc["fourbar"], doc["output"]
-    u, v = doc["coupler_point"]
-    x, y = out["pivot"]
-    if out["type"] == "RRR":
-        dyad = OutputDyad.rrr(complex(x, y), out["rocker"], out["rod"], out["branch"])
-    else:
-        dyad = OutputDyad.rpr(complex(x, y))
-    return SixBar(fb["a"], fb["b"], fb["c"], fb["d"], fb["branch"], u, v, dyad)
-
-
 def candidate_row(c: Candidate) -> dict[str, Any]:
     """One CSV row (column name → value; None for an empty cell), :data:`CSV_COLUMNS` order."""
     sb, f, dy = c.sixbar, c.figures, c.sixbar.dyad
@@ -209,14 +196,13 @@ def candidate_row(c: Candidate) -> dict[str, Any]:
         d = f.dwells[k - 1] if k <= len(f.dwells) else None
         dev = f.deviations[k - 1] if k <= len(f.deviations) else None
         row[f"dwell{k}_deg"] = None if d is None else math.degrees(d.angle)
-        row[f"dwell{k}_start_deg"] = None if d is None else math.degrees(d.start)
-        row[f"dwell{k}_end_deg"] = None if d is None else math.degrees(d.end)
+        row[f"dwell{k}_start_deg"], row[f"dwell{k}_end_deg"] = (None, None) if d is None else d.ends_deg()
         row[f"dwell{k}_deviation_deg"] = None if dev is None else math.degrees(dev)
     row |= {
         "swing_deg": math.degrees(f.swing),
         "output_deviation_deg": math.degrees(max(f.deviations)) if f.deviations else None,
         "transmission_fourbar_min_deg": math.degrees(f.transmission_fourbar),
-        "transmission_output_min_deg": math.degrees(f.transmission_output),
+        "transmission_output_min_deg": None if dy.kind == "RPR" else math.degrees(f.transmission_output),
         "link_ratio": f.link_ratio, "footprint": f.footprint,
     }
     return {k: _finite(v) if isinstance(v, float) else v for k, v in row.items()}
@@ -238,7 +224,7 @@ def _heading(text: str) -> list[str]:
     return [text, "-" * len(text)]
 
 
-def _readme(request: Request, stems: Sequence[str]) -> str:
+def _readme(request: Request, stems: Sequence[str], units: str) -> str:
     from report.dxf import LAYERS
     from report.sixbar_plots import PLOTS
 
@@ -246,7 +232,7 @@ def _readme(request: Request, stems: Sequence[str]) -> str:
         "Dwell Atlas report",
         "==================",
         "",
-        f"Request: {json.dumps(request.to_json(), allow_nan=False)}",
+        f"Request: {json.dumps(request_json(request, units), allow_nan=False)}",
         "Lengths in the request's unit (crank = request.crank); angles in degrees; fixed frame",
         "A0 = (0, 0), B0 = (d, 0), y up. Every figure comes from the exact simulation of the six-bar.",
         "",
@@ -329,7 +315,7 @@ def write_report(candidates: list[Candidate], request: Request, out_dir: Path, *
         raise ValueError(f"candidate ranks must be distinct, got {ranks}")
     # Everything that can fail on the data is computed before the first file is written.
     cycles = [sixbar_cycle(c.sixbar, c.figures, step_deg=step_deg) for c in candidates]
-    doc = report_json(request, candidates, cycles, step_deg)
+    doc = report_json(request, candidates, cycles, step_deg, units)
     json_text = _json_text(doc)
     csv_text = _csv_text(candidates)
     stems = [safe_stem(c) for c in candidates]
@@ -340,7 +326,7 @@ def write_report(candidates: list[Candidate], request: Request, out_dir: Path, *
     # all files go into a temporary sibling renamed into place at the end (report/folder.py)
     with staged_folder(final, option) as out:
         for name, text in (("candidates.json", json_text), ("candidates.csv", csv_text),
-                           ("README.txt", _readme(request, stems))):
+                           ("README.txt", _readme(request, stems, units))):
             (out / name).write_text(text, encoding="utf-8")
             written.append(out / name)
 

@@ -229,9 +229,7 @@ def _strip_svg(entry: PageEntry, data: dict) -> str:
             f'height="{H:g}" role="img" aria-label="output angle against crank angle">')]
     top, bottom = mt, H - mb
     for dw in entry.candidate.figures.dwells:
-        s = math.degrees(dw.start) % 360.0
-        e = s + math.degrees(dw.angle)
-        for a, b in [(s, min(e, 360.0))] + ([(0.0, e - 360.0)] if e > 360.0 else []):
+        for a, b in dw.spans_deg():
             xa, _ = _strip_xy(a, lo, lo, hi)
             xb, _ = _strip_xy(b, lo, lo, hi)
             out.append(f'<rect class="dwell-band" x="{xa:.2f}" y="{top:.2f}" width="{xb - xa:.2f}" '
@@ -290,7 +288,8 @@ def _summary_table(entries: list[PageEntry]) -> str:
                  _esc(c.sixbar.dyad.kind),
                  _esc(_dwells_text(c)), "–" if dev is None else f"{math.degrees(dev):.4f}°",
                  f"{math.degrees(f.swing):.3f}°", f"{math.degrees(f.transmission_fourbar):.1f}°",
-                 f"{math.degrees(f.transmission_output):.1f}°", f"{f.link_ratio:.2f}", _num(f.footprint, 6)]
+                 "slot" if c.sixbar.dyad.kind == "RPR" else f"{math.degrees(f.transmission_output):.1f}°",
+                 f"{f.link_ratio:.2f}", _num(f.footprint, 6)]
         rows.append("<tr>" + "".join(f"<td>{x}</td>" for x in cells) + "</tr>")
     return ('<table class="summary"><thead><tr>' + "".join(f"<th>{_esc(h)}</th>" for h in head)
             + "</tr></thead><tbody>" + "\n".join(rows) + "</tbody></table>")
@@ -319,12 +318,13 @@ def _dimensions_table(entry: PageEntry, rpm: float) -> str:
     for k, d in enumerate(f.dwells):
         dev = f" · deviation {math.degrees(f.deviations[k]):.4f}°" if k < len(f.deviations) else ""
         # both ends in [0°, 360°): a dwell over φ = 0 reads 354.58° … 39.56°, not … 399.56°
-        span = (f"{math.degrees(d.angle):.3f}° over φ = {math.degrees(d.start) % 360:.2f}° … "
-                f"{math.degrees(d.end) % 360:.2f}°")
+        start, end = d.ends_deg()
+        span = f"{math.degrees(d.angle):.3f}° over φ = {start:.2f}° … {end:.2f}°"
         rows.append((f"dwell {k + 1}", span + dev))
     rows += [("swing", f"{math.degrees(f.swing):.4f}°"),
              ("min transmission, four-bar", f"{math.degrees(f.transmission_fourbar):.2f}°"),
-             ("min transmission, output", f"{math.degrees(f.transmission_output):.2f}°"),
+             ("min transmission, output", "slot (90° by construction)" if dy.kind == "RPR"
+              else f"{math.degrees(f.transmission_output):.2f}°"),
              ("link ratio", _num(f.link_ratio, 4)), ("footprint (hull area)", _num(f.footprint, 5))]
     if f.build is not None:
         b = f.build

@@ -125,7 +125,7 @@ def linkage_toml(candidate: Candidate, units: str = "") -> str:
     body = "\n".join(_body(candidate, units)) + "\n"
     config = linkage_configuration(candidate, body)
     f = candidate.figures
-    dwells = ", ".join(f"{math.degrees(d.start) % 360:.3f}..{math.degrees(d.end) % 360:.3f} deg" for d in f.dwells)
+    dwells = ", ".join("{:.3f}..{:.3f} deg".format(*d.ends_deg()) for d in f.dwells)
     header = [
         f"# Candidate {candidate.id!r} (rank {candidate.rank}), written by dwell report.",
         f"# swing {math.degrees(f.swing):.6f} deg; dwell(s) {dwells};",

@@ -62,9 +62,7 @@ def _loop(y: np.ndarray, valid: np.ndarray) -> np.ndarray:
 def _shade_dwells(ax, candidate: Candidate, label: bool) -> None:
     """Shade every dwell interval (split where it passes 360°)."""
     for k, dw in enumerate(candidate.figures.dwells):
-        s, e = math.degrees(dw.start) % 360.0, math.degrees(dw.start) % 360.0 + math.degrees(dw.angle)
-        pieces = [(s, min(e, 360.0))] + ([(0.0, e - 360.0)] if e > 360.0 else [])
-        for j, (lo, hi) in enumerate(pieces):
+        for j, (lo, hi) in enumerate(dw.spans_deg()):
             text = f"dwell {k + 1}: {math.degrees(dw.angle):.2f}°" if (label and j == 0) else None
             ax.axvspan(lo, hi, color=_DWELL_COLOR, alpha=0.13, lw=0, label=text)
 

@@ -21,7 +21,7 @@ import numpy as np
 
 from synth.sixbar import SixBar, SixBarFigures, SixBars, crank_grid, simulate
 
-__all__ = ["Candidate", "Request", "candidate_id", "candidate_json", "parse_candidate_id", "rank", "screen"]
+__all__ = ["Candidate", "Request", "candidate_id", "parse_candidate_id", "rank", "screen"]
 
 OUTPUTS = ("rpr", "rrr", "any")
 
@@ -91,31 +91,6 @@ class Request:
             raise bad(f"--rpm must be > 0, got {self.rpm:g}")
         if self.max_accel is not None and not (math.isfinite(self.max_accel) and self.max_accel > 0):
             raise bad(f"--max-accel must be > 0 rad/s^2, got {self.max_accel:g}")
-
-    def to_json(self) -> dict:
-        return {
-            "dwell_deg": _typed_degrees(self.dwell),
-            "dwell_tol_deg": _typed_degrees(self.dwell_tol),
-            "swing_deg": None if self.swing is None else _typed_degrees(self.swing),
-            "swing_tol_deg": _typed_degrees(self.swing_tol),
-            "output": self.output,
-            "dwells": self.dwells,
-            "dwell_tolerance_deg": _typed_degrees(self.band),
-            "crank": self.crank,
-            "min_transmission_deg": _typed_degrees(self.min_transmission),
-            "max_link_ratio": self.max_link_ratio,
-            "top": self.top,
-            "min_arm_cranks": self.min_arm,
-            "min_clearance_cranks": self.min_clearance,
-            "rpm": self.rpm,
-            "max_accel_rad_s2": self.max_accel,
-        }
-
-
-def _typed_degrees(angle: float) -> float:
-    """``angle`` (rad) in degrees as the user typed it: 12 significant digits, so that 30°
-    read in and converted back prints 30, not 29.999999999999996."""
-    return float(f"{math.degrees(angle):.12g}")
 
 
 @dataclass(frozen=True, slots=True)
@@ -243,52 +218,3 @@ def rank(request: Request, candidates: list[Candidate]) -> list[Candidate]:
     return [
         dataclasses.replace(candidates[i], rank=r + 1) for r, i in enumerate(order)
     ]
-
-
-def candidate_json(c: Candidate, rpm: float = 60.0) -> dict:
-    """The query's JSON shape for one candidate (lengths in the user's unit, angles in degrees,
-    fixed frame with A0 = (0, 0) and B0 = (d, 0))."""
-    sb, f = c.sixbar, c.figures
-    dyad = sb.dyad
-    pivot = [float(dyad.pivot.real), float(dyad.pivot.imag)]
-    if dyad.kind == "RRR":
-        output = {"type": "RRR", "pivot": pivot, "rocker": float(dyad.rocker), "rod": float(dyad.rod),
-                  "branch": int(dyad.branch),
-                  "dwell_position": None if c.dwell_position is None
-                  else [float(c.dwell_position.real), float(c.dwell_position.imag)]}
-    else:
-        output = {"type": "RPR", "pivot": pivot}
-    dwells = []
-    for k, d in enumerate(f.dwells):
-        dwells.append({
-            "dwell_deg": math.degrees(d.angle),
-            "interval_deg": [math.degrees(d.start), math.degrees(d.end)],
-            "output_deviation_deg": math.degrees(f.deviations[k]) if k < len(f.deviations) else None,
-        })
-    return {
-        "rank": c.rank,
-        "id": c.id,
-        "fourbar": {"a": sb.a, "b": sb.b, "c": sb.c, "d": sb.d, "branch": int(sb.branch)},
-        "coupler_point": [sb.u, sb.v],
-        "output": output,
-        "dwells": dwells,
-        "swing_deg": math.degrees(f.swing),
-        "transmission_deg": {"fourbar_min": math.degrees(f.transmission_fourbar),
-                             "output_min": math.degrees(f.transmission_output)},
-        "link_ratio": f.link_ratio,
-        "footprint": f.footprint,
-        "buildability": _buildability_json(f, rpm),
-        "segment_id": c.segment_id,
-    }
-
-
-def _buildability_json(f: SixBarFigures, rpm: float) -> dict | None:
-    """The buildability figures (lengths in the user's unit) and the output's peak rates at
-    ``rpm``; None where they were not computed."""
-    b = f.build
-    if b is None:
-        return None
-    speed, accel, jerk = b.dynamics(rpm)
-    return {"arm": b.arm, "slot_used": None if b.slot is None else list(b.slot), "clearance": b.clearance,
-            "clearance_between": b.clearance_between, "rpm": rpm, "peak_output_speed_rad_s": speed,
-            "peak_output_accel_rad_s2": accel, "peak_output_jerk_rad_s3": jerk}

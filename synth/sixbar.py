@@ -49,6 +49,7 @@ __all__ = [
     "SixBarFigures",
     "SixBarMotion",
     "SixBars",
+    "crank_degrees",
     "crank_grid",
     "dwell_intervals",
     "output_deviation",
@@ -644,6 +645,25 @@ class Dwell(NamedTuple):
     start: float
     end: float
     angle: float
+
+    def ends_deg(self) -> tuple[float, float]:
+        """(start, end) in degrees, each in [0°, 360°): the interval as a user reads it. It runs
+        counter-clockwise from start to end, so end < start when it passes 0°."""
+        return crank_degrees(self.start), crank_degrees(self.end)
+
+    def spans_deg(self) -> list[tuple[float, float]]:
+        """The interval as one or two spans (low, high) in [0°, 360°], split where it passes
+        360° (to shade it on a plot of one turn)."""
+        s = crank_degrees(self.start)
+        e = s + math.degrees(self.angle)
+        return [(s, min(e, 360.0))] + ([(0.0, e - 360.0)] if e > 360.0 else [])
+
+
+def crank_degrees(angle: float) -> float:
+    """A crank angle (rad) in degrees in [0°, 360°) (``% 360`` alone gives 360.0 for a tiny
+    negative angle)."""
+    deg = math.degrees(angle) % 360.0
+    return 0.0 if deg >= 360.0 else deg
 
 
 @dataclass(frozen=True, slots=True)

@@ -11,6 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
+from report.candidate_json import length_key
+
 #: Crank step of the check (deg): the dwell ends are checked to within two steps.
 STEP = 0.1
 
@@ -22,8 +24,9 @@ def _fold(u: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 
 def _range(psi: np.ndarray, phi: np.ndarray, lo: float, hi: float) -> float:
-    """max − min of ψ (deg) over crank angles in [lo, hi] (deg, taken cyclically)."""
-    inside = np.mod(phi - lo, 360.0) <= (hi - lo) + 1e-9
+    """max − min of ψ (deg) over crank angles in [lo, hi] (deg, counter-clockwise from lo: hi < lo
+    when the interval passes 0°)."""
+    inside = np.mod(phi - lo, 360.0) <= np.mod(hi - lo, 360.0) + 1e-9
     return float(np.ptp(psi[inside]))
 
 
@@ -31,7 +34,7 @@ def check_linkage_files(folder: Path, run) -> int:
     """Check every candidate of ``folder``'s report; ``run(argv) -> stdout`` runs ``dwell``.
     Returns how many candidates were checked."""
     doc = json.loads((folder / "candidates.json").read_text(encoding="utf-8"))
-    band = doc["request"]["dwell_tolerance_deg"]
+    band = doc["request"]["band_deg"]
     checked = 0
     for cand in doc["candidates"]:
         (path,) = folder.glob(f"{cand['rank']:02d}-*.toml")
@@ -50,11 +53,11 @@ def check_linkage_files(folder: Path, run) -> int:
             # the ends are where the band breaks: two steps further it is exceeded on each side
             assert _range(psi, phi, lo - 2 * STEP, hi) > band and _range(psi, phi, lo, hi + 2 * STEP) > band, cand["id"]
         A, B = pt("A"), pt("B")
-        fb = cand["fourbar"]
-        mu4 = _fold(A - B, complex(fb["d"], 0.0) - B).min()
+        key = length_key(cand["length_unit"])
+        mu4 = _fold(A - B, complex(cand["fourbar"][f"d_{key}"], 0.0) - B).min()
         assert cand["transmission_deg"]["fourbar_min"] - 1e-6 <= mu4 <= cand["transmission_deg"]["fourbar_min"] + 0.1
         if cand["output"]["type"] == "RRR":
-            D = complex(*cand["output"]["pivot"])
+            D = complex(*cand["output"][f"pivot_{key}"])
             P, Q = pt("P"), pt("Q")
             mu = _fold(P - Q, D - Q).min()
             assert cand["transmission_deg"]["output_min"] - 1e-6 <= mu <= cand["transmission_deg"]["output_min"] + 0.1

@@ -108,6 +108,7 @@ def query(db, repeat, top, plot):
     """Query latency: a fixed set of requests against an atlas, p50/p95 and where the time goes."""
     from cli.query import answer
     from db.engine import display_target, open_atlas
+    from report.candidate_json import request_json
 
     engine = open_atlas(db, readonly=True)
     try:
@@ -134,7 +135,7 @@ def query(db, repeat, top, plot):
             best = result.candidates[0] if result.candidates else None
             rows.append({
                 "label": r.label,
-                "request": result.request.to_json(),
+                "request": request_json(result.request),
                 "ms_median": round(statistics.median(ms), 2),
                 "ms_max": round(max(ms), 2),
                 "ms_by_stage": {s: round(statistics.median(1000 * res.seconds.get(s, 0.0) for _, res in runs), 2)

@@ -17,7 +17,7 @@ import pytest
 from atlas.build import build_atlas
 from atlas.sweep import PRESETS
 from cli.main import main
-from synth.sixbar import OutputDyad, SixBar
+from report.candidate_json import sixbar_from_json
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "synth"))
 from test_sixbar import reference_psi
@@ -40,12 +40,7 @@ def run(capsys, *args):
 
 
 def _independent(doc: dict, band_deg: float) -> dict:
-    fb, out = doc["fourbar"], doc["output"]
-    if out["type"] == "RRR":
-        dyad = OutputDyad.rrr(complex(*out["pivot"]), out["rocker"], out["rod"], out["branch"])
-    else:
-        dyad = OutputDyad.rpr(complex(*out["pivot"]))
-    sb = SixBar(fb["a"], fb["b"], fb["c"], fb["d"], fb["branch"], *doc["coupler_point"], dyad)
+    sb = sixbar_from_json(doc)
     n = round(360 / STEP)
     psi, prev = [], None
     for k in range(n):
@@ -81,8 +76,10 @@ def test_rpr_request_candidates_resimulated_independently(capsys, atlas_path):
     assert cands, "the demo sweep must answer an RPR 45°/40° request"
     for rank, cand in enumerate(cands, start=1):
         assert cand["rank"] == rank
-        assert set(cand) >= {"rank", "id", "fourbar", "coupler_point", "output", "dwells", "swing_deg",
-                             "transmission_deg", "link_ratio", "segment_id"}
+        assert set(cand) >= {"rank", "id", "length_unit", "fourbar", "coupler_point_mm", "output", "dwells",
+                             "swing_deg", "transmission_deg", "link_ratio", "footprint_mm2", "segment_id"}
+        assert set(cand["fourbar"]) == {"a_mm", "b_mm", "c_mm", "d_mm", "branch"}
+        assert all(0 <= x < 360 for dw in cand["dwells"] for x in dw["interval_deg"])
         assert cand["output"]["type"] == "RPR"
         assert abs(cand["dwells"][0]["dwell_deg"] - 45) <= 2
         assert abs(cand["swing_deg"] - 40) <= 0.5
@@ -92,6 +89,31 @@ def test_rpr_request_candidates_resimulated_independently(capsys, atlas_path):
         # the sampled run is at most two steps shorter than the refined dwell, and the refined
         # ends are within 0.01° each of the true ones
         assert cand["dwells"][0]["dwell_deg"] - 2 * STEP <= ref["dwell_deg"] <= cand["dwells"][0]["dwell_deg"] + 0.02
+
+
+def test_json_keys_carry_units(capsys, atlas_path):
+    """Lengths carry the --units suffix and scale with --crank; the same six-bar comes back
+    from the document; every crank angle lies in [0°, 360°)."""
+    args = ("query", "--db", atlas_path, "--dwell", "45", "--swing", "40", "--output", "rpr", "--top", "3", "--json")
+    code, out, err = run(capsys, *args)
+    assert code == 0, err
+    unit_doc = json.loads(out)
+    code, out, err = run(capsys, *args, "--units", "in", "--crank", "2.5")
+    assert code == 0, err
+    doc = json.loads(out)
+    assert doc["request"]["length_unit"] == "in" and doc["request"]["crank_in"] == 2.5
+    assert doc["request"]["band_deg"] == 0.1 and "dwell_tolerance_deg" not in doc["request"]
+    for cand, one in zip(doc["candidates"], unit_doc["candidates"], strict=True):
+        assert cand["length_unit"] == "in" and cand["fourbar"]["a_in"] == 2.5
+        assert cand["coupler_point_in"] == pytest.approx([2.5 * x for x in one["coupler_point_mm"]], rel=1e-12)
+        assert cand["output"]["pivot_in"] == pytest.approx([2.5 * x for x in one["output"]["pivot_mm"]], rel=1e-12)
+        assert cand["footprint_in2"] == pytest.approx(6.25 * one["footprint_mm2"], rel=1e-9)
+        assert cand["buildability"]["clearance_in"] == pytest.approx(2.5 * one["buildability"]["clearance_mm"])
+        assert sixbar_from_json(cand) == sixbar_from_json(one).scaled(2.5)
+        for dw in cand["dwells"]:
+            lo, hi = dw["interval_deg"]
+            assert 0 <= lo < 360 and 0 <= hi < 360
+            assert (hi - lo) % 360 == pytest.approx(dw["dwell_deg"], abs=1e-9)
 
 
 @pytest.mark.parametrize("dwell, min_arm", [(50, "0.2"), (30, "0")])
@@ -105,7 +127,7 @@ def test_double_dwell_request(capsys, atlas_path, dwell, min_arm):
     assert cands, f"the demo atlas answers a {dwell}° double dwell"
     for cand in cands:
         assert len(cand["dwells"]) == 2
-        assert cand["buildability"]["arm"] >= float(min_arm)
+        assert cand["buildability"]["arm_mm"] >= float(min_arm)
         for dw in cand["dwells"]:
             assert abs(dw["dwell_deg"] - dwell) <= 5
         ref = _independent(cand, 0.1)
@@ -214,7 +236,7 @@ def test_report_rebuilds_the_queried_six_bar(capsys, atlas_path, tmp_path):
                          str(tmp_path / "r"), "--dwell", "45")
     assert code == 0, err
     rebuilt = json.loads((tmp_path / "r" / "candidates.json").read_text())["candidates"][0]
-    assert rebuilt["output"]["pivot"] == pytest.approx(queried[0]["output"]["pivot"], abs=1e-9)
+    assert rebuilt["output"]["pivot_mm"] == pytest.approx(queried[0]["output"]["pivot_mm"], abs=1e-9)
     assert rebuilt["dwells"][0]["dwell_deg"] == pytest.approx(queried[0]["dwells"][0]["dwell_deg"], abs=1e-9)
     assert rebuilt["swing_deg"] == pytest.approx(queried[0]["swing_deg"], abs=1e-9)
     code, out, err = run(capsys, "report", "--db", atlas_path, "--candidates", "12-rpr0@40", "--out", str(tmp_path / "x"))

@@ -26,6 +26,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from report.candidate_json import length_key
+
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="chromium not installed: browser test skipped")
 
@@ -62,7 +64,7 @@ def test_page_runs_without_errors_animates_and_follows_the_slider(report_dir, tm
     doc = json.loads((out / "candidates.json").read_text(encoding="utf-8"))
     first = doc["candidates"][0]
     start, end = first["dwells"][0]["interval_deg"]
-    in_dwell = round((start + end) / 2) % 360
+    in_dwell = round(start + (end - start) % 360 / 2) % 360
     away = (in_dwell + 180) % 360
     result, stderr = _selftest(tmp_path, out / "index.html", [in_dwell, away])
 
@@ -86,7 +88,7 @@ def test_page_runs_without_errors_animates_and_follows_the_slider(report_dir, tm
             if item["output"]["type"] == "RRR":
                 np.testing.assert_allclose(reading["output"], [cyc["Q_x"][k], -cyc["Q_y"][k]], rtol=1e-5, atol=1e-6)
             else:  # the slot points from D along ψ
-                D = item["output"]["pivot"]
+                D = item["output"][f"pivot_{length_key(item['length_unit'])}"]
                 psi = math.degrees(math.atan2(-reading["output"][1] - D[1], reading["output"][0] - D[0]))
                 assert abs((psi - cyc["psi_deg"][k] + 180) % 360 - 180) < 1e-3
             # the output link is coloured exactly while the output dwells

@@ -15,13 +15,13 @@ import numpy as np
 import pytest
 from report_cases import EVIL_ID, REQUEST
 
+from report.candidate_json import request_json, sixbar_from_json
 from report.cycle import CYCLE_COLUMNS
 from report.export import (
     CSV_COLUMNS,
     candidate_row,
     csv_header,
     safe_stem,
-    sixbar_from_json,
     write_report,
 )
 from synth.sixbar import simulate, sixbar_figures
@@ -126,24 +126,29 @@ def test_json_rebuilds_the_same_sixbars_and_reproduces_their_figures(report_dir,
     out, _ = report_dir
     doc = _strict_json(out / "candidates.json")
     req = doc["request"]
-    assert req == REQUEST.to_json()
+    assert req == request_json(REQUEST, "")  # write_report's default: an unnamed unit
+    assert req["length_unit"] == "" and req["crank_unit"] == REQUEST.crank
     assert [c["id"] for c in doc["candidates"]] == [c.id for c in candidates]
     for item, cand in zip(doc["candidates"], candidates):
         sb = sixbar_from_json(item)
         assert sb == cand.sixbar  # floats round-trip exactly through JSON
-        f = sixbar_figures(sb, band=math.radians(req["dwell_tolerance_deg"]),
+        f = sixbar_figures(sb, band=math.radians(req["band_deg"]),
                            dwell_length=math.radians(req["dwell_deg"]), dwells=req["dwells"])
         assert len(item["dwells"]) == len(f.dwells) >= 1
         for dj, dw, dev in zip(item["dwells"], f.dwells, f.deviations):
             assert dj["dwell_deg"] == pytest.approx(math.degrees(dw.angle), abs=1e-6)
-            assert dj["interval_deg"][0] == pytest.approx(math.degrees(dw.start), abs=1e-6)
-            assert dj["interval_deg"][1] == pytest.approx(math.degrees(dw.end), abs=1e-6)
+            assert all(0 <= x < 360 for x in dj["interval_deg"])
+            assert dj["interval_deg"][0] == pytest.approx(math.degrees(dw.start) % 360, abs=1e-6)
+            assert dj["interval_deg"][1] == pytest.approx(math.degrees(dw.end) % 360, abs=1e-6)
             assert dj["output_deviation_deg"] == pytest.approx(math.degrees(dev), abs=1e-6)
         assert item["swing_deg"] == pytest.approx(math.degrees(f.swing), abs=1e-6)
         assert item["transmission_deg"]["fourbar_min"] == pytest.approx(math.degrees(f.transmission_fourbar), abs=1e-6)
-        assert item["transmission_deg"]["output_min"] == pytest.approx(math.degrees(f.transmission_output), abs=1e-6)
+        if sb.dyad.kind == "RPR":  # a slot transmits at 90° by construction: no figure
+            assert item["transmission_deg"]["output_min"] is None
+        else:
+            assert item["transmission_deg"]["output_min"] == pytest.approx(math.degrees(f.transmission_output), abs=1e-6)
         assert item["link_ratio"] == pytest.approx(f.link_ratio, rel=1e-9)
-        assert item["footprint"] == pytest.approx(f.footprint, rel=1e-6)  # user units: crank² = 625
+        assert item["footprint_unit2"] == pytest.approx(f.footprint, rel=1e-6)  # user units: crank² = 625
 
 
 def test_json_cycle_is_the_exact_motion_at_one_degree_steps(report_dir, candidates):
@@ -174,7 +179,7 @@ def test_json_cycle_is_the_exact_motion_at_one_degree_steps(report_dir, candidat
         # the dwelling flags mark the reported interval, and ψ holds still there
         (dwell,) = item["dwells"]
         start, end = dwell["interval_deg"]
-        inside = (np.arange(360) - start) % 360 <= end - start
+        inside = (np.arange(360) - start) % 360 <= (end - start) % 360
         assert cyc["dwelling"] == inside.tolist()
         psi = np.array(cyc["psi_deg"])[inside]
         assert psi.max() - psi.min() <= REQUEST.band / DEG + 1e-9
