@@ -30,7 +30,8 @@ TOP = 3
 @click.command("demo")
 @click.option("--out", "out_dir", default="dwell-out", show_default=True, type=click.Path(file_okay=False),
               help="Folder for the reports (one sub-folder per request).")
-@click.option("--db", "target", default=None, help="Atlas to build or reuse [default: OUT/demo-atlas.sqlite].")
+@click.option("--db", "target", default=None, help="Atlas to build or reuse [default: OUT/demo-atlas.sqlite]. $DWELL_ATLAS is not read here: the "
+                   "demo builds its own small atlas and must not write into yours.")
 @click.option("--workers", type=click.IntRange(1, 256), default=None, help="Build processes [default: all CPUs].")
 def demo(out_dir: str, target: str | None, workers: int | None) -> None:
     """Build the demo atlas, answer an RRR, an RPR and a double-dwell request, write reports."""
