@@ -55,7 +55,8 @@ def request_from_options(dwell: float, dwell_tol: float | None = None, swing: fl
                          dwell_tolerance: float | None = None, crank: float | None = None,
                          min_transmission: float | None = None, max_link_ratio: float | None = None,
                          top: int | None = None, *, min_arm: float | None = None, min_clearance: float | None = None,
-                         rpm: float | None = None, max_accel: float | None = None) -> Request:
+                         rpm: float | None = None, max_accel: float | None = None,
+                         step: float | None = None) -> Request:
     """A :class:`Request` from the command's units (degrees); None takes the field's default.
     A bad value is the user's error (one line naming the option)."""
     # the deviation window must hold at least two samples of the simulation's crank grid
@@ -68,6 +69,8 @@ def request_from_options(dwell: float, dwell_tol: float | None = None, swing: fl
              "min_arm": min_arm, "min_clearance": min_clearance, "rpm": rpm}
     if max_accel is not None:
         given["max_accel"] = max_accel
+    if step is not None:
+        given["step"] = math.radians(step)
     try:
         return Request(**{k: v for k, v in given.items() if v is not None})
     except ValueError as exc:
@@ -122,7 +125,7 @@ def table(result: QueryResult, units: str = "") -> str:
 
 #: How a no-match names each constraint (synth.query.CONSTRAINTS).
 _CONSTRAINT_NAMES = {"assembly": "assembly (toggles, revolves or misses a dwell)", "dwell": "dwell angle",
-                     "swing": "swing", "transmission": "transmission angle", "link_ratio": "link ratio",
+                     "swing": "swing", "step": "step between the rests (--step)", "transmission": "transmission angle", "link_ratio": "link ratio",
                      "arm": "slider's torque arm (--min-arm)", "clearance": "clearance to the fixed pivots",
                      "acceleration": "output acceleration"}
 
@@ -131,7 +134,7 @@ def _options_changed(before: Request, after: Request) -> str:
     """The ``dwell query`` options that turn ``before`` into ``after``."""
     out = []
     for name, option, deg in (("dwell", "--dwell", True), ("dwell_tol", "--dwell-tol", True),
-                              ("swing", "--swing", True), ("swing_tol", "--swing-tol", True),
+                              ("swing", "--swing", True), ("swing_tol", "--swing-tol", True), ("step", "--step", True),
                               ("min_transmission", "--min-transmission", True),
                               ("max_link_ratio", "--max-link-ratio", False), ("min_arm", "--min-arm", False),
                               ("min_clearance", "--min-clearance", False), ("max_accel", "--max-accel", False)):
@@ -205,6 +208,7 @@ DWELL_DEG = Bounded(0.0, 360.0, "a dwell in degrees", low_open=True, high_open=T
 DWELL_TOL_DEG = Bounded(0.0, 360.0, "a dwell error in degrees", high_open=True)
 SWING_DEG = Bounded(0.01, 180.0, "a swing in degrees", high_open=True)
 SWING_TOL_DEG = Bounded(0.0, 180.0, "a swing error in degrees", high_open=True)
+STEP_DEG = Bounded(0.01, 180.0, "a turn between two rests in degrees", high_open=True)
 BAND_DEG = Bounded(1e-4, 180.0, "an output band in degrees", high_open=True)
 #: Transmission angles the RRR fit accepts (degrees): from 0.001° (5e-324° became 0 rad, which
 #: the fit refuses; found by tests/cli/test_option_ranges.py) to below 90°.
@@ -222,6 +226,8 @@ TOP = Count(1, 1000, "candidates")
 @click.option("--dwell-tol", type=DWELL_TOL_DEG, default=default_deg("dwell_tol"), show_default=True,
               help="Allowed dwell-angle error (°).")
 @click.option("--swing", type=SWING_DEG, default=None, help="Output swing (°); required for one dwell.")
+@click.option("--step", type=STEP_DEG, default=None,
+              help="Two dwells: the output's turn (°) between its two rests, ±--swing-tol.")
 @click.option("--swing-tol", type=SWING_TOL_DEG, default=default_deg("swing_tol"), show_default=True,
               help="Allowed swing error (°).")
 @click.option("--output", type=click.Choice(OUTPUTS, case_sensitive=False), default=_DEFAULTS["output"],
@@ -248,12 +254,12 @@ TOP = Count(1, 1000, "candidates")
 @click.option("--report", "report_dir", type=click.Path(file_okay=False), default=None,
               help="Also write the report of the candidates to this folder.")
 @units_option
-def query(target, dwell, dwell_tol, swing, swing_tol, output, dwells, dwell_tolerance, crank, min_transmission,
+def query(target, dwell, dwell_tol, swing, step, swing_tol, output, dwells, dwell_tolerance, crank, min_transmission,
           max_link_ratio, top, min_arm, min_clearance, rpm, max_accel, as_json, report_dir, units):
     """Ranked six-bars for a requested dwell and swing (see README: ranking)."""
     request = request_from_options(dwell, dwell_tol, swing, swing_tol, output.lower(), dwells, dwell_tolerance, crank,
                                    min_transmission, max_link_ratio, top, min_arm=min_arm, min_clearance=min_clearance,
-                                   rpm=rpm, max_accel=max_accel)
+                                   rpm=rpm, max_accel=max_accel, step=step)
     if report_dir is not None:
         _check_report_dir(Path(report_dir))
     from db.engine import open_atlas

@@ -40,6 +40,7 @@ def request_json(request: Request, units: str = "mm") -> dict:
         "dwell_deg": _typed_degrees(request.dwell),
         "dwell_tol_deg": _typed_degrees(request.dwell_tol),
         "swing_deg": None if request.swing is None else _typed_degrees(request.swing),
+        "step_deg": None if request.step is None else _typed_degrees(request.step),
         "swing_tol_deg": _typed_degrees(request.swing_tol),
         "output": request.output,
         "dwells": request.dwells,
@@ -86,6 +87,7 @@ def candidate_json(c: Candidate, rpm: float = 60.0, units: str = "mm") -> dict:
         "output": output,
         "dwells": dwells,
         "swing_deg": math.degrees(f.swing),
+        "step_deg": None if f.step is None else math.degrees(f.step),
         # a slotted rocker's transmission angle is 90° by construction: no figure (null)
         "transmission_deg": {"fourbar_min": math.degrees(f.transmission_fourbar),
                              "output_min": None if dyad.kind == "RPR" else math.degrees(f.transmission_output)},

@@ -53,6 +53,8 @@ class Request:
     min_clearance: float = 0.1
     rpm: float = 60.0
     max_accel: float | None = None
+    #: Two dwells: the output's turn between its two rests (rad, None: any), ±``swing_tol``.
+    step: float | None = None
 
     def __post_init__(self) -> None:
         bad = ValueError
@@ -89,6 +91,9 @@ class Request:
                 raise bad(f"{name} must be a length in cranks >= 0, got {value:g}")
         if not (math.isfinite(self.rpm) and self.rpm > 0):
             raise bad(f"--rpm must be > 0, got {self.rpm:g}")
+        if self.step is not None and not (math.isfinite(self.step) and 0 < self.step < math.pi and self.dwells == 2):
+            raise bad("--step (the turn between two rests) must be between 0 and 180 degrees (exclusive) and "
+                      "needs --dwells 2")
         if self.max_accel is not None and not (math.isfinite(self.max_accel) and self.max_accel > 0):
             raise bad(f"--max-accel must be > 0 rad/s^2, got {self.max_accel:g}")
 

@@ -52,7 +52,7 @@ PER_LEVEL = 10
 #: Output link lengths (crank lengths) tried in the band conversion of ``_select``.
 REACHES = (2.0, 5.0, 12.0)
 #: The request's constraints, in the order a no-match names them (see :func:`violations`).
-CONSTRAINTS = ("assembly", "dwell", "swing", "transmission", "link_ratio", "arm", "clearance", "acceleration")
+CONSTRAINTS = ("assembly", "dwell", "swing", "step", "transmission", "link_ratio", "arm", "clearance", "acceleration")
 
 
 # --------------------------------------------------------------------------------------------
@@ -288,6 +288,8 @@ def violations(request: Request, f: SixBarFigures) -> dict[str, float]:
                        for d in f.dwells[: request.dwells])
     if request.swing is not None:
         out["swing"] = max(0.0, math.degrees(abs(f.swing - request.swing) - request.swing_tol))
+    if request.step is not None:
+        out["step"] = max(0.0, math.degrees(abs(f.step - request.step) - request.swing_tol))
     out["transmission"] = max(0.0, math.degrees(request.min_transmission
                                                 - min(f.transmission_fourbar, f.transmission_output)))
     out["link_ratio"] = max(0.0, 100.0 * (f.link_ratio / request.max_link_ratio - 1.0))
@@ -308,6 +310,8 @@ def meets(request: Request, f: SixBarFigures) -> bool:
     if any(abs(d.angle - request.dwell) > request.dwell_tol for d in f.dwells[: request.dwells]):
         return False
     if request.swing is not None and abs(f.swing - request.swing) > request.swing_tol:
+        return False
+    if request.step is not None and abs(f.step - request.step) > request.swing_tol:
         return False
     if min(f.transmission_fourbar, f.transmission_output) < request.min_transmission:
         return False
@@ -370,6 +374,9 @@ def _loosened(request: Request, f: SixBarFigures) -> Request:
         change["dwell_tol"] = max(request.dwell_tol, math.radians(math.ceil(math.degrees(spread) * 100) / 100))
     if excess["swing"] > 0:
         change["swing"] = math.radians(round(math.degrees(f.swing), 2))
+        change["swing_tol"] = max(request.swing_tol, math.radians(0.01))
+    if excess["step"] > 0:
+        change["step"] = math.radians(round(math.degrees(f.step), 2))
         change["swing_tol"] = max(request.swing_tol, math.radians(0.01))
     if excess["transmission"] > 0:
         mu = min(f.transmission_fourbar, f.transmission_output)

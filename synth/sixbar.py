@@ -640,11 +640,14 @@ def _refined_extreme(psi, dpsi, psi_at, phi0, h, sign):
 
 class Dwell(NamedTuple):
     """One dwell: crank interval [start, end] (rad, start in [φ₀, φ₀ + 2π), end = start +
-    angle, so it may pass 2π) and its length ``angle`` (rad)."""
+    angle, so it may pass 2π), its length ``angle`` (rad) and the output's ``rest`` angle, the
+    middle of its band (rad, on the unwrapped ψ of the turn: two rests of one six-bar differ
+    by the step between them)."""
 
     start: float
     end: float
     angle: float
+    rest: float = 0.0
 
     def ends_deg(self) -> tuple[float, float]:
         """(start, end) in degrees, each in [0°, 360°): the interval as a user reads it. It runs
@@ -694,8 +697,9 @@ class DwellIntervals:
         out = []
         for j in range(self.start.shape[-1]):
             if self.found[index + (j,)]:
-                out.append(Dwell(float(self.start[index + (j,)]), float(self.end[index + (j,)]),
-                                 float(self.angle[index + (j,)])))
+                k = index + (j,)
+                out.append(Dwell(float(self.start[k]), float(self.end[k]), float(self.angle[k]),
+                                 0.5 * float(self.low[k] + self.high[k])))
         return out
 
 
@@ -1340,6 +1344,13 @@ class SixBarFigures:
     @property
     def revolving(self) -> bool:
         return self.turns != 0
+
+    @property
+    def step(self) -> float | None:
+        """The output's turn between its two rests (rad, ≥ 0), or None with fewer than two dwells."""
+        if len(self.dwells) < 2:
+            return None
+        return abs(self.dwells[1].rest - self.dwells[0].rest)
 
     @property
     def assembled(self) -> bool:

@@ -12,12 +12,14 @@ import math
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from atlas.build import build_atlas
 from atlas.sweep import PRESETS
 from cli.main import main
 from report.candidate_json import sixbar_from_json
+from synth.sixbar import simulate
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "synth"))
 from test_sixbar import reference_psi
@@ -132,6 +134,33 @@ def test_double_dwell_request(capsys, atlas_path, dwell, min_arm):
             assert abs(dw["dwell_deg"] - dwell) <= 5
         ref = _independent(cand, 0.1)
         assert ref["swing_deg"] == pytest.approx(cand["swing_deg"], abs=0.01)
+
+
+def test_double_dwell_step_between_the_rests(capsys, atlas_path):
+    """--step asks for the output's turn between its two rests: every answer has it within
+    --swing-tol, checked on an independent simulation (ψ at the middle of each dwell)."""
+    base = ("query", "--db", atlas_path, "--dwell", "50", "--dwell-tol", "5", "--dwells", "2", "--json")
+    code, out, err = run(capsys, *base)
+    assert code == 0, err
+    steps = [c["step_deg"] for c in json.loads(out)["candidates"]]
+    assert steps and all(s is not None and s > 0 for s in steps)
+    code, out, err = run(capsys, *base, "--step", f"{steps[0]:.3f}", "--swing-tol", "0.5")
+    assert code == 0, err
+    cands = json.loads(out)["candidates"]
+    assert cands and json.loads(out)["request"]["step_deg"] == float(f"{steps[0]:.3f}")
+    for cand in cands:
+        assert abs(cand["step_deg"] - steps[0]) <= 0.5 + 1e-3
+        sb = sixbar_from_json(cand)
+        rests = []
+        for dw in cand["dwells"]:
+            lo, hi = dw["interval_deg"]
+            mid = math.radians(lo + ((hi - lo) % 360) / 2)
+            rests.append(float(simulate(sb, np.array([mid]), order=0).psi[0]))
+        turn = abs((rests[1] - rests[0] + math.pi) % (2 * math.pi) - math.pi)
+        # ψ mid-dwell is within half the band (0.1°) of the rest
+        assert math.degrees(turn) == pytest.approx(cand["step_deg"], abs=0.1 + 1e-6)
+    code, out, err = run(capsys, "query", "--db", atlas_path, "--dwell", "50", "--swing", "30", "--step", "20")
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1 and "--dwells 2" in err
 
 
 def test_table_output_and_no_match(capsys, atlas_path):
