@@ -12,11 +12,11 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from sqlalchemy import Engine, case, func, select
+from sqlalchemy import Engine, bindparam, case, func, select, text
 
 from db.digest import content_digest
 from db.engine import display_target
-from db.schema import Build, Dwell, Linkage, Segment, Shard
+from db.schema import Base, Build, Dwell, Linkage, Segment, Shard
 
 __all__ = [
     "BIN_DEG", "KINDS", "AtlasSummary", "Verification", "atlas_summary", "format_summary", "quick_check",
@@ -43,12 +43,22 @@ class AtlasSummary:
     build: dict[str, Any] | None
     builds: int
     content_digest: str
+    #: bytes the atlas takes in its database (SQLite: the file's pages; PostgreSQL: the tables
+    #: with their indexes and TOAST); None where the dialect does not say
+    storage_bytes: int | None = None
+
+    @property
+    def bytes_per_linkage(self) -> float | None:
+        if self.storage_bytes is None or not self.linkages:
+            return None
+        return self.storage_bytes / self.linkages
 
     def to_dict(self) -> dict[str, Any]:
         """The ``--json`` document: ``linkages``, ``segments`` (kind → count), ``dwells``,
         ``dwell_histogram`` ({bin_deg, edges_deg, kinds: kind → per level}), ``skipped``
         (reason → count), ``build`` (spec, status, versions, shards_done, n_shards, …; null
-        when the atlas has no build), ``builds`` and ``content_digest``."""
+        when the atlas has no build), ``builds``, ``content_digest``, ``storage_bytes`` and
+        ``bytes_per_linkage`` (null where the database does not say)."""
         return {
             "linkages": self.linkages,
             "segments": dict(self.segments),
@@ -62,6 +72,8 @@ class AtlasSummary:
             "build": self.build,
             "builds": self.builds,
             "content_digest": self.content_digest,
+            "storage_bytes": self.storage_bytes,
+            "bytes_per_linkage": None if self.bytes_per_linkage is None else round(self.bytes_per_linkage, 1),
         }
 
 
@@ -177,7 +189,26 @@ def atlas_summary(engine: Engine) -> AtlasSummary:
         build=build,
         builds=len(builds),
         content_digest=stored or content_digest(engine),
+        storage_bytes=storage_bytes(engine),
     )
+
+
+def storage_bytes(engine: Engine) -> int | None:
+    """Bytes the atlas takes: SQLite's pages (page_count × page_size, the file without a
+    ``-wal``), PostgreSQL's tables with their indexes (``pg_total_relation_size``); None for
+    another dialect."""
+    with engine.connect() as conn:
+        if engine.dialect.name == "sqlite":
+            pages = conn.exec_driver_sql("PRAGMA page_count").scalar_one()
+            return int(pages) * int(conn.exec_driver_sql("PRAGMA page_size").scalar_one())
+        if engine.dialect.name == "postgresql":
+            tables = [t.name for t in Base.metadata.sorted_tables]
+            sizes = conn.execute(text(
+                "SELECT sum(pg_total_relation_size(c.oid)) FROM pg_class c JOIN pg_namespace n ON n.oid = c.relnamespace "
+                "WHERE n.nspname = current_schema() AND c.relkind = 'r' AND c.relname IN :names"
+            ).bindparams(bindparam("names", expanding=True)), {"names": tables}).scalar_one()
+            return None if sizes is None else int(sizes)
+    return None
 
 
 def format_summary(summary: AtlasSummary, target: str) -> str:
@@ -204,6 +235,9 @@ def format_summary(summary: AtlasSummary, target: str) -> str:
     if summary.builds > 1:
         lines.append(f"note: {summary.builds} builds in this atlas; the last one is shown, counts cover all")
     lines.append(f"linkages: {summary.linkages}")
+    if summary.storage_bytes is not None:
+        per = "" if summary.bytes_per_linkage is None else f" ({summary.bytes_per_linkage / 1024:.1f} KiB per linkage)"
+        lines.append(f"storage: {summary.storage_bytes / 2**20:.1f} MiB{per}")
     lines.append("segments: " + ", ".join(f"{k} {n}" for k, n in summary.segments.items()))
     lines.append("dwells: " + ", ".join(f"{k} {n}" for k, n in summary.dwells.items()))
     lines.append(f"dwell angles (dwell intervals per {BIN_DEG:g}° bin, by tolerance):")

@@ -176,11 +176,15 @@ def test_info_json_is_consistent_with_the_database(reference, capsys):
                                                                                             SCHEMA_VERSION)
     assert build["code_version"] and doc["builds"] == 1
     assert doc["content_digest"] == digest and re.fullmatch(r"[0-9a-f]{64}", digest)
+    # storage: the file's pages (no -wal beside a complete atlas), per linkage
+    assert doc["storage_bytes"] == db.stat().st_size
+    assert doc["bytes_per_linkage"] == round(db.stat().st_size / doc["linkages"], 1)
 
     rc, out, err = dwell(capsys, "info", "--db", str(db))
     assert rc == 0 and err == ""
     assert f"linkages: {doc['linkages']}\n" in out and f"content digest: {digest}" in out
     assert f"build 1: complete, {N_SHARDS}/{N_SHARDS} shards" in out
+    assert f"storage: {db.stat().st_size / 2**20:.1f} MiB ({db.stat().st_size / doc['linkages'] / 1024:.1f} KiB per linkage)" in out
 
 
 def test_another_sweep_is_refused_then_replaced(tmp_path, capsys):

@@ -137,4 +137,7 @@ def info(capsys, target: str) -> dict:
     """``dwell atlas info --json`` of ``target`` (it must succeed)."""
     rc, out, err = run(capsys, "atlas", "info", "--db", target, "--json")
     assert rc == 0, err
-    return json.loads(out)
+    doc = json.loads(out)
+    # SQLite and PostgreSQL both say how many bytes the atlas takes
+    assert isinstance(doc["storage_bytes"], int) and doc["storage_bytes"] > 0, doc["storage_bytes"]
+    return doc
