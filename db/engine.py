@@ -47,7 +47,6 @@ A refusal changes and creates nothing: the file is only read, by our own code, f
 from __future__ import annotations
 
 import json
-import math
 import os
 import re
 from pathlib import Path
@@ -676,14 +675,13 @@ def _table_mismatch(inspector: Any, table: Table) -> str | None:
 
 def _check_json(conn: Connection, target: str) -> None:
     """The JSON columns (a few rows: builds and shards) parse as what the code reads."""
+    from db.spec import SpecError, stored_spec
+
     for build_id, text in conn.execute(select(Build.id, Build.spec_json)):
         try:
-            spec = json.loads(text)
-            ok = isinstance(spec, dict) and all(math.isfinite(float(t)) for t in spec.get("tolerances", []))
-        except (ValueError, TypeError):
-            ok = False
-        if not ok:
-            raise damaged(target, f"the sweep spec of build {build_id} (build.spec_json) is not readable")
+            stored_spec(text)
+        except SpecError:
+            raise damaged(target, f"the sweep spec of build {build_id} (build.spec_json) is not readable") from None
     for build_id, index, text in conn.execute(select(Shard.build_id, Shard.shard_index, Shard.skipped_json)):
         try:
             skipped = json.loads(text)

@@ -8,14 +8,14 @@ read of the chosen segments and their dwell rows. Units as stored: crank lengths
 
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
 
 from sqlalchemy import Engine, and_, bindparam, func, or_, select
 from sqlalchemy.orm import Session
 
 from db.engine import atlas_name, damaged
-from db.schema import Build, Dwell, Linkage, Segment
+from db.schema import Dwell, Linkage, Segment
+from db.spec import last_spec, tolerances
 from synth.query import DwellWindow, SegmentRow
 
 __all__ = ["AtlasSource", "DwellWindow", "SegmentRow", "nearest_dwell_angles", "select_segments", "tolerance_levels"]
@@ -133,9 +133,8 @@ def nearest_dwell_angles(engine: Engine, kinds: tuple[str, ...], target: float) 
 def tolerance_levels(engine: Engine) -> list[tuple[int, float]]:
     """The atlas's (level, tolerance) pairs, in level order, from its build's sweep spec (the
     dwell table itself is too large to scan for them)."""
-    with Session(engine) as s:
-        spec = s.execute(select(Build.spec_json).order_by(Build.id.desc()).limit(1)).scalar()
-    return [] if spec is None else list(enumerate(float(t) for t in json.loads(spec)["tolerances"]))
+    spec = last_spec(engine)
+    return [] if spec is None else list(enumerate(tolerances(spec)))
 
 
 def segment_row(engine: Engine, segment_id: int, level: int) -> SegmentRow | None:

@@ -17,6 +17,7 @@ from sqlalchemy import Engine, bindparam, case, func, select, text
 from db.digest import content_digest
 from db.engine import display_target
 from db.schema import Base, Build, Dwell, Linkage, Segment, Shard
+from db.spec import stored_spec, tolerances
 
 __all__ = [
     "BIN_DEG", "KINDS", "AtlasSummary", "Verification", "atlas_summary", "format_summary", "quick_check",
@@ -136,11 +137,11 @@ def atlas_summary(engine: Engine) -> AtlasSummary:
         }
 
     build = None
-    tolerances: list[float] = []
+    levels_tol: list[float] = []
     if builds:
         row = builds[-1]
-        spec = json.loads(row.spec_json)
-        tolerances = [float(t) for t in spec.get("tolerances", [])]
+        spec = stored_spec(row.spec_json)
+        levels_tol = tolerances(spec)
         done, seconds = shard_stats.get(row.id, (0, 0.0))
         build = {
             "id": row.id,
@@ -161,14 +162,14 @@ def atlas_summary(engine: Engine) -> AtlasSummary:
         }
 
     found = _histogram_rows(engine)
-    levels = sorted(set(range(len(tolerances))) | {lvl for _, lvl in found})
+    levels = sorted(set(range(len(levels_tol))) | {lvl for _, lvl in found})
     histogram: dict[str, list[dict[str, Any]]] = {}
     for kind in KINDS:
         per_level = []
         for lvl in levels:
             tol, counts, top = found.get((kind, lvl), (None, [0] * _N_BINS, None))
-            if tol is None and lvl < len(tolerances):
-                tol = tolerances[lvl]
+            if tol is None and lvl < len(levels_tol):
+                tol = levels_tol[lvl]
             per_level.append({
                 "level": lvl,
                 "tolerance": tol,

@@ -44,6 +44,7 @@ from sqlalchemy import Connection, Engine, Table, delete, func, insert, select, 
 from sqlalchemy.exc import IntegrityError
 
 from db.engine import AtlasError, atlas_name, damaged, display_target, start_writing
+from db.spec import spec_name
 from db.schema import SCHEMA_VERSION, Build, Dwell, Linkage, Segment, Shard
 
 __all__ = [
@@ -174,11 +175,7 @@ def _describe_holder(target: str, row: Any, now: float) -> str:
 
 
 def _describe_spec(spec_json: str, spec_digest: str) -> str:
-    try:
-        name = json.loads(spec_json).get("name", "?")
-    except (ValueError, AttributeError):
-        name = "?"
-    return f"preset {name}, digest {spec_digest[:8]}…"
+    return f"preset {spec_name(spec_json)}, digest {spec_digest[:8]}…"
 
 
 def _take_lock(conn: Connection, row: Any, lock: BuildLock, target: str) -> None:

@@ -130,7 +130,8 @@ def linkage_toml(candidate: Candidate, units: str = "") -> str:
         f"# Candidate {candidate.id!r} (rank {candidate.rank}), written by dwell report.",
         f"# swing {math.degrees(f.swing):.6f} deg; dwell(s) {dwells};",
         f"# min transmission: four-bar {math.degrees(f.transmission_fourbar):.3f} deg, "
-        f"output {math.degrees(f.transmission_output):.3f} deg.",
+        + ("output: a slot (90 deg by construction)." if candidate.sixbar.dyad.kind == "RPR"
+           else f"output {math.degrees(f.transmission_output):.3f} deg."),
         "# Reproduce with: dwell analyze linkage THIS_FILE --configuration "
         f"{config} --from 0 --to 360 --step 1",
         "",

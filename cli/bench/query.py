@@ -82,15 +82,12 @@ def _request(r: BenchRequest, top: int):
 
 
 def _atlas_facts(engine) -> dict:
-    from sqlalchemy import select
-
-    from db.schema import Build
+    from db.spec import last_spec
     from db.summary import row_counts
 
     linkages, segments, dwells = row_counts(engine)
-    with engine.connect() as conn:
-        spec = conn.execute(select(Build.spec_json).order_by(Build.id.desc()).limit(1)).scalar()
-    preset = json.loads(spec).get("name") if spec else None
+    spec = last_spec(engine)
+    preset = spec.get("name") if spec else None
     return {"preset": preset, "linkages": linkages, "segments": segments, "dwells": dwells}
 
 
