@@ -99,7 +99,8 @@ def test_format_value_rules():
 
 def _facts(target: str, *, recompute: bool = True) -> tuple[str | None, str | None, dict]:
     """(digest computed now — None without ``recompute`` —, digest stored by the build,
-    ``info`` document without what differs between two builds: timestamps, compute time, ids)."""
+    ``info`` document without what differs between two builds: timestamps, compute time, ids,
+    bytes on disk)."""
     engine = open_atlas(target, readonly=True)
     try:
         with engine.connect() as conn:
@@ -107,6 +108,8 @@ def _facts(target: str, *, recompute: bool = True) -> tuple[str | None, str | No
         doc = atlas_summary(engine).to_dict()
         for key in ("created_at", "finished_at", "compute_seconds", "id"):
             doc["build"].pop(key)
+        # bytes on disk are the engine's own (pages, indexes), not content
+        assert doc.pop("storage_bytes") > 0 and doc.pop("bytes_per_linkage") > 0
         return content_digest(engine) if recompute else None, stored, doc
     finally:
         engine.dispose()
