@@ -88,8 +88,8 @@ class DeviationProfile:
 
 
 def _path(b, c, d, branch, uv, phi) -> C128:
-    motion = fourbar_motion(1.0, b, c, d, phi, branch, order=0)
-    return motion.A + motion.e_theta * uv
+    uv = np.asarray(uv, complex)
+    return fourbar_motion(1.0, b, c, d, phi, branch, order=0).coupler_point(uv.real, uv.imag)[0]
 
 
 def _start_geometry(z: C128, kind: int):

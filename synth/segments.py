@@ -44,7 +44,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from kinematics.fourbar import fourbar_motion, transmission_angle
+from kinematics.fourbar import fourbar_motion
+from kinematics.loop import line_intersection, parabola_vertex, transmission_fold
 from kinematics.status import Status
 from synth.ball import ball_point
 from synth.double_ball import double_ball_points
@@ -533,10 +534,9 @@ def _peak(absdev: F64, mask: NDArray[np.bool_]) -> F64:
     mid = d[:, 1:-1]
     row, col = np.nonzero((mid >= d[:, :-2]) & (mid >= d[:, 2:]) & mask[:, :-2] & mask[:, 2:])
     # few peaks per row: the parabola only where there is one
-    left, top, right = d[row, col], d[row, col + 1], d[row, col + 2]
-    curv = 2 * top - left - right
-    vertex = np.where(curv > 0, top + (right - left) ** 2 / (8 * np.where(curv > 0, curv, 1.0)), top)
-    np.maximum.at(h, row, vertex)
+    top = d[row, col + 1]
+    vertex = parabola_vertex(d[row, col], top, d[row, col + 2])
+    np.maximum.at(h, row, top + np.where(vertex.curvature < 0, vertex.rise, 0.0))
     return h
 
 
@@ -617,7 +617,7 @@ def _bisect_ends(b, c, d, br, cand: _Candidates, rows: I64, phi_in: F64, phi_out
     for _ in range(steps):
         mid = 0.5 * (lo + hi)
         motion = fourbar_motion(1.0, b[link], c[link], d[link], mid, br[link], order=0)
-        z = motion.A + motion.e_theta * uv
+        z = motion.coupler_point(uv.real, uv.imag)[0]
         inside = np.abs(path_deviation(z, kind, point, direction, radius)) <= band
         lo = np.where(inside, mid, lo)
         hi = np.where(inside, hi, mid)
@@ -650,8 +650,7 @@ def find_segments(b: F64, c: F64, d: F64, branch: I64, search: SegmentSearch) ->
     phi_f = np.arange(mf) * fine_step
     motion = fourbar_motion(1.0, b[:, None], c[:, None], d[:, None], phi_f, br[:, None], order=0)
     A, E = np.broadcast_to(motion.A, motion.shape), motion.e_theta
-    mu = transmission_angle(motion)
-    mu = np.minimum(mu, np.pi - mu)
+    mu = transmission_fold(motion.e_theta * np.conj(motion.e_gamma))
 
     m = _Measured.empty(n_cand, levels)
     top = levels - 1
@@ -858,11 +857,9 @@ def _assemble(A, E, cand, keep, search, start, end, dwell, gp, gd, gr, mu, skipp
     a_dbl = is_double
     p1, p2 = cand.point[two[:, 0]], cand.point[two[:, 1]]
     t1, t2 = cand.direction[two[:, 0]], cand.direction[two[:, 1]]
-    cross = np.imag(np.conj(t1) * t2)
-    parallel = a_dbl & (np.abs(cross) < 1e-6)
-    safe = np.where(np.abs(cross) < 1e-6, 1.0, cross)
-    tpar = np.where(parallel, 0.0, np.imag(np.conj(p2 - p1) * t2) / safe)
-    inter = np.where(a_dbl & ~parallel, p1 + tpar * t1, 0.0)
+    hit = line_intersection(p1, t1, p2, t2)
+    parallel = a_dbl & hit.parallel
+    inter = np.where(a_dbl & ~parallel, p1 + hit.t1 * t1, 0.0)
     far = a_dbl & (parallel | (np.abs(inter) > 1e6))
     if np.any(far):
         skipped["double Ball point dropped: its lines are parallel"] += int(np.count_nonzero(far))

@@ -70,7 +70,7 @@ def _independent_dwell(b, c, d, br, found, i, level, part) -> float:
 
     def outside(phi):
         m = fourbar_motion(1.0, b[k], c[k], d[k], np.atleast_1d(phi), br[k], order=0)
-        return np.abs(path_deviation(m.A + m.e_theta * uv, kind, *geometry)) > eps
+        return np.abs(path_deviation(m.coupler_point(uv.real, uv.imag)[0], kind, *geometry)) > eps
 
     mid = 0.5 * (found.phi_start[i, level, part] + found.phi_end[i, level, part])
     ends = []
