@@ -58,8 +58,14 @@ PARALLEL_EPS = 1e-9
 _NA = np.uint8(Status.NOT_ASSEMBLABLE)
 
 
+def _real(x: ArrayLike) -> np.ndarray:
+    """A floating array, keeping an extended precision (longdouble) as given."""
+    x = np.asarray(x)
+    return x if x.dtype.kind == "f" else x.astype(float)
+
+
 def _phasor(x: F64, y: F64) -> C128:
-    out = np.empty(np.broadcast(x, y).shape, np.complex128)
+    out = np.empty(np.broadcast(x, y).shape, np.result_type(x, y, np.complex64))  # complex128 or clongdouble
     out.real, out.imag = x, y
     return out
 
@@ -196,8 +202,9 @@ def circle_intersection(R: ArrayLike, l1: ArrayLike, l2: ArrayLike, branch: Arra
 
 def circle_intersection_xy(rx: ArrayLike, ry: ArrayLike, l1: ArrayLike, l2: ArrayLike, branch: ArrayLike, *,
                            rates: bool = True) -> CircleIntersection:
-    """:func:`circle_intersection` with R given as its real and imaginary parts (float64)."""
-    rx, ry, l1, l2, branch = (np.asarray(x, dtype=float) for x in (rx, ry, l1, l2, branch))
+    """:func:`circle_intersection` with R given as its real and imaginary parts (float64, or
+    longdouble for a reference computation: the precision of the inputs is kept)."""
+    rx, ry, l1, l2, branch = (_real(x) for x in (rx, ry, l1, l2, branch))
     r2 = rx * rx + ry * ry
     r = np.sqrt(r2)
     d21, s12 = l2 - l1, l1 + l2  # r + (l1 − l2) is r − (l2 − l1) exactly
