@@ -49,18 +49,16 @@ from kinematics.loop import line_intersection, parabola_vertex, transmission_fol
 from kinematics.status import Status
 from synth.ball import ball_point
 from synth.double_ball import double_ball_points
+from synth.kinds import SEGMENT_KINDS, SegmentKind
 from synth.line_scan import line_scan
 from synth.pole import pole
 
-__all__ = ["END_TOLERANCE", "KINDS", "FoundSegments", "SegmentSearch", "find_segments", "path_deviation"]
+__all__ = ["END_TOLERANCE", "FoundSegments", "SegmentSearch", "find_segments", "path_deviation"]
 
 F64 = NDArray[np.float64]
 C128 = NDArray[np.complex128]
 I64 = NDArray[np.int64]
 
-#: Segment kinds, in their canonical order.
-KINDS = ("line", "arc", "double_line")
-_LINE, _ARC = 0, 1
 #: Interval ends are bisected on the exact path until their bracket is below this (rad): 0.001°.
 END_TOLERANCE = math.radians(1e-3)
 #: Path samples a minimum-zone fit uses, spread evenly over its interval (ends included).
@@ -118,7 +116,7 @@ class SegmentSearch:
 class FoundSegments:
     """Measured segments of a batch of linkages, struct of arrays (one row per segment).
 
-    ``linkage`` indexes the input batch; ``kind`` indexes :data:`KINDS`. Per segment: the
+    ``linkage`` indexes the input batch; ``kind`` is a :attr:`SegmentKind.code <synth.kinds.SegmentKind.code>`. Per segment: the
     generating angle(s) (rad), scan ray angle (arcs; 0 otherwise), coupler point ``uv``, the
     osculating geometry — line ``point`` + unit ``direction`` (lines; for double lines also
     ``point2``/``direction2`` and their ``intersection``) or circle ``center`` + ``radius``
@@ -163,7 +161,7 @@ class FoundSegments:
         dwells: list[dict] = []
         ordinal = _ordinals(self.linkage)
         for i in range(len(self)):
-            kind = KINDS[int(self.kind[i])]
+            kind = SEGMENT_KINDS[int(self.kind[i])]
             sid = int(linkage_ids[self.linkage[i]]) * per_linkage + int(ordinal[i])
             row: dict[str, Any] = dict.fromkeys(
                 ("phi_gen2", "ray", "px", "py", "direction", "p2x", "p2y", "direction2", "ix", "iy", "cx", "cy", "radius")
@@ -171,26 +169,26 @@ class FoundSegments:
             row.update(
                 id=sid,
                 linkage_id=int(linkage_ids[self.linkage[i]]),
-                kind=kind,
+                kind=kind.value,
                 phi_gen=float(self.phi_gen[i]),
                 u=float(self.uv[i].real),
                 v=float(self.uv[i].imag),
                 transmission_min=float(self.transmission_min[i]),
                 transmission_max=float(self.transmission_max[i]),
             )
-            if kind == "arc":
+            if kind is SegmentKind.ARC:
                 row.update(ray=float(self.ray[i]), cx=float(self.center[i].real), cy=float(self.center[i].imag),
                            radius=float(self.radius[i]))
             else:
                 row.update(px=float(self.point[i].real), py=float(self.point[i].imag),
                            direction=float(np.angle(self.direction[i])))
-            if kind == "double_line":
+            if kind is SegmentKind.DOUBLE_LINE:
                 row.update(phi_gen2=float(self.phi_gen2[i]), p2x=float(self.point2[i].real),
                            p2y=float(self.point2[i].imag), direction2=float(np.angle(self.direction2[i])),
                            ix=float(self.intersection[i].real), iy=float(self.intersection[i].imag))
             segments.append(row)
             for level, tol in enumerate(self.tolerances):
-                for part in range(2 if kind == "double_line" else 1):
+                for part in range(2 if kind is SegmentKind.DOUBLE_LINE else 1):
                     if not self.has_dwell[i, level, part]:
                         continue
                     p = self.fit_point[i, level, part]
@@ -199,7 +197,7 @@ class FoundSegments:
                         {
                             "id": sid * per_segment + 2 * level + part,
                             "segment_id": sid,
-                            "kind": kind,
+                            "kind": kind.value,
                             "level": level,
                             "tolerance": float(tol),
                             "part": part,
@@ -209,8 +207,8 @@ class FoundSegments:
                             "max_deviation": float(self.max_deviation[i, level, part]),
                             "x": float(p.real),
                             "y": float(p.imag),
-                            "direction": None if kind == "arc" else float(np.angle(self.fit_direction[i, level, part])),
-                            "radius": float(self.fit_radius[i, level, part]) if kind == "arc" else None,
+                            "direction": None if kind is SegmentKind.ARC else float(np.angle(self.fit_direction[i, level, part])),
+                            "radius": float(self.fit_radius[i, level, part]) if kind is SegmentKind.ARC else None,
                         }
                     )
         return segments, dwells
@@ -231,17 +229,18 @@ def _ordinals(linkage: I64) -> I64:
 
 
 def path_deviation(z: C128, kind: NDArray[np.integer] | int, point: C128, direction: C128, radius: F64) -> F64:
-    """Signed distance of path points ``z`` from a line (``kind`` 0: through ``point`` along
-    unit ``direction``, positive to its left) or a circle (``kind`` 1: centre ``point``,
-    ``radius``, positive outside). Arguments broadcast."""
+    """Signed distance of path points ``z`` from a line (``kind`` ``SegmentKind.LINE.code``:
+    through ``point`` along unit ``direction``, positive to its left) or a circle
+    (``SegmentKind.ARC.code``: centre ``point``, ``radius``, positive outside). Arguments
+    broadcast."""
     kind = np.asarray(kind)
     if kind.size and np.all(kind == kind.flat[0]):  # one kind: compute only its distance
-        if kind.flat[0] == _LINE:
+        if kind.flat[0] == SegmentKind.LINE.code:
             return np.broadcast_to(np.imag(np.conj(direction) * (z - point)), np.broadcast_shapes(np.shape(z), kind.shape, np.shape(point), np.shape(direction)))
         return np.broadcast_to(np.abs(z - point) - radius, np.broadcast_shapes(np.shape(z), kind.shape, np.shape(point), np.shape(radius)))
     line = np.imag(np.conj(direction) * (z - point))
     circle = np.abs(z - point) - radius
-    return np.where(kind == _LINE, line, circle)
+    return np.where(kind == SegmentKind.LINE.code, line, circle)
 
 
 # --------------------------------------------------------------------------------------------
@@ -340,9 +339,9 @@ def _grid_candidates(b: F64, c: F64, d: F64, br: I64, search: SegmentSearch, ski
                     skipped[f"candidate skipped: {f.name.lower().replace('_', ' ')}"] += cnt
         # --- lines: Ball points, grid (n, m)
         kinds = [
-            (_LINE, ball.uv[..., 0], ball.point[..., 0], ball.tangent[..., 0], np.zeros((n, m)), ball.status[..., 0] == 0,
+            (SegmentKind.LINE.code, ball.uv[..., 0], ball.point[..., 0], ball.tangent[..., 0], np.zeros((n, m)), ball.status[..., 0] == 0,
              np.zeros((n, m))),
-            (_ARC, pairs.circle_point_uv, pairs.center_point, np.ones_like(pairs.center_point), pairs.radius,
+            (SegmentKind.ARC.code, pairs.circle_point_uv, pairs.center_point, np.ones_like(pairs.center_point), pairs.radius,
              pairs.status == 0, np.broadcast_to(alpha, pairs.radius.shape)),
         ]
         for kind, uv, point, direction, radius, ok, ray in kinds:
@@ -425,7 +424,7 @@ def _double_candidates(b: F64, c: F64, d: F64, br: I64, search: SegmentSearch, s
     phi = np.r_[found.phi1, found.phi2]
     return _Candidates(
         linkage=np.r_[found.linkage_index, found.linkage_index].astype(np.int64),
-        kind=np.full(2 * k, _LINE, dtype=np.int64),
+        kind=np.full(2 * k, SegmentKind.LINE.code, dtype=np.int64),
         center=np.rint(phi / fine_step).astype(np.int64),
         phi=phi,
         ray=np.zeros(2 * k),
@@ -495,7 +494,8 @@ def _lawson(cols: list[F64], r0: F64, iterations: int) -> F64:
 
 
 def _fit(z: C128, kind: int, point: C128, direction: C128, radius: F64, iterations: int):
-    """Minimum-zone line (``kind`` 0) or circle (1) through path samples ``z`` (n, samples),
+    """Minimum-zone line (``kind`` ``SegmentKind.LINE.code``) or circle (``ARC.code``) through
+    path samples ``z`` (n, samples),
     starting from the given one.
 
     Linearised about the current geometry: a line moves by δo along its normal and turns by
@@ -503,7 +503,7 @@ def _fit(z: C128, kind: int, point: C128, direction: C128, radius: F64, iteratio
     is of the order of the band over the stretch)."""
     r0 = path_deviation(z, kind, point[:, None], direction[:, None], radius[:, None])
     rel = z - point[:, None]
-    if kind == _LINE:
+    if kind == SegmentKind.LINE.code:
         # r ≈ r0 − δo − δβ·s (s along the line, scaled to O(1) for conditioning)
         s = np.real(np.conj(direction[:, None]) * rel)
         scale = np.maximum(np.abs(s).max(axis=1), 1e-12)
@@ -731,13 +731,13 @@ def _measure_rows(m: _Measured, A: C128, E: C128, cand: _Candidates, rows: I64, 
         m.width[sel] = width
 
     done = np.zeros(rows.size, bool)
-    for width, kind in itertools.product(_window_classes(mf), (_LINE, _ARC)):
+    for width, kind in itertools.product(_window_classes(mf), (SegmentKind.LINE.code, SegmentKind.ARC.code)):
         pick = (window <= width) & ~done & (cand.kind[rows] == kind)
         if np.any(pick):
             done |= pick
             run(rows[pick], width)
     cut = rows[(m.truncated[rows[:, None], cols] & m.has[rows[:, None], cols]).any(axis=1) & (m.width[rows] < widest)]
-    for kind in (_LINE, _ARC):
+    for kind in (SegmentKind.LINE.code, SegmentKind.ARC.code):
         sel = cut[cand.kind[cut] == kind]
         if sel.size:
             run(sel, widest)
@@ -811,13 +811,13 @@ def _assemble(A, E, cand, keep, search, start, end, dwell, gp, gd, gr, mu, skipp
     levels = len(search.tolerances)
     first = np.flatnonzero(keep & ((cand.partner < 0) | (np.arange(keep.size) < cand.partner)))
     partner = np.where(cand.partner[first] >= 0, cand.partner[first], first)
-    kind = np.where(cand.partner[first] >= 0, 2, cand.kind[first])
+    kind = np.where(cand.partner[first] >= 0, SegmentKind.DOUBLE_LINE.code, cand.kind[first])
     # canonical order: linkage, kind, generating angle, ray
     order = np.lexsort((cand.ray[first], cand.phi[first], kind, cand.linkage[first]))
     first, partner, kind = first[order], partner[order], kind[order]
     two = np.stack([first, partner], axis=1)  # (S, 2): part 0 and part 1 (same for single)
     has = (dwell[two] > 0).transpose(0, 2, 1)  # (S, levels, 2)
-    is_double = kind == 2
+    is_double = kind == SegmentKind.DOUBLE_LINE.code
     has[~is_double, :, 1] = False
     twopi = 2 * np.pi
     s = np.mod(start[two], twopi).transpose(0, 2, 1)
@@ -871,13 +871,13 @@ def _assemble(A, E, cand, keep, search, start, end, dwell, gp, gd, gr, mu, skipp
         phi_gen2=np.where(a_dbl, cand.phi[partner], 0.0)[sel],
         ray=cand.ray[first][sel],
         uv=cand.uv[first][sel],
-        point=np.where(kind == _ARC, 0, p1)[sel],
-        direction=np.where(kind == _ARC, 1, t1)[sel],
+        point=np.where(kind == SegmentKind.ARC.code, 0, p1)[sel],
+        direction=np.where(kind == SegmentKind.ARC.code, 1, t1)[sel],
         point2=np.where(a_dbl, p2, 0)[sel],
         direction2=np.where(a_dbl, t2, 1)[sel],
         intersection=inter[sel],
-        center=np.where(kind == _ARC, cand.point[first], 0)[sel],
-        radius=np.where(kind == _ARC, cand.radius[first], 0.0)[sel],
+        center=np.where(kind == SegmentKind.ARC.code, cand.point[first], 0)[sel],
+        radius=np.where(kind == SegmentKind.ARC.code, cand.radius[first], 0.0)[sel],
         transmission_min=tmin[sel],
         transmission_max=tmax[sel],
         tolerances=tuple(search.tolerances),

@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Literal, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -38,6 +38,7 @@ from kinematics.status import (
     check_on_degenerate,
     raise_on_flags,
 )
+from synth.kinds import OutputKind
 
 if TYPE_CHECKING:
     from synth.buildability import Buildability
@@ -65,8 +66,6 @@ U16 = NDArray[np.uint16]
 #: leading shape of the ψ samples) → ψ of the same shape, on any 2π branch.
 PsiAt = Callable[[F64], F64]
 
-DyadKind = Literal["RPR", "RRR"]
-_KINDS = ("RPR", "RRR")
 
 #: |P − D| below this × linkage size: the RPR pin sits on the slot pivot, ψ is undefined.
 PIN_ON_PIVOT_EPS = 1e-9
@@ -100,9 +99,9 @@ class OutputDyad:
 
     Attributes
     ----------
-    kind : {"RPR", "RRR"}
-        ``"RPR"``: slotted rocker about ``pivot`` whose slot passes through the pivot; the pin
-        at P slides in it (``rocker``, ``rod`` and ``branch`` are unused, 0/0/+1).
+    kind : OutputKind
+        (a string is accepted, any case). ``"RPR"``: slotted rocker about ``pivot`` whose slot
+        passes through the pivot; the pin at P slides in it (``rocker``, ``rod`` and ``branch`` are unused, 0/0/+1).
         ``"RRR"``: rod P–Q of length ``rod`` and rocker D–Q of length ``rocker``.
     pivot : complex
         Fixed pivot D, fixed frame (A0 = 0, B0 = d on +x), link-length units. A pair (x, y) is
@@ -119,16 +118,18 @@ class OutputDyad:
         assemble, and is flagged.
     """
 
-    kind: DyadKind
+    kind: OutputKind
     pivot: complex
     rocker: float = 0.0
     rod: float = 0.0
     branch: int = 1
 
     def __post_init__(self) -> None:
-        kind = str(self.kind).upper()
-        if kind not in _KINDS:
-            raise ValueError(f"dyad kind must be one of {', '.join(map(repr, _KINDS))}, not {self.kind!r}")
+        try:
+            kind = OutputKind(str(self.kind).upper())
+        except ValueError:
+            raise ValueError(f"dyad kind must be one of {', '.join(repr(k.value) for k in OutputKind)}, "
+                             f"not {self.kind!r}") from None
         pivot = self.pivot
         if not isinstance(pivot, (complex, float, int, np.number)):
             x, y = pivot  # (x, y)
@@ -139,7 +140,7 @@ class OutputDyad:
         if int(self.branch) not in (1, -1):
             raise ValueError(f"dyad branch must be +1 or -1, not {self.branch!r}")
         rocker, rod = float(self.rocker), float(self.rod)
-        if kind == "RRR":
+        if kind is OutputKind.RRR:
             for name, value in (("rocker", rocker), ("rod", rod)):
                 if not (math.isfinite(value) and value > 0):
                     raise AssemblyError(f"RRR {name} length must be finite and > 0, got {value!r}")
@@ -154,12 +155,12 @@ class OutputDyad:
     @classmethod
     def rpr(cls, pivot: complex) -> OutputDyad:
         """Slotted rocker about ``pivot``."""
-        return cls("RPR", pivot)
+        return cls(OutputKind.RPR, pivot)
 
     @classmethod
     def rrr(cls, pivot: complex, rocker: float, rod: float, branch: int) -> OutputDyad:
         """Rocker |DQ| = ``rocker`` about ``pivot``, rod |PQ| = ``rod``, on ``branch``."""
-        return cls("RRR", pivot, rocker, rod, branch)
+        return cls(OutputKind.RRR, pivot, rocker, rod, branch)
 
 
 @dataclass(frozen=True, slots=True)
@@ -244,7 +245,7 @@ class SixBars:
         return cls(
             f(lambda s: s.a), f(lambda s: s.b), f(lambda s: s.c), f(lambda s: s.d), f(lambda s: s.branch),
             f(lambda s: s.u), f(lambda s: s.v),
-            np.array([s.dyad.kind == "RPR" for s in sixbars]),
+            np.array([s.dyad.kind is OutputKind.RPR for s in sixbars]),
             np.array([s.dyad.pivot for s in sixbars], dtype=complex),
             f(lambda s: s.dyad.rocker), f(lambda s: s.dyad.rod), f(lambda s: s.dyad.branch),
         )
@@ -253,7 +254,7 @@ class SixBars:
         return int(self.a.shape[0])
 
     def __getitem__(self, i: int) -> SixBar:
-        kind = "RPR" if self.rpr[i] else "RRR"
+        kind = OutputKind.RPR if self.rpr[i] else OutputKind.RRR
         dyad = OutputDyad(kind, complex(self.pivot[i]), float(self.rocker[i]), float(self.rod[i]),
                           int(self.dyad_branch[i]))
         return SixBar(float(self.a[i]), float(self.b[i]), float(self.c[i]), float(self.d[i]), int(self.branch[i]),
