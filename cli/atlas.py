@@ -110,6 +110,7 @@ def build(db, preset, samples, seed, b_range, c_range, d_range, crank_step, rays
     (with either engine); the result is identical to an uninterrupted build.
     """
     from atlas.build import build_atlas
+    from cli.progress import BuildBar
 
     if engine == "dask" and scheduler is None:
         raise click.UsageError("--engine dask needs --scheduler ADDR (a running dask scheduler, e.g. tcp://host:8786)")
@@ -123,11 +124,12 @@ def build(db, preset, samples, seed, b_range, c_range, d_range, crank_step, rays
     })
     check_memory(spec.samples * SWEEP_BYTES_PER_SAMPLE, f"drawing {spec.samples:,} Sobol points",
                  "lower --samples (the large preset draws 2 097 152)")
-    if engine == "local":
-        summary = build_atlas(db, spec, workers=workers or _default_workers(), replace=replace, progress=progress,
-                              log=_log)
-    else:
-        summary = _build_on_dask(db, spec, scheduler, replace=replace, progress=progress)
+    with BuildBar(progress) as bar:
+        if engine == "local":
+            summary = build_atlas(db, spec, workers=workers or _default_workers(), replace=replace, on_shard=bar,
+                                  log=_log)
+        else:
+            summary = _build_on_dask(db, spec, scheduler, replace=replace, on_shard=bar)
     click.echo(summary.line())
 
 
@@ -136,7 +138,7 @@ def _log(msg: str) -> None:
     click.echo(f"dwell: {msg}", err=True)
 
 
-def _build_on_dask(db: str, spec, scheduler: str, *, replace: bool, progress: bool | None):  # -> BuildSummary
+def _build_on_dask(db: str, spec, scheduler: str, *, replace: bool, on_shard):  # -> BuildSummary
     """``build_atlas`` with the dask engine. The scheduler is reached before the atlas is
     opened, so a bad address writes nothing; cluster problems are one line, exit 2."""
     from atlas.build import build_atlas
@@ -144,7 +146,7 @@ def _build_on_dask(db: str, spec, scheduler: str, *, replace: bool, progress: bo
 
     try:
         with DaskRunner.connect(scheduler, log=_log) as runner:
-            return build_atlas(db, spec, runner=runner, replace=replace, progress=progress, log=_log)
+            return build_atlas(db, spec, runner=runner, replace=replace, on_shard=on_shard, log=_log)
     except ClusterError as exc:
         raise click.ClickException(str(exc)) from None
 

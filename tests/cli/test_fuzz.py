@@ -397,7 +397,7 @@ def small_atlas(tmp_path_factory) -> tuple[Path, str]:
     path = tmp_path_factory.mktemp("fuzz") / "atlas.sqlite"
     spec = SweepSpec(name="fuzz", b=(1.5, 4.5), c=(1.5, 4.5), d=(1.5, 4.5), samples=16, crank_step_deg=3.0, rays=24,
                      shard_size=8)
-    build_atlas(str(path), spec, workers=1, progress=False)
+    build_atlas(str(path), spec, workers=1)
     engine = open_atlas(str(path), readonly=True)
     try:
         found = answer(engine, request_from_options(40.0, 10.0, 20.0, 5.0, "any", 1, 0.1, 1.0, 30.0, 10.0, 1))
