@@ -41,7 +41,7 @@ def atlas() -> None:
     """Build and inspect atlases of nearly straight and circular coupler-curve segments."""
 
 
-def _range(value: tuple[float, float] | None) -> tuple[float, float] | None:
+def parse_range(value: tuple[float, float] | None) -> tuple[float, float] | None:
     return None if value is None or len(value) == 0 else (float(value[0]), float(value[1]))
 
 
@@ -62,7 +62,7 @@ def sweep_spec_from_options(preset: str, overrides: dict[str, Any]):  # -> atlas
     return spec.replace(name=f"{preset}+custom", **changes)
 
 
-def _tolerances(text: str | None) -> tuple[float, ...] | None:
+def parse_tolerances(text: str | None) -> tuple[float, ...] | None:
     from atlas.sweep import SweepSpecError
 
     if text is None:
@@ -117,8 +117,8 @@ def build(db, preset, samples, seed, b_range, c_range, d_range, crank_step, rays
     if engine != "dask" and scheduler is not None:
         raise click.UsageError("--scheduler needs --engine dask")
     spec = sweep_spec_from_options(preset, {
-        "samples": samples, "seed": seed, "b": _range(b_range), "c": _range(c_range), "d": _range(d_range),
-        "crank_step_deg": crank_step, "rays": rays, "tolerances": _tolerances(tolerances),
+        "samples": samples, "seed": seed, "b": parse_range(b_range), "c": parse_range(c_range), "d": parse_range(d_range),
+        "crank_step_deg": crank_step, "rays": rays, "tolerances": parse_tolerances(tolerances),
         "min_dwell_deg": min_dwell, "shard_size": shard_size,
         "crank_rockers_only": False if all_linkages else None,
     })

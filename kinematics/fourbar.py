@@ -38,6 +38,7 @@ __all__ = [
     "fourbar_motion",
     "grashof_type",
     "rocker_limits",
+    "solve_block",
     "transmission_angle",
 ]
 
@@ -275,14 +276,14 @@ def fourbar_motion(
 
     # Chunk along the leading axis so that temporaries stay in cache.
     if ndim == 0:
-        _solve_chunk(*arrays, order, e_theta[...], status[...], [g[...] for g in derivs])
+        solve_block(*arrays, order, e_theta[...], status[...], [g[...] for g in derivs])
     else:
         inner = max(1, math.prod(shape[1:]))
         step = max(1, _CHUNK // inner)
         for i in range(0, shape[0], step):
             sl = slice(i, i + step)
             parts = [x[sl] if x.shape[0] > 1 else x for x in arrays]
-            _solve_chunk(*parts, order, e_theta[sl], status[sl], [g[sl] for g in derivs])
+            solve_block(*parts, order, e_theta[sl], status[sl], [g[sl] for g in derivs])
 
     motion = FourBarMotion(*arrays, e_theta, tuple(derivs[0::2]), tuple(derivs[1::2]), status)
     if mode == "raise":
@@ -310,8 +311,12 @@ def _raise_first_violation(motion: FourBarMotion, order: int) -> None:
     raise AssemblyError(f"{where}: coupler and rocker are aligned (toggle), so velocities are undefined")
 
 
-def _solve_chunk(a, b, c, d, phi, branch, order, e_theta, status, derivs) -> None:
-    """Closed-form position and derivatives for one cache-sized block (see fourbar_motion)."""
+def solve_block(a, b, c, d, phi, branch, order, e_theta, status, derivs) -> None:
+    """Closed-form position and derivatives for one cache-sized block (see fourbar_motion),
+    written into ``e_theta``, ``status`` and ``derivs`` ((θ′, γ′, θ″, γ″, θ‴, γ‴)[: 2·order]).
+
+    Any float dtype: the inputs' precision is kept (``dwell bench kinematics`` runs it in
+    longdouble as the reference for the float64 kernel)."""
     cphi, sphi = np.cos(phi), np.sin(phi)
     acp, asp = a * cphi, a * sphi
     # The loop A + b·e^{iθ} = B0 + c·e^{iγ}: circles about A (radius b) and B0 (radius c),

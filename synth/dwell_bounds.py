@@ -35,7 +35,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from kinematics.fourbar import fourbar_motion
 from synth.kinds import OutputTag, SegmentKind
-from synth.segments import _fit, path_deviation
+from synth.segments import minimum_zone_fit, path_deviation
 
 __all__ = [
     "PROFILE_LEVELS",
@@ -56,7 +56,7 @@ C128 = NDArray[np.complex128]
 
 #: Default profile levels: half-widths (crank lengths) 1e-5 … 1e-1, four per decade.
 PROFILE_LEVELS = tuple(float(x) for x in np.logspace(-5, -1, 17))
-#: Lawson iterations of each re-linearised minimum-zone fit (synth.segments._fit).
+#: Lawson iterations of each re-linearised minimum-zone fit (synth.segments.minimum_zone_fit).
 _ITERATIONS = 12
 #: Re-linearisations of each fit (the circle's start is a three-point circle, not the optimum).
 _RELINEARISE = 3
@@ -140,7 +140,7 @@ def minimum_zone_halfwidth(z: C128, kind: int) -> F64:
     best = minimum_zone_halfwidth(z, SegmentKind.LINE.code) if kind == SegmentKind.ARC.code else np.full(z.shape[0], np.inf)
     for point, direction, radius in starts:
         for _ in range(_RELINEARISE):
-            point, direction, radius = _fit(z, kind, point, direction, radius, _ITERATIONS)
+            point, direction, radius = minimum_zone_fit(z, kind, point, direction, radius, _ITERATIONS)
             h = np.abs(path_deviation(z, kind, point[:, None], direction[:, None], radius[:, None])).max(axis=1)
             # |z − c| − r loses every digit for a huge radius (a fit running off to a line):
             # such a circle proves nothing, the line above stands for it

@@ -27,7 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from kinematics.loop import circle_intersection, line_intersection, sampled_extreme
 from kinematics.status import Status
-from synth.sixbar import OutputDyad, _grid_step
+from synth.sixbar import OutputDyad, grid_step
 
 __all__ = [
     "SWING_TOL",
@@ -234,7 +234,7 @@ def fit_rpr(line_point: ArrayLike, line_direction: ArrayLike, phi: ArrayLike, pa
     that crosses that ray (the output would revolve or swing past π) counts as too large a
     swing.
     """
-    phi0, h, m = _grid_step(phi)
+    phi0, h, m = grid_step(phi)
     start, end = interval
     lead, z, (P0, delta, s0, s1, target) = _rows(path_z, line_point, line_direction, start, end, swing)
     if z.shape[1] != m:
@@ -460,7 +460,7 @@ def fit_rrr(circle_center: ArrayLike, radius: ArrayLike, phi: ArrayLike, path_z:
     The minimum transmission angle is checked on the samples; :func:`synth.sixbar.simulate`
     gives it between them (they agree to ~0.01° at 720 samples).
     """
-    phi0, h, m = _grid_step(phi)
+    phi0, h, m = grid_step(phi)
     start, end = interval
     lead, z, (C0, rho, s0, s1, target) = _rows(path_z, circle_center, radius, start, end, swing)
     if z.shape[1] != m:

@@ -53,7 +53,9 @@ from synth.kinds import SEGMENT_KINDS, SegmentKind
 from synth.line_scan import line_scan
 from synth.pole import pole
 
-__all__ = ["END_TOLERANCE", "FoundSegments", "SegmentSearch", "find_segments", "path_deviation"]
+__all__ = [
+    "END_TOLERANCE", "FoundSegments", "SegmentSearch", "find_segments", "minimum_zone_fit", "path_deviation",
+]
 
 F64 = NDArray[np.float64]
 C128 = NDArray[np.complex128]
@@ -493,7 +495,7 @@ def _lawson(cols: list[F64], r0: F64, iterations: int) -> F64:
     return best_x
 
 
-def _fit(z: C128, kind: int, point: C128, direction: C128, radius: F64, iterations: int):
+def minimum_zone_fit(z: C128, kind: int, point: C128, direction: C128, radius: F64, iterations: int):
     """Minimum-zone line (``kind`` ``SegmentKind.LINE.code``) or circle (``ARC.code``) through
     path samples ``z`` (n, samples),
     starting from the given one.
@@ -585,7 +587,7 @@ def _measure(A: C128, E: C128, cand: _Candidates, rows: I64, width: int, search:
             # fit on FIT_SAMPLES spread over the target (the check below uses every sample)
             pos = t_lo[:, None] + np.rint(_FIT_SPREAD * (t_hi - t_lo)[:, None]).astype(np.int64)
             zs = np.take_along_axis(z, pos, axis=1)
-            p2, d2, r2 = _fit(zs, kind, point, direction, radius, search.lawson_iterations)
+            p2, d2, r2 = minimum_zone_fit(zs, kind, point, direction, radius, search.lawson_iterations)
             dev = np.abs(path_deviation(z, kind, p2[:, None], d2[:, None], r2[:, None]))
             h = _peak(dev, mask)
             ok = (h <= eps * (1 - _BAND_MARGIN)) & (hi >= lo)

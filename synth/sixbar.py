@@ -53,6 +53,7 @@ __all__ = [
     "SixBars",
     "crank_grid",
     "dwell_intervals",
+    "grid_step",
     "output_deviation",
     "output_swing",
     "simulate",
@@ -507,7 +508,7 @@ def _wrap(x):
 # --------------------------------------------------------------------------------------------
 
 
-def _grid_step(phi: ArrayLike) -> tuple[float, float, int]:
+def grid_step(phi: ArrayLike) -> tuple[float, float, int]:
     """(φ₀, h, M) of a uniform full-turn crank grid (see :func:`crank_grid`)."""
     phi = np.asarray(phi, dtype=float)
     if phi.ndim != 1 or phi.size < 8:
@@ -560,7 +561,7 @@ def output_swing(phi: ArrayLike, psi: ArrayLike, *, dpsi: tuple[F64, ...] | None
     turns : (...,) int
         Net revolutions of the output per crank turn; ≠ 0 means the output is not a rocker.
     """
-    phi0, h, _ = _grid_step(phi)
+    phi0, h, _ = grid_step(phi)
     psi = np.asarray(psi, dtype=float)
     d1 = None if dpsi is None else dpsi[0]
     net = _net_change(psi, d1, h)
@@ -699,7 +700,7 @@ def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: i
     """
     if count not in (1, 2):
         raise ValueError(f"count must be 1 or 2, not {count!r}")
-    phi0, h, m = _grid_step(phi)
+    phi0, h, m = grid_step(phi)
     psi = np.asarray(psi, dtype=float)
     lead = psi.shape[:-1]
     P = psi.reshape(-1, m)
@@ -1109,7 +1110,7 @@ def output_deviation(phi: ArrayLike, psi: ArrayLike, center: ArrayLike, length: 
     window_start : (...,) float
         Crank angle s of the best window (rad, in [φ₀, φ₀ + 2π)).
     """
-    phi0, h, m = _grid_step(phi)
+    phi0, h, m = grid_step(phi)
     psi = np.asarray(psi, dtype=float)
     lead = psi.shape[:-1]
     P = psi.reshape(-1, m)
