@@ -9,7 +9,8 @@ issue #8) can be added without touching the writer:
   runner uses the driver's process (``workers=1``) or a ``ProcessPoolExecutor``.
 * the **writer** — :func:`build_atlas`, the only code that touches the database: it takes the
   builder lock (``db.writes``), writes every result as it arrives in its own transaction,
-  shows progress and marks the build complete.
+  reports progress to a callback (:class:`ShardDone`; the CLI draws the bar) and marks the
+  build complete.
 
 Interrupts: Ctrl-C (KeyboardInterrupt) cancels the pending shards, stops the workers and
 propagates (the CLI exits 130); every shard committed before is kept and the next run of the
@@ -22,7 +23,6 @@ from __future__ import annotations
 import multiprocessing
 import os
 import signal
-import sys
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -37,10 +37,40 @@ from atlas.malloc import raise_malloc_thresholds
 from atlas.shard import ShardResult
 from atlas.sweep import SweepLinkages, SweepSpec, sweep_linkages
 
-__all__ = ["BuildSummary", "ShardRunner", "build_atlas", "run_shards"]
+__all__ = ["BuildSummary", "ShardDone", "ShardRunner", "build_atlas", "run_shards"]
 
 #: While waiting on workers, the lock's heartbeat is refreshed at least this often (seconds).
 TICK_SECONDS = 10.0
+
+
+@dataclass(frozen=True, slots=True)
+class ShardDone:
+    """Progress of a build run, for a display (the CLI's progress bar).
+
+    Reported once before the first shard is computed (``shard_index`` None: the run starts,
+    nothing is done yet — a display starts its clock and learns the total), then once after
+    each shard is written, in completion order. A run with nothing to compute reports nothing.
+
+    Attributes
+    ----------
+    shard_index : int or None
+        The shard just written (None for the opening report).
+    linkages : int
+        Linkages (proportions × branches) of that shard; 0 in the opening report.
+    linkages_done, linkages_total : int
+        Linkages written so far in this run, and all this run computes (the missing shards').
+    segments_done : int
+        Segments written so far in this run.
+    shards_left : int
+        Shards of this run still to come (0 after the last one).
+    """
+
+    shard_index: int | None
+    linkages: int
+    linkages_done: int
+    linkages_total: int
+    segments_done: int
+    shards_left: int
 
 
 class ShardRunner(Protocol):
@@ -239,14 +269,14 @@ def build_atlas(
     *,
     workers: int = 1,
     replace: bool = False,
-    progress: bool | None = None,
+    on_shard: Callable[[ShardDone], None] | None = None,
     runner: ShardRunner = run_shards,
     log: Callable[[str], None] | None = None,
 ) -> BuildSummary:
     """Build (or resume) the atlas of ``spec`` at ``target`` (SQLite path or SQLAlchemy URL).
 
-    ``progress`` shows a tqdm bar on stderr (rate and ETA in linkages/s); None means "if
-    stderr is a terminal". ``log`` receives one-line notes (resuming, replacing,
+    ``on_shard`` receives the run's progress (:class:`ShardDone`: once at the start, then
+    after each written shard); it must not raise. ``log`` receives one-line notes (resuming, replacing,
     interrupted). Errors: :class:`db.AtlasError` for an unusable atlas, a different sweep
     without ``replace`` or a concurrent builder — then nothing was written, and a file this
     call created but could not open as an atlas is removed again.
@@ -255,8 +285,6 @@ def build_atlas(
     forkserver): a script calling this must guard its entry point with
     ``if __name__ == "__main__":``, as for any multiprocessing code.
     """
-    from tqdm import tqdm
-
     from db.engine import display_target, open_atlas, settle_sqlite, sqlite_path
     from db.summary import row_counts
     from db.writes import (
@@ -304,9 +332,9 @@ def build_atlas(
         if handle.resumed and missing:
             note(f"resuming: {len(handle.done)} of {n_shards} shards already built")
         per_shard = {i: len(sweep.shard(i, spec.shard_size)) * len(spec.branches) for i in missing}
-        show = sys.stderr.isatty() if progress is None else progress
-        bar = tqdm(total=sum(per_shard.values()), unit=" linkages", unit_scale=True, desc="atlas",
-                   disable=not show or not missing, file=sys.stderr, smoothing=0.05, dynamic_ncols=True)
+        report = on_shard if on_shard is not None and missing else (lambda _event: None)
+        total = sum(per_shard.values())
+        report(ShardDone(None, 0, 0, total, 0, len(missing)))
         results = runner(spec, sweep, missing, workers, tick=lambda: heartbeat(engine, handle.build_id, lock.token))
         segments = 0
         try:
@@ -318,8 +346,7 @@ def build_atlas(
                 written += 1
                 computed += n
                 segments += len(result.segments)
-                bar.set_postfix(segments=segments, refresh=False)
-                bar.update(n)
+                report(ShardDone(result.shard_index, n, computed, total, segments, len(per_shard)))
         except KeyboardInterrupt:
             note(f"interrupted: {len(handle.done) + written} of {n_shards} shards are stored; "
                  "run the same command again to resume")
@@ -328,7 +355,6 @@ def build_atlas(
             close = getattr(results, "close", None)
             if close is not None:
                 close()
-            bar.close()
         if not complete:
             complete = finish_build(engine, handle.build_id, lock.token)
             holding = not complete

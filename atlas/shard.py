@@ -19,7 +19,8 @@ from typing import Any
 import numpy as np
 
 from atlas.sweep import SweepLinkages, SweepSpec, sweep_linkages
-from kinematics.fourbar import fourbar_motion, transmission_angle
+from kinematics.fourbar import fourbar_motion
+from kinematics.loop import transmission_fold
 from synth.segments import SegmentSearch, find_segments
 
 __all__ = ["DWELLS_PER_SEGMENT", "SEGMENTS_PER_LINKAGE", "ShardResult", "compute_shard", "linkage_id"]
@@ -51,11 +52,6 @@ class ShardResult:
     seconds: float = 0.0
 
 
-def _fold(mu: np.ndarray) -> np.ndarray:
-    """Transmission angle folded to [0, π/2] (90° is ideal)."""
-    return np.minimum(mu, np.pi - mu)
-
-
 def compute_shard(spec: SweepSpec, shard_index: int, linkages: SweepLinkages | None = None) -> ShardResult:
     """Compute every row of shard ``shard_index`` of ``spec``'s sweep.
 
@@ -77,7 +73,7 @@ def compute_shard(spec: SweepSpec, shard_index: int, linkages: SweepLinkages | N
 
     phi = np.linspace(0.0, 2 * np.pi, _TRANSMISSION_SAMPLES, endpoint=False)
     motion = fourbar_motion(1.0, b[:, None], c[:, None], d[:, None], phi, br[:, None], order=0)
-    mu = _fold(transmission_angle(motion))
+    mu = transmission_fold(motion.e_theta * np.conj(motion.e_gamma))
     ok_link = motion.ok.all(axis=1)
     mu = np.where(motion.ok, mu, np.nan)
 

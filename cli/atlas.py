@@ -41,7 +41,7 @@ def atlas() -> None:
     """Build and inspect atlases of nearly straight and circular coupler-curve segments."""
 
 
-def _range(value: tuple[float, float] | None) -> tuple[float, float] | None:
+def parse_range(value: tuple[float, float] | None) -> tuple[float, float] | None:
     return None if value is None or len(value) == 0 else (float(value[0]), float(value[1]))
 
 
@@ -62,7 +62,7 @@ def sweep_spec_from_options(preset: str, overrides: dict[str, Any]):  # -> atlas
     return spec.replace(name=f"{preset}+custom", **changes)
 
 
-def _tolerances(text: str | None) -> tuple[float, ...] | None:
+def parse_tolerances(text: str | None) -> tuple[float, ...] | None:
     from atlas.sweep import SweepSpecError
 
     if text is None:
@@ -110,24 +110,26 @@ def build(db, preset, samples, seed, b_range, c_range, d_range, crank_step, rays
     (with either engine); the result is identical to an uninterrupted build.
     """
     from atlas.build import build_atlas
+    from cli.progress import BuildBar
 
     if engine == "dask" and scheduler is None:
         raise click.UsageError("--engine dask needs --scheduler ADDR (a running dask scheduler, e.g. tcp://host:8786)")
     if engine != "dask" and scheduler is not None:
         raise click.UsageError("--scheduler needs --engine dask")
     spec = sweep_spec_from_options(preset, {
-        "samples": samples, "seed": seed, "b": _range(b_range), "c": _range(c_range), "d": _range(d_range),
-        "crank_step_deg": crank_step, "rays": rays, "tolerances": _tolerances(tolerances),
+        "samples": samples, "seed": seed, "b": parse_range(b_range), "c": parse_range(c_range), "d": parse_range(d_range),
+        "crank_step_deg": crank_step, "rays": rays, "tolerances": parse_tolerances(tolerances),
         "min_dwell_deg": min_dwell, "shard_size": shard_size,
         "crank_rockers_only": False if all_linkages else None,
     })
     check_memory(spec.samples * SWEEP_BYTES_PER_SAMPLE, f"drawing {spec.samples:,} Sobol points",
                  "lower --samples (the large preset draws 2 097 152)")
-    if engine == "local":
-        summary = build_atlas(db, spec, workers=workers or _default_workers(), replace=replace, progress=progress,
-                              log=_log)
-    else:
-        summary = _build_on_dask(db, spec, scheduler, replace=replace, progress=progress)
+    with BuildBar(progress) as bar:
+        if engine == "local":
+            summary = build_atlas(db, spec, workers=workers or _default_workers(), replace=replace, on_shard=bar,
+                                  log=_log)
+        else:
+            summary = _build_on_dask(db, spec, scheduler, replace=replace, on_shard=bar)
     click.echo(summary.line())
 
 
@@ -136,7 +138,7 @@ def _log(msg: str) -> None:
     click.echo(f"dwell: {msg}", err=True)
 
 
-def _build_on_dask(db: str, spec, scheduler: str, *, replace: bool, progress: bool | None):  # -> BuildSummary
+def _build_on_dask(db: str, spec, scheduler: str, *, replace: bool, on_shard):  # -> BuildSummary
     """``build_atlas`` with the dask engine. The scheduler is reached before the atlas is
     opened, so a bad address writes nothing; cluster problems are one line, exit 2."""
     from atlas.build import build_atlas
@@ -144,7 +146,7 @@ def _build_on_dask(db: str, spec, scheduler: str, *, replace: bool, progress: bo
 
     try:
         with DaskRunner.connect(scheduler, log=_log) as runner:
-            return build_atlas(db, spec, runner=runner, replace=replace, progress=progress, log=_log)
+            return build_atlas(db, spec, runner=runner, replace=replace, on_shard=on_shard, log=_log)
     except ClusterError as exc:
         raise click.ClickException(str(exc)) from None
 

@@ -37,6 +37,7 @@ def demo(out_dir: str, target: str | None, workers: int | None) -> None:
     """Build the demo atlas, answer an RRR, an RPR and a double-dwell request, write reports."""
     from atlas.build import build_atlas
     from atlas.sweep import PRESETS
+    from cli.progress import BuildBar
     from cli.query import answer, no_match_message, request_from_options, table
     from db.engine import display_target, open_atlas
     from report.export import write_report
@@ -55,7 +56,8 @@ def demo(out_dir: str, target: str | None, workers: int | None) -> None:
     shown = display_target(target)  # command lines below never show a URL's password
     click.echo(f"$ dwell atlas build --db {shown} --preset demo")
     try:
-        summary = build_atlas(target, PRESETS["demo"], workers=workers or os.cpu_count() or 1)
+        with BuildBar() as bar:  # on stderr if it is a terminal
+            summary = build_atlas(target, PRESETS["demo"], workers=workers or os.cpu_count() or 1, on_shard=bar)
     except BaseException:
         # a refused --db (or Ctrl-C before the first shard) leaves no empty folders behind
         for folder in made:

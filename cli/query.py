@@ -18,6 +18,7 @@ from cli.errors import InputError
 from cli.options import LENGTH, RPM, Bounded, Count, units_option
 from report.candidate_json import candidate_json, request_json
 from synth.candidates import OUTPUTS, Request
+from synth.kinds import OutputKind
 from synth.query import SAMPLES, QueryResult, RebuildError
 
 __all__ = ["answer", "no_match_json", "no_match_message", "query", "rebuild", "request_from_options", "table"]
@@ -81,7 +82,7 @@ def _sixbar_text(sb) -> str:
     """a b c d, P (u, v), D (x, y) and for an RRR L ρ: the whole six-bar on one line."""
     g = lambda x: f"{x:.4g}"  # noqa: E731
     text = f"{g(sb.a)} {g(sb.b)} {g(sb.c)} {g(sb.d)}  P({g(sb.u)}, {g(sb.v)})  D({g(sb.dyad.pivot.real)}, {g(sb.dyad.pivot.imag)})"
-    if sb.dyad.kind == "RRR":
+    if sb.dyad.kind == OutputKind.RRR:
         text += f"  L {g(sb.dyad.rocker)} ρ {g(sb.dyad.rod)}"
     return text
 
@@ -109,7 +110,7 @@ def table(result: QueryResult, units: str = "") -> str:
         arm = "-" if b is None or b.arm is None else f"{b.arm:.4g}"
         clear = "-" if b is None else f"{b.clearance:.4g}"
         accel = "-" if b is None else f"{b.dynamics(req.rpm)[1]:.4g}"
-        mu_out = "slot" if sb.dyad.kind == "RPR" else f"{math.degrees(f.transmission_output):.1f}"
+        mu_out = "slot" if sb.dyad.kind == OutputKind.RPR else f"{math.degrees(f.transmission_output):.1f}"
         lines.append(
             f"{c.rank:>4}  {c.id:<26} {sb.dyad.kind:<3} {dw:>15} {math.degrees(dev):>7.3f} {math.degrees(f.swing):>8.2f} "
             f"{math.degrees(f.transmission_fourbar):>6.1f} {mu_out:>6} "

@@ -305,7 +305,7 @@ def _wal_checksum(data: bytes, big_endian: bool) -> tuple[int, int]:
     return s0, s1
 
 
-def _wal_page_size(wal: Path) -> int | None:
+def wal_page_size(wal: Path) -> int | None:
     """The page size a ``-wal`` file declares, or None if SQLite would ignore the file (too
     short, wrong magic number or header checksum: then it holds nothing that is applied)."""
     try:
@@ -336,7 +336,7 @@ def _check_side_files(path: Path, target: str, header: bytes, *, readonly: bool)
                 f"{name!r} is a complete atlas (it keeps no write-ahead log) but {wal.name!r} lies beside it, "
                 "which is not its own: move that file away (SQLite would apply it), or restore the atlas"
             )
-        wal_page = _wal_page_size(wal)
+        wal_page = wal_page_size(wal)
         if wal_page is not None and wal_page != page_size:
             raise AtlasError(
                 f"{wal.name!r} beside {name!r} is the write-ahead log of another database (page size {wal_page}, "
@@ -357,7 +357,7 @@ def _read_only_url(path: Path, header: bytes) -> str:
     which has no ``-wal`` to apply (``mode=ro`` would need to make a ``-shm`` there)."""
     wal = path.with_name(path.name + "-wal")
     wal_mode = len(header) >= 100 and header[18] == 2
-    nothing_to_apply = not wal.exists() or _wal_page_size(wal) is None
+    nothing_to_apply = not wal.exists() or wal_page_size(wal) is None
     if wal_mode and nothing_to_apply and not os.access(path.parent, os.W_OK):
         return f"sqlite:///file:{path}?immutable=1&uri=true"
     return f"sqlite:///file:{path}?mode=ro&uri=true"

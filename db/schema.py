@@ -16,6 +16,8 @@ from __future__ import annotations
 from sqlalchemy import BigInteger, CheckConstraint, Float, ForeignKey, Index, Integer, String, Text, UniqueConstraint
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 
+from synth.kinds import SEGMENT_KINDS
+
 __all__ = ["SCHEMA_VERSION", "APPLICATION", "Base", "Meta", "Build", "Shard", "Linkage", "Segment", "Dwell"]
 
 #: Bumped whenever a table or column changes meaning; an atlas of a newer version is refused,
@@ -161,7 +163,7 @@ class Segment(Base):
     transmission_min: Mapped[float] = mapped_column(Float)  #: rad, over the widest dwell interval
     transmission_max: Mapped[float] = mapped_column(Float)
     __table_args__ = (
-        CheckConstraint("kind IN ('line', 'arc', 'double_line')", name="ck_segment_kind"),
+        CheckConstraint(f"kind IN ({', '.join(repr(k.value) for k in SEGMENT_KINDS)})", name="ck_segment_kind"),
         *_finite_checks("segment", "phi_gen", "u", "v", "transmission_min", "transmission_max"),
         *_finite_or_null_checks(
             "segment", "phi_gen2", "ray", "px", "py", "direction", "p2x", "p2y", "direction2", "ix", "iy", "cx", "cy", "radius"

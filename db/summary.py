@@ -18,14 +18,14 @@ from db.digest import content_digest
 from db.engine import display_target
 from db.schema import Base, Build, Dwell, Linkage, Segment, Shard
 from db.spec import stored_spec, tolerances
+from synth.kinds import SEGMENT_KINDS
 
 __all__ = [
-    "BIN_DEG", "KINDS", "AtlasSummary", "Verification", "atlas_summary", "format_summary", "quick_check",
+    "BIN_DEG", "AtlasSummary", "Verification", "atlas_summary", "format_summary", "quick_check",
     "row_counts", "verify_atlas",
 ]
 
 #: Segment kinds, in report order (the schema's CHECK constraint lists the same).
-KINDS: tuple[str, ...] = ("line", "arc", "double_line")
 #: Width of a dwell-angle histogram bin (degrees); bins cover [0°, 360°], the last one closed.
 BIN_DEG = 10.0
 _N_BINS = int(round(360.0 / BIN_DEG))
@@ -113,7 +113,7 @@ def row_counts(engine: Engine, build_id: int | None = None) -> tuple[int, dict[s
         seg_q = seg_q.where(Segment.linkage_id.in_(links))
         dwell_q = dwell_q.where(Dwell.segment_id.in_(select(Segment.id).where(Segment.linkage_id.in_(links))))
     with engine.connect() as conn:
-        segments = dict.fromkeys(KINDS, 0)
+        segments = dict.fromkeys(SEGMENT_KINDS, 0)
         segments.update({k: int(n) for k, n in conn.execute(seg_q)})
         return int(conn.execute(link_q).scalar_one()), segments, int(conn.execute(dwell_q).scalar_one())
 
@@ -122,9 +122,9 @@ def atlas_summary(engine: Engine) -> AtlasSummary:
     """Summarise the atlas behind ``engine`` (read only)."""
     with engine.connect() as conn:
         linkages = conn.execute(select(func.count()).select_from(Linkage)).scalar_one()
-        segments = dict.fromkeys(KINDS, 0)
+        segments = dict.fromkeys(SEGMENT_KINDS, 0)
         segments.update({k: int(n) for k, n in conn.execute(select(Segment.kind, func.count()).group_by(Segment.kind))})
-        dwells = dict.fromkeys(KINDS, 0)
+        dwells = dict.fromkeys(SEGMENT_KINDS, 0)
         dwells.update({k: int(n) for k, n in conn.execute(select(Dwell.kind, func.count()).group_by(Dwell.kind))})
         builds = conn.execute(select(Build).order_by(Build.id)).all()
         skipped: dict[str, int] = {}
@@ -164,7 +164,7 @@ def atlas_summary(engine: Engine) -> AtlasSummary:
     found = _histogram_rows(engine)
     levels = sorted(set(range(len(levels_tol))) | {lvl for _, lvl in found})
     histogram: dict[str, list[dict[str, Any]]] = {}
-    for kind in KINDS:
+    for kind in SEGMENT_KINDS:
         per_level = []
         for lvl in levels:
             tol, counts, top = found.get((kind, lvl), (None, [0] * _N_BINS, None))

@@ -19,11 +19,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from kinematics.loop import circle_intersection_xy
 from kinematics.status import (
     AssemblyError,
     Branch,
     Status,
-    assembly_status,
     check_on_degenerate,
     first_flagged,
 )
@@ -37,13 +37,10 @@ __all__ = [
     "fourbar_motion",
     "grashof_type",
     "rocker_limits",
+    "solve_block",
     "transmission_angle",
 ]
 
-#: |sin(θ−γ)| below this is a toggle: the derivative system is singular there.
-TOGGLE_EPS = 1e-12
-#: |A − B0| below this times (b + c): the crank pin sits on the rocker pivot, θ is undetermined.
-COINCIDENT_EPS = 1e-12
 #: Elements per chunk: keeps every temporary inside the L2 cache (measured: 16384 is ~2.5x
 #: faster than whole-array evaluation at 36 M positions).
 _CHUNK = 16384
@@ -249,12 +246,13 @@ def fourbar_motion(
 
     Notes
     -----
-    Position from the triangle A, B, B0 with R = d − a·e^{iφ} (the vector A→B0):
-    e^{iθ} = (R/|R|)·(cos β + i·branch·sin β), cos β = (b² + |R|² − c²)/(2b|R|), where
-    sin β = √((c−b+r)(c+b−r)(b+r−c)(b+r+c))/(2br) avoids the cancellation of √(1 − cos²β)
-    near toggles. e^{iγ} = (b·e^{iθ} − R)/c, and sin(θ − γ) = −|R|·sin β / c.
+    Position from the triangle A, B, B0 with R = d − a·e^{iφ} (the vector A→B0), the
+    circle–circle intersection of :func:`kinematics.loop.circle_intersection` (radius b about
+    A, c about B0): e^{iθ} = (R/|R|)·(cos β + i·branch·sin β), cos β = (b² + |R|² − c²)/(2b|R|),
+    sin β in Heron's form (no cancellation near toggles); e^{iγ} = (b·e^{iθ} − R)/c.
 
-    Derivatives solve i·b·x·e^{iθ} − i·c·y·e^{iγ} = Q_k (docs/curvature.md §1):
+    Derivatives solve i·b·x·e^{iθ} − i·c·y·e^{iγ} = Q_k (docs/curvature.md §1,
+    :meth:`kinematics.loop.CircleIntersection.rates`):
     x = −Re(Q_k e^{−iγ})/(b sin(θ−γ)), y = −Re(Q_k e^{−iθ})/(c sin(θ−γ)), with
     Q_1 = R′, Q_2 = R″ + bθ′²e^{iθ} − cγ′²e^{iγ},
     Q_3 = R‴ + b(3θ′θ″ + iθ′³)e^{iθ} − c(3γ′γ″ + iγ′³)e^{iγ}.
@@ -277,14 +275,14 @@ def fourbar_motion(
 
     # Chunk along the leading axis so that temporaries stay in cache.
     if ndim == 0:
-        _solve_chunk(*arrays, order, e_theta[...], status[...], [g[...] for g in derivs])
+        solve_block(*arrays, order, e_theta[...], status[...], [g[...] for g in derivs])
     else:
         inner = max(1, math.prod(shape[1:]))
         step = max(1, _CHUNK // inner)
         for i in range(0, shape[0], step):
             sl = slice(i, i + step)
             parts = [x[sl] if x.shape[0] > 1 else x for x in arrays]
-            _solve_chunk(*parts, order, e_theta[sl], status[sl], [g[sl] for g in derivs])
+            solve_block(*parts, order, e_theta[sl], status[sl], [g[sl] for g in derivs])
 
     motion = FourBarMotion(*arrays, e_theta, tuple(derivs[0::2]), tuple(derivs[1::2]), status)
     if mode == "raise":
@@ -312,46 +310,26 @@ def _raise_first_violation(motion: FourBarMotion, order: int) -> None:
     raise AssemblyError(f"{where}: coupler and rocker are aligned (toggle), so velocities are undefined")
 
 
-def _solve_chunk(a, b, c, d, phi, branch, order, e_theta, status, derivs) -> None:
-    """Closed-form position and derivatives for one cache-sized block (see fourbar_motion)."""
+def solve_block(a, b, c, d, phi, branch, order, e_theta, status, derivs) -> None:
+    """Closed-form position and derivatives for one cache-sized block (see fourbar_motion),
+    written into ``e_theta``, ``status`` and ``derivs`` ((θ′, γ′, θ″, γ″, θ‴, γ‴)[: 2·order]).
+
+    Any float dtype: the inputs' precision is kept (``dwell bench kinematics`` runs it in
+    longdouble as the reference for the float64 kernel)."""
     cphi, sphi = np.cos(phi), np.sin(phi)
     acp, asp = a * cphi, a * sphi
-    rx, ry = d - acp, -asp
-    r2 = rx * rx + ry * ry
-    r = np.sqrt(r2)
-    c_b, b_c = c - b, b + c  # per linkage; r + (b − c) is r − (c − b) exactly
-    # Heron form of 4·b²r²·sin²β: exact zero at a toggle, negative when the loop cannot close.
-    # Kept factored: the expanded ((b+c)² − r²)(r² − (b−c)²) measured up to 1.5x larger
-    # derivative errors on crank-rockers and near change points (against longdouble).
-    heron = (r + c_b) * (b_c - r) * (r - c_b) * (r + b_c)
-    # A on B0 (r → 0, a = d at φ = 0) leaves θ undetermined: counted as not assemblable.
-    on_pivot = r <= COINCIDENT_EPS * b_c
-    bad = (heron < 0) | on_pivot
-    r = np.where(on_pivot, 1.0, r)
-    inv_2br = 0.5 / (b * r)
-    cb = (r2 - c_b * b_c) * inv_2br  # b² − c² = −(c − b)(b + c), without cancellation
-    sb = np.sqrt(np.maximum(heron, 0.0)) * (branch * inv_2br)
-    inv_r = 1.0 / r
-    ct = (rx * cb - ry * sb) * inv_r
-    st = (rx * sb + ry * cb) * inv_r
+    # The loop A + b·e^{iθ} = B0 + c·e^{iγ}: circles about A (radius b) and B0 (radius c),
+    # R = B0 − A = (d − a cos φ, −a sin φ).
+    loop = circle_intersection_xy(d - acp, -asp, b, c, branch, rates=order > 0)
+    ct, st = loop.cos1, loop.sin1
     e_theta.real, e_theta.imag = ct, st
-    s = r * sb  # = −c·sin(θ − γ)
-    toggle = np.abs(s) < TOGGLE_EPS * c
-    status[...] = assembly_status(bad, toggle)
+    status[...] = loop.status
     if order == 0:
         return
-    inv_c = 1.0 / c
-    cg = (b * ct - rx) * inv_c
-    sg = (b * st - ry) * inv_c
-    # x = −Re(Q e^{−iγ})/(b sin(θ−γ)) = Re(Q e^{−iγ})·c/(b·s); a toggle gets a finite 0.
-    inv_s = 1.0 / np.where(toggle, np.inf, s)
-    kt = (c / b) * inv_s
-    kg = inv_s
+    cg, sg = loop.cos2, loop.sin2
 
     def solve(qx, qy, k):
-        np.multiply(qx * cg + qy * sg, kt, out=derivs[2 * k])
-        np.multiply(qx * ct + qy * st, kg, out=derivs[2 * k + 1])
-        return derivs[2 * k], derivs[2 * k + 1]
+        return loop.rates_xy(qx, qy, out=(derivs[2 * k], derivs[2 * k + 1]))
 
     # Q1 = R' = -i a e^{iφ}
     t1, g1 = solve(asp, -acp, 0)

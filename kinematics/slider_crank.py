@@ -22,7 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kinematics.fourbar import TOGGLE_EPS, check_lengths
+from kinematics.fourbar import check_lengths
+from kinematics.loop import TOGGLE_EPS
 from kinematics.status import AssemblyError, Status, assembly_status, check_on_degenerate, first_flagged
 
 __all__ = [

@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinematics.status import Status
+from synth.kinds import OutputKind
 from synth.sixbar import SixBar, SixBarFigures, crank_grid, simulate
 
 __all__ = ["CYCLE_COLUMNS", "Cycle", "cycle_json", "dwell_mask", "sixbar_cycle"]
@@ -145,7 +146,7 @@ def cycle_json(cycle: Cycle, kind: str) -> dict[str, list]:
     every = np.ones(len(cycle), dtype=bool)
     pos = cycle.assembled
     deriv = cycle.status == 0
-    has_q = pos if kind == "RRR" else np.zeros(len(cycle), dtype=bool)
+    has_q = pos if kind == OutputKind.RRR else np.zeros(len(cycle), dtype=bool)
     deg = np.degrees
     out = {
         # the nominal step angles (k·step), not their round trip through radians

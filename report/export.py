@@ -33,6 +33,7 @@ from typing import Any
 from report.cycle import CYCLE_COLUMNS, Cycle, cycle_json, sixbar_cycle
 from report.candidate_json import candidate_json, request_json
 from synth.candidates import Candidate, Request
+from synth.kinds import OutputKind
 
 __all__ = ["CSV_COLUMNS", "MAX_DWELLS", "candidate_row", "csv_header", "report_json", "safe_stem", "write_report"]
 
@@ -140,7 +141,7 @@ def report_json(request: Request, candidates: Sequence[Candidate], cycles: Seque
     })
 
 
-def _json_text(doc: dict) -> str:
+def json_document_text(doc: dict) -> str:
     """``doc`` indented for reading, except each cycle column, which stays on one line (a
     column per line keeps the file a few times smaller and still diffable). Strict JSON: a
     NaN or inf raises instead of being written."""
@@ -182,7 +183,7 @@ def _non_finite(value: Any, where: str = "") -> str | None:
 def candidate_row(c: Candidate) -> dict[str, Any]:
     """One CSV row (column name → value; None for an empty cell), :data:`CSV_COLUMNS` order."""
     sb, f, dy = c.sixbar, c.figures, c.sixbar.dyad
-    rrr = dy.kind == "RRR"
+    rrr = dy.kind == OutputKind.RRR
     rest = c.dwell_position if rrr else None
     row: dict[str, Any] = {
         "rank": int(c.rank), "id": c.id, "segment_id": int(c.segment_id), "output_type": dy.kind,
@@ -316,7 +317,7 @@ def write_report(candidates: list[Candidate], request: Request, out_dir: Path, *
     # Everything that can fail on the data is computed before the first file is written.
     cycles = [sixbar_cycle(c.sixbar, c.figures, step_deg=step_deg) for c in candidates]
     doc = report_json(request, candidates, cycles, step_deg, units)
-    json_text = _json_text(doc)
+    json_text = json_document_text(doc)
     csv_text = _csv_text(candidates)
     stems = [safe_stem(c) for c in candidates]
 

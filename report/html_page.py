@@ -35,6 +35,7 @@ from report.escape import script_json, text
 from report.palette import BLOCK, CURVE, DWELL, LINK_COLORS
 from report.sixbar_drawing import SLOT_MARGIN, SixBarGeometry
 from synth.candidates import Candidate, Request
+from synth.kinds import OutputKind
 
 __all__ = ["PageEntry", "inline_svg", "render_page"]
 
@@ -142,7 +143,7 @@ def _animation_data(entry: PageEntry) -> dict:
         "sy": [round(float(v), 2) for v in sy],
         "strip": {"x0": ml, "w": W - ml - mr},
     }
-    if sb.dyad.kind == "RRR":
+    if sb.dyad.kind == OutputKind.RRR:
         data["Q"] = [_pt(z) for z in cyc.Q]
     else:
         data["S"] = [_pt(z) for z in _slot_ends(entry)]
@@ -183,13 +184,13 @@ def _mechanism_svg(entry: PageEntry, data: dict) -> str:
             f'width="560" height="{560 * h / w:.0f}" role="img" aria-label="six-bar animation">'),
            f'<polyline class="coupler-curve" points="{_poly(data["P"] + data["P"][:1])}"/>']
     out += _runs_svg(entry)
-    if kind == "RRR":
+    if kind == OutputKind.RRR:
         out.append(f'<polyline class="q-path" points="{_poly(data["Q"])}"/>')
     out.append(line("ground", data["A0"], data["B0"]))
     out.append(line("crank", data["A0"], A))
     out.append(f'<polygon class="coupler" points="{_poly([A, B, P])}"/>')
     out.append(line("rocker", data["B0"], B))
-    if kind == "RRR":
+    if kind == OutputKind.RRR:
         Q = data["Q"][0]
         out.append(line("rod", P, Q))
         out.append(line("output-link", data["D"], Q))
@@ -208,7 +209,7 @@ def _mechanism_svg(entry: PageEntry, data: dict) -> str:
         lx, anchor = (px - 1.3 * s, "end") if name == "D" else (px + 1.3 * s, "start")
         out.append(f'<text class="label fixed" x="{lx:.7g}" y="{py + 2.4 * s:.7g}" text-anchor="{anchor}" '
                    f'font-size="{13 * u:.4g}">{_esc(name)}</text>')
-    joints = {"A": A, "B": B, "P": P} | ({"Q": data["Q"][0]} if kind == "RRR" else {})
+    joints = {"A": A, "B": B, "P": P} | ({"Q": data["Q"][0]} if kind == OutputKind.RRR else {})
     for name, p in joints.items():
         out.append(f'<circle class="joint j-{_esc(name)}" cx="{p[0]:.7g}" cy="{p[1]:.7g}" r="{3.6 * u:.4g}"/>')
         out.append(f'<text class="label l-{_esc(name)}" x="{p[0] + 6 * u:.7g}" y="{p[1] - 6 * u:.7g}" '
@@ -310,7 +311,7 @@ def _dimensions_table(entry: PageEntry, rpm: float) -> str:
         ("coupler point (u, v), coupler frame", xy(sb.coupler_point)),
         ("output dyad", dy.kind), ("output pivot D", xy(dy.pivot)),
     ]
-    if dy.kind == "RRR":
+    if dy.kind == OutputKind.RRR:
         rows += [("output rocker L (D–Q)", _num(dy.rocker)), ("rod ρ (P–Q)", _num(dy.rod)),
                  ("dyad branch", f"{dy.branch:+d}")]
         if c.dwell_position is not None:

@@ -18,6 +18,7 @@ import math
 import numpy as np
 
 from synth.candidates import Candidate
+from synth.kinds import OutputKind
 from synth.sixbar import simulate
 
 __all__ = ["linkage_configuration", "linkage_toml"]
@@ -34,7 +35,7 @@ def _pair(z: complex) -> str:
 
 def _body(candidate: Candidate, units: str) -> list[str]:
     sb = candidate.sixbar
-    rrr = sb.dyad.kind == "RRR"
+    rrr = sb.dyad.kind == OutputKind.RRR
     lines = [
         f"name = {_quoted(f'six-bar {candidate.id}')}",
         f"units = {_quoted(units or 'mm')}",
@@ -102,7 +103,7 @@ def linkage_configuration(candidate: Candidate, text: str) -> int:
     mech = linkage_from_text(text)
     motion = simulate(candidate.sixbar, np.array([0.0]), order=0)
     want = {"B": complex(motion.fourbar.B[0]), "P": complex(motion.z[0][0])}
-    if candidate.sixbar.dyad.kind == "RRR":
+    if candidate.sixbar.dyad.kind == OutputKind.RRR:
         want["Q"] = complex(motion.moving_pivot[0])
     size = max(candidate.sixbar.a, candidate.sixbar.b, candidate.sixbar.c, candidate.sixbar.d)
     best, best_miss = 1, math.inf

@@ -19,6 +19,7 @@ from report.cycle import Cycle
 from report.labels import Box, place_labels
 from report.palette import BLOCK, CURVE, DWELL, GROUND, GUIDE, LINK_COLORS
 from synth.candidates import Candidate
+from synth.kinds import OutputKind
 from synth.sixbar import simulate
 
 __all__ = ["Link", "SixBarGeometry", "draw_sixbar", "guide_path", "sixbar_geometry"]
@@ -138,7 +139,7 @@ def sixbar_geometry(candidate: Candidate, cycle: Cycle, phi: float | None = None
         Link("rocker", f"rocker c = {_fmt(sb.c)}", [complex(sb.d, 0.0), B], sb.c),
     ]
     stretches = [cycle.P[run] for run in _runs(cycle.dwelling & cycle.assembled)]
-    if sb.dyad.kind == "RRR":
+    if sb.dyad.kind == OutputKind.RRR:
         Q = complex(m.moving_pivot[0])
         joints["Q"] = Q
         links += [Link("rod", f"rod ρ = {_fmt(sb.dyad.rod)}", [P, Q], sb.dyad.rod),
@@ -198,7 +199,7 @@ def draw_sixbar(geom: SixBarGeometry, path: str | Path) -> Path:
             if link.name == "coupler":
                 ax.add_patch(Polygon(np.c_[pts.real, pts.imag], closed=True, alpha=0.2, color=color))
             ax.plot(pts.real, pts.imag, lw=3, color=color, solid_capstyle="round", label=link.label)
-        if geom.kind == "RPR":
+        if geom.kind == OutputKind.RPR:
             P = geom.joints["P"]
             rect = Rectangle((P.real - 1.5 * size, P.imag - size), 3 * size, 2 * size, alpha=0.6, color=BLOCK)
             rect.set_transform(Affine2D().rotate_around(P.real, P.imag, geom.psi) + ax.transData)

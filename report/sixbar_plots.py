@@ -20,6 +20,7 @@ from report.cycle import Cycle
 from report.escape import plot_text
 from report.sixbar_drawing import SixBarGeometry, guide_path
 from synth.candidates import Candidate
+from synth.kinds import OutputKind
 
 __all__ = ["PLOTS", "PlotFiles", "coupler_figure", "motion_figure", "plot_candidate", "save_figure",
            "transmission_figure"]
@@ -148,7 +149,7 @@ def transmission_figure(candidate: Candidate, cycle: Cycle, min_transmission: fl
     f = candidate.figures
     ax.plot(*_closed(phi, np.degrees(cycle.mu_fourbar), ok), lw=1.5, color="C0",
             label=f"four-bar at B (min {math.degrees(f.transmission_fourbar):.2f}°)")
-    out_label = "output at Q" if candidate.sixbar.dyad.kind == "RRR" else "output (slotted rocker: 90°)"
+    out_label = "output at Q" if candidate.sixbar.dyad.kind == OutputKind.RRR else "output (slotted rocker: 90°)"
     ax.plot(*_closed(phi, np.degrees(cycle.mu_output), ok), lw=1.5, color="C4",
             label=f"{out_label} (min {math.degrees(f.transmission_output):.2f}°)")
     if min_transmission is not None:

@@ -19,11 +19,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from synth.kinds import OutputTag
 from synth.sixbar import SixBar, SixBarFigures, SixBars, crank_grid, simulate
 
 __all__ = ["Candidate", "Request", "candidate_id", "parse_candidate_id", "rank", "screen"]
 
-OUTPUTS = ("rpr", "rrr", "any")
+#: The --output choices: an output tag, or any single-dwell one.
+OUTPUTS = (OutputTag.RPR.value, OutputTag.RRR.value, "any")
+_TAGS = tuple(t.value for t in OutputTag)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -72,7 +75,7 @@ class Request:
             raise bad(f"--dwells must be 1 or 2, got {self.dwells}")
         if self.dwells == 1 and self.swing is None:
             raise bad("--swing is required for one dwell per turn")
-        if self.dwells == 2 and self.output == "rrr":
+        if self.dwells == 2 and self.output == OutputTag.RRR:
             raise bad("two dwells per turn come from a double Ball point with an RPR output; use --output rpr or any")
         if self.dwells * self.dwell >= 2 * math.pi:
             raise bad(f"{self.dwells} dwell(s) of {math.degrees(self.dwell):g} degrees do not fit in one turn")
@@ -168,8 +171,9 @@ def parse_candidate_id(text: str) -> tuple[int, str, int, int, float | None]:
         seg, kind = head.split("-")
         slot_text, level_text = kind[3:].split(".")
         output, slot, level = kind[:3], int(slot_text), int(level_text)
-        if output not in ("rpr", "rrr", "dbl"):
+        if output not in _TAGS:
             raise ValueError
+        output = OutputTag(output)
         swing = None if sw == "free" else math.radians(float(sw))
         if swing is not None and not (0 < swing < math.pi):
             raise ValueError

@@ -34,7 +34,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kinematics.fourbar import fourbar_motion
-from synth.segments import _fit, path_deviation
+from synth.kinds import OutputTag, SegmentKind
+from synth.segments import minimum_zone_fit, path_deviation
 
 __all__ = [
     "PROFILE_LEVELS",
@@ -55,8 +56,7 @@ C128 = NDArray[np.complex128]
 
 #: Default profile levels: half-widths (crank lengths) 1e-5 … 1e-1, four per decade.
 PROFILE_LEVELS = tuple(float(x) for x in np.logspace(-5, -1, 17))
-_LINE, _ARC = 0, 1
-#: Lawson iterations of each re-linearised minimum-zone fit (synth.segments._fit).
+#: Lawson iterations of each re-linearised minimum-zone fit (synth.segments.minimum_zone_fit).
 _ITERATIONS = 12
 #: Re-linearisations of each fit (the circle's start is a three-point circle, not the optimum).
 _RELINEARISE = 3
@@ -88,8 +88,8 @@ class DeviationProfile:
 
 
 def _path(b, c, d, branch, uv, phi) -> C128:
-    motion = fourbar_motion(1.0, b, c, d, phi, branch, order=0)
-    return motion.A + motion.e_theta * uv
+    uv = np.asarray(uv, complex)
+    return fourbar_motion(1.0, b, c, d, phi, branch, order=0).coupler_point(uv.real, uv.imag)[0]
 
 
 def _start_geometry(z: C128, kind: int):
@@ -99,7 +99,7 @@ def _start_geometry(z: C128, kind: int):
     chord = z1 - z0
     direction = chord / np.maximum(np.abs(chord), 1e-300)
     direction = np.where(np.abs(chord) > 0, direction, 1.0)
-    if kind == _LINE:
+    if kind == SegmentKind.LINE.code:
         return 0.5 * (z0 + z1), direction, np.zeros(z.shape[0])
     # circumcentre of z0, zm, z1
     a, bb = zm - z0, z1 - z0
@@ -131,16 +131,16 @@ def minimum_zone_halfwidth(z: C128, kind: int) -> F64:
     from the three-point circle and from the algebraic least-squares circle); the smaller
     peak is kept."""
     starts = [_start_geometry(z, kind)]
-    if kind == _ARC:
+    if kind == SegmentKind.ARC.code:
         point, direction, _ = starts[0]
         centre, radius = _least_squares_circle(z)
         ok = np.isfinite(centre) & np.isfinite(radius) & (radius > 0)
         starts.append((np.where(ok, centre, starts[0][0]), direction, np.where(ok, radius, starts[0][2])))
     # a line is the limit of circles: its half-width bounds the annulus's
-    best = minimum_zone_halfwidth(z, _LINE) if kind == _ARC else np.full(z.shape[0], np.inf)
+    best = minimum_zone_halfwidth(z, SegmentKind.LINE.code) if kind == SegmentKind.ARC.code else np.full(z.shape[0], np.inf)
     for point, direction, radius in starts:
         for _ in range(_RELINEARISE):
-            point, direction, radius = _fit(z, kind, point, direction, radius, _ITERATIONS)
+            point, direction, radius = minimum_zone_fit(z, kind, point, direction, radius, _ITERATIONS)
             h = np.abs(path_deviation(z, kind, point[:, None], direction[:, None], radius[:, None])).max(axis=1)
             # |z − c| − r loses every digit for a huge radius (a fit running off to a line):
             # such a circle proves nothing, the line above stands for it
@@ -250,9 +250,9 @@ def path_tolerance(kind: str, band: ArrayLike, max_link_ratio: ArrayLike, shorte
     min(1, b, c, d)."""
     beta = np.asarray(band, float)
     reach = np.asarray(max_link_ratio, float) * np.asarray(shortest, float)
-    if kind == "rpr":
+    if kind == OutputTag.RPR:
         return reach * np.sin(beta / 2)
-    if kind == "rrr":
+    if kind == OutputTag.RRR:
         return 2 * reach * np.sin(beta / 4)
     raise ValueError(f"kind must be 'rpr' or 'rrr', not {kind!r}")
 

@@ -25,8 +25,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from kinematics.loop import circle_intersection, line_intersection, sampled_extreme
 from kinematics.status import Status
-from synth.sixbar import OutputDyad, _grid_step, _rrr_position
+from synth.sixbar import OutputDyad, grid_step
 
 __all__ = [
     "SWING_TOL",
@@ -43,8 +44,6 @@ C128 = NDArray[np.complex128]
 
 #: |swing − requested| (rad) below which a fitted dyad counts as achieving the swing.
 SWING_TOL = 1e-9
-#: |sin| of the angle between two lines below which they count as parallel (no double pivot).
-PARALLEL_EPS = 1e-9
 _TWO_PI = 2.0 * math.pi
 _MAX_ITER = 60
 #: Samples over the turn of the first (coarse) stage of the swing solve.
@@ -92,18 +91,8 @@ def _dwell_mask(phi0: float, h: float, m: int, start: np.ndarray, end: np.ndarra
 def _extremes(psi: F64) -> tuple[F64, F64, np.ndarray, np.ndarray]:
     """(max, min, argmax, argmin) along the last (cyclic) axis, the values refined by the
     parabola through the extreme sample and its two neighbours."""
-    m = psi.shape[-1]
-    out = []
-    for sign in (1.0, -1.0):
-        k = np.argmax(sign * psi, axis=-1)[..., None]
-        y0 = np.take_along_axis(psi, k, -1)[..., 0]
-        ym = np.take_along_axis(psi, (k - 1) % m, -1)[..., 0]
-        yp = np.take_along_axis(psi, (k + 1) % m, -1)[..., 0]
-        den = ym - 2.0 * y0 + yp
-        curved = sign * den < 0
-        corr = np.where(curved, (ym - yp) ** 2 / (8.0 * np.where(curved, den, 1.0)), 0.0)
-        out.append((y0 - corr, k[..., 0]))
-    (hi, khi), (lo, klo) = out
+    hi, khi = sampled_extreme(psi, +1)
+    lo, klo = sampled_extreme(psi, -1)
     return hi, lo, khi, klo
 
 
@@ -245,7 +234,7 @@ def fit_rpr(line_point: ArrayLike, line_direction: ArrayLike, phi: ArrayLike, pa
     that crosses that ray (the output would revolve or swing past π) counts as too large a
     swing.
     """
-    phi0, h, m = _grid_step(phi)
+    phi0, h, m = grid_step(phi)
     start, end = interval
     lead, z, (P0, delta, s0, s1, target) = _rows(path_z, line_point, line_direction, start, end, swing)
     if z.shape[1] != m:
@@ -342,8 +331,8 @@ def rpr_double(line1: tuple[ArrayLike, ArrayLike], line2: tuple[ArrayLike, Array
 
     Notes
     -----
-    P₁ + t₁e₁ = P₂ + t₂e₂ gives t₁ = Im(ē₂(P₂ − P₁)) / Im(ē₂e₁); Im(ē₂e₁) = sin(δ₁ − δ₂)
-    below ``PARALLEL_EPS`` is parallel. With D there, ψ = arg(P − D) is constant along both
+    P₁ + t₁e₁ = P₂ + t₂e₂ (:func:`kinematics.loop.line_intersection`); |sin(δ₁ − δ₂)| below
+    ``kinematics.loop.PARALLEL_EPS`` is parallel. With D there, ψ = arg(P − D) is constant along both
     straight stretches: two dwells per turn (docs/curvature.md §4).
     """
     p1, d1 = (np.asarray(x) for x in line1)
@@ -353,14 +342,11 @@ def rpr_double(line1: tuple[ArrayLike, ArrayLike], line2: tuple[ArrayLike, Array
     for x in (p1, p2, d1, d2):
         if not np.all(np.isfinite(x)):
             raise ValueError("line points and directions must be finite")
-    e1, e2 = np.exp(1j * d1), np.exp(1j * d2)
-    cross = (np.conj(e2) * e1).imag
-    num = (np.conj(e2) * (p2 - p1)).imag
-    parallel = np.abs(cross) < PARALLEL_EPS
-    t1 = num / np.where(parallel, 1.0, cross)
-    D = p1 + t1 * e1
+    e1 = np.exp(1j * d1)
+    hit = line_intersection(p1, e1, p2, np.exp(1j * d2))
+    D = p1 + hit.t1 * e1
     far = (np.abs(D - p1) > max_distance) | (np.abs(D - p2) > max_distance)
-    none = parallel | far
+    none = hit.parallel | far
     D = np.where(none, 0.5 * (p1 + p2), D)
     status = np.where(none, np.uint16(Status.AT_INFINITY), np.uint16(0)).astype(np.uint16)
     return DoubleRprPivot(D, status)
@@ -474,7 +460,7 @@ def fit_rrr(circle_center: ArrayLike, radius: ArrayLike, phi: ArrayLike, path_z:
     The minimum transmission angle is checked on the samples; :func:`synth.sixbar.simulate`
     gives it between them (they agree to ~0.01° at 720 samples).
     """
-    phi0, h, m = _grid_step(phi)
+    phi0, h, m = grid_step(phi)
     start, end = interval
     lead, z, (C0, rho, s0, s1, target) = _rows(path_z, circle_center, radius, start, end, swing)
     if z.shape[1] != m:
@@ -626,14 +612,17 @@ def _solve_rrr(w, rho, alpha, branch, u_lo, u_hi, u_est, target, active):
             e = e_f[sel][:, None]
             L = 1.0 / u[:, None]
             rho_ = rho_f[sel][:, None]
-            e_chi, e_psi, s, bad, toggle = _rrr_position(wk[row_of[sel]], L * e, L, rho_, br_f[sel][:, None], L + rho_)
+            # the loop P + ρ·e^{iχ} = D + L·e^{iψ} (P relative to C₀, D = L·e^{iα})
+            loop = circle_intersection(L * e - wk[row_of[sel]], rho_, L, br_f[sel][:, None])
+            e_chi, e_psi = loop.e1, loop.e2
             eta = np.angle(e_psi * -np.conj(e))  # ψ − (α + π): the rocker's turn from rest, D → C₀
             hi_, lo_, khi, klo = _extremes(eta)
-            inv_s = 1.0 / np.where(bad | toggle, np.inf, s)
+            singular = loop.status != 0
+            inv_s = 1.0 / np.where(singular, np.inf, loop.sin_relative)
             # ∂ψ/∂u = −∂ψ/∂L / u², ∂ψ/∂L = −Re((e + e^{iψ}) e^{−iχ}) / (L sin(χ − ψ))
             dpsi_du = ((e + e_psi) * np.conj(e_chi)).real * inv_s / (L * u[:, None] ** 2)
             g = lambda k: np.take_along_axis(dpsi_du, k[:, None], -1)[:, 0]
-            invalid = np.any(bad | toggle, axis=-1) | _jumps(eta)
+            invalid = np.any(singular, axis=-1) | _jumps(eta)
             return hi_ - lo_, g(khi) - g(klo), invalid
 
         return F

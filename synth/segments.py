@@ -44,22 +44,23 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from kinematics.fourbar import fourbar_motion, transmission_angle
+from kinematics.fourbar import fourbar_motion
+from kinematics.loop import line_intersection, parabola_vertex, transmission_fold
 from kinematics.status import Status
 from synth.ball import ball_point
 from synth.double_ball import double_ball_points
+from synth.kinds import SEGMENT_KINDS, SegmentKind
 from synth.line_scan import line_scan
 from synth.pole import pole
 
-__all__ = ["END_TOLERANCE", "KINDS", "FoundSegments", "SegmentSearch", "find_segments", "path_deviation"]
+__all__ = [
+    "END_TOLERANCE", "FoundSegments", "SegmentSearch", "find_segments", "minimum_zone_fit", "path_deviation",
+]
 
 F64 = NDArray[np.float64]
 C128 = NDArray[np.complex128]
 I64 = NDArray[np.int64]
 
-#: Segment kinds, in their canonical order.
-KINDS = ("line", "arc", "double_line")
-_LINE, _ARC = 0, 1
 #: Interval ends are bisected on the exact path until their bracket is below this (rad): 0.001°.
 END_TOLERANCE = math.radians(1e-3)
 #: Path samples a minimum-zone fit uses, spread evenly over its interval (ends included).
@@ -117,7 +118,7 @@ class SegmentSearch:
 class FoundSegments:
     """Measured segments of a batch of linkages, struct of arrays (one row per segment).
 
-    ``linkage`` indexes the input batch; ``kind`` indexes :data:`KINDS`. Per segment: the
+    ``linkage`` indexes the input batch; ``kind`` is a :attr:`SegmentKind.code <synth.kinds.SegmentKind.code>`. Per segment: the
     generating angle(s) (rad), scan ray angle (arcs; 0 otherwise), coupler point ``uv``, the
     osculating geometry — line ``point`` + unit ``direction`` (lines; for double lines also
     ``point2``/``direction2`` and their ``intersection``) or circle ``center`` + ``radius``
@@ -162,7 +163,7 @@ class FoundSegments:
         dwells: list[dict] = []
         ordinal = _ordinals(self.linkage)
         for i in range(len(self)):
-            kind = KINDS[int(self.kind[i])]
+            kind = SEGMENT_KINDS[int(self.kind[i])]
             sid = int(linkage_ids[self.linkage[i]]) * per_linkage + int(ordinal[i])
             row: dict[str, Any] = dict.fromkeys(
                 ("phi_gen2", "ray", "px", "py", "direction", "p2x", "p2y", "direction2", "ix", "iy", "cx", "cy", "radius")
@@ -170,26 +171,26 @@ class FoundSegments:
             row.update(
                 id=sid,
                 linkage_id=int(linkage_ids[self.linkage[i]]),
-                kind=kind,
+                kind=kind.value,
                 phi_gen=float(self.phi_gen[i]),
                 u=float(self.uv[i].real),
                 v=float(self.uv[i].imag),
                 transmission_min=float(self.transmission_min[i]),
                 transmission_max=float(self.transmission_max[i]),
             )
-            if kind == "arc":
+            if kind is SegmentKind.ARC:
                 row.update(ray=float(self.ray[i]), cx=float(self.center[i].real), cy=float(self.center[i].imag),
                            radius=float(self.radius[i]))
             else:
                 row.update(px=float(self.point[i].real), py=float(self.point[i].imag),
                            direction=float(np.angle(self.direction[i])))
-            if kind == "double_line":
+            if kind is SegmentKind.DOUBLE_LINE:
                 row.update(phi_gen2=float(self.phi_gen2[i]), p2x=float(self.point2[i].real),
                            p2y=float(self.point2[i].imag), direction2=float(np.angle(self.direction2[i])),
                            ix=float(self.intersection[i].real), iy=float(self.intersection[i].imag))
             segments.append(row)
             for level, tol in enumerate(self.tolerances):
-                for part in range(2 if kind == "double_line" else 1):
+                for part in range(2 if kind is SegmentKind.DOUBLE_LINE else 1):
                     if not self.has_dwell[i, level, part]:
                         continue
                     p = self.fit_point[i, level, part]
@@ -198,7 +199,7 @@ class FoundSegments:
                         {
                             "id": sid * per_segment + 2 * level + part,
                             "segment_id": sid,
-                            "kind": kind,
+                            "kind": kind.value,
                             "level": level,
                             "tolerance": float(tol),
                             "part": part,
@@ -208,8 +209,8 @@ class FoundSegments:
                             "max_deviation": float(self.max_deviation[i, level, part]),
                             "x": float(p.real),
                             "y": float(p.imag),
-                            "direction": None if kind == "arc" else float(np.angle(self.fit_direction[i, level, part])),
-                            "radius": float(self.fit_radius[i, level, part]) if kind == "arc" else None,
+                            "direction": None if kind is SegmentKind.ARC else float(np.angle(self.fit_direction[i, level, part])),
+                            "radius": float(self.fit_radius[i, level, part]) if kind is SegmentKind.ARC else None,
                         }
                     )
         return segments, dwells
@@ -230,17 +231,18 @@ def _ordinals(linkage: I64) -> I64:
 
 
 def path_deviation(z: C128, kind: NDArray[np.integer] | int, point: C128, direction: C128, radius: F64) -> F64:
-    """Signed distance of path points ``z`` from a line (``kind`` 0: through ``point`` along
-    unit ``direction``, positive to its left) or a circle (``kind`` 1: centre ``point``,
-    ``radius``, positive outside). Arguments broadcast."""
+    """Signed distance of path points ``z`` from a line (``kind`` ``SegmentKind.LINE.code``:
+    through ``point`` along unit ``direction``, positive to its left) or a circle
+    (``SegmentKind.ARC.code``: centre ``point``, ``radius``, positive outside). Arguments
+    broadcast."""
     kind = np.asarray(kind)
     if kind.size and np.all(kind == kind.flat[0]):  # one kind: compute only its distance
-        if kind.flat[0] == _LINE:
+        if kind.flat[0] == SegmentKind.LINE.code:
             return np.broadcast_to(np.imag(np.conj(direction) * (z - point)), np.broadcast_shapes(np.shape(z), kind.shape, np.shape(point), np.shape(direction)))
         return np.broadcast_to(np.abs(z - point) - radius, np.broadcast_shapes(np.shape(z), kind.shape, np.shape(point), np.shape(radius)))
     line = np.imag(np.conj(direction) * (z - point))
     circle = np.abs(z - point) - radius
-    return np.where(kind == _LINE, line, circle)
+    return np.where(kind == SegmentKind.LINE.code, line, circle)
 
 
 # --------------------------------------------------------------------------------------------
@@ -339,9 +341,9 @@ def _grid_candidates(b: F64, c: F64, d: F64, br: I64, search: SegmentSearch, ski
                     skipped[f"candidate skipped: {f.name.lower().replace('_', ' ')}"] += cnt
         # --- lines: Ball points, grid (n, m)
         kinds = [
-            (_LINE, ball.uv[..., 0], ball.point[..., 0], ball.tangent[..., 0], np.zeros((n, m)), ball.status[..., 0] == 0,
+            (SegmentKind.LINE.code, ball.uv[..., 0], ball.point[..., 0], ball.tangent[..., 0], np.zeros((n, m)), ball.status[..., 0] == 0,
              np.zeros((n, m))),
-            (_ARC, pairs.circle_point_uv, pairs.center_point, np.ones_like(pairs.center_point), pairs.radius,
+            (SegmentKind.ARC.code, pairs.circle_point_uv, pairs.center_point, np.ones_like(pairs.center_point), pairs.radius,
              pairs.status == 0, np.broadcast_to(alpha, pairs.radius.shape)),
         ]
         for kind, uv, point, direction, radius, ok, ray in kinds:
@@ -424,7 +426,7 @@ def _double_candidates(b: F64, c: F64, d: F64, br: I64, search: SegmentSearch, s
     phi = np.r_[found.phi1, found.phi2]
     return _Candidates(
         linkage=np.r_[found.linkage_index, found.linkage_index].astype(np.int64),
-        kind=np.full(2 * k, _LINE, dtype=np.int64),
+        kind=np.full(2 * k, SegmentKind.LINE.code, dtype=np.int64),
         center=np.rint(phi / fine_step).astype(np.int64),
         phi=phi,
         ray=np.zeros(2 * k),
@@ -493,8 +495,9 @@ def _lawson(cols: list[F64], r0: F64, iterations: int) -> F64:
     return best_x
 
 
-def _fit(z: C128, kind: int, point: C128, direction: C128, radius: F64, iterations: int):
-    """Minimum-zone line (``kind`` 0) or circle (1) through path samples ``z`` (n, samples),
+def minimum_zone_fit(z: C128, kind: int, point: C128, direction: C128, radius: F64, iterations: int):
+    """Minimum-zone line (``kind`` ``SegmentKind.LINE.code``) or circle (``ARC.code``) through
+    path samples ``z`` (n, samples),
     starting from the given one.
 
     Linearised about the current geometry: a line moves by δo along its normal and turns by
@@ -502,7 +505,7 @@ def _fit(z: C128, kind: int, point: C128, direction: C128, radius: F64, iteratio
     is of the order of the band over the stretch)."""
     r0 = path_deviation(z, kind, point[:, None], direction[:, None], radius[:, None])
     rel = z - point[:, None]
-    if kind == _LINE:
+    if kind == SegmentKind.LINE.code:
         # r ≈ r0 − δo − δβ·s (s along the line, scaled to O(1) for conditioning)
         s = np.real(np.conj(direction[:, None]) * rel)
         scale = np.maximum(np.abs(s).max(axis=1), 1e-12)
@@ -533,10 +536,9 @@ def _peak(absdev: F64, mask: NDArray[np.bool_]) -> F64:
     mid = d[:, 1:-1]
     row, col = np.nonzero((mid >= d[:, :-2]) & (mid >= d[:, 2:]) & mask[:, :-2] & mask[:, 2:])
     # few peaks per row: the parabola only where there is one
-    left, top, right = d[row, col], d[row, col + 1], d[row, col + 2]
-    curv = 2 * top - left - right
-    vertex = np.where(curv > 0, top + (right - left) ** 2 / (8 * np.where(curv > 0, curv, 1.0)), top)
-    np.maximum.at(h, row, vertex)
+    top = d[row, col + 1]
+    vertex = parabola_vertex(d[row, col], top, d[row, col + 2])
+    np.maximum.at(h, row, top + np.where(vertex.curvature < 0, vertex.rise, 0.0))
     return h
 
 
@@ -585,7 +587,7 @@ def _measure(A: C128, E: C128, cand: _Candidates, rows: I64, width: int, search:
             # fit on FIT_SAMPLES spread over the target (the check below uses every sample)
             pos = t_lo[:, None] + np.rint(_FIT_SPREAD * (t_hi - t_lo)[:, None]).astype(np.int64)
             zs = np.take_along_axis(z, pos, axis=1)
-            p2, d2, r2 = _fit(zs, kind, point, direction, radius, search.lawson_iterations)
+            p2, d2, r2 = minimum_zone_fit(zs, kind, point, direction, radius, search.lawson_iterations)
             dev = np.abs(path_deviation(z, kind, p2[:, None], d2[:, None], r2[:, None]))
             h = _peak(dev, mask)
             ok = (h <= eps * (1 - _BAND_MARGIN)) & (hi >= lo)
@@ -617,7 +619,7 @@ def _bisect_ends(b, c, d, br, cand: _Candidates, rows: I64, phi_in: F64, phi_out
     for _ in range(steps):
         mid = 0.5 * (lo + hi)
         motion = fourbar_motion(1.0, b[link], c[link], d[link], mid, br[link], order=0)
-        z = motion.A + motion.e_theta * uv
+        z = motion.coupler_point(uv.real, uv.imag)[0]
         inside = np.abs(path_deviation(z, kind, point, direction, radius)) <= band
         lo = np.where(inside, mid, lo)
         hi = np.where(inside, hi, mid)
@@ -650,8 +652,7 @@ def find_segments(b: F64, c: F64, d: F64, branch: I64, search: SegmentSearch) ->
     phi_f = np.arange(mf) * fine_step
     motion = fourbar_motion(1.0, b[:, None], c[:, None], d[:, None], phi_f, br[:, None], order=0)
     A, E = np.broadcast_to(motion.A, motion.shape), motion.e_theta
-    mu = transmission_angle(motion)
-    mu = np.minimum(mu, np.pi - mu)
+    mu = transmission_fold(motion.e_theta * np.conj(motion.e_gamma))
 
     m = _Measured.empty(n_cand, levels)
     top = levels - 1
@@ -732,13 +733,13 @@ def _measure_rows(m: _Measured, A: C128, E: C128, cand: _Candidates, rows: I64, 
         m.width[sel] = width
 
     done = np.zeros(rows.size, bool)
-    for width, kind in itertools.product(_window_classes(mf), (_LINE, _ARC)):
+    for width, kind in itertools.product(_window_classes(mf), (SegmentKind.LINE.code, SegmentKind.ARC.code)):
         pick = (window <= width) & ~done & (cand.kind[rows] == kind)
         if np.any(pick):
             done |= pick
             run(rows[pick], width)
     cut = rows[(m.truncated[rows[:, None], cols] & m.has[rows[:, None], cols]).any(axis=1) & (m.width[rows] < widest)]
-    for kind in (_LINE, _ARC):
+    for kind in (SegmentKind.LINE.code, SegmentKind.ARC.code):
         sel = cut[cand.kind[cut] == kind]
         if sel.size:
             run(sel, widest)
@@ -812,13 +813,13 @@ def _assemble(A, E, cand, keep, search, start, end, dwell, gp, gd, gr, mu, skipp
     levels = len(search.tolerances)
     first = np.flatnonzero(keep & ((cand.partner < 0) | (np.arange(keep.size) < cand.partner)))
     partner = np.where(cand.partner[first] >= 0, cand.partner[first], first)
-    kind = np.where(cand.partner[first] >= 0, 2, cand.kind[first])
+    kind = np.where(cand.partner[first] >= 0, SegmentKind.DOUBLE_LINE.code, cand.kind[first])
     # canonical order: linkage, kind, generating angle, ray
     order = np.lexsort((cand.ray[first], cand.phi[first], kind, cand.linkage[first]))
     first, partner, kind = first[order], partner[order], kind[order]
     two = np.stack([first, partner], axis=1)  # (S, 2): part 0 and part 1 (same for single)
     has = (dwell[two] > 0).transpose(0, 2, 1)  # (S, levels, 2)
-    is_double = kind == 2
+    is_double = kind == SegmentKind.DOUBLE_LINE.code
     has[~is_double, :, 1] = False
     twopi = 2 * np.pi
     s = np.mod(start[two], twopi).transpose(0, 2, 1)
@@ -858,11 +859,9 @@ def _assemble(A, E, cand, keep, search, start, end, dwell, gp, gd, gr, mu, skipp
     a_dbl = is_double
     p1, p2 = cand.point[two[:, 0]], cand.point[two[:, 1]]
     t1, t2 = cand.direction[two[:, 0]], cand.direction[two[:, 1]]
-    cross = np.imag(np.conj(t1) * t2)
-    parallel = a_dbl & (np.abs(cross) < 1e-6)
-    safe = np.where(np.abs(cross) < 1e-6, 1.0, cross)
-    tpar = np.where(parallel, 0.0, np.imag(np.conj(p2 - p1) * t2) / safe)
-    inter = np.where(a_dbl & ~parallel, p1 + tpar * t1, 0.0)
+    hit = line_intersection(p1, t1, p2, t2)
+    parallel = a_dbl & hit.parallel
+    inter = np.where(a_dbl & ~parallel, p1 + hit.t1 * t1, 0.0)
     far = a_dbl & (parallel | (np.abs(inter) > 1e6))
     if np.any(far):
         skipped["double Ball point dropped: its lines are parallel"] += int(np.count_nonzero(far))
@@ -874,13 +873,13 @@ def _assemble(A, E, cand, keep, search, start, end, dwell, gp, gd, gr, mu, skipp
         phi_gen2=np.where(a_dbl, cand.phi[partner], 0.0)[sel],
         ray=cand.ray[first][sel],
         uv=cand.uv[first][sel],
-        point=np.where(kind == _ARC, 0, p1)[sel],
-        direction=np.where(kind == _ARC, 1, t1)[sel],
+        point=np.where(kind == SegmentKind.ARC.code, 0, p1)[sel],
+        direction=np.where(kind == SegmentKind.ARC.code, 1, t1)[sel],
         point2=np.where(a_dbl, p2, 0)[sel],
         direction2=np.where(a_dbl, t2, 1)[sel],
         intersection=inter[sel],
-        center=np.where(kind == _ARC, cand.point[first], 0)[sel],
-        radius=np.where(kind == _ARC, cand.radius[first], 0.0)[sel],
+        center=np.where(kind == SegmentKind.ARC.code, cand.point[first], 0)[sel],
+        radius=np.where(kind == SegmentKind.ARC.code, cand.radius[first], 0.0)[sel],
         transmission_min=tmin[sel],
         transmission_max=tmax[sel],
         tolerances=tuple(search.tolerances),

@@ -25,18 +25,20 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Literal, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kinematics.fourbar import FourBarMotion, fourbar_motion
+from kinematics.loop import circle_intersection, parabola_vertex, sampled_extreme, transmission_fold
 from kinematics.status import (
     AssemblyError,
     Status,
     check_on_degenerate,
     raise_on_flags,
 )
+from synth.kinds import OutputKind
 
 if TYPE_CHECKING:
     from synth.buildability import Buildability
@@ -52,6 +54,7 @@ __all__ = [
     "crank_degrees",
     "crank_grid",
     "dwell_intervals",
+    "grid_step",
     "output_deviation",
     "output_swing",
     "simulate",
@@ -65,13 +68,9 @@ U16 = NDArray[np.uint16]
 #: leading shape of the ψ samples) → ψ of the same shape, on any 2π branch.
 PsiAt = Callable[[F64], F64]
 
-DyadKind = Literal["RPR", "RRR"]
-_KINDS = ("RPR", "RRR")
 
 #: |P − D| below this × linkage size: the RPR pin sits on the slot pivot, ψ is undefined.
 PIN_ON_PIVOT_EPS = 1e-9
-#: |sin| of the rod–rocker angle below this: RRR dyad toggle, its derivative system is singular.
-TOGGLE_EPS = 1e-12
 #: Crank-angle step (rad) that sets the subdivisions of one grid step in the first stage of the
 #: deviation window's placement (at most DWELL_FINE of them; a second stage refines ×DWELL_FINE/2).
 REFINE_STEP = math.radians(0.008)
@@ -102,9 +101,9 @@ class OutputDyad:
 
     Attributes
     ----------
-    kind : {"RPR", "RRR"}
-        ``"RPR"``: slotted rocker about ``pivot`` whose slot passes through the pivot; the pin
-        at P slides in it (``rocker``, ``rod`` and ``branch`` are unused, 0/0/+1).
+    kind : OutputKind
+        (a string is accepted, any case). ``"RPR"``: slotted rocker about ``pivot`` whose slot
+        passes through the pivot; the pin at P slides in it (``rocker``, ``rod`` and ``branch`` are unused, 0/0/+1).
         ``"RRR"``: rod P–Q of length ``rod`` and rocker D–Q of length ``rocker``.
     pivot : complex
         Fixed pivot D, fixed frame (A0 = 0, B0 = d on +x), link-length units. A pair (x, y) is
@@ -121,16 +120,18 @@ class OutputDyad:
         assemble, and is flagged.
     """
 
-    kind: DyadKind
+    kind: OutputKind
     pivot: complex
     rocker: float = 0.0
     rod: float = 0.0
     branch: int = 1
 
     def __post_init__(self) -> None:
-        kind = str(self.kind).upper()
-        if kind not in _KINDS:
-            raise ValueError(f"dyad kind must be one of {', '.join(map(repr, _KINDS))}, not {self.kind!r}")
+        try:
+            kind = OutputKind(str(self.kind).upper())
+        except ValueError:
+            raise ValueError(f"dyad kind must be one of {', '.join(repr(k.value) for k in OutputKind)}, "
+                             f"not {self.kind!r}") from None
         pivot = self.pivot
         if not isinstance(pivot, (complex, float, int, np.number)):
             x, y = pivot  # (x, y)
@@ -141,7 +142,7 @@ class OutputDyad:
         if int(self.branch) not in (1, -1):
             raise ValueError(f"dyad branch must be +1 or -1, not {self.branch!r}")
         rocker, rod = float(self.rocker), float(self.rod)
-        if kind == "RRR":
+        if kind is OutputKind.RRR:
             for name, value in (("rocker", rocker), ("rod", rod)):
                 if not (math.isfinite(value) and value > 0):
                     raise AssemblyError(f"RRR {name} length must be finite and > 0, got {value!r}")
@@ -156,12 +157,12 @@ class OutputDyad:
     @classmethod
     def rpr(cls, pivot: complex) -> OutputDyad:
         """Slotted rocker about ``pivot``."""
-        return cls("RPR", pivot)
+        return cls(OutputKind.RPR, pivot)
 
     @classmethod
     def rrr(cls, pivot: complex, rocker: float, rod: float, branch: int) -> OutputDyad:
         """Rocker |DQ| = ``rocker`` about ``pivot``, rod |PQ| = ``rod``, on ``branch``."""
-        return cls("RRR", pivot, rocker, rod, branch)
+        return cls(OutputKind.RRR, pivot, rocker, rod, branch)
 
 
 @dataclass(frozen=True, slots=True)
@@ -246,7 +247,7 @@ class SixBars:
         return cls(
             f(lambda s: s.a), f(lambda s: s.b), f(lambda s: s.c), f(lambda s: s.d), f(lambda s: s.branch),
             f(lambda s: s.u), f(lambda s: s.v),
-            np.array([s.dyad.kind == "RPR" for s in sixbars]),
+            np.array([s.dyad.kind is OutputKind.RPR for s in sixbars]),
             np.array([s.dyad.pivot for s in sixbars], dtype=complex),
             f(lambda s: s.dyad.rocker), f(lambda s: s.dyad.rod), f(lambda s: s.dyad.branch),
         )
@@ -255,7 +256,7 @@ class SixBars:
         return int(self.a.shape[0])
 
     def __getitem__(self, i: int) -> SixBar:
-        kind = "RPR" if self.rpr[i] else "RRR"
+        kind = OutputKind.RPR if self.rpr[i] else OutputKind.RRR
         dyad = OutputDyad(kind, complex(self.pivot[i]), float(self.rocker[i]), float(self.rod[i]),
                           int(self.dyad_branch[i]))
         return SixBar(float(self.a[i]), float(self.b[i]), float(self.c[i]), float(self.d[i]), int(self.branch[i]),
@@ -376,14 +377,15 @@ def simulate(sixbar: SixBar | SixBars, phi: ArrayLike, *, order: int = 2, on_deg
     over the pivot — is flagged ``NOT_ASSEMBLABLE`` (|P − D| < ``PIN_ON_PIVOT_EPS`` × size).
 
     RRR: loop ρ·e^{iχ} − L·e^{iψ} = R, R = D − P (χ the rod angle P→Q). Q is the circle–circle
-    intersection |Q − P| = ρ, |Q − D| = L on the fixed branch: e^{iχ} = (R/r)(cos β + i·s·sin β),
+    intersection |Q − P| = ρ, |Q − D| = L on the fixed branch
+    (:func:`kinematics.loop.circle_intersection`): e^{iχ} = (R/r)(cos β + i·s·sin β),
     cos β = (ρ² + r² − L²)/(2ρr), 2ρr·sin β = √((r + L − ρ)(ρ + L − r)(r + ρ − L)(r + ρ + L))
     (Heron, no cancellation at a toggle), sin(χ − ψ) = −r·s·sin β/L. Each derivative order
-    solves i·ρ·χ⁽ᵏ⁾e^{iχ} − i·L·ψ⁽ᵏ⁾e^{iψ} = Q_k with
+    solves i·ρ·χ⁽ᵏ⁾e^{iχ} − i·L·ψ⁽ᵏ⁾e^{iψ} = Q_k (:meth:`~kinematics.loop.CircleIntersection.rates`) with
     ψ⁽ᵏ⁾ = −Re(Q_k e^{−iχ})/(L sin(χ − ψ)), χ⁽ᵏ⁾ = −Re(Q_k e^{−iψ})/(ρ sin(χ − ψ)),
     Q_1 = −P′, Q_2 = −P″ + ρχ′²e^{iχ} − Lψ′²e^{iψ} (the four-bar's system of docs/curvature.md §1
     with b, c, θ, γ → ρ, L, χ, ψ). Transmission angle at Q: the angle between e^{iχ} and
-    e^{iψ}, folded to [0, π/2].
+    e^{iψ}, folded to [0, π/2] (:func:`kinematics.loop.transmission_fold`).
 
     References
     ----------
@@ -409,8 +411,7 @@ def simulate(sixbar: SixBar | SixBars, phi: ArrayLike, *, order: int = 2, on_deg
         if batch.rpr[0]:
             Q, e_psi, dpsi, mu_out, st = _rpr(z, pivot, size, order)
         else:
-            Q, e_psi, dpsi, mu_out, st = _rrr(z, pivot, batch.rocker[0], batch.rod[0], batch.dyad_branch[0], size,
-                                              order)
+            Q, e_psi, dpsi, mu_out, st = _rrr(z, pivot, batch.rocker[0], batch.rod[0], batch.dyad_branch[0], order)
     else:
         Q = np.empty(shape, complex)
         e_psi = np.empty(shape, complex)
@@ -425,7 +426,7 @@ def simulate(sixbar: SixBar | SixBars, phi: ArrayLike, *, order: int = 2, on_deg
                 res = _rpr(zr, pivot[rows], size[rows], order)
             else:
                 res = _rrr(zr, pivot[rows], batch.rocker[rows, None], batch.rod[rows, None],
-                           batch.dyad_branch[rows, None], size[rows], order)
+                           batch.dyad_branch[rows, None], order)
             Q[rows], e_psi[rows], mu_out[rows], st[rows] = res[0], res[1], res[3], res[4]
             for k in range(order):
                 dpsi[k][rows] = res[2][k]
@@ -435,9 +436,7 @@ def simulate(sixbar: SixBar | SixBars, phi: ArrayLike, *, order: int = 2, on_deg
     flagged = status != 0
     dpsi = tuple(np.where(flagged, 0.0, x) for x in dpsi)
     psi = _unwrap(e_psi, dpsi[0] if order else None, np.broadcast_to(phi, shape))
-    # Folded four-bar transmission angle from the phasors: atan2 keeps accuracy near 0 and π/2.
-    rel = fb.e_theta * np.conj(fb.e_gamma)
-    mu_fb = np.arctan2(np.abs(rel.imag), np.abs(rel.real))
+    mu_fb = transmission_fold(fb.e_theta * np.conj(fb.e_gamma))
     motion = SixBarMotion(phi, fb, z, pivot, Q, psi, dpsi, mu_fb, mu_out, status)
     if mode == "raise":
         flags = Status.NOT_ASSEMBLABLE | (Status.TOGGLE if order else Status.OK)
@@ -464,56 +463,21 @@ def _rpr(z: tuple, D, size, order: int):
     return z[0], e_psi, tuple(dpsi), mu, status
 
 
-def _rrr_position(P, D, L, rho, branch, size):
-    """Circle–circle intersection Q on ``branch``: (e^{iχ}, e^{iψ}, sin(χ − ψ), bad, toggle).
-
-    ``bad`` where |P − D| is outside [|L − ρ|, L + ρ] (or P on D); placeholders there come from
-    the clipped (stretched or folded) configuration, finite.
-    """
-    R = D - P
-    r = np.abs(R)
-    coincident = r <= PIN_ON_PIVOT_EPS * size
-    heron = (r + (L - rho)) * ((rho + L) - r) * (r + (rho - L)) * (r + (rho + L))
-    bad = (heron < 0) | coincident
-    r_safe = np.where(coincident, 1.0, r)
-    R = np.where(coincident, 1.0, R)
-    inv = 0.5 / (rho * r_safe)
-    cb = (r_safe * r_safe + (rho - L) * (rho + L)) * inv
-    sb = np.sqrt(np.maximum(heron, 0.0)) * (branch * inv)
-    # Clip the placeholder of a non-assemblable position onto the unit circle.
-    cb = np.where(bad, np.clip(cb, -1.0, 1.0), cb)
-    e_chi = (R / r_safe) * (cb + 1j * sb)
-    e_psi = (rho * e_chi - R) / L
-    mag = np.abs(e_psi)
-    e_psi = np.where(bad, e_psi / np.where(mag > 0, mag, 1.0) + (mag == 0), e_psi)
-    s = -r_safe * sb / L  # sin(χ − ψ)
-    toggle = (np.abs(s) < TOGGLE_EPS) & ~bad
-    return e_chi, e_psi, s, bad, toggle
-
-
-def _rrr(z: tuple, D, L, rho, branch, size, order: int):
+def _rrr(z: tuple, D, L, rho, branch, order: int):
     """RRR dyad: Q, ψ and derivatives, transmission angle at Q (see :func:`simulate`)."""
-    e_chi, e_psi, s, bad, toggle = _rrr_position(z[0], D, L, rho, branch, size)
+    # The loop P + ρ·e^{iχ} = D + L·e^{iψ}: circles about P (radius ρ) and D (radius L).
+    loop = circle_intersection(D - z[0], rho, L, branch)
+    e_chi, e_psi = loop.e1, loop.e2
     Q = D + L * e_psi
-    cos_rel = (e_chi * np.conj(e_psi)).real
-    mu = np.where(bad, 0.0, np.arctan2(np.abs(s), np.abs(cos_rel)))
-    status = np.where(bad, np.uint16(Status.NOT_ASSEMBLABLE),
-                      np.where(toggle, np.uint16(Status.TOGGLE), np.uint16(0))).astype(np.uint16)
+    bad = (loop.status & np.uint8(Status.NOT_ASSEMBLABLE)) != 0
+    mu = np.where(bad, 0.0, transmission_fold(e_chi * np.conj(e_psi)))
+    status = loop.status.astype(np.uint16)
     dpsi: list[F64] = []
     if order >= 1:
-        singular = bad | toggle
-        inv_s = 1.0 / np.where(singular, np.inf, s)
-
-        def solve(q):
-            psi_k = -(q * np.conj(e_chi)).real * inv_s / L
-            chi_k = -(q * np.conj(e_psi)).real * inv_s / rho
-            return psi_k, chi_k
-
-        p1, c1 = solve(-z[1])
+        c1, p1 = loop.rates(-z[1])  # (χ′, ψ′)
         dpsi.append(p1)
         if order >= 2:
-            p2, _ = solve(-z[2] + rho * c1 * c1 * e_chi - L * p1 * p1 * e_psi)
-            dpsi.append(p2)
+            dpsi.append(loop.rates(-z[2] + rho * c1 * c1 * e_chi - L * p1 * p1 * e_psi)[1])
     return Q, e_psi, tuple(dpsi), mu, status
 
 
@@ -545,7 +509,7 @@ def _wrap(x):
 # --------------------------------------------------------------------------------------------
 
 
-def _grid_step(phi: ArrayLike) -> tuple[float, float, int]:
+def grid_step(phi: ArrayLike) -> tuple[float, float, int]:
     """(φ₀, h, M) of a uniform full-turn crank grid (see :func:`crank_grid`)."""
     phi = np.asarray(phi, dtype=float)
     if phi.ndim != 1 or phi.size < 8:
@@ -598,7 +562,7 @@ def output_swing(phi: ArrayLike, psi: ArrayLike, *, dpsi: tuple[F64, ...] | None
     turns : (...,) int
         Net revolutions of the output per crank turn; ≠ 0 means the output is not a rocker.
     """
-    phi0, h, _ = _grid_step(phi)
+    phi0, h, _ = grid_step(phi)
     psi = np.asarray(psi, dtype=float)
     d1 = None if dpsi is None else dpsi[0]
     net = _net_change(psi, d1, h)
@@ -624,10 +588,10 @@ def _refined_extreme(psi, dpsi, psi_at, phi0, h, sign):
         yp = np.take_along_axis(psi, (k + 1) % m, -1)[..., 0]
         # cyclic neighbours of an end sample belong to the next turn: same branch only if net = 0
         ym, yp = _rewrap(ym, y0), _rewrap(yp, y0)
-        den = ym - 2 * y0 + yp
-        curved = sign * den < 0
-        delta = np.where(curved, 0.5 * (ym - yp) / np.where(curved, den, 1.0), 0.0) * h
-        taylor = y0 - np.where(curved, (ym - yp) ** 2 / (8 * np.where(curved, den, 1.0)), 0.0)
+        vertex = parabola_vertex(ym, y0, yp)
+        curved = sign * vertex.curvature < 0
+        delta = np.where(curved, vertex.offset, 0.0) * h
+        taylor = y0 + np.where(curved, vertex.rise, 0.0)
     delta = np.clip(delta, -h, h)
     if psi_at is None:
         value = taylor
@@ -760,7 +724,7 @@ def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: i
     """
     if count not in (1, 2):
         raise ValueError(f"count must be 1 or 2, not {count!r}")
-    phi0, h, m = _grid_step(phi)
+    phi0, h, m = grid_step(phi)
     psi = np.asarray(psi, dtype=float)
     lead = psi.shape[:-1]
     P = psi.reshape(-1, m)
@@ -894,8 +858,9 @@ def _vertex_bounds(E: F64) -> tuple[F64, F64]:
     """(upper, lower): the samples, raised (lowered) at each local maximum (minimum) to the
     vertex of the parabola through it and its two neighbours."""
     ym, y0, yp = E[:, :-2], E[:, 1:-1], E[:, 2:]
-    den = ym - 2 * y0 + yp
-    lift = (ym - yp) ** 2 / (8 * np.where(den != 0, np.abs(den), 1.0))
+    vertex = parabola_vertex(ym, y0, yp)
+    den = vertex.curvature
+    lift = np.abs(vertex.rise)  # capped at |den| below: a vertex far outside its step is no peak
     peak = (den < 0) & (y0 >= ym) & (y0 >= yp)
     dip = (den > 0) & (y0 <= ym) & (y0 <= yp)
     upper, lower = E.copy(), E.copy()
@@ -1169,7 +1134,7 @@ def output_deviation(phi: ArrayLike, psi: ArrayLike, center: ArrayLike, length: 
     window_start : (...,) float
         Crank angle s of the best window (rad, in [φ₀, φ₀ + 2π)).
     """
-    phi0, h, m = _grid_step(phi)
+    phi0, h, m = grid_step(phi)
     psi = np.asarray(psi, dtype=float)
     lead = psi.shape[:-1]
     P = psi.reshape(-1, m)
@@ -1469,15 +1434,8 @@ def _as_batch_motion(motion: SixBarMotion) -> SixBarMotion:
 def _refined_min(x: F64) -> F64:
     """Row minimum of a smooth periodic sample sequence, refined by the parabola through the
     minimum sample and its two cyclic neighbours (never above the sample minimum)."""
-    m = x.shape[-1]
-    k = np.argmin(x, axis=-1)[:, None]
-    y0 = np.take_along_axis(x, k, 1)[:, 0]
-    ym = np.take_along_axis(x, (k - 1) % m, 1)[:, 0]
-    yp = np.take_along_axis(x, (k + 1) % m, 1)[:, 0]
-    den = ym - 2 * y0 + yp
-    curved = den > 0
-    vertex = y0 - np.where(curved, (ym - yp) ** 2 / (8 * np.where(curved, den, 1.0)), 0.0)
-    return np.clip(np.minimum(vertex, y0), 0.0, None)
+    value, _ = sampled_extreme(x, -1)
+    return np.clip(value, 0.0, None)
 
 
 def _hull_areas(points: C128) -> F64:

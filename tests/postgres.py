@@ -326,5 +326,5 @@ def demo_atlases(postgres_server: PostgresServer, tmp_path_factory: pytest.TempP
     path = str(tmp_path_factory.mktemp("demo-atlas") / "demo.sqlite")
     with postgres_server.database() as url:
         for target in (path, url):
-            build_atlas(target, PRESETS["demo"], workers=2, progress=False)
+            build_atlas(target, PRESETS["demo"], workers=2)
         yield {"sqlite": path, "postgresql": url}

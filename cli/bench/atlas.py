@@ -34,7 +34,8 @@ from atlas.sweep import PRESETS, sweep_linkages
 from cli.budget import check_time
 from cli.options import RAYS, SEARCH_STEP_DEG, writable_file
 from kinematics.fourbar import fourbar_motion
-from synth.segments import KINDS, SegmentSearch, find_segments, path_deviation
+from synth.kinds import SEGMENT_KINDS, SegmentKind
+from synth.segments import SegmentSearch, find_segments, path_deviation
 
 DEFAULT_RESOLUTIONS = "4:18,3:24,2:36,1.5:48"
 FLOOR = 100.0  # linkages/s on 2 cores at the standard resolution (issue #4)
@@ -65,12 +66,12 @@ def _independent_dwell(b, c, d, br, found, i, level, part) -> float:
     k = found.linkage[i]
     eps = found.tolerances[level]
     geometry = (found.fit_point[i, level, part], found.fit_direction[i, level, part], found.fit_radius[i, level, part])
-    kind = 1 if KINDS[found.kind[i]] == "arc" else 0
+    kind = SegmentKind.ARC.code if SEGMENT_KINDS[found.kind[i]] is SegmentKind.ARC else SegmentKind.LINE.code
     uv = found.uv[i]
 
     def outside(phi):
         m = fourbar_motion(1.0, b[k], c[k], d[k], np.atleast_1d(phi), br[k], order=0)
-        return np.abs(path_deviation(m.A + m.e_theta * uv, kind, *geometry)) > eps
+        return np.abs(path_deviation(m.coupler_point(uv.real, uv.imag)[0], kind, *geometry)) > eps
 
     mid = 0.5 * (found.phi_start[i, level, part] + found.phi_end[i, level, part])
     ends = []
@@ -89,9 +90,9 @@ def _independent_dwell(b, c, d, br, found, i, level, part) -> float:
 
 
 def _best(found, n_links: int, levels: int) -> np.ndarray:
-    best = np.zeros((n_links, len(KINDS), levels))
+    best = np.zeros((n_links, len(SEGMENT_KINDS), levels))
     dwell = np.where(found.has_dwell[..., 0], found.phi_end[..., 0] - found.phi_start[..., 0], 0.0)
-    for kind in range(len(KINDS)):
+    for kind in range(len(SEGMENT_KINDS)):
         sel = found.kind == kind
         for level in range(levels):
             np.maximum.at(best[:, kind, level], found.linkage[sel], dwell[sel, level])
@@ -149,7 +150,7 @@ def atlas(preset, proportions, resolutions, reference_step, reference_rays, dwel
         has = ref_best > 0
         shortfall = np.clip((ref_best - best)[has] / ref_best[has], 0.0, None)
         triples = [(i, lv, p) for i in range(len(found)) for lv in range(levels)
-                   for p in range(2 if KINDS[found.kind[i]] == "double_line" else 1) if found.has_dwell[i, lv, p]]
+                   for p in range(2 if SEGMENT_KINDS[found.kind[i]] is SegmentKind.DOUBLE_LINE else 1) if found.has_dwell[i, lv, p]]
         pick = rng.choice(len(triples), size=min(dwell_samples, len(triples)), replace=False) if triples else []
         errors = [abs(_independent_dwell(b, c, d, br, found, *triples[j])
                       - (found.phi_end[triples[j]] - found.phi_start[triples[j]])) for j in pick]
@@ -162,7 +163,7 @@ def atlas(preset, proportions, resolutions, reference_step, reference_rays, dwel
                 "linkages_per_s": round(b.size / seconds, 2),
                 "segments": len(segments),
                 "segments_per_s": round(len(segments) / seconds, 1),
-                "segments_by_kind": {k: int(np.count_nonzero(found.kind == j)) for j, k in enumerate(KINDS)},
+                "segments_by_kind": {k: int(np.count_nonzero(found.kind == j)) for j, k in enumerate(SEGMENT_KINDS)},
                 "dwell_error_deg": float(np.degrees(max(errors))) if errors else None,
                 "dwells_checked": len(errors),
                 "best_dwell_shortfall_median": float(np.median(shortfall)) if shortfall.size else None,
@@ -194,7 +195,7 @@ def _timed_build(spec, samples: int, workers: int) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         target = str(Path(tmp) / "bench.sqlite")
         t0 = time.perf_counter()
-        summary = build_atlas(target, small, workers=workers, progress=False)
+        summary = build_atlas(target, small, workers=workers)
         seconds = time.perf_counter() - t0
     linkages = int(getattr(summary, "linkages", 0))
     rate = linkages / seconds if seconds > 0 else math.inf

@@ -83,14 +83,14 @@ def summary(rows: list[dict]) -> dict:
               help="Write the grids as heat maps of the candidates found (PNG).")
 def coverage(db, top, as_json, plot):
     """Coverage of the dwell × swing grid (RPR, RRR) and the double-dwell row: candidates, best deviation, time."""
-    from cli.bench.query import _atlas_facts
+    from cli.bench.query import atlas_facts
     from db.engine import open_atlas
     from db.queries import AtlasSource
     from synth.query import answer
 
     engine = open_atlas(db, readonly=True)
     try:
-        atlas = _atlas_facts(engine)
+        atlas = atlas_facts(engine)
         source = AtlasSource(engine)
         rows = []
         start = time.perf_counter()

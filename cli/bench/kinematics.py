@@ -34,7 +34,7 @@ BYTES_PER_POSITION = 120
 FASTEST_POSITIONS_PER_S = 1e8
 
 
-def _sweep(n: int, seed: int) -> tuple[np.ndarray, ...]:
+def random_linkages(n: int, seed: int) -> tuple[np.ndarray, ...]:
     """n random crank-rockers, crank = 1 (b, c, d drawn until Grashof crank-rocker)."""
     rng = np.random.default_rng(seed)
     b, c, d = rng.uniform(1.5, 5.0, (3, 4 * n + 16))
@@ -66,7 +66,7 @@ def check_positions(ns: list[int], angles: int, repeat: int, bytes_per_position:
                "lower --n, --angles or --repeat")
 
 
-def _best_time(fn, repeat: int, loops: int = 1) -> float:
+def best_time(fn, repeat: int, loops: int = 1) -> float:
     """Best over ``repeat`` runs of the mean time of ``loops`` calls (timeit's method)."""
     best = float("inf")
     for _ in range(repeat):
@@ -79,9 +79,9 @@ def _best_time(fn, repeat: int, loops: int = 1) -> float:
 
 def _accuracy(samples: int, angles: int, seed: int) -> dict[str, float]:
     """Largest float64 error, relative to 1 + |value|, against extended precision."""
-    from kinematics.fourbar import _solve_chunk  # the one closed form, run at higher precision
+    from kinematics.fourbar import solve_block  # the one closed form, run at higher precision
 
-    a, b, c, d = _sweep(samples, seed + 1)
+    a, b, c, d = random_linkages(samples, seed + 1)
     phi = np.linspace(0, 2 * np.pi, angles, endpoint=False)
     m = fourbar_motion(a, b, c, d, phi, 1, order=3)
     ld = np.longdouble
@@ -89,7 +89,7 @@ def _accuracy(samples: int, angles: int, seed: int) -> dict[str, float]:
     e_ref = np.empty(shape, np.clongdouble)
     st_ref = np.empty(shape, np.uint8)
     d_ref = [np.empty(shape, ld) for _ in range(6)]
-    _solve_chunk(*(np.asarray(x, ld) for x in (a, b, c, d, phi[None, :], np.ones((1, 1)))), 3, e_ref, st_ref, d_ref)
+    solve_block(*(np.asarray(x, ld) for x in (a, b, c, d, phi[None, :], np.ones((1, 1)))), 3, e_ref, st_ref, d_ref)
     ok = m.ok
     out = {"theta": float(np.max(np.abs(m.e_theta - e_ref)[ok]))}
     names = ["dtheta1", "dgamma1", "dtheta2", "dgamma2", "dtheta3", "dgamma3"]
@@ -113,20 +113,20 @@ def kinematics(sizes: str, angles: int, repeat: int, seed: int) -> None:
     check_positions(ns, angles, repeat, BYTES_PER_POSITION, 2 * repeat + 1, "linkages")
     results = []
     for n in ns:
-        a, b, c, d = _sweep(n, seed)
+        a, b, c, d = random_linkages(n, seed)
         positions = n * angles
         # warm-up, then the single call over the whole n × M block
         fourbar_motion(a[:1], b[:1], c[:1], d[:1], phi, 1, order=3)
         loops = max(1, MIN_POSITIONS_PER_RUN // positions)  # small n: many calls per timed run
-        t_single = _best_time(lambda: fourbar_motion(a, b, c, d, phi, 1, order=3), repeat, loops)
+        t_single = best_time(lambda: fourbar_motion(a, b, c, d, phi, 1, order=3), repeat, loops)
 
         def streamed():
             for i in range(0, n, STREAM_BATCH):
                 s = slice(i, i + STREAM_BATCH)
                 fourbar_motion(a[s], b[s], c[s], d[s], phi, 1, order=3)
 
-        t_stream = _best_time(streamed, repeat, loops)
-        t_plain = _best_time(lambda: fourbar_positions(a, b, c, d, phi), repeat, loops)
+        t_stream = best_time(streamed, repeat, loops)
+        t_plain = best_time(lambda: fourbar_positions(a, b, c, d, phi), repeat, loops)
         # the yardstick computes the same θ (all sweeps are crank-rockers: every position closes)
         theta = np.angle(fourbar_motion(a, b, c, d, phi, 1, order=0).e_theta)
         agree = float(np.max(np.abs(np.angle(np.exp(1j * (theta - fourbar_positions(a, b, c, d, phi)))))))

@@ -81,7 +81,7 @@ def _request(r: BenchRequest, top: int):
                                 r.min_transmission, r.max_link_ratio, top)
 
 
-def _atlas_facts(engine) -> dict:
+def atlas_facts(engine) -> dict:
     from db.spec import last_spec
     from db.summary import row_counts
 
@@ -109,7 +109,7 @@ def query(db, repeat, top, plot):
 
     engine = open_atlas(db, readonly=True)
     try:
-        atlas = _atlas_facts(engine)
+        atlas = atlas_facts(engine)
         answer(engine, _request(REQUESTS[0], top))  # warm-up: imports, SQLite page cache
         # one timed answer of the first request, then the whole run's estimate against the budget
         t0 = time.perf_counter()

@@ -17,7 +17,7 @@ import click
 import numpy as np
 
 from cli.options import SEED
-from cli.bench.kinematics import MIN_POSITIONS_PER_RUN, _best_time, _sweep, check_positions, sizes_option
+from cli.bench.kinematics import MIN_POSITIONS_PER_RUN, best_time, random_linkages, check_positions, sizes_option
 from cli.bench.plain import sixbar_rrr_positions
 from synth.sixbar import SixBars, simulate
 
@@ -30,7 +30,7 @@ def random_rrr_sixbars(n: int, seed: int) -> SixBars:
     assembles over the whole turn: D three path extents away from the coupler curve's centre,
     L + ρ = 1.1·max|P − D| and |L − ρ| = 0.9·min|P − D|."""
     rng = np.random.default_rng(seed)
-    a, b, c, d = (x[:, 0] for x in _sweep(n, seed))
+    a, b, c, d = (x[:, 0] for x in random_linkages(n, seed))
     u, v = rng.uniform(-1.0, 2.0, (2, n))
     phi = np.linspace(0, 2 * np.pi, 90, endpoint=False)
     from kinematics.fourbar import fourbar_motion
@@ -74,10 +74,10 @@ def sixbar(sizes: str, angles: int, repeat: int, seed: int) -> None:
         positions = n * angles
         loops = max(1, MIN_POSITIONS_PER_RUN // positions)
         if one is not None:  # the single-mechanism call a user makes
-            t_ours = _best_time(lambda: simulate(one, phi, order=0), repeat, loops)
+            t_ours = best_time(lambda: simulate(one, phi, order=0), repeat, loops)
         else:
-            t_ours = _best_time(lambda: simulate(six, phi, order=0), repeat, loops)
-        t_plain = _best_time(lambda: _plain(six, phi), repeat, loops)
+            t_ours = best_time(lambda: simulate(six, phi, order=0), repeat, loops)
+        t_plain = best_time(lambda: _plain(six, phi), repeat, loops)
         results.append({
             "n": n,
             "positions": positions,

@@ -133,7 +133,7 @@ def make_cases(n: int, seed: int) -> dict[str, np.ndarray]:
             "ray_random": rng.uniform(0, np.pi, (family.size, 2)), "beta": rng.uniform(0, 2 * np.pi, (family.size, 4))}
 
 
-def _evaluate(case: dict[str, np.ndarray]) -> dict[str, object]:
+def evaluate_cases(case: dict[str, np.ndarray]) -> dict[str, object]:
     """All kernels on a batch of cases (columns of shape (n, 1)); results by kind."""
     col = {k: v[:, None] if v.ndim == 1 else v for k, v in case.items()}
     motion = fourbar_motion(col["a"], col["b"], col["c"], col["d"], col["phi"], col["branch"], order=3)
@@ -189,12 +189,12 @@ def stability_summary(n: int, seed: int = 0) -> dict:
     for i in range(0, n, BATCH):
         batch = {k: v[i:i + BATCH] for k, v in cases.items()}
         try:
-            results = _evaluate(batch)
+            results = evaluate_cases(batch)
         except Exception:  # noqa: BLE001 — counted case by case below, never fatal
             results = None
             for j in range(batch["a"].size):
                 try:
-                    _evaluate({k: v[j:j + 1] for k, v in batch.items()})
+                    evaluate_cases({k: v[j:j + 1] for k, v in batch.items()})
                 except Exception as exc:  # noqa: BLE001
                     name = type(exc).__name__
                     exceptions[name] = exceptions.get(name, 0) + 1

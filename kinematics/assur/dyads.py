@@ -17,9 +17,9 @@ Branch conventions (``branch`` = +1 or −1; single-solution dyads ignore it):
 * RPR — +1 takes the larger slide s of the internal prismatic pair.
 * PRP, RPP — linear: one solution.
 
-Geometry: RRR is the intersection of two circles (Heron's form for the height, no
-cancellation near toggles), RRP a line and a circle, RPR a quadratic in the slide, PRP and RPP
-two lines.
+Geometry: RRR is the intersection of two circles (:func:`kinematics.loop.circle_intersection`,
+Heron's form for the height, no cancellation near toggles), RRP a line and a circle, RPR a
+quadratic in the slide, PRP and RPP two lines (:func:`kinematics.loop.line_intersection`).
 
 References
 ----------
@@ -31,12 +31,11 @@ from __future__ import annotations
 import numpy as np
 
 from kinematics.assur.pairs import Joint, Pin, Sleeve, Slide, link_from_two_points, unit
+from kinematics.loop import circle_intersection, line_intersection
 from kinematics.status import Status
 
 __all__ = [
-    "circle_circle",
     "line_circle",
-    "line_line",
     "solve_prp",
     "solve_rpp",
     "solve_rpr",
@@ -46,8 +45,6 @@ __all__ = [
 
 #: Relative size of a discriminant's square root below which the two branches coincide.
 DOUBLE_ROOT_EPS = 1e-12
-#: |sin| of the angle between two lines below which they count as parallel.
-PARALLEL_EPS = 1e-12
 
 _NA = np.uint8(Status.NOT_ASSEMBLABLE)
 _TG = np.uint8(Status.TOGGLE)
@@ -55,25 +52,6 @@ _TG = np.uint8(Status.TOGGLE)
 
 def _flags(bad: np.ndarray, double: np.ndarray) -> np.ndarray:
     return np.where(bad, _NA, np.where(double, _TG, np.uint8(0))).astype(np.uint8)
-
-
-def circle_circle(A, l1, C, l2, branch) -> tuple[np.ndarray, np.ndarray]:
-    """B with |B − A| = l1, |B − C| = l2; ``branch`` +1 puts B left of the directed line A→C.
-
-    With R = C − A, r = |R|: B = A + l1·(R/r)·(cos β + i·branch·sin β),
-    cos β = (l1² + r² − l2²)/(2·l1·r), and 4·l1²·r²·sin²β = (r + l2 − l1)(l1 + l2 − r)(r + l1 − l2)(r + l1 + l2).
-    """
-    A, C = np.asarray(A, complex), np.asarray(C, complex)
-    R = C - A
-    r = np.abs(R)
-    heron = (r + (l2 - l1)) * ((l2 + l1) - r) * (r + (l1 - l2)) * (r + (l1 + l2))
-    safe_r = np.where(r > 0, r, 1.0)
-    bad = (heron < 0) | (r == 0)
-    cos_b = (r * r + (l1 * l1 - l2 * l2)) / (2 * l1 * safe_r)
-    sin_b = np.sqrt(np.maximum(heron, 0.0)) / (2 * l1 * safe_r)
-    B = A + l1 * (R / safe_r) * (cos_b + 1j * branch * sin_b)
-    double = l1 * sin_b < DOUBLE_ROOT_EPS * (l1 + l2)
-    return B, _flags(bad, double & ~bad)
 
 
 def line_circle(base, U, A, l, branch) -> tuple[np.ndarray, np.ndarray]:
@@ -86,19 +64,13 @@ def line_circle(base, U, A, l, branch) -> tuple[np.ndarray, np.ndarray]:
     return foot + branch * root, _flags(disc < 0, double & (disc >= 0))
 
 
-def line_line(base1, U1, base2, U2) -> tuple[np.ndarray, np.ndarray]:
-    """t1 with base1 + t1·U1 on the line base2 + t2·U2; parallel lines flag NOT_ASSEMBLABLE."""
-    den = (np.conj(U2) * U1).imag
-    parallel = np.abs(den) < PARALLEL_EPS
-    t1 = (np.conj(U2) * (base2 - base1)).imag / np.where(parallel, 1.0, den)
-    return t1, _flags(parallel, np.zeros_like(parallel))
-
-
 def solve_rrr(pin1: Pin, joint: Joint, pin2: Pin, branch):
     """RRR dyad: circle about A = ``pin1.at`` through B meets circle about C = ``pin2.at``."""
     l1 = np.abs(joint.p1 - pin1.local)
     l2 = np.abs(joint.p2 - pin2.local)
-    B, status = circle_circle(pin1.at, l1, pin2.at, l2, branch)
+    A = np.asarray(pin1.at, complex)
+    loop = circle_intersection(np.asarray(pin2.at, complex) - A, l1, l2, branch, rates=False)
+    B, status = A + l1 * loop.e1, loop.status
     r1, e1 = link_from_two_points(pin1.at, pin1.local, B, joint.p1)
     r2, e2 = link_from_two_points(pin2.at, pin2.local, B, joint.p2)
     return r1, e1, r2, e2, status
@@ -138,7 +110,7 @@ def solve_prp(slide1: Slide, joint: Joint, slide2: Slide, branch=None):
     """PRP dyad: both orientations fixed by the slides; B on both lines."""
     b1, U1 = slide1.line(joint.p1)
     b2, U2 = slide2.line(joint.p2)
-    t, status = line_line(b1, U1, b2, U2)
+    t, _, status = line_intersection(b1, U1, b2, U2)
     B = b1 + t * U1
     e1 = slide1.e * np.ones_like(B)
     e2 = slide2.e * np.ones_like(B)
@@ -154,5 +126,5 @@ def solve_rpp(pin1: Pin, sleeve: Sleeve, slide2: Slide, branch=None):
     r1 = A - e1 * pin1.local
     base_a = r1 + e1 * sleeve.offset(0.0, 0.0)
     base_b, U_b = slide2.line(0.0)
-    t, status = line_line(base_a, e1 * sleeve.v, base_b, U_b)
+    t, _, status = line_intersection(base_a, e1 * sleeve.v, base_b, U_b)
     return r1, e1, base_a + t * e1 * sleeve.v, e2, status

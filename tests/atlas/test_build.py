@@ -52,7 +52,7 @@ def build_row(path) -> tuple:
 def reference(tmp_path_factory):
     """An uninterrupted in-process build of SPEC and the rows computed directly."""
     path = tmp_path_factory.mktemp("ref") / "ref.sqlite"
-    summary = build_atlas(str(path), SPEC, workers=1, progress=False)
+    summary = build_atlas(str(path), SPEC, workers=1)
     sweep = sweep_linkages(SPEC)
     direct = [compute_shard(SPEC, i, sweep) for i in range(sweep.n_shards(SPEC.shard_size))]
     return path, summary, digest_of(path), direct
@@ -72,9 +72,33 @@ def test_uninterrupted_build_matches_the_shards(reference):
     assert len(digest) == 64 and int(digest, 16) >= 0
 
 
+def test_progress_is_reported_to_the_callback_shard_by_shard(tmp_path, reference):
+    events = []
+    path = tmp_path / "progress.sqlite"
+    with pytest.raises(KeyboardInterrupt):
+        build_atlas(str(path), SPEC, runner=stop_after(2), on_shard=events.append)
+    total = 2 * len(sweep_linkages(SPEC))  # both branches of every proportion
+    opening, *done = events
+    assert opening == build_mod.ShardDone(None, 0, 0, total, 0, N_SHARDS)
+    assert [e.shard_index for e in done] == [0, 1]
+    assert [e.shards_left for e in done] == [N_SHARDS - 1, N_SHARDS - 2]
+    assert [e.linkages_done for e in done] == [done[0].linkages, done[0].linkages + done[1].linkages]
+    first_two = done[1].linkages_done
+    events.clear()
+    summary = build_atlas(str(path), SPEC, on_shard=events.append)  # the resumed run: the rest
+    opening, *done = events
+    assert opening == build_mod.ShardDone(None, 0, 0, total - first_two, 0, N_SHARDS - 2)
+    assert len(done) == N_SHARDS - 2 and done[-1].shards_left == 0
+    assert done[-1].linkages_done == total - first_two == summary.linkages_computed
+    assert done[-1].segments_done == sum(len(r.segments) for r in reference[3][2:])
+    events.clear()
+    build_atlas(str(path), SPEC, on_shard=events.append)  # complete: nothing to compute, nothing reported
+    assert events == []
+
+
 def test_two_workers_give_the_same_content(tmp_path, reference):
     path = tmp_path / "two.sqlite"
-    summary = build_atlas(str(path), SPEC, workers=2, progress=False)
+    summary = build_atlas(str(path), SPEC, workers=2)
     assert summary.complete and summary.linkages == reference[1].linkages
     assert digest_of(path) == reference[2]
     assert multiprocessing.active_children() == []  # the pool is gone
@@ -85,7 +109,7 @@ def test_completion_order_does_not_matter(tmp_path, reference):
         yield from reversed(list(run_shards(spec, sweep, indices, 1)))
 
     path = tmp_path / "rev.sqlite"
-    build_atlas(str(path), SPEC, runner=backwards, progress=False)
+    build_atlas(str(path), SPEC, runner=backwards)
     assert digest_of(path) == reference[2]
 
 
@@ -105,13 +129,13 @@ def test_interrupt_keeps_committed_shards_and_resume_gives_the_same_content(tmp_
     path = tmp_path / "int.sqlite"
     notes: list[str] = []
     with pytest.raises(KeyboardInterrupt):
-        build_atlas(str(path), SPEC, runner=stop_after(2), progress=False, log=notes.append)
+        build_atlas(str(path), SPEC, runner=stop_after(2), log=notes.append)
     assert notes == [f"interrupted: 2 of {N_SHARDS} shards are stored; run the same command again to resume"]
     kept = shard_rows(path)
     assert sorted(kept) == [0, 1]
     assert build_row(path) == ("building", None, N_SHARDS)  # the lock was released
     notes.clear()
-    summary = build_atlas(str(path), SPEC, workers=2, progress=False, log=notes.append)
+    summary = build_atlas(str(path), SPEC, workers=2, log=notes.append)
     assert notes == [f"resuming: 2 of {N_SHARDS} shards already built"]
     assert summary.resumed and summary.shards_written == N_SHARDS - 2 and summary.complete
     after = shard_rows(path)
@@ -130,19 +154,19 @@ def test_a_bad_shard_is_rolled_back_and_the_others_kept(tmp_path, reference):
 
     path = tmp_path / "bad.sqlite"
     with pytest.raises(ShardWriteError, match="shard 2: linkage row .* transmission_max=nan"):
-        build_atlas(str(path), SPEC, runner=poisoned, progress=False)
+        build_atlas(str(path), SPEC, runner=poisoned)
     assert sorted(shard_rows(path)) == [0, 1]
     con = sqlite3.connect(path)
     assert con.execute("select count(*) from linkage where shard_index >= 2").fetchone() == (0,)
     con.close()
-    build_atlas(str(path), SPEC, progress=False)
+    build_atlas(str(path), SPEC)
     assert digest_of(path) == reference[2]
 
 
 def test_a_complete_atlas_is_not_rebuilt(reference):
     path = reference[0]
     before = hashlib.sha256(path.read_bytes()).hexdigest()
-    summary = build_atlas(str(path), SPEC.replace(name="renamed"), progress=False)  # the name is not content
+    summary = build_atlas(str(path), SPEC.replace(name="renamed"))  # the name is not content
     assert summary.complete and summary.shards_written == 0 and summary.linkages == reference[1].linkages
     assert summary.line().startswith(f"atlas {path} is already complete: {summary.linkages} linkages")
     assert hashlib.sha256(path.read_bytes()).hexdigest() == before
@@ -170,7 +194,7 @@ def test_a_refused_new_atlas_is_left_to_the_builder_that_won(tmp_path, monkeypat
     monkeypatch.setattr(db.writes, "open_build", refuse)
     path = tmp_path / "new.sqlite"
     with pytest.raises(AtlasError, match="refused"):
-        build_atlas(str(path), SPEC, progress=False)
+        build_atlas(str(path), SPEC)
     open_atlas(str(path)).dispose()  # still a valid (empty) atlas
 
 

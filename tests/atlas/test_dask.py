@@ -142,7 +142,7 @@ def test_an_interrupted_build_resumes_on_the_cluster_to_the_same_content(tmp_pat
     path = tmp_path / "resumed.sqlite"
     notes: list[str] = []
     with pytest.raises(KeyboardInterrupt):
-        build_atlas(str(path), SPEC, runner=stop_after(DaskRunner(client, in_flight=4), 3), progress=False,
+        build_atlas(str(path), SPEC, runner=stop_after(DaskRunner(client, in_flight=4), 3),
                     log=notes.append)
     assert notes == [f"interrupted: 3 of {N_SHARDS} shards are stored; run the same command again to resume"]
     assert len(shard_indices(path)) == 3
@@ -159,9 +159,9 @@ def test_an_interrupted_build_resumes_on_the_cluster_to_the_same_content(tmp_pat
 def test_a_local_build_interrupted_then_finished_on_the_cluster(tmp_path, cluster, client, reference, capsys):
     path = tmp_path / "mixed.sqlite"
     with pytest.raises(KeyboardInterrupt):
-        build_atlas(str(path), SPEC, runner=stop_after(run_shards, 2), progress=False)
+        build_atlas(str(path), SPEC, runner=stop_after(run_shards, 2))
     assert shard_indices(path) == [0, 1]  # one worker: in order
-    summary = build_atlas(str(path), SPEC, runner=DaskRunner(client), progress=False)
+    summary = build_atlas(str(path), SPEC, runner=DaskRunner(client))
     assert summary.complete and summary.resumed and summary.shards_written == N_SHARDS - 2
     assert digest_of(path) == reference[1]
 
@@ -217,7 +217,7 @@ def test_a_worker_with_another_version_is_refused(tmp_path, client, monkeypatch)
     path = tmp_path / "mixed-versions.sqlite"
     with pytest.raises(ClusterError, match=r"^dask worker tcp://\S+ runs dwell-atlas \S+, this builder 0\.0-other: "
                                            r"install the same version on every node$"):
-        build_atlas(str(path), SPEC, runner=DaskRunner(client), progress=False)
+        build_atlas(str(path), SPEC, runner=DaskRunner(client))
     assert shard_indices(path) == []
     assert drained(client)
 

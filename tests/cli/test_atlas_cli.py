@@ -32,7 +32,7 @@ from processes import N_SHARDS, SMALL, SPEC, shard_rows, spawn, wait_for_shards 
 def reference(tmp_path_factory):
     """An uninterrupted in-process build of the same sweep: (path, content digest)."""
     path = tmp_path_factory.mktemp("ref") / "ref.sqlite"
-    build_atlas(str(path), SPEC, workers=1, progress=False)
+    build_atlas(str(path), SPEC, workers=1)
     engine = open_atlas(str(path), readonly=True)
     digest = content_digest(engine)
     engine.dispose()

@@ -16,7 +16,7 @@ from cli.main import main
 @pytest.fixture(scope="module")
 def atlas_path(tmp_path_factory) -> str:
     path = str(tmp_path_factory.mktemp("atlas") / "demo.sqlite")
-    build_atlas(path, PRESETS["demo"].replace(samples=384), workers=1, progress=False)
+    build_atlas(path, PRESETS["demo"].replace(samples=384), workers=1)
     return path
 
 

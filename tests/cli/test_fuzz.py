@@ -222,13 +222,13 @@ def _angles_ok(p: dict) -> bool:
 
 def _atlas_build_ok(p: dict) -> bool:
     from atlas.sweep import SweepSpecError
-    from cli.atlas import _range, _tolerances, sweep_spec_from_options
+    from cli.atlas import parse_range, parse_tolerances, sweep_spec_from_options
 
     try:
         spec = sweep_spec_from_options(p["preset"], {
-            "samples": p["samples"], "seed": p["seed"], "b": _range(p["b_range"]), "c": _range(p["c_range"]),
-            "d": _range(p["d_range"]), "crank_step_deg": p["crank_step"], "rays": p["rays"],
-            "tolerances": _tolerances(p["tolerances"]), "min_dwell_deg": p["min_dwell"], "shard_size": p["shard_size"],
+            "samples": p["samples"], "seed": p["seed"], "b": parse_range(p["b_range"]), "c": parse_range(p["c_range"]),
+            "d": parse_range(p["d_range"]), "crank_step_deg": p["crank_step"], "rays": p["rays"],
+            "tolerances": parse_tolerances(p["tolerances"]), "min_dwell_deg": p["min_dwell"], "shard_size": p["shard_size"],
         })
     except SweepSpecError:
         return True  # refused at once
@@ -274,7 +274,7 @@ AFFORDABLE = {
 }
 
 
-def _parsed(path: tuple[str, ...], argv: list[str]) -> dict | None:
+def parsed_options(path: tuple[str, ...], argv: list[str]) -> dict | None:
     """The options as the command will see them, or None when parsing refuses them."""
     ctx = None
     with CliRunner().isolation():
@@ -397,7 +397,7 @@ def small_atlas(tmp_path_factory) -> tuple[Path, str]:
     path = tmp_path_factory.mktemp("fuzz") / "atlas.sqlite"
     spec = SweepSpec(name="fuzz", b=(1.5, 4.5), c=(1.5, 4.5), d=(1.5, 4.5), samples=16, crank_step_deg=3.0, rays=24,
                      shard_size=8)
-    build_atlas(str(path), spec, workers=1, progress=False)
+    build_atlas(str(path), spec, workers=1)
     engine = open_atlas(str(path), readonly=True)
     try:
         found = answer(engine, request_from_options(40.0, 10.0, 20.0, 5.0, "any", 1, 0.1, 1.0, 30.0, 10.0, 1))
@@ -441,10 +441,10 @@ def test_random_arguments_exit_0_or_2_and_write_all_or_nothing(path, small_atlas
             if affordable is None:
                 argv = [*argv, "--not-an-option-of-this-command"]
             else:
-                params = _parsed(path, [a.replace("{candidate}", world.candidate) for a in argv])
+                params = parsed_options(path, [a.replace("{candidate}", world.candidate) for a in argv])
                 assume(params is None or affordable(params))
             rc, out, err = run_and_check(world, path, argv)
-            params = _parsed(path, argv) if rc == 0 else None
+            params = parsed_options(path, argv) if rc == 0 else None
             if params and params.get("as_json"):
                 _strict_json(out)
 
@@ -614,7 +614,7 @@ def test_random_mechanism_files_exit_0_or_2(small_atlas, file, options):
     argv = [name, *(t for group in options for t in group)]
     with world_for(small_atlas) as world:
         (world.folder / name).write_bytes(data)
-        params = _parsed(("analyze", "linkage"), argv)
+        params = parsed_options(("analyze", "linkage"), argv)
         assume(params is None or AFFORDABLE[("analyze", "linkage")](params))
         rc, out, err = run_and_check(world, ("analyze", "linkage"), argv)
         if rc == 0 and params and params.get("as_json"):

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import click
 import pytest
-from test_fuzz import AFFORDABLE, BASE, COMMANDS, EXAMPLES, _parsed, run_and_check, small_atlas, world_for  # noqa: F401
+from test_fuzz import AFFORDABLE, BASE, COMMANDS, EXAMPLES, parsed_options, run_and_check, small_atlas, world_for  # noqa: F401
 
 #: The value classes of issue 17.
 VALUES = ["5e-324", "1e-320", "0", "-0", "-1", "1e308", "-1e308", "inf", "-inf", "nan", "9" * 400, ""]
@@ -68,7 +68,7 @@ def test_hostile_values_of_every_numeric_option(small_atlas, path, capsys):  # n
             continue
         for value in VALUES:
             argv = _argv(path, param, value)
-            parsed = _parsed(path, [a.replace("{candidate}", "1-rpr0.0@20") for a in argv])
+            parsed = parsed_options(path, [a.replace("{candidate}", "1-rpr0.0@20") for a in argv])
             affordable = AFFORDABLE.get(path)
             subnormal = value in SUBNORMALS
             if parsed is not None and (affordable is None or not affordable(parsed)):

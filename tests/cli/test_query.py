@@ -31,7 +31,7 @@ STEP = 0.05  # degrees
 @pytest.fixture(scope="module")
 def atlas_path(tmp_path_factory) -> str:
     path = str(tmp_path_factory.mktemp("atlas") / "demo.sqlite")
-    build_atlas(path, SPEC, workers=1, progress=False)
+    build_atlas(path, SPEC, workers=1)
     return path
 
 

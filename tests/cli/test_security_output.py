@@ -124,7 +124,7 @@ def small_atlas(tmp_path_factory) -> tuple[str, list[str]]:
     from atlas.sweep import PRESETS
 
     path = str(tmp_path_factory.mktemp("atlas") / "small.sqlite")
-    build_atlas(path, PRESETS["demo"].replace(samples=256), workers=1, progress=False)
+    build_atlas(path, PRESETS["demo"].replace(samples=256), workers=1)
     out = subprocess.run([*DWELL, "query", "--db", path, "--dwell", "45", "--swing", "40", "--output", "rpr",
                           "--top", "2", "--json"], capture_output=True, text=True, check=True).stdout
     return path, [c["id"] for c in json.loads(out)["candidates"]]

@@ -120,7 +120,7 @@ def test_a_small_build_is_the_same_on_sqlite_and_postgresql(tmp_path, postgres_u
     spec = PRESETS["demo"].replace(samples=64)
     path = str(tmp_path / "small.sqlite")
     for target in (path, postgres_url):
-        summary = build_atlas(target, spec, workers=1, progress=False)
+        summary = build_atlas(target, spec, workers=1)
         assert summary.complete and summary.linkages > 0 and sum(summary.segments.values()) > 0
     lite, pg = _facts(path), _facts(postgres_url)
     assert lite[0] == lite[1] and pg[0] == pg[1]  # the stored digest is that of the rows

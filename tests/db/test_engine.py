@@ -17,7 +17,7 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from db import SCHEMA_VERSION, AtlasError, Base, Build, Dwell, Linkage, Meta, open_atlas
-from db.engine import _wal_page_size, database_url, display_target, settle_sqlite
+from db.engine import wal_page_size, database_url, display_target, settle_sqlite
 from db.writes import write_shard
 
 
@@ -416,13 +416,13 @@ def test_wal_header_page_size_and_checksum(tmp_path):
     wal = _wal_of_another_database(tmp_path, 1024)
     path = tmp_path / "x-wal"
     path.write_bytes(wal)
-    assert _wal_page_size(path) == 1024  # magic, page size, and the header checksum verified
+    assert wal_page_size(path) == 1024  # magic, page size, and the header checksum verified
     spoiled = bytearray(wal)
     spoiled[16] ^= 0x01  # salt-1: the stored checksum no longer matches
     path.write_bytes(bytes(spoiled))
-    assert _wal_page_size(path) is None  # SQLite would ignore it too
+    assert wal_page_size(path) is None  # SQLite would ignore it too
     path.write_bytes(wal[:31])
-    assert _wal_page_size(path) is None
+    assert wal_page_size(path) is None
 
 
 @pytest.mark.parametrize("readonly", [True, False])

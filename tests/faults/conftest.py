@@ -24,7 +24,7 @@ class Reference:
 @pytest.fixture(scope="session")
 def reference(tmp_path_factory) -> Reference:
     path = tmp_path_factory.mktemp("reference") / "atlas.sqlite"
-    build_atlas(str(path), SPEC, workers=1, progress=False)
+    build_atlas(str(path), SPEC, workers=1)
     engine = open_atlas(str(path), readonly=True)
     try:
         digest = content_digest(engine)

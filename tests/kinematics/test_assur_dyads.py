@@ -202,18 +202,24 @@ def test_random_dyad(kinds, values, flips):
 
 
 def test_branches_and_status_of_the_kernels():
-    from kinematics.assur.dyads import circle_circle, line_circle, line_line
+    from kinematics.assur.dyads import line_circle
+    from kinematics.loop import circle_intersection, line_intersection
 
-    B, status = circle_circle(0j, 1.0, 2 + 0j, 1.5, np.array([1, -1]))
-    assert B[0].imag > 0 > B[1].imag and not status.any()
-    _, status = circle_circle(0j, 1.0, 5 + 0j, 1.0, 1)
-    assert status == Status.NOT_ASSEMBLABLE
-    _, status = circle_circle(0j, 1.0, 2 + 0j, 1.0, 1)
-    assert status == Status.TOGGLE
+    # circles of radius 1 about 0 and 1.5 about 2: x = (1 + 4 − 2.25)/4 = 0.6875 (law of cosines)
+    loop = circle_intersection(2 + 0j, 1.0, 1.5, np.array([1, -1]))
+    B = loop.e1
+    assert B[0].imag > 0 > B[1].imag and not loop.status.any()
+    np.testing.assert_allclose(B.real, 0.6875, rtol=1e-15)
+    np.testing.assert_allclose(np.abs(B - 2), 1.5, rtol=1e-15)
+    np.testing.assert_allclose(2 + 1.5 * loop.e2, B, atol=1e-15)
+    assert circle_intersection(5 + 0j, 1.0, 1.0, 1).status == Status.NOT_ASSEMBLABLE
+    assert circle_intersection(2 + 0j, 1.0, 1.0, 1).status == Status.TOGGLE
     t, status = line_circle(0j, 1 + 0j, 1j, 2.0, np.array([1, -1]))
     assert t[0] == pytest.approx(math.sqrt(3)) and t[1] == pytest.approx(-math.sqrt(3)) and not status.any()
-    _, status = line_line(0j, 1 + 0j, 1j, -1 + 0j)
-    assert status == Status.NOT_ASSEMBLABLE
+    assert line_intersection(0j, 1 + 0j, 1j, -1 + 0j).status == Status.NOT_ASSEMBLABLE
+    # the x-axis and the line through 1 + 1j at 45°: they meet at 0, t1 = 0, t2 = −√2
+    hit = line_intersection(0j, 1 + 0j, 1 + 1j, np.exp(0.25j * math.pi))
+    assert hit.t1 == pytest.approx(0.0, abs=1e-15) and hit.t2 == pytest.approx(-math.sqrt(2)) and hit.status == 0
 
 
 def test_slide_driven_dead_centre_is_reported_singular():

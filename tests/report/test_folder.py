@@ -93,7 +93,7 @@ def test_leftovers_of_a_killed_writer_are_removed(old_report, candidates):
 
 
 def test_non_finite_numbers_are_refused_before_writing(tmp_path, candidates):
-    from report.export import _json_text
+    from report.export import json_document_text
 
     with pytest.raises(ValueError, match="/candidates/0/x"):
-        _json_text({"candidates": [{"x": float("inf"), "cycle": {}}]})
+        json_document_text({"candidates": [{"x": float("inf"), "cycle": {}}]})

@@ -17,7 +17,8 @@ from scipy.optimize import linprog
 from atlas.sweep import PRESETS, sweep_linkages
 from kinematics.fourbar import fourbar_motion
 from synth import ball_point, pole
-from synth.segments import KINDS, SegmentSearch, find_segments
+from synth.kinds import SEGMENT_KINDS, SegmentKind
+from synth.segments import SegmentSearch, find_segments
 
 SPEC = PRESETS["demo"]
 N = 6
@@ -50,7 +51,7 @@ def _path(b, c, d, br, uv, phi):
 def _dwells(found):
     for i in range(len(found)):
         for level in range(len(found.tolerances)):
-            for part in range(2 if KINDS[found.kind[i]] == "double_line" else 1):
+            for part in range(2 if SEGMENT_KINDS[found.kind[i]] is SegmentKind.DOUBLE_LINE else 1):
                 if found.has_dwell[i, level, part]:
                     yield i, level, part
 
@@ -75,7 +76,7 @@ def test_interval_ends_match_an_independent_bisection(batch):
         k = found.linkage[i]
         eps = found.tolerances[level]
         geometry = _geometry(found, i, level, part)
-        is_arc = KINDS[found.kind[i]] == "arc"
+        is_arc = SEGMENT_KINDS[found.kind[i]] is SegmentKind.ARC
         start, end = found.phi_start[i, level, part], found.phi_end[i, level, part]
 
         def outside(phi, k=k, i=i, geometry=geometry, is_arc=is_arc, eps=eps):
@@ -116,7 +117,7 @@ def test_fitted_band_is_close_to_the_minimum_zone(batch):
         point, direction, radius = _geometry(found, i, level, part)
         phis = np.linspace(found.phi_start[i, level, part], found.phi_end[i, level, part], 300)
         z = _path(b[k], c[k], d[k], br[k], found.uv[i], phis)
-        if KINDS[found.kind[i]] == "arc":
+        if SEGMENT_KINDS[found.kind[i]] is SegmentKind.ARC:
             rel = z - point
             unit = rel / abs(rel)
             design, r = np.c_[unit.real, unit.imag, np.ones(z.size)], abs(rel) - radius

@@ -9,7 +9,7 @@ import importlib
 import numpy as np
 import pytest
 
-from cli.bench.stability import FAMILIES, _evaluate, make_cases, stability_summary
+from cli.bench.stability import FAMILIES, evaluate_cases, make_cases, stability_summary
 from kinematics.status import Status
 from synth import line_scan
 from synth.line_scan import ACCURACY
@@ -60,7 +60,7 @@ def test_ordinary_crank_rockers_are_rarely_flagged(summary):
 def test_the_gates_only_skip_rays_that_pass(monkeypatch):
     """Line scanning evaluates the error estimates only on candidate rays (below per-instant
     gates); with every ray a candidate the flags and values are the same."""
-    got = _evaluate(make_cases(3000, seed=5))
+    got = evaluate_cases(make_cases(3000, seed=5))
     pl, scan = got["pole"], got["line_scan"]
     assert np.count_nonzero(scan.status & (Status.CIRCLE_POINT_AT_INFINITY | Status.CENTER_POINT_AT_INFINITY)) > 0
 

@@ -1,0 +1,74 @@
+"""kinematics.loop: closed-form values of the shared loop kernels."""
+
+import math
+
+import numpy as np
+import pytest
+
+from kinematics.loop import (
+    circle_intersection,
+    line_intersection,
+    parabola_vertex,
+    sampled_extreme,
+    transmission_fold,
+)
+from kinematics.status import Status
+
+
+def test_circle_intersection_is_the_3_4_5_triangle():
+    # centres 0 and 5, radii 3 and 4: the right angle sits at 1.8 + 2.4i (branch +1, left of 0 → 5)
+    loop = circle_intersection(5 + 0j, 3.0, 4.0, np.array([1.0, -1.0]))
+    np.testing.assert_allclose(3 * loop.e1, [1.8 + 2.4j, 1.8 - 2.4j], atol=1e-15)
+    np.testing.assert_allclose(5 + 4 * loop.e2, 3 * loop.e1, atol=1e-15)
+    np.testing.assert_allclose(loop.transmission, math.pi / 2, atol=1e-7)  # arccos near 0: ~1e-8
+    np.testing.assert_allclose(np.abs(loop.sin_relative), 1.0, rtol=1e-15)
+    assert not loop.status.any()
+
+
+def test_circle_intersection_flags_with_unit_placeholders():
+    loop = circle_intersection(np.array([10 + 0j, 0j, 7 + 0j]), 3.0, 4.0, 1.0)
+    assert list(loop.status) == [Status.NOT_ASSEMBLABLE, Status.NOT_ASSEMBLABLE, Status.TOGGLE]
+    np.testing.assert_allclose(np.abs(loop.e1), 1.0, rtol=1e-15)
+    np.testing.assert_allclose(np.abs(loop.e2), 1.0, rtol=1e-15)
+    assert np.all(np.isfinite(loop.rates(np.ones(3) + 1j)))
+    assert not np.any(loop.rates(np.ones(3) + 1j)[0])  # flagged: rates are 0
+
+
+def test_rates_match_a_finite_difference():
+    # R(t) = 5 + t·i moves centre 2 up; l1, l2 fixed: θ′, γ′ from i·l1·θ′e1 − i·l2·γ′e2 = R′
+    h = 1e-6
+    theta = [np.angle(circle_intersection(5 + t * 1j, 3.0, 4.0, 1.0).e1) for t in (-h, h)]
+    gamma = [np.angle(circle_intersection(5 + t * 1j, 3.0, 4.0, 1.0).e2) for t in (-h, h)]
+    x, y = circle_intersection(5 + 0j, 3.0, 4.0, 1.0).rates(1j)
+    assert float(x) == pytest.approx((theta[1] - theta[0]) / (2 * h), rel=1e-8)
+    assert float(y) == pytest.approx((gamma[1] - gamma[0]) / (2 * h), rel=1e-8)
+
+
+def test_line_intersection():
+    hit = line_intersection(0j, 1 + 0j, 3 + 4j, np.exp(0.5j * math.pi))  # the x-axis and x = 3
+    assert (float(hit.t1), float(hit.t2), int(hit.status)) == (pytest.approx(3.0), pytest.approx(-4.0), 0)
+    assert line_intersection(0j, 1 + 0j, 1j, np.exp(1e-10j)).parallel  # |sin| 1e-10 < PARALLEL_EPS
+
+
+def test_parabola_vertex_is_exact_for_a_parabola():
+    # y = 2 − 3(x − 0.25)² sampled at −1, 0, 1: vertex at +0.25 steps, value 2
+    y = [2 - 3 * (x - 0.25) ** 2 for x in (-1.0, 0.0, 1.0)]
+    v = parabola_vertex(*y)
+    assert float(v.offset) == pytest.approx(0.25) and float(y[1] + v.rise) == pytest.approx(2.0)
+    assert float(v.curvature) == pytest.approx(-6.0)
+    assert parabola_vertex(1.0, 2.0, 3.0) == (0.0, 0.0, 0.0)  # a straight line has no vertex
+
+
+def test_sampled_extreme_refines_a_cosine():
+    phi = np.arange(360) * (2 * math.pi / 360) + 0.3 * math.pi / 180  # peak between samples
+    hi, k = sampled_extreme(np.cos(phi - 0.5), +1)
+    lo, _ = sampled_extreme(np.cos(phi - 0.5), -1)
+    # the samples miss the peak by ~1e-5; the vertex is within h⁴/24 ≈ 4e-9 (h = 1°)
+    assert 1 - np.cos(phi - 0.5).max() > 1e-6
+    assert float(hi) == pytest.approx(1.0, abs=5e-9) and float(lo) == pytest.approx(-1.0, abs=5e-9)
+    assert abs(phi[k] - 0.5) <= math.pi / 360
+
+
+def test_transmission_fold():
+    mu = transmission_fold(np.exp(1j * np.radians([0.0, 30.0, 90.0, 150.0, 180.0, -120.0])))
+    np.testing.assert_allclose(np.degrees(mu), [0.0, 30.0, 90.0, 30.0, 0.0, 60.0], atol=1e-6)
