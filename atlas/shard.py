@@ -1,12 +1,7 @@
 """One shard of an atlas build: a pure function of (sweep spec, shard index) → database rows.
 
-Any engine (local processes, a cluster) can run it; the driver alone writes. Row ids are
-deterministic, so the content of an atlas does not depend on the worker count, the order in
-which shards finish, or how often the build was interrupted and resumed:
-
-* linkage id = 2·sweep_index + (0 for branch +1, 1 for branch −1) + 1
-* segment id = linkage id · ``SEGMENTS_PER_LINKAGE`` + ordinal of the segment in its linkage
-* dwell id   = segment id · ``DWELLS_PER_SEGMENT`` + 2·level + part
+Any engine (local processes, a cluster) can run it; the driver alone writes. The rows and their
+deterministic ids are :mod:`db.rows`'s.
 """
 
 from __future__ import annotations
@@ -19,23 +14,15 @@ from typing import Any
 import numpy as np
 
 from atlas.sweep import SweepLinkages, SweepSpec, sweep_linkages
+from db.rows import linkage_rows, segment_rows
 from kinematics.fourbar import fourbar_motion
 from kinematics.loop import transmission_fold
 from synth.segments import SegmentSearch, find_segments
 
-__all__ = ["DWELLS_PER_SEGMENT", "SEGMENTS_PER_LINKAGE", "ShardResult", "compute_shard", "linkage_id"]
+__all__ = ["ShardResult", "compute_shard"]
 
-#: Room for segment ordinals inside one linkage's id range (ids stay below 2^63 for 10^8 linkages).
-SEGMENTS_PER_LINKAGE = 100_000
-#: Room for (level, part) inside one segment's id range: up to 32 tolerance levels.
-DWELLS_PER_SEGMENT = 64
 #: Crank samples over the turn for a linkage's transmission-angle range.
 _TRANSMISSION_SAMPLES = 360
-
-
-def linkage_id(sweep_index: int, branch: int) -> int:
-    """The deterministic primary key of a (proportion, branch) pair."""
-    return 2 * int(sweep_index) + (0 if branch == 1 else 1) + 1
 
 
 @dataclass(frozen=True, slots=True)
@@ -78,43 +65,18 @@ def compute_shard(spec: SweepSpec, shard_index: int, linkages: SweepLinkages | N
     mu = np.where(motion.ok, mu, np.nan)
 
     skipped: Counter[str] = Counter()
-    linkage_rows: list[dict[str, Any]] = []
-    ids = np.array([linkage_id(s, k) for s, k in zip(sweep_index, br)], dtype=np.int64)
-    for i in range(b.size):
-        if not ok_link[i]:
-            # a crank-rocker closes over the whole turn; anything else is not stored
-            skipped["linkage does not assemble over the whole turn"] += 1
-            continue
-        linkage_rows.append(
-            {
-                "id": int(ids[i]),
-                "shard_index": int(shard_index),
-                "sweep_index": int(sweep_index[i]),
-                "b": float(b[i]),
-                "c": float(c[i]),
-                "d": float(d[i]),
-                "branch": int(br[i]),
-                "grashof": int(grashof[i]),
-                "transmission_min": float(np.nanmin(mu[i])),
-                "transmission_max": float(np.nanmax(mu[i])),
-            }
-        )
-
     keep = ok_link
-    search = SegmentSearch.from_spec(spec)
-    found = find_segments(b[keep], c[keep], d[keep], br[keep], search)
+    if not keep.all():  # a crank-rocker closes over the whole turn; anything else is not stored
+        skipped["linkage does not assemble over the whole turn"] += int(np.count_nonzero(~keep))
+    links = linkage_rows(shard_index, sweep_index[keep], b[keep], c[keep], d[keep], br[keep], grashof[keep], mu[keep])
+    found = find_segments(b[keep], c[keep], d[keep], br[keep], SegmentSearch.from_spec(spec))
     skipped.update(found.skipped)
-    segment_rows, dwell_rows = found.rows(ids[keep], SEGMENTS_PER_LINKAGE, DWELLS_PER_SEGMENT)
-    # the query's covering index holds the linkage's constraint figures with every dwell
-    figures = {row["id"]: (row["transmission_min"], max(row["b"], row["c"], row["d"])) for row in linkage_rows}
-    linkage_of = {row["id"]: row["linkage_id"] for row in segment_rows}
-    for row in dwell_rows:
-        row["linkage_transmission_min"], row["longest_link"] = figures[linkage_of[row["segment_id"]]]
+    segments, dwells = segment_rows(found, links)
     return ShardResult(
         shard_index=int(shard_index),
-        linkages=linkage_rows,
-        segments=segment_rows,
-        dwells=dwell_rows,
+        linkages=links,
+        segments=segments,
+        dwells=dwells,
         skipped=dict(sorted(skipped.items())),
         seconds=time.perf_counter() - t0,
     )

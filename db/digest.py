@@ -1,7 +1,7 @@
 """The content digest of an atlas: one hash for "these two atlases hold the same data".
 
 SHA-256 (hex) over every linkage, segment and dwell row, table by table, each in canonical
-order (by id — ids are deterministic in the sweep, see ``atlas.shard``), all columns in
+order (by id — ids are deterministic in the sweep, see ``db.rows``), all columns in
 schema order except volatile or bookkeeping ones:
 
 * ``linkage.build_id`` — an autoincrement handle of the build row, not content (a rebuild

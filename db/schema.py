@@ -23,15 +23,17 @@ __all__ = ["SCHEMA_VERSION", "APPLICATION", "Base", "Meta", "Build", "Shard", "L
 #: Bumped whenever a table or column changes meaning; an atlas of a newer version is refused,
 #: an older one must be rebuilt. 2: deterministic 64-bit row ids, per-level fitted geometry
 #: in ``dwell`` (with copies of the linkage's constraint figures for the query's covering
-#: index), the builder lock columns and the stored content digest of ``build``.
-SCHEMA_VERSION = 2
+#: index), the builder lock columns and the stored content digest of ``build``. 3: only what
+#: is read — the segment's osculating geometry, its transmission range, the double line's
+#: intersection, the scan ray and the dwell's deviation from its fit are no longer stored.
+SCHEMA_VERSION = 3
 #: Written to the meta table so that a foreign SQLite file is recognised as such.
 APPLICATION = "dwell-atlas"
 
 _FINITE = "BETWEEN -1e300 AND 1e300"
 
 #: Row ids are assigned by the builder, deterministically from the sweep (see
-#: ``atlas.shard``), so they are the same whatever the worker count or resume history and
+#: ``db.rows``), so they are the same whatever the worker count or resume history and
 #: can name a segment across machines. 64-bit everywhere; on SQLite an INTEGER PRIMARY KEY
 #: (the rowid itself, also 64-bit).
 RowId = BigInteger().with_variant(Integer, "sqlite")
@@ -133,11 +135,10 @@ class Linkage(Base):
 
 class Segment(Base):
     """A nearly straight (``line``, ``double_line``) or nearly circular (``arc``) stretch of a
-    coupler curve, found from the curvature invariants at crank angle ``phi_gen``.
-
-    Lines: point (``px``, ``py``) and direction angle ``direction``. Arcs: centre (``cx``,
-    ``cy``) and ``radius``. Double lines: also the second line (``p2x``, ``p2y``,
-    ``direction2``) and the lines' intersection (``ix``, ``iy``), the RPR pivot for two dwells.
+    coupler curve, found from the curvature invariants at crank angle ``phi_gen`` (a double
+    line's second stretch at ``phi_gen2``), traced by the coupler point (``u``, ``v``). Its
+    lines or circle, fitted per tolerance level, are in its ``dwell`` rows: that is what the
+    query reads (the osculating geometry at ``phi_gen`` is not stored).
     """
 
     __tablename__ = "segment"
@@ -146,28 +147,12 @@ class Segment(Base):
     kind: Mapped[str] = mapped_column(String(12))
     phi_gen: Mapped[float] = mapped_column(Float)  #: generating crank angle (rad)
     phi_gen2: Mapped[float | None] = mapped_column(Float, nullable=True)  #: double Ball point: second angle
-    ray: Mapped[float | None] = mapped_column(Float, nullable=True)  #: line-scan ray angle (rad, fixed frame)
     u: Mapped[float] = mapped_column(Float)  #: coupler point, coupler frame
     v: Mapped[float] = mapped_column(Float)
-    px: Mapped[float | None] = mapped_column(Float, nullable=True)
-    py: Mapped[float | None] = mapped_column(Float, nullable=True)
-    direction: Mapped[float | None] = mapped_column(Float, nullable=True)
-    p2x: Mapped[float | None] = mapped_column(Float, nullable=True)
-    p2y: Mapped[float | None] = mapped_column(Float, nullable=True)
-    direction2: Mapped[float | None] = mapped_column(Float, nullable=True)
-    ix: Mapped[float | None] = mapped_column(Float, nullable=True)
-    iy: Mapped[float | None] = mapped_column(Float, nullable=True)
-    cx: Mapped[float | None] = mapped_column(Float, nullable=True)
-    cy: Mapped[float | None] = mapped_column(Float, nullable=True)
-    radius: Mapped[float | None] = mapped_column(Float, nullable=True)
-    transmission_min: Mapped[float] = mapped_column(Float)  #: rad, over the widest dwell interval
-    transmission_max: Mapped[float] = mapped_column(Float)
     __table_args__ = (
         CheckConstraint(f"kind IN ({', '.join(repr(k.value) for k in SEGMENT_KINDS)})", name="ck_segment_kind"),
-        *_finite_checks("segment", "phi_gen", "u", "v", "transmission_min", "transmission_max"),
-        *_finite_or_null_checks(
-            "segment", "phi_gen2", "ray", "px", "py", "direction", "p2x", "p2y", "direction2", "ix", "iy", "cx", "cy", "radius"
-        ),
+        *_finite_checks("segment", "phi_gen", "u", "v"),
+        *_finite_or_null_checks("segment", "phi_gen2"),
         Index("ix_segment_linkage", "linkage_id"),
     )
 
@@ -192,7 +177,6 @@ class Dwell(Base):
     phi_start: Mapped[float] = mapped_column(Float)  #: rad; the interval runs counter-clockwise
     phi_end: Mapped[float] = mapped_column(Float)
     dwell_angle: Mapped[float] = mapped_column(Float)  #: rad, phi_end − phi_start
-    max_deviation: Mapped[float] = mapped_column(Float)  #: crank lengths, from the fitted line/circle
     x: Mapped[float] = mapped_column(Float)  #: line point or circle centre, fixed frame
     y: Mapped[float] = mapped_column(Float)
     direction: Mapped[float | None] = mapped_column(Float, nullable=True)  #: line direction (rad)
@@ -204,7 +188,7 @@ class Dwell(Base):
     __table_args__ = (
         CheckConstraint("part IN (0, 1)", name="ck_dwell_part"),
         CheckConstraint("dwell_angle > 0", name="ck_dwell_positive"),
-        *_finite_checks("dwell", "tolerance", "phi_start", "phi_end", "dwell_angle", "max_deviation", "x", "y",
+        *_finite_checks("dwell", "tolerance", "phi_start", "phi_end", "dwell_angle", "x", "y",
                         "linkage_transmission_min", "longest_link"),
         *_finite_or_null_checks("dwell", "direction", "radius"),
         # dwell query: WHERE kind = ? AND level = ? AND dwell_angle BETWEEN ? AND ?, walked in

@@ -49,7 +49,7 @@ from kinematics.loop import line_intersection, parabola_vertex, transmission_fol
 from kinematics.status import Status
 from synth.ball import ball_point
 from synth.double_ball import double_ball_points
-from synth.kinds import SEGMENT_KINDS, SegmentKind
+from synth.kinds import SegmentKind
 from synth.line_scan import line_scan
 from synth.pole import pole
 
@@ -156,74 +156,6 @@ class FoundSegments:
 
     def __len__(self) -> int:
         return int(self.linkage.size)
-
-    def rows(self, linkage_ids: I64, per_linkage: int, per_segment: int) -> tuple[list[dict], list[dict]]:
-        """Segment and dwell rows for the database (see ``db.schema``), ids from ``linkage_ids``."""
-        segments: list[dict] = []
-        dwells: list[dict] = []
-        ordinal = _ordinals(self.linkage)
-        for i in range(len(self)):
-            kind = SEGMENT_KINDS[int(self.kind[i])]
-            sid = int(linkage_ids[self.linkage[i]]) * per_linkage + int(ordinal[i])
-            row: dict[str, Any] = dict.fromkeys(
-                ("phi_gen2", "ray", "px", "py", "direction", "p2x", "p2y", "direction2", "ix", "iy", "cx", "cy", "radius")
-            )
-            row.update(
-                id=sid,
-                linkage_id=int(linkage_ids[self.linkage[i]]),
-                kind=kind.value,
-                phi_gen=float(self.phi_gen[i]),
-                u=float(self.uv[i].real),
-                v=float(self.uv[i].imag),
-                transmission_min=float(self.transmission_min[i]),
-                transmission_max=float(self.transmission_max[i]),
-            )
-            if kind is SegmentKind.ARC:
-                row.update(ray=float(self.ray[i]), cx=float(self.center[i].real), cy=float(self.center[i].imag),
-                           radius=float(self.radius[i]))
-            else:
-                row.update(px=float(self.point[i].real), py=float(self.point[i].imag),
-                           direction=float(np.angle(self.direction[i])))
-            if kind is SegmentKind.DOUBLE_LINE:
-                row.update(phi_gen2=float(self.phi_gen2[i]), p2x=float(self.point2[i].real),
-                           p2y=float(self.point2[i].imag), direction2=float(np.angle(self.direction2[i])),
-                           ix=float(self.intersection[i].real), iy=float(self.intersection[i].imag))
-            segments.append(row)
-            for level, tol in enumerate(self.tolerances):
-                for part in range(2 if kind is SegmentKind.DOUBLE_LINE else 1):
-                    if not self.has_dwell[i, level, part]:
-                        continue
-                    p = self.fit_point[i, level, part]
-                    start, end = float(self.phi_start[i, level, part]), float(self.phi_end[i, level, part])
-                    dwells.append(
-                        {
-                            "id": sid * per_segment + 2 * level + part,
-                            "segment_id": sid,
-                            "kind": kind.value,
-                            "level": level,
-                            "tolerance": float(tol),
-                            "part": part,
-                            "phi_start": start,
-                            "phi_end": end,
-                            "dwell_angle": end - start,
-                            "max_deviation": float(self.max_deviation[i, level, part]),
-                            "x": float(p.real),
-                            "y": float(p.imag),
-                            "direction": None if kind is SegmentKind.ARC else float(np.angle(self.fit_direction[i, level, part])),
-                            "radius": float(self.fit_radius[i, level, part]) if kind is SegmentKind.ARC else None,
-                        }
-                    )
-        return segments, dwells
-
-
-def _ordinals(linkage: I64) -> I64:
-    """Position of each segment within its linkage (segments arrive grouped in canonical order)."""
-    out = np.zeros(linkage.size, dtype=np.int64)
-    if linkage.size:
-        start = np.r_[0, np.flatnonzero(np.diff(linkage)) + 1]
-        counts = np.diff(np.r_[start, linkage.size])
-        out = np.arange(linkage.size) - np.repeat(start, counts)
-    return out
 
 
 # --------------------------------------------------------------------------------------------

@@ -29,10 +29,10 @@ from pathlib import Path
 import click
 import numpy as np
 
-from atlas.shard import DWELLS_PER_SEGMENT, SEGMENTS_PER_LINKAGE
 from atlas.sweep import PRESETS, sweep_linkages
 from cli.budget import check_time
 from cli.options import RAYS, SEARCH_STEP_DEG, writable_file
+from db.rows import linkage_rows, segment_rows
 from kinematics.fourbar import fourbar_motion
 from synth.kinds import SEGMENT_KINDS, SegmentKind
 from synth.segments import SegmentSearch, find_segments, path_deviation
@@ -131,13 +131,13 @@ def atlas(preset, proportions, resolutions, reference_step, reference_rays, dwel
     b, c, d = (np.repeat(x[:n], len(spec.branches)) for x in (sweep.b, sweep.c, sweep.d))
     br = np.tile(np.asarray(spec.branches), n)
     levels = len(spec.tolerances)
-    ids = np.arange(1, b.size + 1, dtype=np.int64)
+    links = linkage_rows(0, np.arange(b.size), b, c, d, br, np.zeros(b.size, int), np.zeros((b.size, 1)))
 
     def search(step: float, rays: int):
         s = SegmentSearch.from_spec(spec.replace(crank_step_deg=step, rays=rays))
         t0 = time.perf_counter()
         found = find_segments(b, c, d, br, s)
-        rows = found.rows(ids, SEGMENTS_PER_LINKAGE, DWELLS_PER_SEGMENT)
+        rows = segment_rows(found, links)
         return found, rows, time.perf_counter() - t0
 
     ref, _, ref_seconds = search(reference_step, reference_rays)

@@ -1,14 +1,10 @@
 """A hand-made shard result for the database tests: one linkage, one arc segment, one dwell,
-with ids from ``atlas.shard``'s scheme."""
+with ids from ``db.rows``'s scheme."""
 
 from __future__ import annotations
 
-from atlas.shard import (
-    DWELLS_PER_SEGMENT,
-    SEGMENTS_PER_LINKAGE,
-    ShardResult,
-    linkage_id,
-)
+from atlas.shard import ShardResult
+from db.rows import DWELLS_PER_SEGMENT, SEGMENTS_PER_LINKAGE, linkage_id
 
 
 def shard_rows(index: int, *, radius: float | None = 2.0, dwell_angle: float = 0.5) -> ShardResult:
@@ -18,11 +14,9 @@ def shard_rows(index: int, *, radius: float | None = 2.0, dwell_angle: float = 0
         shard_index=index,
         linkages=[dict(id=lid, shard_index=index, sweep_index=index, b=3.0, c=2.5, d=3.0, branch=1, grashof=1,
                        transmission_min=0.5, transmission_max=1.5)],
-        segments=[dict(id=sid, linkage_id=lid, kind="arc", phi_gen=1.0, phi_gen2=None, ray=0.3, u=1.2, v=0.8,
-                       px=None, py=None, direction=None, p2x=None, p2y=None, direction2=None, ix=None, iy=None,
-                       cx=0.5, cy=0.25, radius=radius, transmission_min=0.6, transmission_max=1.4)],
+        segments=[dict(id=sid, linkage_id=lid, kind="arc", phi_gen=1.0, phi_gen2=None, u=1.2, v=0.8)],
         dwells=[dict(id=sid * DWELLS_PER_SEGMENT, segment_id=sid, kind="arc", level=0, tolerance=1e-3, part=0,
-                     phi_start=0.75, phi_end=0.75 + dwell_angle, dwell_angle=dwell_angle, max_deviation=9e-4,
+                     phi_start=0.75, phi_end=0.75 + dwell_angle, dwell_angle=dwell_angle,
                      x=0.5, y=0.25, direction=None, radius=radius, linkage_transmission_min=0.5, longest_link=3.0)],
         skipped={"pole at infinity": index},
         seconds=0.25,

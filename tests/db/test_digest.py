@@ -43,12 +43,11 @@ def test_canonical_text_of_a_known_atlas(atlas_url):
     text = (
         "#linkage\tid\tshard_index\tsweep_index\tb\tc\td\tbranch\tgrashof\ttransmission_min\ttransmission_max\n"
         "1\t0\t0\t3\t2.5\t3\t1\t1\t0.5\t1.5\n"
-        "#segment\tid\tlinkage_id\tkind\tphi_gen\tphi_gen2\tray\tu\tv\tpx\tpy\tdirection\tp2x\tp2y\tdirection2\tix\tiy"
-        "\tcx\tcy\tradius\ttransmission_min\ttransmission_max\n"
-        f"{sg['id']}\t1\t\"arc\"\t1\t~\t0.3\t1.2\t0.8\t~\t~\t~\t~\t~\t~\t~\t~\t0.5\t0.25\t2\t0.6\t1.4\n"
-        "#dwell\tid\tsegment_id\tkind\tlevel\ttolerance\tpart\tphi_start\tphi_end\tdwell_angle\tmax_deviation\tx\ty"
+        "#segment\tid\tlinkage_id\tkind\tphi_gen\tphi_gen2\tu\tv\n"
+        f"{sg['id']}\t1\t\"arc\"\t1\t~\t1.2\t0.8\n"
+        "#dwell\tid\tsegment_id\tkind\tlevel\ttolerance\tpart\tphi_start\tphi_end\tdwell_angle\tx\ty"
         "\tdirection\tradius\tlinkage_transmission_min\tlongest_link\n"
-        f"{dw['id']}\t{sg['id']}\t\"arc\"\t0\t0.001\t0\t0.75\t1.25\t0.5\t0.0009\t0.5\t0.25\t~\t2\t0.5\t3\n"
+        f"{dw['id']}\t{sg['id']}\t\"arc\"\t0\t0.001\t0\t0.75\t1.25\t0.5\t0.5\t0.25\t~\t2\t0.5\t3\n"
     )
     assert lk["id"] == 1
     assert content_digest(engine) == hashlib.sha256(text.encode()).hexdigest()
@@ -74,7 +73,7 @@ def test_order_build_id_and_volatile_columns_do_not_matter(atlas_url, tmp_path):
     (Linkage, "b", 3.0 * (1 + 1e-15), True),     # below 12 significant digits: noise
     (Linkage, "b", 3.0 * (1 + 1e-10), False),    # above: content
     (Segment, "u", 1.2 + 1e-9, False),
-    (Segment, "px", 0.0, False),                 # NULL is not 0
+    (Segment, "phi_gen2", 0.0, False),           # NULL is not 0
     (Dwell, "level", 1, False),
     (Segment, "kind", "line", False),
 ])

@@ -235,11 +235,15 @@ def test_floats_round_trip_bit_for_bit(engine, monkeypatch, path):
         monkeypatch.setattr(db.writes, "_uses_copy", lambda conn: False)
     h, lock = start(engine)
     rows = shard_rows(0)
-    values = dict(zip(("u", "v", "cx", "cy", "phi_gen", "ray", "transmission_min"), AWKWARD, strict=True))
+    values = dict(zip(("u", "v", "phi_gen", "phi_gen2"), AWKWARD[:4], strict=True))
+    dwell = dict(zip(("x", "y", "radius"), AWKWARD[4:], strict=True))
     rows.segments[0].update(values)
+    rows.dwells[0].update(dwell)
     write_shard(engine, h.build_id, rows, lock_token=lock.token)
     with engine.connect() as conn:
-        got = conn.execute(select(*(getattr(Segment, k) for k in values))).one()
+        got = [*conn.execute(select(*(getattr(Segment, k) for k in values))).one(),
+               *conn.execute(select(*(getattr(Dwell, k) for k in dwell))).one()]
+    values |= dwell
     # x + 0.0 turns −0.0 into 0.0: SQLite does not keep the sign of zero (PostgreSQL does),
     # which is why the content digest writes both as 0
     assert [(v + 0.0).hex() for v in got] == [(v + 0.0).hex() for v in values.values()]

@@ -18,6 +18,7 @@ from atlas.sweep import PRESETS, sweep_linkages
 from kinematics.fourbar import fourbar_motion
 from synth import ball_point, pole
 from synth.kinds import SEGMENT_KINDS, SegmentKind
+from db.rows import segment_rows
 from synth.segments import SegmentSearch, find_segments
 
 SPEC = PRESETS["demo"]
@@ -211,4 +212,4 @@ def test_same_input_same_output(batch):
 def test_no_linkages_no_segments():
     found = find_segments(np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0, int), SegmentSearch())
     assert len(found) == 0
-    assert found.rows(np.zeros(0, np.int64), 100_000, 64) == ([], [])
+    assert segment_rows(found, []) == ([], [])
