@@ -35,7 +35,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from kinematics.fourbar import fourbar_motion
 from synth.kinds import OutputTag, SegmentKind
-from synth.segments import minimum_zone_fit, path_deviation
+from synth.minimum_zone import minimum_zone_fit, path_deviation
 
 __all__ = [
     "PROFILE_LEVELS",
@@ -56,7 +56,7 @@ C128 = NDArray[np.complex128]
 
 #: Default profile levels: half-widths (crank lengths) 1e-5 … 1e-1, four per decade.
 PROFILE_LEVELS = tuple(float(x) for x in np.logspace(-5, -1, 17))
-#: Lawson iterations of each re-linearised minimum-zone fit (synth.segments.minimum_zone_fit).
+#: Lawson iterations of each re-linearised minimum-zone fit (synth.minimum_zone.minimum_zone_fit).
 _ITERATIONS = 12
 #: Re-linearisations of each fit (the circle's start is a three-point circle, not the optimum).
 _RELINEARISE = 3

@@ -35,7 +35,8 @@ from cli.options import RAYS, SEARCH_STEP_DEG, writable_file
 from db.rows import linkage_rows, segment_rows
 from kinematics.fourbar import fourbar_motion
 from synth.kinds import SEGMENT_KINDS, SegmentKind
-from synth.segments import SegmentSearch, find_segments, path_deviation
+from synth.minimum_zone import path_deviation
+from synth.segments import SegmentSearch, find_segments
 
 DEFAULT_RESOLUTIONS = "4:18,3:24,2:36,1.5:48"
 FLOOR = 100.0  # linkages/s on 2 cores at the standard resolution (issue #4)

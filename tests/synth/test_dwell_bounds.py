@@ -28,7 +28,7 @@ from synth.dwell_bounds import (
 )
 from synth.dyad import fit_rpr, fit_rrr
 from synth.segments import SegmentSearch, find_segments
-from synth.sixbar import OutputDyad, SixBar, crank_grid, sixbar_figures
+from synth.sixbar import SixBar, crank_grid, sixbar_figures
 
 #: Grid of the profile in these tests (coarser than the default: the suite stays fast).
 STEP = math.radians(2.0)
