@@ -21,7 +21,8 @@ from synth.ball import ball_point
 from synth.double_ball import double_ball_points
 from synth.inflection import inflection_circle
 from synth.line_scan import line_scan
-from synth.pole import INVALID, pole
+from synth.pole import pole
+from synth.types import INVALID
 
 #: Rays of the dense fan drawn by ``--plot`` (the circle-point and centre-point curves).
 PLOT_RAYS = 2048

@@ -45,7 +45,7 @@ class Status(enum.IntFlag):
     #: point at a rocker dead-centre); needs uint16 status arrays (``synth/``)
     AT_POLE = 1 << 8
     #: the loop is too ill-conditioned here for the curvature invariants (near a toggle, or a
-    #: coupler or rocker tiny against the other links): see ``synth.pole.MAX_CONDITION``
+    #: coupler or rocker tiny against the other links): see ``synth.types.MAX_CONDITION``
     ILL_CONDITIONED = 1 << 9
 
 

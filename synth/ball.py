@@ -13,7 +13,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from kinematics.status import Status, check_on_degenerate, raise_on_flags
-from synth.pole import ANY_FLAG, C128, FAR, INVALID, RAY_EPS, U16, Pole
+from synth.pole import Pole
+from synth.types import ANY_FLAG, C128, FAR, INVALID, RAY_EPS, U16
 
 __all__ = ["BallPoint", "ball_point", "ball_point_offset", "ball_point_offset_rate"]
 

@@ -25,7 +25,8 @@ from numpy.typing import ArrayLike, NDArray
 from kinematics.fourbar import FourBarMotion, check_lengths, fourbar_motion
 from kinematics.status import AssemblyError, Branch, Status, check_on_degenerate
 from synth.ball import ball_point_offset_rate
-from synth.pole import C128, F64, MAX_CONDITION, U16, loop_condition
+from synth.pole import loop_condition
+from synth.types import C128, F64, MAX_CONDITION, U16
 
 __all__ = ["DoubleBallPoints", "double_ball_points", "theta4"]
 

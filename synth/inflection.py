@@ -8,7 +8,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from kinematics.status import Status, check_on_degenerate, raise_on_flags
-from synth.pole import ANY_FLAG, C128, F64, FAR, INVALID, RAY_EPS, U16, Pole
+from synth.pole import Pole
+from synth.types import ANY_FLAG, C128, F64, FAR, INVALID, RAY_EPS, U16
 
 __all__ = ["CurvatureCentre", "InflectionCircle", "euler_savary", "inflection_circle"]
 

@@ -64,33 +64,17 @@ from numpy.typing import ArrayLike, NDArray
 
 from kinematics.fourbar import FourBarMotion
 from kinematics.status import Status, check_on_degenerate, raise_on_flags
+from synth.types import ANY_FLAG, C128, F64, MAX_CONDITION, U16
 
-__all__ = ["COLLAPSE", "DTHETA_ERROR_UNIT", "FAR", "MAX_CONDITION", "POLE_FAR", "RAY_EPS", "Pole", "loop_condition",
-           "pole"]
+__all__ = ["COLLAPSE", "DTHETA_ERROR_UNIT", "POLE_FAR", "Pole", "loop_condition", "pole"]
 
-#: Distances beyond ``FAR`` × linkage size count as infinite (see module notes).
-FAR = 1e6
 #: A pole farther than ``POLE_FAR`` × linkage size from the crank pin is at infinity (see module notes).
 POLE_FAR = 1e3
-#: Condition number L/(min(b, c)·|sin(θ − γ)|) above which an instant is ``ILL_CONDITIONED``.
-MAX_CONDITION = 100.0
 #: Relative size of |Z2| below which the inflection circle has collapsed (see module notes).
 COLLAPSE = 1e-7
-#: Angle (rad) from the pole tangent or normal below which a ray is degenerate.
-RAY_EPS = 1e-9
 #: Rounding unit of the error estimate ``Pole.dtheta_error`` (two units of float64 rounding;
 #: see the module notes for the model and the measurement behind it).
 DTHETA_ERROR_UNIT = 2.0 * float(np.finfo(float).eps)
-
-#: Every flag: ``on_degenerate="raise"`` raises on any of them.
-ANY_FLAG = Status(sum(int(f) for f in Status))
-#: Instant flags after which no curvature quantity at that instant is meaningful.
-INVALID = int(Status.NOT_ASSEMBLABLE | Status.TOGGLE | Status.ILL_CONDITIONED | Status.POLE_AT_INFINITY
-              | Status.INFLECTION_CIRCLE_COLLAPSED)
-
-F64 = NDArray[np.float64]
-C128 = NDArray[np.complex128]
-U16 = NDArray[np.uint16]
 
 
 @dataclass(frozen=True, slots=True)

@@ -12,7 +12,7 @@ from cli.bench import reference
 from kinematics.fourbar import fourbar_motion
 from kinematics.status import AssemblyError, Status
 from synth import ball_point, double_ball_points, euler_savary, inflection_circle, line_scan, pole
-from synth.pole import INVALID
+from synth.types import INVALID
 
 length = st.floats(1e-3, 1e3, allow_nan=False, allow_infinity=False)
 angle = st.floats(-20.0, 20.0, allow_nan=False, allow_infinity=False)
