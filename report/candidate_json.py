@@ -16,7 +16,8 @@ import math
 
 from report.motion_table import unit_key
 from synth.candidates import Candidate, Request
-from synth.sixbar import OutputDyad, SixBar, SixBarFigures
+from synth.figures import SixBarFigures
+from synth.sixbar import OutputDyad, SixBar
 
 __all__ = ["candidate_json", "length_key", "request_json", "sixbar_from_json"]
 

@@ -19,8 +19,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from synth.figures import SixBarFigures
 from synth.kinds import OutputTag
-from synth.sixbar import SixBar, SixBarFigures, SixBars, crank_grid, simulate
+from synth.sixbar import SixBar, SixBars, crank_grid, simulate
 
 __all__ = ["Candidate", "Request", "candidate_id", "parse_candidate_id", "rank", "screen"]
 

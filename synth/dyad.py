@@ -27,7 +27,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from kinematics.loop import circle_intersection, line_intersection, sampled_extreme
 from kinematics.status import Status
-from synth.sixbar import OutputDyad, grid_step
+from synth.output_range import grid_step
+from synth.sixbar import OutputDyad
 
 __all__ = [
     "SWING_TOL",

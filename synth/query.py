@@ -28,7 +28,8 @@ from typing import Protocol
 import numpy as np
 
 from synth.candidates import Candidate, Request, candidate_id, parse_candidate_id, rank, screen
-from synth.sixbar import OutputDyad, SixBar, SixBarFigures, SixBars, crank_grid, sixbar_figures
+from synth.figures import SixBarFigures, sixbar_figures
+from synth.sixbar import OutputDyad, SixBar, SixBars, crank_grid
 
 __all__ = [
     "CONSTRAINTS",

@@ -13,7 +13,8 @@ from kinematics.fourbar import fourbar_motion
 from synth import ball_point, double_ball_points, line_scan, pole
 from synth.candidates import Candidate, Request
 from synth.dyad import fit_rpr, fit_rrr, rpr_double
-from synth.sixbar import SixBar, crank_grid, sixbar_figures
+from synth.figures import sixbar_figures
+from synth.sixbar import SixBar, crank_grid
 
 DEG = math.pi / 180
 PHI = crank_grid(720)

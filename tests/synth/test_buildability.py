@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from synth.buildability import buildability, output_rates
-from synth.sixbar import SixBars, crank_grid, simulate, sixbar_figures
+from synth.figures import sixbar_figures
+from synth.sixbar import SixBars, crank_grid, simulate
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "report"))
 from report_cases import double_dwell_candidates, single_dwell_candidates  # noqa: E402

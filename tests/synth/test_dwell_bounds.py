@@ -2,7 +2,7 @@
 
 Six-bars are built as the query builds them (segments of real linkages from
 ``synth.segments.find_segments``, output dyads from ``synth.dyad``) and simulated exactly
-(``synth.sixbar.sixbar_figures``); the bound uses the six-bar's own link ratio as the limit
+(``synth.figures.sixbar_figures``); the bound uses the six-bar's own link ratio as the limit
 (the tightest limit it meets), so a violation would be a six-bar the query could wrongly prune.
 """
 
@@ -27,8 +27,9 @@ from synth.dwell_bounds import (
     rrr_min_swing,
 )
 from synth.dyad import fit_rpr, fit_rrr
+from synth.figures import sixbar_figures
 from synth.segments import SegmentSearch, find_segments
-from synth.sixbar import SixBar, crank_grid, sixbar_figures
+from synth.sixbar import SixBar, crank_grid
 
 #: Grid of the profile in these tests (coarser than the default: the suite stays fast).
 STEP = math.radians(2.0)

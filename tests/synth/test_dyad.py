@@ -15,7 +15,8 @@ from kinematics.fourbar import fourbar_motion
 from kinematics.status import Status
 from synth import ball_point, double_ball_points, line_scan, pole
 from synth.dyad import SWING_TOL, fit_rpr, fit_rrr, rpr_double
-from synth.sixbar import SixBar, crank_grid, simulate, sixbar_figures
+from synth.figures import sixbar_figures
+from synth.sixbar import SixBar, crank_grid, simulate
 
 DEG = math.pi / 180
 PHI = crank_grid(720)

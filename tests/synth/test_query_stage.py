@@ -25,7 +25,8 @@ from synth.query import (
     select,
     violations,
 )
-from synth.sixbar import SixBars, sixbar_figures
+from synth.figures import sixbar_figures
+from synth.sixbar import SixBars
 
 DEG = math.pi / 180
 SPEC = PRESETS["demo"].replace(samples=384)

@@ -18,17 +18,9 @@ from kinematics.fourbar import fourbar_motion
 from kinematics.status import AssemblyError, Status
 from synth import ball_point, line_scan, pole
 from synth.dyad import fit_rrr
-from synth.sixbar import (
-    OutputDyad,
-    SixBar,
-    SixBars,
-    crank_grid,
-    dwell_intervals,
-    output_deviation,
-    output_swing,
-    simulate,
-    sixbar_figures,
-)
+from synth.figures import sixbar_figures
+from synth.output_range import dwell_intervals, output_deviation, output_swing
+from synth.sixbar import OutputDyad, SixBar, SixBars, crank_grid, simulate
 
 DEG = math.pi / 180
 

@@ -1,0 +1,811 @@
+"""Windowed range of a sampled output angle ψ(φ) over one crank turn: the swing and net
+output revolutions (:func:`output_swing`), the longest crank intervals on which ψ stays within
+a band — the dwells (:func:`dwell_intervals`) — and the smallest peak-to-peak of ψ over a
+window of a requested length around a dwell — the output deviation (:func:`output_deviation`).
+
+Input: ψ sampled on a uniform full-turn crank grid, end excluded
+(:func:`~synth.sixbar.crank_grid`; :func:`grid_step` reads it back), unwrapped along the last
+axis, vectorised over any leading shape; optionally the exact ψ(φ) as a callable (``psi_at``)
+on which ends and extremes are refined beyond the grid, and ψ′ to pick the 2π branch of the
+step that closes the turn. Nothing here knows the mechanism: :mod:`synth.figures` passes the
+exact simulation (:func:`~synth.sixbar.simulate`). Angles in radians; a crank interval
+[start, end] has start in [φ₀, φ₀ + 2π) and end = start + angle, so it may pass 2π.
+
+On the grid, window ranges come from sparse tables of block maxima/minima and binary lifting
+(O(M log M), vectorised over rows and starts); the refinement on the exact path is described
+in :func:`dwell_intervals` and :func:`output_deviation` (checked against brute-force fine
+grids in ``tests/synth/test_sixbar.py`` and ``tests/synth/test_query_stage.py``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from kinematics.loop import parabola_vertex
+
+__all__ = [
+    "Dwell",
+    "DwellIntervals",
+    "crank_degrees",
+    "dwell_intervals",
+    "grid_step",
+    "output_deviation",
+    "output_swing",
+    "wrap_angle",
+]
+
+F64 = NDArray[np.float64]
+#: ψ(φ) evaluator used to refine on the exact path: crank angles of shape ``(..., K)`` (the
+#: leading shape of the ψ samples) → ψ of the same shape, on any 2π branch.
+PsiAt = Callable[[F64], F64]
+
+
+#: Crank-angle step (rad) that sets the subdivisions of one grid step in the first stage of the
+#: deviation window's placement (at most DWELL_FINE of them; a second stage refines ×DWELL_FINE/2).
+REFINE_STEP = math.radians(0.008)
+#: Most subdivisions of one grid step in a refinement (bounds the work on coarse grids).
+MAX_FINE = 128
+#: Elements of the (start, end) pair table of the dwell refinement evaluated at once.
+_PAIR_BUDGET = 1 << 21
+#: Exact points per grid step in the dwell's (start, end) pair search.
+DWELL_FINE = 16
+#: Grid windows refined per dwell (those that may hold the longest exact interval).
+CANDIDATES = 8
+#: Points per round of the final push of each dwell end (two rounds).
+EXTEND_POINTS = 8
+
+_TWO_PI = 2.0 * math.pi
+
+
+def wrap_angle(x):
+    """x folded into [−π, π)."""
+    return np.mod(np.asarray(x) + math.pi, _TWO_PI) - math.pi
+
+
+def grid_step(phi: ArrayLike) -> tuple[float, float, int]:
+    """(φ₀, h, M) of a uniform full-turn crank grid (see :func:`~synth.sixbar.crank_grid`)."""
+    phi = np.asarray(phi, dtype=float)
+    if phi.ndim != 1 or phi.size < 8:
+        raise ValueError("figures need a 1-D crank grid of at least 8 samples (see crank_grid)")
+    m = phi.size
+    h = _TWO_PI / m
+    if not np.allclose(np.diff(phi), h, rtol=0, atol=1e-9 * h):
+        raise ValueError("figures need a uniform grid over one full crank turn, end excluded (see crank_grid)")
+    return float(phi[0]), h, m
+
+
+def _closing_step(psi: F64, dpsi1: F64 | None, h: float) -> F64:
+    """ψ(φ₀ + 2π) − ψ(φ_{M−1}): the step that closes the turn, on the nearest branch to the
+    prediction (as :func:`~synth.sixbar.simulate` unwraps ψ)."""
+    pred = 0.0 if dpsi1 is None else 0.5 * (dpsi1[..., -1] + dpsi1[..., 0]) * h
+    return pred + wrap_angle(psi[..., 0] - psi[..., -1] - pred)
+
+
+def _net_change(psi: F64, dpsi1: F64 | None, h: float) -> F64:
+    """ψ(φ₀ + 2π) − ψ(φ₀): 2π × the number of output revolutions per crank turn."""
+    return psi[..., -1] + _closing_step(psi, dpsi1, h) - psi[..., 0]
+
+
+def _rewrap(values, ref):
+    """``values`` moved by multiples of 2π to the branch nearest to ``ref``."""
+    return ref + wrap_angle(values - ref)
+
+
+def output_swing(phi: ArrayLike, psi: ArrayLike, *, dpsi: tuple[F64, ...] | None = None,
+                 psi_at: PsiAt | None = None) -> tuple[F64, NDArray[np.int64]]:
+    """Swing max ψ − min ψ over the crank turn, and the net output revolutions per turn.
+
+    Parameters
+    ----------
+    phi : (M,) float
+        Uniform full-turn crank grid (:func:`~synth.sixbar.crank_grid`), rad.
+    psi : (..., M) float
+        Output angle, unwrapped along the last axis (:attr:`~synth.sixbar.SixBarMotion.psi`), rad.
+    dpsi : (ψ′, ψ″), optional
+        Closed-form derivatives: the extremes are then located by one Newton step on ψ′ = 0,
+        otherwise by the parabola through the three samples around them.
+    psi_at : callable, optional
+        Exact ψ(φ) (shape ``(..., K)`` → ``(..., K)``); the extremes are then re-evaluated on the
+        exact path at the located crank angle (the larger of sample and refined value is kept).
+
+    Returns
+    -------
+    swing : (...,) float
+        Rad, ≥ 0. Meaningless where the output revolves.
+    turns : (...,) int
+        Net revolutions of the output per crank turn; ≠ 0 means the output is not a rocker.
+    """
+    phi0, h, _ = grid_step(phi)
+    psi = np.asarray(psi, dtype=float)
+    d1 = None if dpsi is None else dpsi[0]
+    net = _net_change(psi, d1, h)
+    turns = np.rint(net / _TWO_PI).astype(np.int64)
+    hi = _refined_extreme(psi, dpsi, psi_at, phi0, h, +1)
+    lo = _refined_extreme(psi, dpsi, psi_at, phi0, h, -1)
+    return hi - lo, turns
+
+
+def _refined_extreme(psi, dpsi, psi_at, phi0, h, sign):
+    """Max (sign +1) or min (sign −1) of ψ over the turn, refined between samples."""
+    m = psi.shape[-1]
+    k = np.argmax(sign * psi, axis=-1)[..., None]
+    y0 = np.take_along_axis(psi, k, -1)[..., 0]
+    if dpsi is not None and len(dpsi) >= 2:
+        d1 = np.take_along_axis(dpsi[0], k, -1)[..., 0]
+        d2 = np.take_along_axis(dpsi[1], k, -1)[..., 0]
+        curved = sign * d2 < 0
+        delta = np.where(curved, -d1 / np.where(curved, d2, 1.0), 0.0)
+        taylor = y0 + np.where(curved, 0.5 * d1 * delta, 0.0)
+    else:
+        ym = np.take_along_axis(psi, (k - 1) % m, -1)[..., 0]
+        yp = np.take_along_axis(psi, (k + 1) % m, -1)[..., 0]
+        # cyclic neighbours of an end sample belong to the next turn: same branch only if net = 0
+        ym, yp = _rewrap(ym, y0), _rewrap(yp, y0)
+        vertex = parabola_vertex(ym, y0, yp)
+        curved = sign * vertex.curvature < 0
+        delta = np.where(curved, vertex.offset, 0.0) * h
+        taylor = y0 + np.where(curved, vertex.rise, 0.0)
+    delta = np.clip(delta, -h, h)
+    if psi_at is None:
+        value = taylor
+    else:
+        at = phi0 + k[..., 0] * h + delta
+        exact = _rewrap(np.asarray(psi_at(at[..., None]), float)[..., 0], y0)
+        value = exact
+    return np.where(sign * value > sign * y0, value, y0)
+
+
+class Dwell(NamedTuple):
+    """One dwell: crank interval [start, end] (rad, start in [φ₀, φ₀ + 2π), end = start +
+    angle, so it may pass 2π), its length ``angle`` (rad) and the output's ``rest`` angle, the
+    middle of its band (rad, on the unwrapped ψ of the turn: two rests of one six-bar differ
+    by the step between them)."""
+
+    start: float
+    end: float
+    angle: float
+    rest: float = 0.0
+
+    def ends_deg(self) -> tuple[float, float]:
+        """(start, end) in degrees, each in [0°, 360°): the interval as a user reads it. It runs
+        counter-clockwise from start to end, so end < start when it passes 0°."""
+        return crank_degrees(self.start), crank_degrees(self.end)
+
+    def spans_deg(self) -> list[tuple[float, float]]:
+        """The interval as one or two spans (low, high) in [0°, 360°], split where it passes
+        360° (to shade it on a plot of one turn)."""
+        s = crank_degrees(self.start)
+        e = s + math.degrees(self.angle)
+        return [(s, min(e, 360.0))] + ([(0.0, e - 360.0)] if e > 360.0 else [])
+
+
+def crank_degrees(angle: float) -> float:
+    """A crank angle (rad) in degrees in [0°, 360°) (``% 360`` alone gives 360.0 for a tiny
+    negative angle)."""
+    deg = math.degrees(angle) % 360.0
+    return 0.0 if deg >= 360.0 else deg
+
+
+@dataclass(frozen=True, slots=True)
+class DwellIntervals:
+    """Longest crank intervals on which ψ stays within a band, struct of arrays ``(..., count)``.
+
+    Attributes
+    ----------
+    start, end, angle : float64
+        Crank interval (rad; ``end = start + angle``, start in [φ₀, φ₀ + 2π)).
+    low, high : float64
+        min and max of ψ over the interval (rad, on the unwrapped branch of the input);
+        high − low ≤ band.
+    found : bool
+        False for a second dwell that does not exist (the first covers the whole turn);
+        its other fields are then 0.
+    """
+
+    start: F64
+    end: F64
+    angle: F64
+    low: F64
+    high: F64
+    found: NDArray[np.bool_]
+
+    def dwells(self, index: tuple[int, ...] = ()) -> list[Dwell]:
+        """The found dwells of one row (``index`` into the leading shape) as :class:`Dwell`."""
+        out = []
+        for j in range(self.start.shape[-1]):
+            if self.found[index + (j,)]:
+                k = index + (j,)
+                out.append(Dwell(float(self.start[k]), float(self.end[k]), float(self.angle[k]),
+                                 0.5 * float(self.low[k] + self.high[k])))
+        return out
+
+
+def _fine_count(h: float) -> int:
+    """Subdivisions of one grid step for refinement to ``REFINE_STEP`` (at most ``MAX_FINE``:
+    grids coarser than 2π/(MAX_FINE·REFINE_STEP), ~350 samples, are refined to h/MAX_FINE)."""
+    return min(MAX_FINE, max(2, math.ceil(h / REFINE_STEP)))
+
+
+def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: int = 1,
+                    psi_at: PsiAt | None = None, dpsi1: ArrayLike | None = None) -> DwellIntervals:
+    """Longest crank interval(s), cyclic over the turn, on which ψ stays within a band of
+    total width ``band`` (max ψ − min ψ ≤ band).
+
+    Parameters
+    ----------
+    phi : (M,) float
+        Uniform full-turn crank grid (:func:`~synth.sixbar.crank_grid`), rad.
+    psi : (..., M) float
+        Output angle unwrapped along the last axis, rad. A revolving output is continued into
+        the next turn by its net change.
+    band : float or (...,) float
+        Total band width (rad, ≥ 0).
+    count : {1, 2}
+        1: the longest interval. 2: the two longest disjoint intervals (a double-dwell
+        mechanism), longest first.
+    psi_at : callable, optional
+        Exact ψ(φ) (shape ``(..., K)`` → ``(..., K)``, any 2π branch). With it both ends are
+        refined on the exact path (see Notes) to well under 0.005° on the 0.5° grid; without
+        it the ends are sample angles.
+    dpsi1 : (..., M) float, optional
+        ψ′, used only to pick the 2π branch of the turn-closing step (as in :func:`~synth.sixbar.simulate`).
+
+    Returns
+    -------
+    DwellIntervals
+        Shape ``(..., count)``.
+
+    Notes
+    -----
+    On the grid, the longest window from every start sample is found at once by binary
+    lifting over a sparse table of block maxima/minima (O(M log M), vectorised over rows and
+    starts). The longest exact interval need not sit in the longest grid window: one of
+    Λ ≥ (n − 1)·h holds at least n − 1 samples, so every start whose window holds ≥ n − 1
+    samples is a candidate; the ``CANDIDATES`` of them whose band reaches furthest with ψ
+    linear between samples are refined. For each, the start is searched in the step before
+    its first sample and the end in the two steps from its (n − 2)-th, on ``DWELL_FINE``
+    exact points per step, for the pair that maximises the length (ends ranked with ψ linear
+    beyond the last point inside, so that the many near-equal pairs of a slowly drifting
+    output are told apart); the best pair is searched again twice at 1/8 of that spacing,
+    re-centred (the interval slides to where another constraint binds); then each end is
+    pushed outwards while the band holds, in two rounds of ``EXTEND_POINTS`` points
+    (h/8192, ~0.00006° on the 0.5° grid). The reported interval is conservative: every
+    evaluated point in it is within the band. Inside, the samples stand for ψ, each local
+    extreme raised to the vertex of the parabola through it and its neighbours (a peak between
+    samples would otherwise let the ends overreach). Checked against a brute-force 0.001° grid
+    in ``tests/synth/test_query_stage.py``.
+    """
+    if count not in (1, 2):
+        raise ValueError(f"count must be 1 or 2, not {count!r}")
+    phi0, h, m = grid_step(phi)
+    psi = np.asarray(psi, dtype=float)
+    lead = psi.shape[:-1]
+    P = psi.reshape(-1, m)
+    R = P.shape[0]
+    band_r = np.broadcast_to(np.asarray(band, dtype=float), lead).reshape(R)
+    if not np.all(np.isfinite(band_r)) or np.any(band_r < 0):
+        raise ValueError("band must be finite and >= 0")
+    d1 = None if dpsi1 is None else np.asarray(dpsi1, float).reshape(R, m)
+    net = _net_change(P, d1, h)
+    E = np.concatenate([P, P + net[:, None]], axis=1)  # ψ over two turns
+    # With the exact path at hand, each sample that is a local extreme stands for the vertex of
+    # the parabola through it and its neighbours: a peak between samples (h²|ψ″|/8) inside a
+    # dwell must not be missed once the ends are pushed to the band's edge.
+    upper, lower = _vertex_bounds(E) if psi_at is not None else (E, E)
+    tab_max, tab_min = _sparse_tables(upper, m, lower)
+    length, w_max, w_min = _lifted_lengths(tab_max, tab_min, band_r, m)
+
+    rows = np.arange(R)
+    s1 = np.argmax(length, axis=1)
+    n1 = length[rows, s1]
+    scores, starts, lens, found = [length], [s1], [n1], [np.ones(R, bool)]
+    if count == 2:
+        i = np.arange(m)[None, :]
+        inside = np.mod(i - s1[:, None], m) < n1[:, None]
+        gap = np.mod(s1[:, None] - i, m)  # samples from i up to (excluding) the first dwell
+        eff = np.where(inside, 0, np.minimum(length, gap))
+        s2 = np.argmax(eff, axis=1)
+        n2 = eff[rows, s2]
+        scores.append(eff)
+        starts.append(s2)
+        lens.append(n2)
+        found.append(n2 > 0)
+    s = np.stack(starts, axis=1)  # (R, C)
+    n = np.maximum(np.stack(lens, axis=1), 1)
+    fnd = np.stack(found, axis=1)
+    hi_in, lo_in = _range_query(tab_max, tab_min, s, n)
+
+    whole = n >= m
+    start = phi0 + s * h
+    end = start + (n - 1) * h
+    low, high = lo_in, hi_in
+    if psi_at is not None:
+        # every grid window that may hold the longest exact interval, refined; the longest kept
+        wanted = np.zeros((R, m), bool)
+        for sc, nn in zip(scores, lens):
+            wanted |= sc >= (nn - 1)[:, None]
+        reach = _linear_reach(E, length, w_max, w_min, band_r, wanted & (length > 0))
+        cand = np.stack([_near_longest(sc, nn, reach) for sc, nn in zip(scores, lens)], axis=1)  # (R, C, W)
+        cs, ok = cand[..., 0, :], cand[..., 1, :].astype(bool)
+        nn = np.broadcast_to(n[..., None], cs.shape)
+        c_start, c_end, *c_rest, c_reach = _refine_dwell(E, cs, nn, band_r, phi0, h, psi_at, lead, tab_max, tab_min)
+        best = np.argmax(np.where(ok, c_reach - c_start, -np.inf), axis=-1)[..., None]
+        pick = lambda x: np.take_along_axis(x, best, -1)[..., 0]
+        start, end, low, high = map(pick, (c_start, c_end, *c_rest[:2]))
+        # the best pair again, at 2/DWELL_FINE of its spacing, twice (re-centred): the interval
+        # may slide, one end gaining more than the other loses, to where another constraint binds
+        step = h / DWELL_FINE
+        for _ in range(2):
+            inner_hi, inner_lo = _samples_between(tab_max, tab_min, start + step, end - step, phi0, h)
+            start2, end2, low2, high2, _, _, _ = _refine_pair(
+                start, end, 0.5 * (low + high), inner_hi, inner_lo, band_r, step, psi_at, lead)
+            better = end2 - start2 > end - start
+            start, end = np.where(better, start2, start), np.where(better, end2, end)
+            low, high = np.where(better, low2, low), np.where(better, high2, high)
+        start, end, low, high = _extend_ends(start, end, low, high, band_r, 2 * step / DWELL_FINE, psi_at, lead)
+        start, end = np.where(whole, phi0 + s * h, start), np.where(whole, end, end)
+        low, high = np.where(whole, lo_in, low), np.where(whole, hi_in, high)
+    # A window covering the turn is the whole turn (no ends to refine).
+    start = np.where(whole, phi0, start)
+    end = np.where(whole, phi0 + _TWO_PI, end)
+    angle = end - start
+    start_n = phi0 + np.mod(start - phi0, _TWO_PI)
+    end = start_n + angle
+    zero = lambda x: np.where(fnd, x, 0.0)
+    shape = lead + (count,)
+    return DwellIntervals(zero(start_n).reshape(shape), zero(end).reshape(shape), zero(angle).reshape(shape),
+                          zero(low).reshape(shape), zero(high).reshape(shape), fnd.reshape(shape))
+
+
+def _linear_reach(E, length, w_max, w_min, band, mask):
+    """(R, M) estimate, in grid steps, of how far the band reaches from each start where
+    ``mask`` holds (−inf elsewhere): the grid window plus what ψ, taken linear between
+    samples, adds on both sides, the band's placement [y, y + band] ⊇ [min, max] of the window
+    chosen to maximise the sum (its best y is an end of its range or a neighbour sample's
+    level). Ranks the candidate windows."""
+    R, m = length.shape
+    T = E.shape[1]
+    rr, ii = np.nonzero(mask)
+    net = E[rr, T // 2] - E[rr, 0]
+    n = length[rr, ii]
+    p_in = E[rr, ii]
+    p_out = np.where(ii > 0, E[rr, np.maximum(ii - 1, 0)], E[rr, m - 1] - net)
+    e = ii + n - 1
+    q_in, q_out = E[rr, np.minimum(e, T - 1)], E[rr, np.minimum(e + 1, T - 1)]
+    b = band[rr][:, None]
+    hi, lo = w_max[rr, ii], w_min[rr, ii]
+    lo_y, hi_y = (hi - band[rr])[:, None], lo[:, None]
+    ys = np.stack([hi - band[rr], lo, p_out, p_out - band[rr], q_out, q_out - band[rr]], axis=-1)
+    ys = np.clip(ys, lo_y, np.maximum(lo_y, hi_y))
+
+    def frac(inside, outside, y):  # share of the step the line from inside to outside stays in [y, y + b]
+        ins, out = inside[:, None], outside[:, None]
+        d = out - ins
+        below = (ins - y) / np.where(out < y, -d, 1.0)
+        above = (y + b - ins) / np.where(out > y + b, d, 1.0)
+        f = np.where(out < y, below, np.where(out > y + b, above, 1.0))
+        return np.clip(f, 0.0, 1.0)
+
+    with np.errstate(invalid="ignore", divide="ignore"):
+        est = frac(p_in, p_out, ys) + frac(q_in, q_out, ys)
+    out = np.full((R, m), -np.inf)
+    out[rr, ii] = n - 1 + np.max(np.where(np.isfinite(est), est, 0.0), axis=-1)
+    return out
+
+
+def _near_longest(length: NDArray[np.int64], longest: NDArray[np.int64], reach: F64) -> NDArray[np.int64]:
+    """(R, 2, CANDIDATES): grid starts whose window holds at least ``longest`` − 1 samples —
+    those that can hold the longest exact interval (an interval of length Λ ≥ (longest − 1)·h
+    holds ≥ longest − 1 samples, and the window from its first sample holds them all) — the
+    largest linear ``reach`` first; row 1 flags which are real candidates."""
+    R, m = length.shape
+    ok = (length >= (longest - 1)[:, None]) & (length > 0)
+    key = np.where(ok, -reach, np.inf)
+    order = np.argsort(key, axis=1, kind="stable")[:, :CANDIDATES]
+    valid = np.take_along_axis(ok, order, 1)
+    valid[:, 0] = True  # something to refine in every row (a missing dwell is dropped later)
+    return np.stack([order, valid.astype(np.int64)], axis=1)
+
+
+def _vertex_bounds(E: F64) -> tuple[F64, F64]:
+    """(upper, lower): the samples, raised (lowered) at each local maximum (minimum) to the
+    vertex of the parabola through it and its two neighbours."""
+    ym, y0, yp = E[:, :-2], E[:, 1:-1], E[:, 2:]
+    vertex = parabola_vertex(ym, y0, yp)
+    den = vertex.curvature
+    lift = np.abs(vertex.rise)  # capped at |den| below: a vertex far outside its step is no peak
+    peak = (den < 0) & (y0 >= ym) & (y0 >= yp)
+    dip = (den > 0) & (y0 <= ym) & (y0 <= yp)
+    upper, lower = E.copy(), E.copy()
+    upper[:, 1:-1] += np.where(peak, np.minimum(lift, np.abs(den)), 0.0)
+    lower[:, 1:-1] -= np.where(dip, np.minimum(lift, np.abs(den)), 0.0)
+    return upper, lower
+
+
+def _sparse_tables(E: F64, max_len: int, E_min: F64 | None = None) -> tuple[list[F64], list[F64]]:
+    """Level j holds the max of E (min of ``E_min``, default E) over blocks [i, i + 2^j), for
+    2^j ≤ ``max_len``; the tail where a block would run past the end is +inf/−inf, so such a
+    block is never within a band."""
+    tab_max, tab_min = [E], [E if E_min is None else E_min]
+    j = 1
+    T = E.shape[1]
+    while (1 << j) <= max_len:
+        half = 1 << (j - 1)
+        pm, pn = tab_max[-1], tab_min[-1]
+        nm = np.empty_like(pm)
+        nn = np.empty_like(pn)
+        np.maximum(pm[:, : T - half], pm[:, half:], out=nm[:, : T - half])
+        np.minimum(pn[:, : T - half], pn[:, half:], out=nn[:, : T - half])
+        nm[:, T - half:] = np.inf
+        nn[:, T - half:] = -np.inf
+        tab_max.append(nm)
+        tab_min.append(nn)
+        j += 1
+    return tab_max, tab_min
+
+
+def _lifted_lengths(tab_max, tab_min, band, m):
+    """Longest window length (samples) from every start 0..M−1 with max − min ≤ band: binary
+    lifting, one block of each size 2^j (largest first) appended where the band still holds."""
+    R, T = tab_max[0].shape
+    base = np.arange(m)[None, :] + (np.arange(R) * T)[:, None]  # flat index of each start
+    length = np.ones((R, m), np.int64)
+    cur_max = tab_max[0][:, :m].copy()
+    cur_min = cur_max.copy()
+    band_c = band[:, None]
+    last = np.arange(R)[:, None] * T + (T - 1)
+    for j in range(len(tab_max) - 1, -1, -1):
+        step = 1 << j
+        pos = np.minimum(base + length, last)
+        nmax = np.maximum(cur_max, tab_max[j].ravel().take(pos))
+        nmin = np.minimum(cur_min, tab_min[j].ravel().take(pos))
+        ok = ((nmax - nmin) <= band_c) & (length + step <= m)
+        length += ok * step
+        np.copyto(cur_max, nmax, where=ok)
+        np.copyto(cur_min, nmin, where=ok)
+    return length, cur_max, cur_min
+
+
+def _range_query(tab_max, tab_min, s, n):
+    """max/min of E over [s, s + n) for index arrays s, n of shape (R, C) (n ≥ 1): the two
+    overlapping blocks of size 2^k, k = ⌊log₂ n⌋."""
+    s, n = np.broadcast_arrays(np.asarray(s, np.int64), np.asarray(n, np.int64))
+    k = np.minimum(np.floor(np.log2(n)).astype(np.int64), len(tab_max) - 1)
+    r = np.broadcast_to(np.arange(s.shape[0]).reshape((-1,) + (1,) * (s.ndim - 1)), s.shape)
+    hi = np.empty(s.shape)
+    lo = np.empty(s.shape)
+    for level in np.unique(k):
+        sel = k == level
+        rs, ss = r[sel], s[sel]
+        p2 = ss + n[sel] - (1 << int(level))
+        hi[sel] = np.maximum(tab_max[level][rs, ss], tab_max[level][rs, p2])
+        lo[sel] = np.minimum(tab_min[level][rs, ss], tab_min[level][rs, p2])
+    return hi, lo
+
+
+def _eval_rewrapped(psi_at: PsiAt, at: F64, ref: F64, lead: tuple[int, ...]) -> F64:
+    """Exact ψ at crank angles ``at`` (R, ...) on the branch of ``ref``; psi_at is called with
+    the caller's leading shape."""
+    R = at.shape[0]
+    flat = at.reshape(R, -1)
+    vals = np.asarray(psi_at(flat.reshape(lead + flat.shape[1:])), dtype=float).reshape(flat.shape)
+    return _rewrap(vals.reshape(at.shape), ref)
+
+
+def _fine_path(E, first, steps, K, phi0, h, psi_at, lead):
+    """ψ on the exact path at K points per grid step over ``steps`` steps from sample ``first``
+    (index into the two-turn samples E; −1 is the last sample of the previous turn): crank
+    angles and values ``(R, C, steps·K + 1)``; sample points keep their sample values."""
+    R = E.shape[0]
+    T = E.shape[1]
+    net = E[:, T // 2] - E[:, 0]
+    idx = first[..., None] + np.arange(steps + 1)  # (R, ..., steps+1)
+    r = np.arange(R).reshape((R,) + (1,) * (idx.ndim - 1))
+    y = np.where(idx >= 0, E[r, np.clip(idx, 0, T - 1)], E[r, np.mod(idx, T // 2)] - net.reshape(r.shape))
+    t = np.arange(steps * K + 1) / K  # in grid steps from ``first``
+    at = phi0 + (first[..., None] + t) * h
+    k, w = np.minimum(np.floor(t).astype(np.int64), steps - 1), t - np.minimum(np.floor(t), steps - 1)
+    ref = (1 - w) * y[..., k] + w * y[..., k + 1]  # linear between samples: the 2π branch to evaluate on
+    inner = (np.arange(t.size) % K) != 0
+    vals = ref.copy()
+    vals[..., inner] = _eval_rewrapped(psi_at, at[..., inner], ref[..., inner], lead)
+    return at, vals
+
+
+def _pair_search(left_at, lv, right_at, rv, hi_in, lo_in, band):
+    """The longest (start, end) pair of exact points, start among ``left_at`` and end among
+    ``right_at`` (each ascending, the left ones before the right ones), whose values and the
+    interior's extremes (``hi_in``, ``lo_in``: everything strictly between the two point sets)
+    stay within ``band``. Shapes ``(R, ...)`` plus the points axis. Returns start, end, low,
+    high, the extremes of what lies strictly inside (start, end) less one point at each end
+    (for a finer stage), and the end's linear estimate beyond the last point (ranks pairs)."""
+    R = lv.shape[0]
+    sl_max = np.maximum.accumulate(lv[..., ::-1], axis=-1)[..., ::-1]
+    sl_min = np.minimum.accumulate(lv[..., ::-1], axis=-1)[..., ::-1]
+    pr_max = np.maximum.accumulate(rv, axis=-1)
+    pr_min = np.minimum.accumulate(rv, axis=-1)
+    Hl = np.maximum(hi_in[..., None], sl_max)
+    Ll = np.minimum(lo_in[..., None], sl_min)
+    b = np.broadcast_to(band.reshape((R,) + (1,) * (hi_in.ndim - 1)), hi_in.shape)[..., None]
+    ok_l = (Hl - Ll) <= b
+    ok_r = (pr_max - pr_min) <= b
+    nl, nr = lv.shape[-1], rv.shape[-1]
+    jl = np.empty(hi_in.shape, np.int64)
+    jr = np.empty(hi_in.shape, np.int64)
+    share = np.empty(hi_in.shape)
+    W = int(np.prod(hi_in.shape[1:]))
+    along = lambda x, j: np.take_along_axis(x, j[..., None], -1)[..., 0]
+    # (jl, jr) pairs in row chunks, so that many candidates stay within memory.
+    chunk = max(1, _PAIR_BUDGET // (nl * nr * W))
+    for r0 in range(0, R, chunk):
+        q = slice(r0, r0 + chunk)
+        bq = b[q][..., None]
+        top = np.maximum(Hl[q][..., :, None], pr_max[q][..., None, :])
+        bottom = np.minimum(Ll[q][..., :, None], pr_min[q][..., None, :])
+        feasible = ok_l[q][..., :, None] & ok_r[q][..., None, :] & ((top - bottom) <= bq)
+        # for each start the feasible ends are a prefix (the range only grows): its last end,
+        # and the share of the next step the band still holds, ψ linear there — the lengths of
+        # pairs that the points alone would tie (a slowly drifting output gives many) differ
+        cnt = feasible.sum(axis=-1)
+        last = np.maximum(cnt - 1, 0)
+        has_next = cnt < nr
+        rq = np.broadcast_to(rv[q][..., None, :], feasible.shape)
+        u = along(rq, last)
+        v = along(rq, np.minimum(last + 1, nr - 1))
+        up, down = along(bottom, last) + b[q], along(top, last) - b[q]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            f = np.where(v > up, (up - u) / (v - u), np.where(v < down, (u - down) / (u - v), 0.0))
+        f = np.where(has_next & np.isfinite(f), np.clip(f, 0.0, 1.0), 0.0)
+        score = np.where(cnt > 0, last + f - np.arange(nl), -np.inf)
+        jl[q] = np.argmax(score, axis=-1)
+        jr[q] = along(last, jl[q])
+        share[q] = along(f, jl[q])
+    take = lambda x, jj: np.take_along_axis(x, jj[..., None], -1)[..., 0]
+    start, end = take(left_at, jl), take(right_at, jr)
+    high = np.maximum(take(Hl, jl), take(pr_max, jr))
+    low = np.minimum(take(Ll, jl), take(pr_min, jr))
+    # what lies strictly inside (start + one point, end − one point): a finer stage's interior
+    inner_hi = np.maximum(np.maximum(hi_in, np.where(jl + 1 < nl, take(sl_max, np.minimum(jl + 1, nl - 1)), -np.inf)),
+                          np.where(jr >= 1, take(pr_max, np.maximum(jr - 1, 0)), -np.inf))
+    inner_lo = np.minimum(np.minimum(lo_in, np.where(jl + 1 < nl, take(sl_min, np.minimum(jl + 1, nl - 1)), np.inf)),
+                          np.where(jr >= 1, take(pr_min, np.maximum(jr - 1, 0)), np.inf))
+    reach = end + share * (right_at[..., 1] - right_at[..., 0])  # the end, ψ linear beyond the last point
+    return start, end, low, high, inner_hi, inner_lo, reach
+
+
+def _refine_dwell(E, s, n, band, phi0, h, psi_at, lead, tab_max, tab_min):
+    """Each candidate grid window refined on the exact path (see :func:`dwell_intervals`):
+    start in [φ_{s−1}, φ_s], end in [φ_{e₀}, φ_{e₀+2}] with e₀ = s + n − 2, on ``DWELL_FINE``
+    points per grid step, the pair of points that maximises the length within the band.
+    Shapes ``(R, C, W)``; returns what :func:`_pair_search` returns."""
+    R = E.shape[0]
+    K = DWELL_FINE
+    e0 = s + np.maximum(n - 2, 0)
+    # samples strictly between the two regions: s+1 .. e0−1
+    n_in = e0 - s - 1
+    has_in = n_in >= 1
+    flat = lambda x: x.reshape(R, -1)
+    hi_in, lo_in = _range_query(tab_max, tab_min, flat(s + 1), flat(np.maximum(n_in, 1)))
+    hi_in = np.where(has_in, hi_in.reshape(s.shape), -np.inf)
+    lo_in = np.where(has_in, lo_in.reshape(s.shape), np.inf)
+    left_at, lv = _fine_path(E, s - 1, 1, K, phi0, h, psi_at, lead)
+    right_at, rv = _fine_path(E, e0, 2, K, phi0, h, psi_at, lead)
+    # A window of samples within the band (start at φ_s, end at φ_{e₀}) is among the pairs.
+    return _pair_search(left_at, lv, right_at, rv, hi_in, lo_in, band)
+
+
+def _samples_between(tab_max, tab_min, a, b, phi0, h):
+    """max/min of the (vertex-bounded) samples strictly inside (a, b), ∓inf if there are none;
+    a, b of shape (R, C) within the two turns of the tables."""
+    R = a.shape[0]
+    i0 = np.floor((a - phi0) / h).astype(np.int64) + 1
+    i1 = np.ceil((b - phi0) / h).astype(np.int64) - 1
+    T = tab_max[0].shape[1]
+    i0 = np.clip(i0, 0, T - 1)
+    count = np.minimum(i1, T - 1) - i0 + 1
+    hi, lo = _range_query(tab_max, tab_min, i0.reshape(R, -1), np.maximum(count, 1).reshape(R, -1))
+    return (np.where(count >= 1, hi.reshape(a.shape), -np.inf), np.where(count >= 1, lo.reshape(a.shape), np.inf))
+
+
+def _refine_pair(start, end, level, inner_hi, inner_lo, band, step, psi_at, lead):
+    """A finer pair search: start within ±``step`` of ``start``, end within ±``step`` of
+    ``end``, on ``DWELL_FINE`` + 1 exact points each (``inner_hi``/``inner_lo``: extremes of
+    what lies between; ``level``: a ψ inside the band, the 2π branch to evaluate on). Shapes
+    ``(R, C)``."""
+    t = np.linspace(-1.0, 1.0, DWELL_FINE + 1)
+    ref = np.broadcast_to(level[..., None], start.shape + t.shape)
+    left_at = start[..., None] + step * t
+    right_at = end[..., None] + step * t
+    both = _eval_rewrapped(psi_at, np.concatenate([left_at, right_at], axis=-1),
+                           np.concatenate([ref, ref], axis=-1), lead)
+    lv, rv = both[..., : t.size], both[..., t.size:]
+    return _pair_search(left_at, lv, right_at, rv, inner_hi, inner_lo, band)
+
+
+def _extend_ends(start, end, low, high, band, spacing, psi_at, lead):
+    """Each end pushed outwards on the exact path while the band holds, the start first, then
+    the end (which keeps the start maximal: a longer interval only adds constraints): two
+    rounds of ``EXTEND_POINTS`` points, over the ``spacing`` of the last pair search and then
+    over one of its parts, so that each end lies within spacing/EXTEND_POINTS² of where the
+    band breaks. Shapes ``(R, C)``."""
+    Q = EXTEND_POINTS
+    b = band[:, None]
+    q = np.arange(1, Q + 1) / Q
+    for side in (-1, 1):
+        step = spacing
+        for _ in range(2):
+            edge = start if side < 0 else end
+            at = edge[..., None] + side * step * q
+            ref = np.broadcast_to((0.5 * (low + high))[..., None], at.shape)
+            v = _eval_rewrapped(psi_at, at, ref, lead)
+            cmax = np.maximum(np.maximum.accumulate(v, axis=-1), high[..., None])
+            cmin = np.minimum(np.minimum.accumulate(v, axis=-1), low[..., None])
+            k = np.sum((cmax - cmin) <= b[..., None], axis=-1)  # leading points within the band
+            moved = k > 0
+            kk = np.maximum(k - 1, 0)[..., None]
+            edge = np.where(moved, np.take_along_axis(at, kk, -1)[..., 0], edge)
+            high = np.where(moved, np.take_along_axis(cmax, kk, -1)[..., 0], high)
+            low = np.where(moved, np.take_along_axis(cmin, kk, -1)[..., 0], low)
+            if side < 0:
+                start = edge
+            else:
+                end = edge
+            step = step / Q
+    return start, end, low, high
+
+
+def output_deviation(phi: ArrayLike, psi: ArrayLike, center: ArrayLike, length: ArrayLike, *,
+                     psi_at: PsiAt | None = None, dpsi1: ArrayLike | None = None) -> tuple[F64, F64]:
+    """Smallest peak-to-peak of ψ over a crank window of the requested length around a dwell.
+
+    The window [s, s + length] slides over every position that contains the crank angle
+    ``center`` (s ∈ [center − length, center]); the result is the minimum over positions of
+    max ψ − min ψ in the window — the output's deviation from rest during a dwell of the
+    requested length.
+
+    Parameters
+    ----------
+    phi : (M,) float
+        Uniform full-turn crank grid (:func:`~synth.sixbar.crank_grid`), rad.
+    psi : (..., M) float
+        Output angle unwrapped along the last axis, rad.
+    center : float or (...,) float
+        Crank angle (rad) the window must contain, e.g. the middle of a found dwell.
+    length : float or (...,) float
+        Requested dwell length (rad), in (0, 2π − 2h].
+    psi_at : callable, optional
+        Exact ψ(φ) (see :func:`dwell_intervals`); the best grid placement is then refined on
+        the exact path in two stages (2h/``DWELL_FINE`` … then h/(4·``DWELL_FINE``²)·…, about
+        0.004° on the 0.5° grid), with the window ends evaluated exactly.
+    dpsi1 : (..., M) float, optional
+        ψ′, to pick the branch of the turn-closing step.
+
+    Returns
+    -------
+    deviation : (...,) float
+        Rad, ≥ 0.
+    window_start : (...,) float
+        Crank angle s of the best window (rad, in [φ₀, φ₀ + 2π)).
+    """
+    phi0, h, m = grid_step(phi)
+    psi = np.asarray(psi, dtype=float)
+    lead = psi.shape[:-1]
+    P = psi.reshape(-1, m)
+    R = P.shape[0]
+    c = np.broadcast_to(np.asarray(center, float), lead).reshape(R)
+    L = np.broadcast_to(np.asarray(length, float), lead).reshape(R)
+    if not (np.all(np.isfinite(c)) and np.all(np.isfinite(L))):
+        raise ValueError("center and length must be finite")
+    if np.any(L <= 0) or np.any(L > _TWO_PI - 2 * h):
+        raise ValueError("window length must be in (0, 2*pi - 2 grid steps]")
+    d1 = None if dpsi1 is None else np.asarray(dpsi1, float).reshape(R, m)
+    net = _net_change(P, d1, h)
+    rows = np.arange(R)
+    nL = np.floor(L / h + 1e-9).astype(np.int64)  # samples i..i+nL lie in [φ_i, φ_i + L]
+    # Grid placements: sample starts with φ_i in [c − L, c], i counted from φ₀ (may be < 0).
+    i_lo = np.ceil((c - L - phi0) / h - 1e-9).astype(np.int64)
+    i_hi = np.floor((c - phi0) / h + 1e-9).astype(np.int64)
+    span = i_hi - i_lo + 1
+    J = int(span.max())
+    # Only a slab of ψ matters: from sample i_lo − 1 to the end of the last window plus one,
+    # continued over turn boundaries by the net change.
+    W = J + int(nL.max()) + 4
+    g = (i_lo - 1)[:, None] + np.arange(W)[None, :]
+    slab = P[rows[:, None], np.mod(g, m)] + np.floor_divide(g, m) * net[:, None]
+    tab_max, tab_min = _sparse_tables(slab, int(nL.max()) + 1)
+    off = np.broadcast_to(np.arange(1, J + 1)[None, :], (R, J))  # slab offset of start i_lo + j
+    hi, lo = _range_query(tab_max, tab_min, off, np.broadcast_to(nL[:, None] + 1, off.shape))
+    valid = np.arange(J)[None, :] < span[:, None]
+    grid_range = np.where(valid, hi - lo, np.inf)
+    jbest = np.argmin(grid_range, axis=1)
+    dev = grid_range[rows, jbest]
+    s_best = phi0 + (i_lo + jbest) * h
+    if psi_at is not None:
+        dev, s_best = _refine_window(slab, i_lo, jbest + 1, nL, L, c, dev, s_best, phi0, h, tab_max, tab_min,
+                                     psi_at, lead)
+    s_best = phi0 + np.mod(s_best - phi0, _TWO_PI)
+    return dev.reshape(lead), s_best.reshape(lead)
+
+
+def _refine_window(slab, i_lo, k, nL, L, c, dev, s_best, phi0, h, tab_max, tab_min, psi_at, lead):
+    """Window placement refined on the exact path around the best grid start, which sits at
+    slab offset ``k`` (slab offset 0 is sample i_lo − 1)."""
+    R = slab.shape[0]
+    K2 = 2 * min(_fine_count(h), DWELL_FINE)
+    t = np.arange(K2 + 1) / K2
+    r = np.arange(R)[:, None]
+    s_lo = phi0 + (i_lo - 2 + k) * h  # one step before the best grid start
+    f = s_lo[:, None] + 2 * h * t[None, :]  # candidate starts (R, K2+1)
+    g = f + L[:, None]  # their ends
+    allowed = (f >= (c - L)[:, None] - 1e-12) & (f <= c[:, None] + 1e-12)
+
+    def ref_at(x):  # linear interpolation of the samples: the 2π branch to evaluate on
+        idx = (x - phi0) / h - (i_lo - 1)[:, None]
+        j = np.clip(np.floor(idx).astype(np.int64), 0, slab.shape[1] - 2)
+        w = idx - j
+        return (1 - w) * slab[r, j] + w * slab[r, j + 1]
+
+    at = np.concatenate([f, g], axis=1)
+    vals = _eval_rewrapped(psi_at, at, ref_at(at), lead)
+    fv, gv = vals[:, : K2 + 1], vals[:, K2 + 1:]
+    # Samples strictly between the start region [φ_{i−1}, φ_{i+1}] and the end region
+    # [φ_{i−1} + L, φ_{i+1} + L]: i+2 .. i−1+nL, i.e. slab offsets k+2 .. k−1+nL.
+    n_in = nL - 2
+    has_in = n_in >= 1
+    hi_in, lo_in = _range_query(tab_max, tab_min, (k + 2)[:, None], np.maximum(n_in, 1)[:, None])
+    hi_in = np.where(has_in, hi_in[:, 0], -np.inf)
+    lo_in = np.where(has_in, lo_in[:, 0], np.inf)
+    sf_max = np.maximum.accumulate(fv[:, ::-1], axis=1)[:, ::-1]
+    sf_min = np.minimum.accumulate(fv[:, ::-1], axis=1)[:, ::-1]
+    pg_max = np.maximum.accumulate(gv, axis=1)
+    pg_min = np.minimum.accumulate(gv, axis=1)
+    top = np.maximum(np.maximum(sf_max, pg_max), hi_in[:, None])
+    bot = np.minimum(np.minimum(sf_min, pg_min), lo_in[:, None])
+    rng = np.where(allowed, top - bot, np.inf)
+    j = np.argmin(rng, axis=1)
+    fine = rng[r[:, 0], j]
+    # The fine placements contain the grid one; where the window is shorter than two steps
+    # the start and end regions overlap and the split above does not hold: keep the grid.
+    refined = (fine < np.inf) & (nL >= 2)
+    # Again around the best fine start, ±one fine step on DWELL_FINE + 1 points (~0.004° on
+    # the 0.5° grid): between the two end regions lie the stage's own points (suffix of the
+    # starts beyond j + 1, prefix of the ends before j − 1) and the samples.
+    rr = r[:, 0]
+    d = 2 * h / K2
+    f_best = f[rr, j]
+    t3 = np.linspace(-1.0, 1.0, DWELL_FINE + 1)
+    f3 = f_best[:, None] + d * t3[None, :]
+    g3 = f3 + L[:, None]
+    allowed3 = (f3 >= (c - L)[:, None] - 1e-12) & (f3 <= c[:, None] + 1e-12)
+    at3 = np.concatenate([f3, g3], axis=1)
+    vals3 = _eval_rewrapped(psi_at, at3, ref_at(at3), lead)
+    fv3, gv3 = vals3[:, : t3.size], vals3[:, t3.size:]
+    a_off = (f_best + d - phi0) / h - (i_lo - 1)
+    b_off = (f_best - d + L - phi0) / h - (i_lo - 1)
+    i0 = np.floor(a_off).astype(np.int64) + 1
+    cnt = np.ceil(b_off).astype(np.int64) - 1 - i0 + 1
+    shi, slo = _range_query(tab_max, tab_min, i0[:, None], np.maximum(cnt, 1)[:, None])
+    mid_hi = np.where(cnt >= 1, shi[:, 0], -np.inf)
+    mid_lo = np.where(cnt >= 1, slo[:, 0], np.inf)
+    nxt, prv = np.minimum(j + 1, K2), np.maximum(j - 1, 0)
+    mid_hi = np.maximum(mid_hi, np.where(j + 1 <= K2, sf_max[rr, nxt], -np.inf))
+    mid_lo = np.minimum(mid_lo, np.where(j + 1 <= K2, sf_min[rr, nxt], np.inf))
+    mid_hi = np.maximum(mid_hi, np.where(j >= 1, pg_max[rr, prv], -np.inf))
+    mid_lo = np.minimum(mid_lo, np.where(j >= 1, pg_min[rr, prv], np.inf))
+    top3 = np.maximum(np.maximum(np.maximum.accumulate(fv3[:, ::-1], axis=1)[:, ::-1],
+                                 np.maximum.accumulate(gv3, axis=1)), mid_hi[:, None])
+    bot3 = np.minimum(np.minimum(np.minimum.accumulate(fv3[:, ::-1], axis=1)[:, ::-1],
+                                 np.minimum.accumulate(gv3, axis=1)), mid_lo[:, None])
+    rng3 = np.where(allowed3, top3 - bot3, np.inf)
+    j3 = np.argmin(rng3, axis=1)
+    fine3 = rng3[rr, j3]
+    finer = refined & (fine3 < fine) & (nL >= 4)
+    fine = np.where(finer, fine3, fine)
+    f_best = np.where(finer, f3[rr, j3], f_best)
+    return np.where(refined, fine, dev), np.where(refined, f_best, s_best)
