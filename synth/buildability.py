@@ -94,14 +94,15 @@ CLEARANCE_PAIRS = ("joint A / B0", "joint A / D", "joint B / A0", "joint B / D",
                    "rocker D-Q / A0", "rocker D-Q / B0", "slot / A0", "slot / B0")
 
 
-def clearances(batch: SixBars, motion: SixBarMotion) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def clearances(batch: SixBars, motion: SixBarMotion, every: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Torque arm, clearance and slot use of every six-bar of ``batch`` as arrays, from
-    ``motion`` (any order, a uniform crank grid over the whole turn, shape (N, M)).
+    ``motion`` (any order, a uniform crank grid over the whole turn, shape (N, M)), on every
+    ``every``-th sample (1: all; more is a cheaper estimate, as in synth.refine's loop).
 
     Returns
     -------
     reach : (N, M) float
-        |P − D| at every sample (length): an RPR's torque arm is its row minimum.
+        |P − D| at every sample (length; every ``every``-th): an RPR's torque arm is its row minimum.
     clearance : (N,) float
         Smallest joint/link-to-fixed-pivot distance over the samples (length).
     which : (N,) int
@@ -110,16 +111,18 @@ def clearances(batch: SixBars, motion: SixBarMotion) -> tuple[np.ndarray, np.nda
         Which rows are RPR (their arm is defined).
     """
     n, m = motion.psi.shape
-    A = np.broadcast_to(motion.fourbar.A, (n, m))
-    B = np.broadcast_to(motion.fourbar.B, (n, m))
-    P = np.broadcast_to(motion.z[0], (n, m))
-    Q = np.broadcast_to(motion.moving_pivot, (n, m))
+    cols = slice(None, None, every)
+    A = np.broadcast_to(motion.fourbar.A, (n, m))[:, cols]
+    B = np.broadcast_to(motion.fourbar.B, (n, m))[:, cols]
+    P = np.broadcast_to(motion.z[0], (n, m))[:, cols]
+    Q = np.broadcast_to(motion.moving_pivot, (n, m))[:, cols]
+    psi = motion.psi[:, cols]
     A0 = np.zeros((n, 1), complex)
     B0 = batch.d[:, None].astype(complex)
     D = batch.pivot[:, None]
     rpr = batch.rpr
     reach = np.abs(P - D)
-    slot_end = D + reach.max(axis=1, keepdims=True) * np.exp(1j * motion.psi)  # the slot's far end, along ψ
+    slot_end = D + reach.max(axis=1, keepdims=True) * np.exp(1j * psi)  # the slot's far end, along ψ
 
     # (distance (N, M), applies (N,)) in the order of CLEARANCE_PAIRS: joints to pivots they are
     # not pinned to, output links to pivots off them

@@ -15,7 +15,8 @@ p = p₀ + s·x with s = |p₀| for a length and max(|p₀|, 1) for a coordinate
 [−``radius``, ``radius``] (a trust region of a few percent: the result stays near the
 retrieved design). Each iteration draws λ mirrored Gaussian steps of size σ per candidate and
 keeps the best point if it is better; σ grows ×1.25 after a success and shrinks ×0.6 after a
-failure (a success rule), and a candidate stops when σ < ``radius``·1e-3.
+failure (a success rule), and a candidate stops when σ < ``radius``·1e-3 or its objective has
+not fallen by 1 % in ``STALL`` iterations.
 
 Objective (on the grid, cheap): the deviation g(D) / band, g(L) the smallest peak-to-peak of ψ
 over a crank window of length L containing the retrieved dwell's middle
@@ -52,11 +53,17 @@ PARAMETERS = ("b", "c", "d", "u", "v", "pivot_x", "pivot_y", "rocker", "rod")
 _LENGTHS = np.array([1, 1, 1, 0, 0, 0, 0, 1, 1], bool)
 #: Crank samples of the simulation inside the loop (1°); the check uses the query's 720.
 SAMPLES = 360
+#: The loop's clearance and torque arm on every 3rd sample (3°; the margins and the check cover it).
+CLEARANCE_EVERY = 3
 #: Trust region: largest relative change of a dimension (see the module docstring).
 RADIUS = 0.05
 #: Trial six-bars per candidate and iteration (mirrored pairs), and iterations at most.
 POPULATION = 10
-ITERATIONS = 30
+ITERATIONS = 20
+#: A candidate stops when its objective has not fallen by ``STALL_GAIN`` (relative) over the
+#: last ``STALL`` iterations.
+STALL = 6
+STALL_GAIN = 0.01
 #: Weight of the constraint excesses against the deviation (in bands).
 PENALTY = 1000.0
 _WORST = 1e12
@@ -147,7 +154,8 @@ def _objective(request: Request, p: np.ndarray, branch, rpr, dyad_branch, centre
         excess += np.maximum(0.0, np.abs(swing - request.swing) - 0.5 * request.swing_tol) / unit
     mu = np.minimum(motion.transmission_fourbar.min(axis=1), motion.transmission_output.min(axis=1))
     excess += np.maximum(0.0, request.min_transmission + _TRANSMISSION_MARGIN - mu) / math.radians(1.0)
-    reach, clear, _, _ = clearances(batch, motion)
+    _, clear, _, _ = clearances(batch, motion, every=CLEARANCE_EVERY)
+    reach = np.abs(motion.z[0] - batch.pivot[:, None])
     links = np.stack([np.ones(R), batch.b, batch.c, batch.d, np.where(rpr, reach.max(axis=1), batch.rocker),
                       np.where(rpr, reach.max(axis=1), batch.rod)], axis=1)
     ratio = links.max(axis=1) / links.min(axis=1)
@@ -228,6 +236,7 @@ def refine(request: Request, sixbars: Sequence[SixBar], before: Sequence[SixBarF
     sigma = np.full(K, 0.25 * radius)
     count = np.ones(K, int)
     active = fx < _WORST
+    history = [fx.copy()]
     for _ in range(iterations):
         who = np.flatnonzero(active)
         if not len(who):
@@ -245,6 +254,9 @@ def refine(request: Request, sixbars: Sequence[SixBar], before: Sequence[SixBarF
         sigma[who] *= np.where(better, 1.25, 0.6)
         sigma[who] = np.minimum(sigma[who], radius)
         active[who] = sigma[who] > 1e-3 * radius
+        history.append(fx.copy())
+        if len(history) > STALL:
+            active &= fx < (1 - STALL_GAIN) * history[-1 - STALL]
 
     # the check: rounded as the id holds it, then the query's exact figures
     moved = [k for k in range(K) if np.any(x[k] != 0)]
