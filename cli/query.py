@@ -90,8 +90,8 @@ def _refined_note(result: QueryResult) -> str:
     if not tried:
         return ""
     seconds = result.seconds.get("refine", 0.0)
-    if result.candidates and all(c.refined_from is not None for c in result.candidates) and tried > len(result.candidates):
-        return f"; nothing met the request: {better} of the {tried} nearest refined to meet it ({seconds:.2f} s)"
+    if result.from_misses:
+        return f"; nothing in the atlas met the request: {better} of its {tried} nearest misses refined to meet it ({seconds:.2f} s)"
     return f"; {better} of {tried} refined ({seconds:.2f} s)"
 
 
@@ -103,6 +103,16 @@ def _refined_text(c, req: Request) -> str:
     dwell = lambda f: f"{math.degrees(f.dwells[0].angle):.2f}" if f.dwells else "-"  # noqa: E731
     dev = lambda f: f"{math.degrees(max(f.deviations)):.3f}" if f.deviations else "-"  # noqa: E731
     return f"{dwell(before)}→{dwell(c.figures)} {dev(before)}→{dev(c.figures)}"
+
+
+def refinement_json(result: QueryResult) -> dict | None:
+    """What refinement did (``--json``): six-bars refined, how many came out better, whether
+    they were the nearest misses of a request nothing met, and the time; None with --no-refine."""
+    if not result.request.refine:
+        return None
+    tried, better = result.refined
+    return {"sixbars_refined": tried, "sixbars_improved": better, "from_nearest_misses": result.from_misses,
+            "seconds": round(result.seconds.get("refine", 0.0), 4)}
 
 
 def _rad(x: float | None) -> float | None:
@@ -293,7 +303,8 @@ def query(target, dwell, dwell_tol, swing, swing_tol, output, dwells, dwell_tole
         engine.dispose()
     if as_json:
         doc = {"request": request_json(request, units),
-               "candidates": [candidate_json(c, request.rpm, units) for c in result.candidates]}
+               "candidates": [candidate_json(c, request.rpm, units) for c in result.candidates],
+               "refinement": refinement_json(result)}
         if not result.candidates:
             doc["no_match"] = no_match_json(result, units)
         click.echo(json.dumps(doc, indent=2, allow_nan=False))

@@ -179,6 +179,8 @@ class QueryResult:
     #: six-bars refined (the returned ones, or the nearest misses when nothing met the
     #: request), and how many of them came out better (the others are kept unchanged)
     refined: tuple[int, int] = (0, 0)
+    #: True when nothing in the atlas met the request and the candidates are refined near misses
+    from_misses: bool = False
 
 
 class RebuildError(ValueError):
@@ -508,6 +510,7 @@ def answer(request: Request, source: SegmentSource) -> QueryResult:
     nearest: tuple[float | None, float | None] = (None, None)
     no_match = None
     refined = (0, 0)
+    before_refine = bool(top)  # something in the atlas met the request
     if top and request.refine:
         t4 = time.perf_counter()
         top, better = _refined(request, top)
@@ -534,7 +537,8 @@ def answer(request: Request, source: SegmentSource) -> QueryResult:
             clock["refine"] = time.perf_counter() - t5
             if top:
                 no_match = None
-    return QueryResult(request, top, len({r.segment_id for r in rows}), simulated, nearest, clock, no_match, refined)
+    return QueryResult(request, top, len({r.segment_id for r in rows}), simulated, nearest, clock, no_match, refined,
+                       from_misses=bool(top) and no_match is None and not before_refine)
 
 
 def rebuild(ids: Sequence[str], source: SegmentSource, request: Request) -> list[Candidate]:

@@ -128,6 +128,14 @@ def _objective(request: Request, p: np.ndarray, branch, rpr, dyad_branch, centre
     """(R,) objective of the dimension rows ``p`` (R, 9) whose dwells should sit around crank
     angles ``centres`` (R, C) rad (see the module docstring); lower is better."""
     batch = _batch(p, branch, rpr, dyad_branch)
+    # trial six-bars may degenerate (a link ratio over a zero-length reach): such a row's
+    # objective is not finite and is set to the worst below, so the arithmetic stays quiet
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        return _objective_rows(request, batch, rpr, centres, phi)
+
+
+def _objective_rows(request: Request, batch: SixBars, rpr: np.ndarray, centres: np.ndarray,
+                    phi: np.ndarray) -> np.ndarray:
     order = 2 if request.max_accel is not None else 0
     motion = simulate(batch, phi, order=order)
     psi = motion.psi

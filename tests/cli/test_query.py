@@ -327,10 +327,14 @@ def test_refinement_answers_a_missed_rrr_request_and_the_report_rebuilds_it(caps
     args = ["query", "--db", atlas_path, "--dwell", "60", "--dwell-tol", "1", "--swing", "30", "--output", "rrr"]
     code, out, err = run(capsys, *args, "--no-refine", "--json")
     assert code == 0 and json.loads(out)["candidates"] == [] and "no six-bar meets the request" in err
+    assert json.loads(out)["refinement"] is None
     code, out, err = run(capsys, *args, "--json")
     assert code == 0, err
     doc = json.loads(out)
     assert doc["request"]["refine"] is True and "no_match" not in doc
+    summary = doc["refinement"]
+    assert summary["from_nearest_misses"] is True and summary["sixbars_improved"] == len(doc["candidates"])
+    assert summary["sixbars_refined"] >= summary["sixbars_improved"] and summary["seconds"] > 0
     cands = doc["candidates"]
     assert cands
     for cand in cands:
@@ -385,5 +389,8 @@ def test_no_refine_gives_the_retrieved_six_bars(capsys, atlas_path):
         else:
             assert c["refinement"]["before"]["output_deviation_deg"] == pytest.approx(before, abs=1e-12)
             assert c["dwells"][0]["output_deviation_deg"] < before
+    doc = json.loads(out)["refinement"]
+    assert doc["from_nearest_misses"] is False and doc["sixbars_refined"] == len(plain)
+    assert doc["sixbars_improved"] == sum(c["refinement"] is not None for c in refined)
     code, out, err = run(capsys, "query", "--db", atlas_path, "--dwell", "45", "--swing", "40", "--output", "rpr")
-    assert code == 0 and " refined (" in out.splitlines()[0] and "→" in out
+    assert code == 0 and f"{doc['sixbars_improved']} of {len(plain)} refined (" in out.splitlines()[0] and "→" in out
