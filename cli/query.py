@@ -107,12 +107,12 @@ def _refined_text(c, req: Request) -> str:
 
 def refinement_json(result: QueryResult) -> dict | None:
     """What refinement did (``--json``): six-bars refined, how many came out better, whether
-    they were the nearest misses of a request nothing met, and the time; None with --no-refine."""
+    they were the nearest misses of a request nothing met; None with --no-refine. (No time:
+    the same request gives the same document; ``dwell bench query`` times it.)"""
     if not result.request.refine:
         return None
     tried, better = result.refined
-    return {"sixbars_refined": tried, "sixbars_improved": better, "from_nearest_misses": result.from_misses,
-            "seconds": round(result.seconds.get("refine", 0.0), 4)}
+    return {"sixbars_refined": tried, "sixbars_improved": better, "from_nearest_misses": result.from_misses}
 
 
 def _rad(x: float | None) -> float | None:

@@ -334,7 +334,7 @@ def test_refinement_answers_a_missed_rrr_request_and_the_report_rebuilds_it(caps
     assert doc["request"]["refine"] is True and "no_match" not in doc
     summary = doc["refinement"]
     assert summary["from_nearest_misses"] is True and summary["sixbars_improved"] == len(doc["candidates"])
-    assert summary["sixbars_refined"] >= summary["sixbars_improved"] and summary["seconds"] > 0
+    assert summary["sixbars_refined"] >= summary["sixbars_improved"]
     cands = doc["candidates"]
     assert cands
     for cand in cands:
