@@ -199,6 +199,8 @@ def no_match_message(result: QueryResult) -> str:
             change = _options_changed(req, nm.would_meet)
             if change:
                 lines.append(f"  it meets: {change}")
+        if result.refined[0]:
+            lines.append(f"  refined: its {result.refined[0]} nearest misses toward the request; none meets it")
         return "\n".join(lines)
     below, above = result.nearest
     near = [x for x in (below, above) if x is not None]
