@@ -362,6 +362,7 @@ def test_refinement_answers_a_missed_rrr_request_and_the_report_rebuilds_it(caps
     assert rebuilt["dwells"][0]["output_deviation_deg"] == pytest.approx(first["dwells"][0]["output_deviation_deg"], abs=1e-9)
     assert rebuilt["swing_deg"] == pytest.approx(first["swing_deg"], abs=1e-9)
     assert rebuilt["refinement"]["before"]["swing_deg"] == pytest.approx(first["refinement"]["before"]["swing_deg"], abs=1e-9)
+    assert "refined from (as retrieved)" in (tmp_path / "r" / "index.html").read_text()
     # a damaged refined id is the user's error
     bad = first["id"][:-3]
     code, out, err = run(capsys, "report", "--db", atlas_path, "--candidates", bad, "--out", str(tmp_path / "x"))
