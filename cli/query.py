@@ -57,7 +57,7 @@ def request_from_options(dwell: float, dwell_tol: float | None = None, swing: fl
                          min_transmission: float | None = None, max_link_ratio: float | None = None,
                          top: int | None = None, *, min_arm: float | None = None, min_clearance: float | None = None,
                          rpm: float | None = None, max_accel: float | None = None,
-                         step: float | None = None) -> Request:
+                         step: float | None = None, refine: bool | None = None) -> Request:
     """A :class:`Request` from the command's units (degrees); None takes the field's default.
     A bad value is the user's error (one line naming the option)."""
     # the deviation window must hold at least two samples of the simulation's crank grid
@@ -67,7 +67,7 @@ def request_from_options(dwell: float, dwell_tol: float | None = None, swing: fl
     given = {"dwell": math.radians(dwell), "dwell_tol": _rad(dwell_tol), "swing": _rad(swing),
              "swing_tol": _rad(swing_tol), "output": output, "dwells": dwells, "band": _rad(dwell_tolerance),
              "crank": crank, "min_transmission": _rad(min_transmission), "max_link_ratio": max_link_ratio, "top": top,
-             "min_arm": min_arm, "min_clearance": min_clearance, "rpm": rpm}
+             "min_arm": min_arm, "min_clearance": min_clearance, "rpm": rpm, "refine": refine}
     if max_accel is not None:
         given["max_accel"] = max_accel
     if step is not None:
@@ -87,6 +87,37 @@ def _sixbar_text(sb) -> str:
     return text
 
 
+def _refined_note(result: QueryResult) -> str:
+    """``; 6 of 7 refined (0.37 s)`` for the table's head ('' without refinement)."""
+    tried, better = result.refined
+    if not tried:
+        return ""
+    seconds = result.seconds.get("refine", 0.0)
+    if result.from_misses:
+        return f"; nothing in the atlas met the request: {better} of its {tried} nearest misses refined to meet it ({seconds:.2f} s)"
+    return f"; {better} of {tried} refined ({seconds:.2f} s)"
+
+
+def _refined_text(c, req: Request) -> str:
+    """``44.77→46.27 0.102→0.092``: the (first) dwell and the deviation before → after refinement."""
+    before = c.refined_from
+    if before is None:
+        return "-"
+    dwell = lambda f: f"{math.degrees(f.dwells[0].angle):.2f}" if f.dwells else "-"  # noqa: E731
+    dev = lambda f: f"{math.degrees(max(f.deviations)):.3f}" if f.deviations else "-"  # noqa: E731
+    return f"{dwell(before)}→{dwell(c.figures)} {dev(before)}→{dev(c.figures)}"
+
+
+def refinement_json(result: QueryResult) -> dict | None:
+    """What refinement did (``--json``): six-bars refined, how many came out better, whether
+    they were the nearest misses of a request nothing met; None with --no-refine. (No time:
+    the same request gives the same document; ``dwell bench query`` times it.)"""
+    if not result.request.refine:
+        return None
+    tried, better = result.refined
+    return {"sixbars_refined": tried, "sixbars_improved": better, "from_nearest_misses": result.from_misses}
+
+
 def _rad(x: float | None) -> float | None:
     return None if x is None else math.radians(x)
 
@@ -97,10 +128,12 @@ def table(result: QueryResult, units: str = "") -> str:
     req = result.request
     head = (f"{len(result.candidates)} six-bar(s) for {req.dwells} dwell(s) of {math.degrees(req.dwell):g}° ± "
             f"{math.degrees(req.dwell_tol):g}°" + ("" if req.swing is None else f", swing {math.degrees(req.swing):g}°")
-            + f" (output band {math.degrees(req.band):g}°; {result.considered} segments fitted, {result.simulated} simulated)")
+            + f" (output band {math.degrees(req.band):g}°; {result.considered} segments fitted, {result.simulated} simulated"
+            + _refined_note(result) + ")")
     lines = [head]
-    cols = (f"{'rank':>4}  {'id':<26} {'out':<3} {'dwell °':>15} {'dev °':>7} {'swing °':>8} {'μ4 °':>6} {'μout °':>6} "
-            f"{'ratio':>6} {'arm':>7} {'clear':>7} {'α rad/s²':>9}  six-bar")
+    width = max([26] + [len(c.id) for c in result.candidates])
+    cols = (f"{'rank':>4}  {'id':<{width}} {'out':<3} {'dwell °':>15} {'dev °':>7} {'swing °':>8} {'μ4 °':>6} {'μout °':>6} "
+            f"{'ratio':>6} {'arm':>7} {'clear':>7} {'α rad/s²':>9}  {'refined: dwell, dev °':<28} six-bar")
     lines.append(cols)
     for c in result.candidates:
         f, sb = c.figures, c.sixbar
@@ -112,13 +145,14 @@ def table(result: QueryResult, units: str = "") -> str:
         accel = "-" if b is None else f"{b.dynamics(req.rpm)[1]:.4g}"
         mu_out = "slot" if sb.dyad.kind == OutputKind.RPR else f"{math.degrees(f.transmission_output):.1f}"
         lines.append(
-            f"{c.rank:>4}  {c.id:<26} {sb.dyad.kind:<3} {dw:>15} {math.degrees(dev):>7.3f} {math.degrees(f.swing):>8.2f} "
+            f"{c.rank:>4}  {c.id:<{width}} {sb.dyad.kind:<3} {dw:>15} {math.degrees(dev):>7.3f} {math.degrees(f.swing):>8.2f} "
             f"{math.degrees(f.transmission_fourbar):>6.1f} {mu_out:>6} "
-            f"{f.link_ratio:>6.2f} {arm:>7} {clear:>7} {accel:>9}  {_sixbar_text(sb)}"
+            f"{f.link_ratio:>6.2f} {arm:>7} {clear:>7} {accel:>9}  {_refined_text(c, req):<28} {_sixbar_text(sb)}"
         )
     lines.append(f"dev: output deviation over the requested dwell; μ4, μout: smallest transmission angles "
                  f"(four-bar, output dyad; a slotted rocker's is 90°); arm: slider to slot pivot (RPR); clear: "
-                 f"smallest clearance to a fixed pivot; α: peak output acceleration at {req.rpm:g} rpm; six-bar: "
+                 f"smallest clearance to a fixed pivot; α: peak output acceleration at {req.rpm:g} rpm; refined: the dwell "
+                 f"and dev before → after refinement (-: kept as retrieved; an id after ~ holds the refined dimensions); six-bar: "
                  f"a b c d (crank, coupler, rocker, ground), P = coupler point (u, v) in the coupler frame, D = output "
                  f"pivot, RRR rocker L and rod ρ; lengths in {units or 'your unit'} (crank = {req.crank:g})")
     return "\n".join(lines)
@@ -168,6 +202,8 @@ def no_match_message(result: QueryResult) -> str:
             change = _options_changed(req, nm.would_meet)
             if change:
                 lines.append(f"  it meets: {change}")
+        if result.refined[0]:
+            lines.append(f"  refined: its {result.refined[0]} nearest misses toward the request; none meets it")
         return "\n".join(lines)
     below, above = result.nearest
     near = [x for x in (below, above) if x is not None]
@@ -251,16 +287,19 @@ TOP = Count(1, 1000, "candidates")
 @click.option("--rpm", type=RPM, default=_DEFAULTS["rpm"], show_default=True,
               help="Crank speed for the output's peak velocity, acceleration and jerk (rev/min).")
 @click.option("--max-accel", type=ACCEL_LIMIT, default=None, help="Largest peak output acceleration (rad/s²) at --rpm.")
+@click.option("--refine/--no-refine", default=_DEFAULTS["refine"], show_default=True,
+              help="Refine the returned six-bars (and, when nothing meets the request, the nearest misses) by a "
+                   "local optimisation with exact simulation in the loop.")
 @click.option("--json", "as_json", is_flag=True, help="JSON on stdout instead of a table.")
 @click.option("--report", "report_dir", type=click.Path(file_okay=False), default=None,
               help="Also write the report of the candidates to this folder.")
 @units_option
 def query(target, dwell, dwell_tol, swing, step, swing_tol, output, dwells, dwell_tolerance, crank, min_transmission,
-          max_link_ratio, top, min_arm, min_clearance, rpm, max_accel, as_json, report_dir, units):
+          max_link_ratio, top, min_arm, min_clearance, rpm, max_accel, refine, as_json, report_dir, units):
     """Ranked six-bars for a requested dwell and swing (see README: ranking)."""
     request = request_from_options(dwell, dwell_tol, swing, swing_tol, output.lower(), dwells, dwell_tolerance, crank,
                                    min_transmission, max_link_ratio, top, min_arm=min_arm, min_clearance=min_clearance,
-                                   rpm=rpm, max_accel=max_accel, step=step)
+                                   rpm=rpm, max_accel=max_accel, step=step, refine=refine)
     if report_dir is not None:
         _check_report_dir(Path(report_dir))
     from db.engine import open_atlas
@@ -272,7 +311,8 @@ def query(target, dwell, dwell_tol, swing, step, swing_tol, output, dwells, dwel
         engine.dispose()
     if as_json:
         doc = {"request": request_json(request, units),
-               "candidates": [candidate_json(c, request.rpm, units) for c in result.candidates]}
+               "candidates": [candidate_json(c, request.rpm, units) for c in result.candidates],
+               "refinement": refinement_json(result)}
         if not result.candidates:
             doc["no_match"] = no_match_json(result, units)
         click.echo(json.dumps(doc, indent=2, allow_nan=False))

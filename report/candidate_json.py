@@ -55,6 +55,7 @@ def request_json(request: Request, units: str = "mm") -> dict:
         "min_clearance_cranks": request.min_clearance,
         "rpm": request.rpm,
         "max_accel_rad_s2": request.max_accel,
+        "refine": request.refine,
     }
 
 
@@ -95,8 +96,22 @@ def candidate_json(c: Candidate, rpm: float = 60.0, units: str = "mm") -> dict:
         "link_ratio": f.link_ratio,
         f"footprint_{L}2": f.footprint,
         "buildability": _buildability_json(f, rpm, L),
+        "refinement": _refinement_json(c),
         "segment_id": c.segment_id,
     }
+
+
+def _summary_json(f: SixBarFigures) -> dict:
+    return {"dwell_deg": [math.degrees(d.angle) for d in f.dwells], "swing_deg": math.degrees(f.swing),
+            "output_deviation_deg": max(math.degrees(x) for x in f.deviations) if f.deviations else None}
+
+
+def _refinement_json(c: Candidate) -> dict | None:
+    """Before → after figures of a refined six-bar (None if it was not refined): dwell(s), swing
+    and the output deviation over the requested dwell (the largest of its dwells')."""
+    if c.refined_from is None:
+        return None
+    return {"before": _summary_json(c.refined_from), "after": _summary_json(c.figures)}
 
 
 def _buildability_json(f: SixBarFigures, rpm: float, L: str) -> dict | None:

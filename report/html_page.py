@@ -322,6 +322,12 @@ def _dimensions_table(entry: PageEntry, rpm: float) -> str:
         start, end = d.ends_deg()
         span = f"{math.degrees(d.angle):.3f}° over φ = {start:.2f}° … {end:.2f}°"
         rows.append((f"dwell {k + 1}", span + dev))
+    if c.refined_from is not None:
+        # exact refinement (synth/refine.py): the retrieved six-bar's figures, for comparison
+        g = c.refined_from
+        dwells = " / ".join(f"{math.degrees(d.angle):.3f}°" for d in g.dwells)
+        dev = f" · deviation {math.degrees(max(g.deviations)):.4f}°" if g.deviations else ""
+        rows.append(("refined from (as retrieved)", f"dwell {dwells} · swing {math.degrees(g.swing):.4f}°{dev}"))
     rows += [("swing", f"{math.degrees(f.swing):.4f}°"),
              ("min transmission, four-bar", f"{math.degrees(f.transmission_fourbar):.2f}°"),
              ("min transmission, output", "slot (90° by construction)" if dy.kind == "RPR"

@@ -28,7 +28,7 @@ import numpy as np
 
 from synth.sixbar import SixBarMotion, SixBars
 
-__all__ = ["Buildability", "buildability", "output_rates"]
+__all__ = ["CLEARANCE_PAIRS", "Buildability", "buildability", "clearances", "output_rates"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -88,40 +88,68 @@ def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray
     return np.abs(p - (a + t * ab))
 
 
-def buildability(batch: SixBars, motion: SixBarMotion) -> list[Buildability]:
-    """The figures of every six-bar of ``batch`` from ``motion`` (an order-2 simulation on a
-    uniform crank grid over the whole turn, shape (N, M))."""
+#: The pairs :func:`clearances` measures, in the order of its ``which`` index.
+CLEARANCE_PAIRS = ("joint A / B0", "joint A / D", "joint B / A0", "joint B / D", "joint P / A0", "joint P / B0",
+                   "joint P / D", "joint Q / A0", "joint Q / B0", "rod P-Q / A0", "rod P-Q / B0", "rod P-Q / D",
+                   "rocker D-Q / A0", "rocker D-Q / B0", "slot / A0", "slot / B0")
+
+
+def clearances(batch: SixBars, motion: SixBarMotion, every: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Torque arm, clearance and slot use of every six-bar of ``batch`` as arrays, from
+    ``motion`` (any order, a uniform crank grid over the whole turn, shape (N, M)), on every
+    ``every``-th sample (1: all; more is a cheaper estimate, as in synth.refine's loop).
+
+    Returns
+    -------
+    reach : (N, M) float
+        |P − D| at every sample (length; every ``every``-th): an RPR's torque arm is its row minimum.
+    clearance : (N,) float
+        Smallest joint/link-to-fixed-pivot distance over the samples (length).
+    which : (N,) int
+        Index into :data:`CLEARANCE_PAIRS` of the pair that sets it.
+    rpr : (N,) bool
+        Which rows are RPR (their arm is defined).
+    """
     n, m = motion.psi.shape
-    A = np.broadcast_to(motion.fourbar.A, (n, m))
-    B = np.broadcast_to(motion.fourbar.B, (n, m))
-    P = np.broadcast_to(motion.z[0], (n, m))
-    Q = np.broadcast_to(motion.moving_pivot, (n, m))
+    cols = slice(None, None, every)
+    A = np.broadcast_to(motion.fourbar.A, (n, m))[:, cols]
+    B = np.broadcast_to(motion.fourbar.B, (n, m))[:, cols]
+    P = np.broadcast_to(motion.z[0], (n, m))[:, cols]
+    Q = np.broadcast_to(motion.moving_pivot, (n, m))[:, cols]
+    psi = motion.psi[:, cols]
     A0 = np.zeros((n, 1), complex)
     B0 = batch.d[:, None].astype(complex)
     D = batch.pivot[:, None]
     rpr = batch.rpr
     reach = np.abs(P - D)
-    slot_end = D + reach.max(axis=1, keepdims=True) * np.exp(1j * motion.psi)  # the slot's far end, along ψ
+    slot_end = D + reach.max(axis=1, keepdims=True) * np.exp(1j * psi)  # the slot's far end, along ψ
 
-    # (name, distance (N, M), applies (N,)): joints to pivots they are not pinned to, output
-    # links to pivots off them
+    # (distance (N, M), applies (N,)) in the order of CLEARANCE_PAIRS: joints to pivots they are
+    # not pinned to, output links to pivots off them
     rrr = ~rpr
     every = np.ones(n, bool)
     pairs = [
-        ("joint A / B0", np.abs(A - B0), every), ("joint A / D", np.abs(A - D), every),
-        ("joint B / A0", np.abs(B - A0), every), ("joint B / D", np.abs(B - D), every),
-        ("joint P / A0", np.abs(P - A0), every), ("joint P / B0", np.abs(P - B0), every),
-        ("joint P / D", np.abs(P - D), rrr),  # RPR: that is the torque arm
-        ("joint Q / A0", np.abs(Q - A0), rrr), ("joint Q / B0", np.abs(Q - B0), rrr),
-        ("rod P-Q / A0", _segment_distance(A0, P, Q), rrr), ("rod P-Q / B0", _segment_distance(B0, P, Q), rrr),
-        ("rod P-Q / D", _segment_distance(D, P, Q), rrr),
-        ("rocker D-Q / A0", _segment_distance(A0, D, Q), rrr), ("rocker D-Q / B0", _segment_distance(B0, D, Q), rrr),
-        ("slot / A0", _segment_distance(A0, D, slot_end), rpr), ("slot / B0", _segment_distance(B0, D, slot_end), rpr),
+        (np.abs(A - B0), every), (np.abs(A - D), every),
+        (np.abs(B - A0), every), (np.abs(B - D), every),
+        (np.abs(P - A0), every), (np.abs(P - B0), every),
+        (reach, rrr),  # RPR: that is the torque arm
+        (np.abs(Q - A0), rrr), (np.abs(Q - B0), rrr),
+        (_segment_distance(A0, P, Q), rrr), (_segment_distance(B0, P, Q), rrr),
+        (_segment_distance(D, P, Q), rrr),
+        (_segment_distance(A0, D, Q), rrr), (_segment_distance(B0, D, Q), rrr),
+        (_segment_distance(A0, D, slot_end), rpr), (_segment_distance(B0, D, slot_end), rpr),
     ]
-    names = [name for name, _, _ in pairs]
-    smallest = np.stack([np.where(applies, dist.min(axis=1), np.inf) for _, dist, applies in pairs], axis=1)
+    smallest = np.stack([np.where(applies, dist.min(axis=1), np.inf) for dist, applies in pairs], axis=1)
     which = smallest.argmin(axis=1)
-    clearance = smallest[np.arange(n), which]
+    return reach, smallest[np.arange(n), which], which, rpr
+
+
+def buildability(batch: SixBars, motion: SixBarMotion) -> list[Buildability]:
+    """The figures of every six-bar of ``batch`` from ``motion`` (an order-2 simulation on a
+    uniform crank grid over the whole turn, shape (N, M))."""
+    n = motion.psi.shape[0]
+    reach, clearance, which, rpr = clearances(batch, motion)
+    names = CLEARANCE_PAIRS
 
     d1, d2 = motion.dpsi[0], motion.dpsi[1]
     d3 = output_rates(d2)

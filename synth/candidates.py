@@ -13,17 +13,21 @@ tolerance, the dwell band, 45° of transmission, 100 crank², 1 rad/rad² — 39
 
 from __future__ import annotations
 
+import base64
+import binascii
 import dataclasses
 import math
+import struct
 from dataclasses import dataclass
 
 import numpy as np
 
 from synth.figures import SixBarFigures
 from synth.kinds import OutputTag
-from synth.sixbar import SixBar, SixBars, crank_grid, simulate
+from synth.sixbar import OutputDyad, SixBar, SixBars, crank_grid, simulate
 
-__all__ = ["Candidate", "Request", "candidate_id", "parse_candidate_id", "rank", "screen"]
+__all__ = ["Candidate", "Request", "candidate_dimensions", "candidate_id", "decode_dimensions", "encode_dimensions",
+           "parse_candidate_id", "rank", "round_dimensions", "screen", "with_dimensions"]
 
 #: The --output choices: an output tag, or any single-dwell one.
 OUTPUTS = (OutputTag.RPR.value, OutputTag.RRR.value, "any")
@@ -50,6 +54,9 @@ class Request:
     min_transmission: float = math.radians(30.0)
     max_link_ratio: float = 10.0
     top: int = 10
+    #: Refine the returned six-bars by a local optimisation with exact simulation in the loop
+    #: (synth.refine), and the nearest misses when nothing meets the request.
+    refine: bool = True
     #: Buildability (synth.buildability): the RPR slider's smallest distance to its slot pivot
     #: and every joint's/output link's to a fixed pivot, in crank lengths; the output's peak
     #: angular acceleration (rad/s², None: no limit) at ``rpm`` rev/min of the crank.
@@ -112,8 +119,12 @@ class Candidate:
     sixbar: SixBar
     figures: SixBarFigures
     rank: int = 0
-    #: RRR: where the moving pivot Q rests during the dwell (the fitted arc's centre)
+    #: RRR: where the moving pivot Q rests during the dwell (the fitted arc's centre; for a
+    #: refined six-bar, Q at the middle of its first dwell)
     dwell_position: complex | None = None
+    #: A refined six-bar (synth.refine): the figures of the six-bar it was refined from (same
+    #: units as ``figures``); None if it was not refined or refinement kept it unchanged.
+    refined_from: SixBarFigures | None = None
 
 
 def screen(request: Request, sixbars: SixBars, samples: int = 720) -> np.ndarray:
@@ -157,18 +168,32 @@ def screen(request: Request, sixbars: SixBars, samples: int = 720) -> np.ndarray
     return ok
 
 
-def candidate_id(segment_id: int, output: str, slot: int, level: int, swing: float | None) -> str:
+#: Separates a refined candidate's id from the id of the six-bar it was refined from.
+REFINED_MARK = "~"
+_FLAG_BRANCH, _FLAG_DYAD_BRANCH, _FLAG_RRR = 1, 2, 4
+
+
+def candidate_id(segment_id: int, output: str, slot: int, level: int, swing: float | None,
+                 dimensions: SixBar | None = None) -> str:
     """``<segment>-<rpr|rrr|dbl><slot>.<level>@<swing°>``: enough to rebuild the six-bar from
     the atlas (the fit is deterministic; ``slot`` indexes the fit's candidates, found or not;
-    ``level`` is the tolerance level whose fitted line or circle was used)."""
+    ``level`` is the tolerance level whose fitted line or circle was used). A refined six-bar
+    (crank-normalised ``dimensions``) appends ``~`` and :func:`encode_dimensions`."""
     sw = "free" if swing is None else f"{math.degrees(swing):.6g}"
-    return f"{segment_id}-{output}{slot}.{level}@{sw}"
+    base = f"{segment_id}-{output}{slot}.{level}@{sw}"
+    return base if dimensions is None else f"{base}{REFINED_MARK}{encode_dimensions(dimensions)}"
+
+
+def with_dimensions(text: str, sixbar: SixBar) -> str:
+    """The id of ``sixbar`` (crank-normalised) refined from the candidate ``text``."""
+    return f"{text.strip().split(REFINED_MARK)[0]}{REFINED_MARK}{encode_dimensions(sixbar)}"
 
 
 def parse_candidate_id(text: str) -> tuple[int, str, int, int, float | None]:
-    """Inverse of :func:`candidate_id`; ValueError with the reason on a malformed id."""
+    """Inverse of :func:`candidate_id` (the six-bar a refined id was refined from; its
+    dimensions: :func:`candidate_dimensions`); ValueError with the reason on a malformed id."""
     try:
-        head, sw = text.strip().split("@")
+        head, sw = text.strip().split(REFINED_MARK)[0].split("@")
         seg, kind = head.split("-")
         slot_text, level_text = kind[3:].split(".")
         output, slot, level = kind[:3], int(slot_text), int(level_text)
@@ -178,9 +203,68 @@ def parse_candidate_id(text: str) -> tuple[int, str, int, int, float | None]:
         swing = None if sw == "free" else math.radians(float(sw))
         if swing is not None and not (0 < swing < math.pi):
             raise ValueError
+        dims = candidate_dimensions(text)
+        if dims is not None and (dims.dyad.kind == "RRR") != (output == "rrr"):
+            raise ValueError
         return int(seg), output, slot, level, swing
     except ValueError:
         raise ValueError(f"not a candidate id: {text!r} (expected e.g. 1234500007-rrr0.1@30)") from None
+
+
+def candidate_dimensions(text: str) -> SixBar | None:
+    """The refined six-bar (crank-normalised) an id carries after ``~``, None for an id without
+    one; ValueError on a malformed suffix."""
+    parts = text.strip().split(REFINED_MARK)
+    if len(parts) == 1:
+        return None
+    if len(parts) != 2:
+        raise ValueError(f"not a candidate id: {text!r} (more than one {REFINED_MARK!r})")
+    return decode_dimensions(parts[1])
+
+
+def encode_dimensions(sixbar: SixBar) -> str:
+    """A crank-normalised six-bar (a = 1) as base64url text (no padding): one flag byte (four-bar
+    branch −1, dyad branch −1, RRR) and b, c, d, u, v, D.x, D.y (and RRR L, ρ) as big-endian
+    float32 — 39 characters for an RPR, 50 for an RRR. The six-bar is rounded to float32 (about
+    7 significant digits): :func:`round_dimensions` gives what the text holds."""
+    dy = sixbar.dyad
+    rrr = dy.kind == "RRR"
+    flags = (_FLAG_BRANCH * (sixbar.branch == -1) | _FLAG_DYAD_BRANCH * (dy.branch == -1) | _FLAG_RRR * rrr)
+    values = [sixbar.b / sixbar.a, sixbar.c / sixbar.a, sixbar.d / sixbar.a, sixbar.u / sixbar.a, sixbar.v / sixbar.a,
+              dy.pivot.real / sixbar.a, dy.pivot.imag / sixbar.a]
+    if rrr:
+        values += [dy.rocker / sixbar.a, dy.rod / sixbar.a]
+    raw = struct.pack(f">B{len(values)}f", flags, *values)
+    return base64.urlsafe_b64encode(raw).decode("ascii").rstrip("=")
+
+
+def decode_dimensions(text: str) -> SixBar:
+    """Inverse of :func:`encode_dimensions` (a = 1); ValueError naming the problem."""
+    try:
+        raw = base64.urlsafe_b64decode(text + "=" * (-len(text) % 4))
+    except (binascii.Error, ValueError):
+        raise ValueError(f"refined dimensions {text!r} are not base64url") from None
+    if not raw or len(raw) not in (1 + 4 * 7, 1 + 4 * 9) or raw[0] & ~7:
+        raise ValueError(f"refined dimensions {text!r} do not describe a six-bar")
+    flags = raw[0]
+    rrr = bool(flags & _FLAG_RRR)
+    if len(raw) != 1 + 4 * (9 if rrr else 7) or base64.urlsafe_b64encode(raw).decode("ascii").rstrip("=") != text:
+        raise ValueError(f"refined dimensions {text!r} do not describe a six-bar")
+    values = [float(x) for x in struct.unpack(f">{(len(raw) - 1) // 4}f", raw[1:])]
+    branch = -1 if flags & _FLAG_BRANCH else 1
+    dyad_branch = -1 if flags & _FLAG_DYAD_BRANCH else 1
+    b, c, d, u, v, x, y = values[:7]
+    try:
+        dyad = OutputDyad.rrr(complex(x, y), values[7], values[8], dyad_branch) if rrr else OutputDyad.rpr(complex(x, y))
+        return SixBar(1.0, b, c, d, branch, u, v, dyad)
+    except ValueError as exc:  # AssemblyError is a ValueError
+        raise ValueError(f"refined dimensions {text!r} do not describe a six-bar: {exc}") from None
+
+
+def round_dimensions(sixbar: SixBar) -> SixBar:
+    """``sixbar`` (crank-normalised) as its id holds it (float32 dimensions): refine, then
+    round, then compute the figures, so that a query and a report show the same numbers."""
+    return decode_dimensions(encode_dimensions(sixbar))
 
 
 def objectives(request: Request, figures: list[SixBarFigures]) -> np.ndarray:

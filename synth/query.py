@@ -9,10 +9,14 @@ double Ball points, RRR on arcs) → a necessary screen on the crank grid
 (:func:`~synth.candidates.screen`) → the full figures of the survivors from the exact
 simulation (:func:`~synth.sixbar.sixbar_figures`) → the six-bars that meet the request →
 ranked (:func:`~synth.candidates.rank`), one per segment and output type and one of a mirror
-pair. Lengths are crank-normalised until the end, then scaled to ``request.crank``.
+pair → with ``request.refine``, the top ones refined by a local optimisation with exact
+simulation in the loop (:func:`synth.refine.refine`) and ranked again. Lengths are
+crank-normalised until the end, then scaled to ``request.crank``.
 
-When nothing meets the request the result carries a :class:`NoMatch`: how many fitted six-bars
-each constraint rejected, the nearest six-bar and the request that it would meet.
+When nothing meets the request, the nearest misses (``MISSES`` of them, by the sum of their
+excesses over the limits) are refined toward it, and those that then meet it are the answer;
+if none does, the result carries a :class:`NoMatch`: how many fitted six-bars each constraint
+rejected, the nearest six-bar and the request that it would meet.
 """
 
 from __future__ import annotations
@@ -27,9 +31,19 @@ from typing import Protocol
 
 import numpy as np
 
-from synth.candidates import Candidate, Request, candidate_id, parse_candidate_id, rank, screen
+from synth.candidates import (
+    Candidate,
+    Request,
+    candidate_dimensions,
+    candidate_id,
+    parse_candidate_id,
+    rank,
+    screen,
+    with_dimensions,
+)
 from synth.figures import SixBarFigures, sixbar_figures
 from synth.sixbar import OutputDyad, SixBar, SixBars, crank_grid
+from synth.sixbar import simulate as simulate_motion
 
 __all__ = [
     "CONSTRAINTS",
@@ -52,6 +66,8 @@ FIT_SAMPLES = 360
 PER_LEVEL = 10
 #: Output link lengths (crank lengths) tried in the band conversion of ``_select``.
 REACHES = (2.0, 5.0, 12.0)
+#: Nearest misses refined toward a request nothing met.
+MISSES = 8
 #: The request's constraints, in the order a no-match names them (see :func:`violations`).
 CONSTRAINTS = ("assembly", "dwell", "swing", "step", "transmission", "link_ratio", "arm", "clearance", "acceleration")
 
@@ -162,6 +178,11 @@ class QueryResult:
     nearest: tuple[float | None, float | None]  #: stored dwell angles (rad) around the request when empty
     seconds: dict[str, float]
     no_match: NoMatch | None = None
+    #: six-bars refined (the returned ones, or the nearest misses when nothing met the
+    #: request), and how many of them came out better (the others are kept unchanged)
+    refined: tuple[int, int] = (0, 0)
+    #: True when nothing in the atlas met the request and the candidates are refined near misses
+    from_misses: bool = False
 
 
 class RebuildError(ValueError):
@@ -396,25 +417,85 @@ def _loosened(request: Request, f: SixBarFigures) -> Request:
         return request
 
 
-def diagnose(request: Request, fitted: Sequence[Fitted]) -> NoMatch:
-    """Why none of ``fitted`` meets ``request`` (see :class:`NoMatch`); simulates them all."""
+def _misses(request: Request, fitted: Sequence[Fitted]) -> list[tuple[float, Fitted, SixBarFigures, dict]]:
+    """Every fitted six-bar with its figures (no footprint) and excesses over the limits
+    (:func:`violations`), nearest first by their sum (inf for one that does not assemble)."""
+    if not fitted:
+        return []
+    figures = _figures(request, [f.sixbar() for f in fitted], footprint=False)
+    out = []
+    for fit_, fig in zip(fitted, figures):
+        excess = violations(request, fig)
+        total = math.inf if excess["assembly"] else sum(excess.values())
+        out.append((total, fit_, fig, excess))
+    return sorted(out, key=lambda t: t[0])  # stable: ties keep the fit order
+
+
+def diagnose(request: Request, fitted: Sequence[Fitted],
+             misses: list[tuple[float, Fitted, SixBarFigures, dict]] | None = None) -> NoMatch:
+    """Why none of ``fitted`` meets ``request`` (see :class:`NoMatch`); simulates them all
+    unless their :func:`_misses` are given."""
     rejected = dict.fromkeys(CONSTRAINTS, 0)
     if not fitted:
         return NoMatch(0, rejected, None, None)
-    figures = _figures(request, [f.sixbar() for f in fitted], footprint=False)
-    best, best_excess = None, math.inf
-    for fit_, fig in zip(fitted, figures):
-        excess = violations(request, fig)
+    misses = _misses(request, fitted) if misses is None else misses
+    for _, _, _, excess in misses:
         for k, x in excess.items():
             rejected[k] += x > 0
-        total = math.inf if excess["assembly"] else sum(excess.values())
-        if total < best_excess:
-            best, best_excess = (fit_, fig), total
-    if best is None:
+    best_excess, fit_, fig, _ = misses[0]
+    if best_excess == math.inf:
         return NoMatch(len(fitted), rejected, None, None)
-    fit_, fig = best
     loose = _loosened(request, fig)
     return NoMatch(len(fitted), rejected, dataclasses.replace(_candidate(loose, fit_, fig), rank=1), loose)
+
+
+def _distinct(ranked: Sequence[Candidate]) -> list[Candidate]:
+    """One six-bar per segment and output type (the best-ranked), and one of a mirror pair: the
+    two assembly branches of a four-bar are mirror images with the same figures."""
+    seen: set = set()
+    unique = []
+    for c in ranked:
+        sb = c.sixbar
+        mirror = (round(sb.b, 9), round(sb.c, 9), round(sb.d, 9), sb.dyad.kind, round(sb.u, 3), round(abs(sb.v), 3))
+        key = (c.segment_id, c.id.split("-")[1][:3])
+        if key not in seen and mirror not in seen:
+            seen.update((key, mirror))
+            unique.append(c)
+    return unique
+
+
+def _rest(sixbar: SixBar, f: SixBarFigures) -> complex | None:
+    """RRR: the moving pivot Q at the middle of the first dwell (None for an RPR)."""
+    if sixbar.dyad.kind != "RRR" or not f.dwells:
+        return None
+    d = f.dwells[0]
+    return complex(simulate_motion(sixbar, np.array([0.5 * (d.start + d.end)]), order=0).moving_pivot[0])
+
+
+def _refined(request: Request, candidates: Sequence[Candidate],
+             before: Sequence[SixBarFigures] | None = None) -> tuple[list[Candidate], int]:
+    """``candidates`` (the user's units) refined toward ``request`` (:func:`synth.refine.refine`):
+    the refined ones with their new id, six-bar and figures and ``refined_from``, the others
+    as they were; and how many were refined. ``before``: their figures crank-normalised, if
+    at hand."""
+    from synth.refine import refine
+
+    if not candidates:
+        return [], 0
+    s = request.crank
+    sixbars = [c.sixbar.scaled(1.0 / s) for c in candidates]
+    before = [_scaled_figures(c.figures, 1.0 / s) for c in candidates] if before is None else before
+    out, count = [], 0
+    for c, r in zip(candidates, refine(request, sixbars, before)):
+        if not r.refined:
+            out.append(c)
+            continue
+        count += 1
+        rest = _rest(r.sixbar, r.figures)
+        out.append(dataclasses.replace(
+            c, id=with_dimensions(c.id, r.sixbar), sixbar=r.sixbar.scaled(s), figures=_scaled_figures(r.figures, s),
+            dwell_position=None if rest is None else rest * s, refined_from=c.figures))
+    return out, count
 
 
 def answer(request: Request, source: SegmentSource) -> QueryResult:
@@ -433,28 +514,40 @@ def answer(request: Request, source: SegmentSource) -> QueryResult:
     candidates, simulated = simulate(request, fitted)
     t3 = time.perf_counter()
     clock["simulate"] = t3 - t2
-    # one six-bar per segment and output type (the best-ranked fit), and one of a mirror pair:
-    # the two assembly branches of a four-bar are mirror images with the same figures
-    seen: set = set()
-    unique = []
-    for c in rank(request, candidates):
-        sb = c.sixbar
-        mirror = (round(sb.b, 9), round(sb.c, 9), round(sb.d, 9), sb.dyad.kind, round(sb.u, 3), round(abs(sb.v), 3))
-        key = (c.segment_id, c.id.split("-")[1][:3])
-        if key not in seen and mirror not in seen:
-            seen.update((key, mirror))
-            unique.append(c)
-    top = [dataclasses.replace(c, rank=i + 1) for i, c in enumerate(unique[: request.top])]
+    top = [dataclasses.replace(c, rank=i + 1) for i, c in enumerate(_distinct(rank(request, candidates))[: request.top])]
     clock["rank"] = time.perf_counter() - t3
     nearest: tuple[float | None, float | None] = (None, None)
     no_match = None
+    refined = (0, 0)
+    before_refine = bool(top)  # something in the atlas met the request
+    if top and request.refine:
+        t4 = time.perf_counter()
+        top, better = _refined(request, top)
+        top = rank(request, top)
+        refined = (len(top), better)
+        clock["refine"] = time.perf_counter() - t4
     if not top:
         nearest = source.nearest_dwell_angles(kinds, request.dwell)
         t4 = time.perf_counter()
-        no_match = diagnose(request, fitted)
+        misses = _misses(request, fitted)
+        no_match = diagnose(request, fitted, misses)
         # the diagnosis simulates the fits the screen dropped: simulation time of this answer
         clock["simulate"] += time.perf_counter() - t4
-    return QueryResult(request, top, len({r.segment_id for r in rows}), simulated, nearest, clock, no_match)
+        if request.refine and no_match.nearest is not None:
+            t5 = time.perf_counter()
+            near = [(fit_, fig) for total, fit_, fig, _ in misses if total < math.inf]
+            # the nearest distinct misses (one per segment and output type, one of a mirror pair)
+            pool = _distinct([_candidate(request, fit_, fig) for fit_, fig in near])[:MISSES]
+            by_id = {_candidate(request, fit_, fig).id: fig for fit_, fig in near}
+            tried, better = _refined(request, pool, [by_id[c.id] for c in pool])
+            found = [c for c in tried if c.refined_from is not None]
+            top = [dataclasses.replace(c, rank=i + 1) for i, c in enumerate(_distinct(rank(request, found))[: request.top])]
+            refined = (len(pool), better)
+            clock["refine"] = time.perf_counter() - t5
+            if top:
+                no_match = None
+    return QueryResult(request, top, len({r.segment_id for r in rows}), simulated, nearest, clock, no_match, refined,
+                       from_misses=bool(top) and no_match is None and not before_refine)
 
 
 def rebuild(ids: Sequence[str], source: SegmentSource, request: Request) -> list[Candidate]:
@@ -462,13 +555,20 @@ def rebuild(ids: Sequence[str], source: SegmentSource, request: Request) -> list
 
     ``request`` gives the output band, the deviation window (its dwell), the crank length and
     the minimum transmission the RRR fit used; its other limits are ignored — the figures of a
-    rebuilt six-bar are shown whatever they are. Raises :class:`RebuildError` naming the id."""
+    rebuilt six-bar are shown whatever they are. A refined id's six-bar is the one its
+    dimensions give (its figures are the query's for the same band and dwell); its
+    ``refined_from`` holds the figures of the six-bar it was refined from. Raises
+    :class:`RebuildError` naming the id."""
     out = []
     for text in ids:
         try:
             seg_id, output, slot, level, swing = parse_candidate_id(text)
+            dims = candidate_dimensions(text)
         except ValueError as exc:
             raise RebuildError(str(exc)) from None
+        if dims is not None:
+            out.append(dataclasses.replace(_rebuild_refined(text, dims, source, request), rank=len(out) + 1))
+            continue
         req = dataclasses.replace(request, swing=swing, dwells=2 if output == "dbl" else 1,
                                   output="rpr" if output in ("rpr", "dbl") else "rrr")
         row = source.segment(seg_id, level)
@@ -486,3 +586,22 @@ def rebuild(ids: Sequence[str], source: SegmentSource, request: Request) -> list
             raise RebuildError(f"candidate {text!r} cannot be rebuilt from this atlas (no fit for that slot and level)")
         out.append(dataclasses.replace(found, rank=len(out) + 1))
     return out
+
+
+def _rebuild_refined(text: str, dims: SixBar, source: SegmentSource, request: Request) -> Candidate:
+    """The refined six-bar ``dims`` (crank-normalised) an id carries, simulated as the query
+    simulated it; the six-bar it was refined from is rebuilt for ``refined_from`` (None if it
+    cannot be)."""
+    seg_id, output, _, level, _ = parse_candidate_id(text)
+    if source.segment(seg_id, level) is None:
+        raise RebuildError(f"no segment {seg_id} in this atlas (candidate {text!r})")
+    req = dataclasses.replace(request, dwells=2 if output == "dbl" else 1)
+    fig = _figures(req, [dims])[0]
+    try:
+        base = rebuild([text.strip().split("~")[0]], source, request)[0].figures
+    except RebuildError:
+        base = None
+    rest = _rest(dims, fig)
+    s = request.crank
+    return Candidate(id=text.strip(), segment_id=seg_id, sixbar=dims.scaled(s), figures=_scaled_figures(fig, s),
+                     dwell_position=None if rest is None else rest * s, refined_from=base)

@@ -37,12 +37,12 @@ class Cell:
     dwell: float
     swing: float | None
 
-    def request(self, top: int):
+    def request(self, top: int, refine: bool = True):
         from cli.query import request_from_options
 
         if self.family == "double":
-            return request_from_options(self.dwell, DOUBLE_TOL, None, None, "rpr", 2, top=top)
-        return request_from_options(self.dwell, None, self.swing, None, self.family, 1, top=top)
+            return request_from_options(self.dwell, DOUBLE_TOL, None, None, "rpr", 2, top=top, refine=refine)
+        return request_from_options(self.dwell, None, self.swing, None, self.family, 1, top=top, refine=refine)
 
 
 def cells() -> list[Cell]:
@@ -61,6 +61,7 @@ def _row(cell: Cell, result, seconds: float) -> dict:
         "best_deviation_deg": None if not devs else round(math.degrees(min(devs)), 5),
         "best": result.candidates[0].id if result.candidates else None,
         "failed": None if result.no_match is None else result.no_match.failed,
+        "refined": sum(c.refined_from is not None for c in result.candidates),
         "ms": round(1000 * seconds, 1),
     }
 
@@ -78,10 +79,12 @@ def summary(rows: list[dict]) -> dict:
 @click.command("coverage")
 @db_option
 @click.option("--top", type=click.IntRange(1, 1000), default=10, show_default=True, help="Candidates per query.")
+@click.option("--refine/--no-refine", default=True, show_default=True,
+              help="Refine the candidates (and the nearest misses) as `dwell query` does.")
 @click.option("--json", "as_json", is_flag=True, help="JSON on stdout instead of a table.")
 @click.option("--plot", type=click.Path(dir_okay=False), callback=writable_file(".png"), default=None,
               help="Write the grids as heat maps of the candidates found (PNG).")
-def coverage(db, top, as_json, plot):
+def coverage(db, top, refine, as_json, plot):
     """Coverage of the dwell × swing grid (RPR, RRR) and the double-dwell row: candidates, best deviation, time."""
     from cli.bench.query import atlas_facts
     from db.engine import open_atlas
@@ -95,14 +98,14 @@ def coverage(db, top, as_json, plot):
         rows = []
         start = time.perf_counter()
         for cell in cells():
-            request = cell.request(top)
+            request = cell.request(top, refine)
             t0 = time.perf_counter()
             result = answer(request, source)
             rows.append(_row(cell, result, time.perf_counter() - t0))
         total = time.perf_counter() - start
     finally:
         engine.dispose()
-    report = {"benchmark": "coverage", "atlas": atlas, "top": top, "seconds": round(total, 2),
+    report = {"benchmark": "coverage", "atlas": atlas, "top": top, "refine": refine, "seconds": round(total, 2),
               "summary": summary(rows), "cells": rows}
     if as_json:
         click.echo(json.dumps(report, indent=2, allow_nan=False))

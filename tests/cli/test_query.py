@@ -283,9 +283,14 @@ def test_bench_query_reports_latency_and_answers(atlas_path, capsys, tmp_path):
     assert doc["atlas"]["preset"] == SPEC.name and doc["atlas"]["linkages"] > 0
     assert doc["ms_p50"] <= doc["ms_p95"] <= doc["ms_max"]
     assert doc["meets_floor"] == (doc["ms_p95"] <= doc["floor_ms_p95"])
+    plain = doc["without_refine"]
+    assert plain["ms_p50"] <= plain["ms_p95"] <= plain["ms_max"] and plain["floor_ms_p95"] == 200
+    assert plain["meets_floor"] == (plain["ms_p95"] <= plain["floor_ms_p95"])
     answered = 0
     for row, req in zip(doc["requests"], REQUESTS, strict=True):
         assert row["label"] == req.label and row["candidates"] <= 3
+        assert row["ms_median_without_refine"] > 0 and row["candidates_without_refine"] <= 3
+        assert row["sixbars_improved"] <= row["sixbars_refined"]
         # the stages are the whole query: their medians add up to about the median time
         assert sum(row["ms_by_stage"].values()) == pytest.approx(row["ms_median"], rel=0.3, abs=5.0)
         if row["best"] is not None:
@@ -342,3 +347,80 @@ def test_an_unbuildable_double_dwell_is_refused_by_the_default_arm(capsys, atlas
     code, out, err = run(capsys, "query", "--db", atlas_path, "--dwell", "30", "--dwell-tol", "5", "--dwells", "2")
     assert code == 0 and out == ""
     assert "torque arm (--min-arm)" in err and "it meets: --min-arm 0.0" in err
+
+
+def test_refinement_answers_a_missed_rrr_request_and_the_report_rebuilds_it(capsys, atlas_path, tmp_path):
+    """60° ± 1° / 30° RRR: nothing in the test atlas meets it (--no-refine); refined, the
+    nearest misses do — each checked by the independent solver — and `dwell report` rebuilds
+    a refined id with the same dimensions and figures."""
+    args = ["query", "--db", atlas_path, "--dwell", "60", "--dwell-tol", "1", "--swing", "30", "--output", "rrr"]
+    code, out, err = run(capsys, *args, "--no-refine", "--json")
+    assert code == 0 and json.loads(out)["candidates"] == [] and "no six-bar meets the request" in err
+    assert json.loads(out)["refinement"] is None
+    code, out, err = run(capsys, *args, "--json")
+    assert code == 0, err
+    doc = json.loads(out)
+    assert doc["request"]["refine"] is True and "no_match" not in doc
+    summary = doc["refinement"]
+    assert summary["from_nearest_misses"] is True and summary["sixbars_improved"] == len(doc["candidates"])
+    assert summary["sixbars_refined"] >= summary["sixbars_improved"]
+    cands = doc["candidates"]
+    assert cands
+    for cand in cands:
+        assert "~" in cand["id"] and cand["output"]["type"] == "RRR"
+        ref = cand["refinement"]
+        assert set(ref) == {"before", "after"}
+        assert set(ref["after"]) == {"dwell_deg", "swing_deg", "output_deviation_deg"}
+        assert ref["after"]["dwell_deg"] == [d["dwell_deg"] for d in cand["dwells"]]
+        assert ref["after"]["output_deviation_deg"] == cand["dwells"][0]["output_deviation_deg"]
+        assert abs(ref["before"]["dwell_deg"][0] - 60) > 1  # it missed before
+        assert abs(cand["dwells"][0]["dwell_deg"] - 60) <= 1 and abs(cand["swing_deg"] - 30) <= 0.5
+        assert min(cand["transmission_deg"].values()) >= 30
+        independent = _independent(cand, 0.1)
+        assert independent["swing_deg"] == pytest.approx(cand["swing_deg"], abs=0.01)
+        assert cand["dwells"][0]["dwell_deg"] - 2 * STEP <= independent["dwell_deg"] <= cand["dwells"][0]["dwell_deg"] + 0.02
+    first = cands[0]
+    code, out, err = run(capsys, "report", "--db", atlas_path, "--candidates", first["id"], "--out", str(tmp_path / "r"),
+                         "--dwell", "60")
+    assert code == 0, err
+    rebuilt = json.loads((tmp_path / "r" / "candidates.json").read_text())["candidates"][0]
+    assert rebuilt["id"] == first["id"]
+    for key in ("fourbar", "coupler_point_mm", "output"):
+        assert rebuilt[key] == first[key]
+    assert rebuilt["dwells"][0]["dwell_deg"] == pytest.approx(first["dwells"][0]["dwell_deg"], abs=1e-9)
+    assert rebuilt["dwells"][0]["output_deviation_deg"] == pytest.approx(first["dwells"][0]["output_deviation_deg"], abs=1e-9)
+    assert rebuilt["swing_deg"] == pytest.approx(first["swing_deg"], abs=1e-9)
+    assert rebuilt["refinement"]["before"]["swing_deg"] == pytest.approx(first["refinement"]["before"]["swing_deg"], abs=1e-9)
+    assert "refined from (as retrieved)" in (tmp_path / "r" / "index.html").read_text()
+    # a damaged refined id is the user's error
+    bad = first["id"][:-3]
+    code, out, err = run(capsys, "report", "--db", atlas_path, "--candidates", bad, "--out", str(tmp_path / "x"))
+    assert code == 2 and len(err.strip().splitlines()) == 1 and not (tmp_path / "x").exists()
+
+
+def test_no_refine_gives_the_retrieved_six_bars(capsys, atlas_path):
+    """--no-refine: the six-bars as the atlas yields them (no ~ in an id, no refinement
+    object); with refinement the same six-bars come back, kept or refined, none worse."""
+    args = ["query", "--db", atlas_path, "--dwell", "45", "--swing", "40", "--output", "rpr", "--json"]
+    code, out, err = run(capsys, *args, "--no-refine")
+    assert code == 0, err
+    plain = json.loads(out)["candidates"]
+    assert plain and all("~" not in c["id"] and c["refinement"] is None for c in plain)
+    code, out, err = run(capsys, *args)
+    assert code == 0, err
+    refined = json.loads(out)["candidates"]
+    assert sorted(c["id"].split("~")[0] for c in refined) == sorted(c["id"] for c in plain)
+    dev = {c["id"]: c["dwells"][0]["output_deviation_deg"] for c in plain}
+    assert any(c["refinement"] is not None for c in refined)
+    for c in refined:
+        before = dev[c["id"].split("~")[0]]
+        if c["refinement"] is None:
+            assert c["dwells"][0]["output_deviation_deg"] == before
+        else:
+            assert c["refinement"]["before"]["output_deviation_deg"] == pytest.approx(before, abs=1e-12)
+            assert c["dwells"][0]["output_deviation_deg"] < before
+    doc = json.loads(out)["refinement"]
+    assert doc["from_nearest_misses"] is False and doc["sixbars_refined"] == len(plain)
+    assert doc["sixbars_improved"] == sum(c["refinement"] is not None for c in refined)
+    code, out, err = run(capsys, "query", "--db", atlas_path, "--dwell", "45", "--swing", "40", "--output", "rpr")
+    assert code == 0 and f"{doc['sixbars_improved']} of {len(plain)} refined (" in out.splitlines()[0] and "→" in out

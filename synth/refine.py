@@ -1,0 +1,295 @@
+"""Exact refinement of retrieved six-bars (pure: no click, no database, no I/O).
+
+A six-bar the atlas yields is exact but not optimal: its four-bar proportions come from a
+sweep grid, its coupler point from a scan, its dyad from a fit to a stored line or circle.
+:func:`refine` moves every continuous dimension a little — the four-bar's b, c, d (crank
+a = 1 fixed), the coupler point u, v, the output pivot D (x, y) and, for an RRR, the rocker L
+and the rod ρ; assembly branches fixed — to meet the request (dwell and swing within their
+tolerances, with a margin, and every limit of :class:`~synth.candidates.Request`) and, among
+designs that do, to minimise the output deviation over the requested dwell window.
+
+Method: a batched elitist (1 + λ) evolution strategy in a scaled space, every six-bar of
+every candidate of one iteration simulated exactly in one vectorised call
+(:func:`~synth.sixbar.simulate` on a ``SAMPLES`` crank grid). A dimension p₀ moves as
+p = p₀ + s·x with s = |p₀| for a length and max(|p₀|, 1) for a coordinate, x in the box
+[−``radius``, ``radius``] (a trust region of a few percent: the result stays near the
+retrieved design). Each iteration draws λ mirrored Gaussian steps of size σ per candidate and
+keeps the best point if it is better; σ grows ×1.25 after a success and shrinks ×0.6 after a
+failure (a success rule), and a candidate stops when σ < ``radius``·1e-3 or its objective has
+not fallen by 1 % in ``STALL`` iterations.
+
+Objective (on the grid, cheap): the deviation g(D) / band, g(L) the smallest peak-to-peak of ψ
+over a crank window of length L containing the retrieved dwell's middle
+(:func:`~synth.sixbar.output_deviation`), D the requested dwell; plus ``PENALTY`` × the sum of
+the constraint excesses, each in its own unit and zero inside a margin: the dwell
+through g(D − tol/2) ≤ band (a dwell at least that long) and g(D + tol/2) ≥ band (none longer),
+|swing − S| ≤ swing_tol/2, the transmission angles, the link ratio, the torque arm, the
+clearance and the peak acceleration. A six-bar that does not assemble over the turn, toggles
+or revolves is worse than any other.
+
+The result is then checked as the query checks any six-bar: rounded to what its id holds
+(:func:`~synth.candidates.round_dimensions`), its full figures from
+:func:`~synth.sixbar.sixbar_figures` (720 samples, refined dwell ends), and kept only if it
+meets the request and — for a six-bar that met it before — its deviation is smaller;
+otherwise the original is kept.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from synth.buildability import clearances
+from synth.candidates import Request, round_dimensions
+from synth.figures import SixBarFigures, sixbar_figures
+from synth.kinds import OutputKind
+from synth.output_range import output_deviation
+from synth.sixbar import OutputDyad, SixBar, SixBars, crank_grid, simulate
+
+__all__ = ["PARAMETERS", "Refinement", "refine"]
+
+#: The dimensions moved, in the order of the optimisation vector (crank-normalised; a = 1).
+PARAMETERS = ("b", "c", "d", "u", "v", "pivot_x", "pivot_y", "rocker", "rod")
+_LENGTHS = np.array([1, 1, 1, 0, 0, 0, 0, 1, 1], bool)
+#: Crank samples of the simulation inside the loop (1°); the check uses the query's 720.
+SAMPLES = 360
+#: The loop's clearance and torque arm on every 3rd sample (3°; the margins and the check cover it).
+CLEARANCE_EVERY = 3
+#: Trust region: largest relative change of a dimension (see the module docstring).
+RADIUS = 0.05
+#: Trial six-bars per candidate and iteration (mirrored pairs), and iterations at most.
+POPULATION = 10
+ITERATIONS = 20
+#: A candidate stops when its objective has not fallen by ``STALL_GAIN`` (relative) over the
+#: last ``STALL`` iterations.
+STALL = 6
+STALL_GAIN = 0.01
+#: Weight of the constraint excesses against the deviation (in bands).
+PENALTY = 1000.0
+_WORST = 1e12
+#: Margins: the grid's figures must meet the request by this much (fractions of the band, the
+#: swing tolerance, degrees of transmission, percent of limits).
+_BAND_MARGIN = 0.03
+_TRANSMISSION_MARGIN = math.radians(0.25)
+
+
+@dataclass(frozen=True, slots=True)
+class Refinement:
+    """The outcome for one six-bar.
+
+    Attributes
+    ----------
+    sixbar : SixBar
+        The refined six-bar (crank-normalised, dimensions as its id holds them), or the
+        original if refinement did not find a better one that meets the request.
+    figures : SixBarFigures
+        Exact figures of ``sixbar`` (:func:`~synth.sixbar.sixbar_figures`, crank lengths).
+    before : SixBarFigures
+        The original's figures, as given.
+    refined : bool
+        True if ``sixbar`` is the refined one.
+    meets : bool
+        Whether ``figures`` meet the request.
+    evaluations : int
+        Six-bars simulated in the loop for this one.
+    """
+
+    sixbar: SixBar
+    figures: SixBarFigures
+    before: SixBarFigures
+    refined: bool
+    meets: bool
+    evaluations: int
+
+
+def _vector(sb: SixBar) -> np.ndarray:
+    a = sb.a
+    dy = sb.dyad
+    return np.array([sb.b, sb.c, sb.d, sb.u, sb.v, dy.pivot.real, dy.pivot.imag, dy.rocker, dy.rod]) / a
+
+
+def _sixbar(p: np.ndarray, like: SixBar) -> SixBar:
+    dy = like.dyad
+    pivot = complex(p[5], p[6])
+    dyad = OutputDyad.rrr(pivot, p[7], p[8], dy.branch) if dy.kind is OutputKind.RRR else OutputDyad.rpr(pivot)
+    return SixBar(1.0, p[0], p[1], p[2], like.branch, p[3], p[4], dyad)
+
+
+def _batch(p: np.ndarray, branch: np.ndarray, rpr: np.ndarray, dyad_branch: np.ndarray) -> SixBars:
+    """Rows of dimension vectors (R, 9) as a batch (no validation: the box keeps lengths > 0)."""
+    n = p.shape[0]
+    return SixBars(np.ones(n), p[:, 0], p[:, 1], p[:, 2], branch.astype(float), p[:, 3], p[:, 4], rpr,
+                   p[:, 5] + 1j * p[:, 6], np.where(rpr, 0.0, p[:, 7]), np.where(rpr, 0.0, p[:, 8]),
+                   dyad_branch.astype(float))
+
+
+def _objective(request: Request, p: np.ndarray, branch, rpr, dyad_branch, centres: np.ndarray,
+               phi: np.ndarray) -> np.ndarray:
+    """(R,) objective of the dimension rows ``p`` (R, 9) whose dwells should sit around crank
+    angles ``centres`` (R, C) rad (see the module docstring); lower is better."""
+    batch = _batch(p, branch, rpr, dyad_branch)
+    # trial six-bars may degenerate (a link ratio over a zero-length reach): such a row's
+    # objective is not finite and is set to the worst below, so the arithmetic stays quiet
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        return _objective_rows(request, batch, rpr, centres, phi)
+
+
+def _objective_rows(request: Request, batch: SixBars, rpr: np.ndarray, centres: np.ndarray,
+                    phi: np.ndarray) -> np.ndarray:
+    order = 2 if request.max_accel is not None else 0
+    motion = simulate(batch, phi, order=order)
+    psi = motion.psi
+    R, M = psi.shape
+    h = 2 * math.pi / M
+    good = np.all(motion.status == 0, axis=1) & (np.abs(psi[:, -1] - psi[:, 0]) < math.pi)
+
+    band = request.band
+    m = 0.5 * request.dwell_tol
+    longest = 2 * math.pi - 2 * h
+    lengths = np.array([min(max(request.dwell - m, 2 * h), longest), min(request.dwell, longest),
+                        min(request.dwell + m, longest)])
+    C = centres.shape[1]
+    dev, _ = output_deviation(phi, np.broadcast_to(psi[:, None, None, :], (R, C, 3, M)),
+                              np.broadcast_to(centres[:, :, None], (R, C, 3)),
+                              np.broadcast_to(lengths, (R, C, 3)))
+    objective = dev[:, :, 1].max(axis=1) / band
+    excess = np.maximum(0.0, dev[:, :, 0] - band * (1 - _BAND_MARGIN)).sum(axis=1) / band
+    if request.dwell + m < longest:
+        excess += np.maximum(0.0, band * (1 + _BAND_MARGIN) - dev[:, :, 2]).sum(axis=1) / band
+    if request.swing is not None:
+        swing = psi.max(axis=1) - psi.min(axis=1)
+        unit = max(request.swing_tol, math.radians(0.01))
+        excess += np.maximum(0.0, np.abs(swing - request.swing) - 0.5 * request.swing_tol) / unit
+    mu = np.minimum(motion.transmission_fourbar.min(axis=1), motion.transmission_output.min(axis=1))
+    excess += np.maximum(0.0, request.min_transmission + _TRANSMISSION_MARGIN - mu) / math.radians(1.0)
+    _, clear, _, _ = clearances(batch, motion, every=CLEARANCE_EVERY)
+    reach = np.abs(motion.z[0] - batch.pivot[:, None])
+    links = np.stack([np.ones(R), batch.b, batch.c, batch.d, np.where(rpr, reach.max(axis=1), batch.rocker),
+                      np.where(rpr, reach.max(axis=1), batch.rod)], axis=1)
+    ratio = links.max(axis=1) / links.min(axis=1)
+    excess += np.maximum(0.0, ratio / request.max_link_ratio - 0.999) / 0.01
+    arm = reach.min(axis=1)
+    excess += np.where(rpr, np.maximum(0.0, request.min_arm * 1.02 + 1e-3 - arm), 0.0) / 0.01
+    excess += np.maximum(0.0, request.min_clearance * 1.02 + 1e-3 - clear) / 0.01
+    if request.max_accel is not None:
+        w = 2 * math.pi * request.rpm / 60
+        peak = np.abs(motion.dpsi[1]).max(axis=1) * w * w
+        excess += np.maximum(0.0, peak / request.max_accel - 0.99) / 0.01
+    f = objective + PENALTY * excess
+    return np.where(good & np.isfinite(f), f, _WORST)
+
+
+def refine(request: Request, sixbars: Sequence[SixBar], before: Sequence[SixBarFigures], *,
+           radius: float = RADIUS, iterations: int = ITERATIONS, population: int = POPULATION,
+           samples: int = SAMPLES, check_samples: int = 720, seed: int = 0) -> list[Refinement]:
+    """Refine each six-bar of ``sixbars`` toward ``request`` (see the module docstring).
+
+    Parameters
+    ----------
+    request : Request
+        What to meet (its limits in crank lengths: the six-bars are crank-normalised).
+    sixbars : sequence of SixBar
+        Crank-normalised six-bars (a = 1), e.g. a query's candidates or nearest misses.
+    before : sequence of SixBarFigures
+        Their exact figures (:func:`~synth.sixbar.sixbar_figures` with the request's band and
+        dwell, crank lengths): where their dwells sit, and the deviation to beat.
+    radius : float
+        Trust region, the largest relative change of a dimension.
+    iterations, population : int
+        Iterations at most, and trial six-bars per candidate and iteration (even).
+    samples : int
+        Crank samples of the simulation in the loop.
+    check_samples : int
+        Crank samples of the final check (the query's).
+    seed : int
+        Seed of the steps: the same input gives the same refinement.
+
+    Returns
+    -------
+    list of Refinement, one per six-bar, in order.
+    """
+    from synth.query import meets  # (the query imports this module)
+
+    if len(sixbars) != len(before):
+        raise ValueError("refine needs the figures of every six-bar")
+    if not (0 < radius < 0.5) or iterations < 0 or population < 2:
+        raise ValueError("refine needs 0 < radius < 0.5, iterations >= 0 and population >= 2")
+    dwells = request.dwells
+    rows = [k for k, f in enumerate(before) if f.acceptable and len(f.dwells) >= dwells]
+    out = [Refinement(sb, f, f, False, meets(request, f), 0) for sb, f in zip(sixbars, before)]
+    if not rows:
+        return out
+    K = len(rows)
+    p0 = np.stack([_vector(sixbars[k]) for k in rows])
+    scale = np.where(_LENGTHS, np.abs(p0), np.maximum(np.abs(p0), 1.0))
+    rpr = np.array([sixbars[k].dyad.kind is OutputKind.RPR for k in rows])
+    scale[rpr, 7:] = 0.0  # an RPR has no rocker or rod
+    branch = np.array([sixbars[k].branch for k in rows])
+    dyad_branch = np.array([sixbars[k].dyad.branch for k in rows])
+    centres = np.array([[0.5 * (d.start + d.end) for d in before[k].dwells[:dwells]] for k in rows])
+    phi = crank_grid(samples)
+    lam = population + population % 2
+
+    def evaluate(x: np.ndarray, who: np.ndarray) -> np.ndarray:
+        """x (len(who), T, 9) → (len(who), T)."""
+        T = x.shape[1]
+        rep = lambda a: np.repeat(a[who], T, axis=0)  # noqa: E731
+        p = (p0[who, None, :] + scale[who, None, :] * x).reshape(-1, 9)
+        f = _objective(request, p, rep(branch), rep(rpr), rep(dyad_branch), rep(centres), phi)
+        return f.reshape(len(who), T)
+
+    rng = np.random.default_rng(seed)
+    x = np.zeros((K, 9))
+    fx = evaluate(x[:, None, :], np.arange(K))[:, 0]
+    sigma = np.full(K, 0.25 * radius)
+    count = np.ones(K, int)
+    active = fx < _WORST
+    history = [fx.copy()]
+    for _ in range(iterations):
+        who = np.flatnonzero(active)
+        if not len(who):
+            break
+        z = rng.standard_normal((len(who), lam // 2, 9))
+        z = np.concatenate([z, -z], axis=1)
+        trial = np.clip(x[who, None, :] + sigma[who, None, None] * z, -radius, radius)
+        ft = evaluate(trial, who)
+        count[who] += lam
+        j = np.argmin(ft, axis=1)
+        best = ft[np.arange(len(who)), j]
+        better = best < fx[who] - 1e-12 * np.abs(fx[who])
+        x[who[better]] = trial[better, j[better]]
+        fx[who[better]] = best[better]
+        sigma[who] *= np.where(better, 1.25, 0.6)
+        sigma[who] = np.minimum(sigma[who], radius)
+        active[who] = sigma[who] > 1e-3 * radius
+        history.append(fx.copy())
+        if len(history) > STALL:
+            active &= fx < (1 - STALL_GAIN) * history[-1 - STALL]
+
+    # the check: rounded as the id holds it, then the query's exact figures
+    moved = [k for k in range(K) if np.any(x[k] != 0)]
+    if not moved:
+        return out
+    refined = [round_dimensions(_sixbar(p0[k] + scale[k] * x[k], sixbars[rows[k]])) for k in moved]
+    figures = sixbar_figures(SixBars.from_sixbars(refined), band=request.band, dwell_length=request.dwell,
+                             dwells=dwells, samples=check_samples)
+    for k, sb, f in zip(moved, refined, figures):
+        i = rows[k]
+        old = out[i]
+        if not meets(request, f):
+            out[i] = Refinement(old.sixbar, old.figures, old.before, False, old.meets, int(count[k]))
+            continue
+        dev_new = max(f.deviations) if f.deviations else 0.0
+        dev_old = max(old.before.deviations) if old.before.deviations else math.inf
+        if old.meets and not dev_new < dev_old:
+            out[i] = Refinement(old.sixbar, old.figures, old.before, False, True, int(count[k]))
+        else:
+            out[i] = Refinement(sb, f, old.before, True, True, int(count[k]))
+    for k in range(K):
+        if k not in moved:
+            i = rows[k]
+            out[i] = Refinement(out[i].sixbar, out[i].figures, out[i].before, False, out[i].meets, int(count[k]))
+    return out

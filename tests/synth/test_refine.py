@@ -1,0 +1,180 @@
+"""Exact refinement (synth/refine.py) on a small built atlas: every refined six-bar meets the
+request on its own exact simulation and is better than what it was refined from; a request
+the atlas misses is answered; refined ids hold their six-bar exactly."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from atlas.build import build_atlas
+from atlas.sweep import PRESETS
+from synth.candidates import (
+    Request,
+    candidate_dimensions,
+    candidate_id,
+    decode_dimensions,
+    encode_dimensions,
+    parse_candidate_id,
+    round_dimensions,
+)
+from synth.query import answer, meets, rebuild
+from synth.refine import refine
+from synth.figures import sixbar_figures
+from synth.sixbar import OutputDyad, SixBar
+
+DEG = math.pi / 180
+SPEC = PRESETS["demo"].replace(samples=384)
+
+
+@pytest.fixture(scope="module")
+def source(tmp_path_factory):
+    from db.engine import open_atlas
+    from db.queries import AtlasSource
+
+    path = str(tmp_path_factory.mktemp("atlas") / "demo.sqlite")
+    build_atlas(path, SPEC, workers=1, progress=False)
+    engine = open_atlas(path, readonly=True)
+    yield AtlasSource(engine)
+    engine.dispose()
+
+
+def _check_refined(request: Request, c) -> None:
+    """A refined candidate: its id holds its six-bar; an independent sixbar_figures call on
+    that six-bar meets the request with the candidate's own figures; it is better than before."""
+    dims = candidate_dimensions(c.id)
+    assert dims is not None and dims.scaled(request.crank) == c.sixbar
+    f = sixbar_figures(dims, band=request.band, dwell_length=request.dwell, dwells=request.dwells)
+    assert meets(request, f)
+    assert [d.angle for d in f.dwells] == pytest.approx([d.angle for d in c.figures.dwells], abs=1e-12)
+    assert f.swing == pytest.approx(c.figures.swing, abs=1e-12)
+    assert max(f.deviations) == pytest.approx(max(c.figures.deviations), abs=1e-12)
+    for d in f.dwells[: request.dwells]:
+        assert abs(d.angle - request.dwell) <= request.dwell_tol
+    if request.swing is not None:
+        assert abs(f.swing - request.swing) <= request.swing_tol
+
+
+@pytest.mark.parametrize("kw", [dict(dwell=45 * DEG, swing=40 * DEG, output="rpr"),
+                                dict(dwell=50 * DEG, dwell_tol=5 * DEG, dwells=2, output="rpr")])
+def test_refined_candidates_meet_the_request_and_deviate_less(source, kw):
+    request = Request(**kw)
+    plain = answer(Request(**kw, refine=False), source)
+    result = answer(request, source)
+    assert plain.candidates and result.candidates
+    assert result.refined[0] == len(plain.candidates) and result.refined[1] >= 1
+    # --no-refine gives the retrieved six-bars; refinement keeps or improves each of them
+    assert all("~" not in c.id and c.refined_from is None for c in plain.candidates)
+    assert {c.id.split("~")[0] for c in result.candidates} == {c.id for c in plain.candidates}
+    by_id = {c.id: c for c in plain.candidates}
+    refined = [c for c in result.candidates if c.refined_from is not None]
+    assert len(refined) == result.refined[1]
+    for c in result.candidates:
+        original = by_id[c.id.split("~")[0]]
+        assert meets(request, c.figures)
+        if c.refined_from is None:
+            assert c.sixbar == original.sixbar and c.figures == original.figures
+            continue
+        _check_refined(request, c)
+        assert c.refined_from == original.figures
+        assert max(c.figures.deviations) < max(original.figures.deviations)
+        # near the retrieved design: each dimension within the trust region (5 %, coordinates of 1 crank)
+        for new, old in ((c.sixbar.b, original.sixbar.b), (c.sixbar.c, original.sixbar.c), (c.sixbar.d, original.sixbar.d)):
+            assert abs(new / old - 1) <= 0.05 + 1e-6
+    assert [c.rank for c in result.candidates] == list(range(1, len(result.candidates) + 1))
+
+
+def test_a_request_the_atlas_misses_is_answered_by_refining_the_nearest(source):
+    """The test atlas has no RRR six-bar for 60° ± 1° / 30° (the nearest dwells 61.07°; the
+    demo preset's has none for 60° ± 2°, nearest 56.92°): refining the nearest misses toward it
+    answers it."""
+    kw = dict(dwell=60 * DEG, dwell_tol=1 * DEG, swing=30 * DEG, output="rrr")
+    plain = answer(Request(**kw, refine=False), source)
+    assert plain.candidates == [] and plain.no_match is not None and plain.no_match.nearest is not None
+    request = Request(**kw)
+    result = answer(request, source)
+    assert result.no_match is None and len(result.candidates) >= 1
+    assert result.refined[0] >= len(result.candidates) and result.refined[1] >= len(result.candidates)
+    for c in result.candidates:
+        assert c.sixbar.dyad.kind == "RRR" and c.refined_from is not None
+        assert not meets(request, c.refined_from)
+        _check_refined(request, c)
+    # the refined ids rebuild the same six-bars with the same figures and where they came from
+    again = rebuild([c.id for c in result.candidates], source, request)
+    for a, b in zip(again, result.candidates, strict=True):
+        assert a.id == b.id and a.sixbar == b.sixbar
+        assert [d.angle for d in a.figures.dwells] == pytest.approx([d.angle for d in b.figures.dwells], abs=1e-12)
+        assert a.figures.swing == pytest.approx(b.figures.swing, abs=1e-12)
+        assert a.refined_from is not None
+        assert a.refined_from.swing == pytest.approx(b.refined_from.swing, abs=1e-9)
+
+
+def test_nothing_to_gain_keeps_the_original(source):
+    """No iterations: nothing moves, every six-bar is kept with its own figures."""
+    request = Request(dwell=45 * DEG, swing=40 * DEG, output="rpr", refine=False)
+    cands = answer(request, source).candidates
+    out = refine(request, [c.sixbar for c in cands], [c.figures for c in cands], iterations=0)
+    assert [r.refined for r in out] == [False] * len(cands)
+    assert all(r.sixbar == c.sixbar and r.figures is c.figures and r.meets for r, c in zip(out, cands))
+    with pytest.raises(ValueError):
+        refine(request, [c.sixbar for c in cands], [], iterations=0)
+
+
+# ---------------------------------------------------------------------------------------------
+# Ids that carry refined dimensions
+# ---------------------------------------------------------------------------------------------
+
+length = st.floats(0.05, 50.0, allow_nan=False)
+coord = st.floats(-50.0, 50.0, allow_nan=False)
+sign = st.sampled_from([1, -1])
+
+
+@st.composite
+def sixbars(draw):
+    if draw(st.booleans()):
+        dyad = OutputDyad.rrr(complex(draw(coord), draw(coord)), draw(length), draw(length), draw(sign))
+    else:
+        dyad = OutputDyad.rpr(complex(draw(coord), draw(coord)))
+    return SixBar(1.0, draw(length), draw(length), draw(length), draw(sign), draw(coord), draw(coord), dyad)
+
+
+@settings(max_examples=200, deadline=None)
+@given(sixbars(), st.integers(0, 10**10), st.sampled_from(["rpr", "rrr", "dbl"]), st.integers(0, 3),
+       st.integers(0, 5), st.one_of(st.none(), st.floats(1.0, 179.0)))
+def test_refined_id_round_trip_is_exact(sb, segment, output, slot, level, swing_deg):
+    rounded = round_dimensions(sb)
+    # what the id holds is the six-bar to float32 precision, and holding it again changes nothing
+    assert round_dimensions(rounded) == rounded
+    assert decode_dimensions(encode_dimensions(rounded)) == rounded
+    for x, y in ((sb.b, rounded.b), (sb.d, rounded.d), (sb.dyad.pivot.real, rounded.dyad.pivot.real)):
+        assert x == pytest.approx(y, rel=1e-7, abs=1e-6)
+    assert (rounded.branch, rounded.dyad.kind, rounded.dyad.branch) == (sb.branch, sb.dyad.kind, sb.dyad.branch)
+    output = "rrr" if sb.dyad.kind == "RRR" else ("dbl" if output == "dbl" else "rpr")
+    swing = None if swing_deg is None else math.radians(swing_deg)
+    text = candidate_id(segment, output, slot, level, swing, rounded)
+    assert candidate_dimensions(text) == rounded
+    assert candidate_dimensions(candidate_id(segment, output, slot, level, swing)) is None
+    seg, out, sl, lv, sw = parse_candidate_id(text)
+    assert (seg, out, sl, lv) == (segment, output, slot, level)
+    assert (sw is None) == (swing is None)
+    assert len(text.split("~")[1]) == (50 if sb.dyad.kind == "RRR" else 39)
+
+
+@pytest.mark.parametrize("text", ["5-rrr0.1@30~", "5-rrr0.1@30~!!!!", "5-rrr0.1@30~AAAA", "5-rpr0.1@30~a~b",
+                                  "5-rpr0.1@30~" + "A" * 39])
+def test_malformed_refined_ids_are_refused(text):
+    with pytest.raises(ValueError):
+        parse_candidate_id(text)
+        candidate_dimensions(text)
+
+
+def test_an_rrr_id_cannot_carry_rpr_dimensions():
+    rpr = SixBar(1.0, 3.0, 2.5, 3.2, 1, 0.5, 1.0, OutputDyad.rpr(2 + 1j))
+    text = candidate_id(7, "rrr", 0, 1, 30 * DEG, round_dimensions(rpr))
+    with pytest.raises(ValueError, match="not a candidate id"):
+        parse_candidate_id(text)
+    assert np.isfinite(round_dimensions(rpr).b)
