@@ -37,7 +37,7 @@ def source(tmp_path_factory):
     from db.queries import AtlasSource
 
     path = str(tmp_path_factory.mktemp("atlas") / "demo.sqlite")
-    build_atlas(path, SPEC, workers=1, progress=False)
+    build_atlas(path, SPEC, workers=1)
     engine = open_atlas(path, readonly=True)
     yield AtlasSource(engine)
     engine.dispose()
