@@ -9,8 +9,6 @@ import math
 import numpy as np
 import pytest
 
-from atlas.build import build_atlas
-from atlas.sweep import PRESETS
 from synth.candidates import Request, screen
 from synth.query import (
     CONSTRAINTS,
@@ -29,19 +27,7 @@ from synth.figures import sixbar_figures
 from synth.sixbar import SixBars
 
 DEG = math.pi / 180
-SPEC = PRESETS["demo"].replace(samples=384)
 
-
-@pytest.fixture(scope="module")
-def source(tmp_path_factory):
-    from db.engine import open_atlas
-    from db.queries import AtlasSource
-
-    path = str(tmp_path_factory.mktemp("atlas") / "demo.sqlite")
-    build_atlas(path, SPEC, workers=1)
-    engine = open_atlas(path, readonly=True)
-    yield AtlasSource(engine)
-    engine.dispose()
 
 
 class Recorded:

@@ -11,8 +11,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from atlas.build import build_atlas
-from atlas.sweep import PRESETS
 from synth.candidates import (
     Request,
     candidate_dimensions,
@@ -28,19 +26,7 @@ from synth.figures import sixbar_figures
 from synth.sixbar import OutputDyad, SixBar
 
 DEG = math.pi / 180
-SPEC = PRESETS["demo"].replace(samples=384)
 
-
-@pytest.fixture(scope="module")
-def source(tmp_path_factory):
-    from db.engine import open_atlas
-    from db.queries import AtlasSource
-
-    path = str(tmp_path_factory.mktemp("atlas") / "demo.sqlite")
-    build_atlas(path, SPEC, workers=1)
-    engine = open_atlas(path, readonly=True)
-    yield AtlasSource(engine)
-    engine.dispose()
 
 
 def _check_refined(request: Request, c) -> None:
