@@ -250,7 +250,8 @@ def slider_crank_range(l1: float, l2: float, e: float, *, guide_angle: float = 0
     """Crank-angle intervals (radians, start < end, start in [−π, π)) where the rod reaches the guide.
 
     The loop closes where |e + l1·sin(φ1 − α)| ≤ l2. A crank that turns fully (l1 + |e| ≤ l2)
-    returns ``[(−π, π)]``; a rod that can never reach the guide returns ``[]``; otherwise one
+    returns ``[(−π, π)]``; a rod that can never reach the guide returns ``[]``, and so does one
+    that reaches it at a single crank angle only (just touching it: no interval); otherwise one
     interval (the guide line cuts the crank circle on one side only) or two mirror intervals.
     """
     check_lengths(l1=l1, l2=l2)
@@ -268,6 +269,8 @@ def slider_crank_range(l1: float, l2: float, e: float, *, guide_angle: float = 0
         local = [(np.arcsin(lo), np.arcsin(hi)), (np.pi - np.arcsin(hi), np.pi - np.arcsin(lo))]
     out = []
     for start, end in local:
+        if not end > start:  # the rod only touches the guide: one crank angle, no interval
+            continue
         shifted = float(np.mod(start + guide_angle + np.pi, TWO_PI) - np.pi)
         out.append((shifted, shifted + float(end - start)))
     return sorted(out)

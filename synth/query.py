@@ -7,7 +7,7 @@ request (:meth:`SegmentSource.select_segments`) → output dyads fitted to every
 batch per kind (``synth.dyad``: RPR on straight segments, RPR at the lines' intersection for
 double Ball points, RRR on arcs) → a necessary screen on the crank grid
 (:func:`~synth.candidates.screen`) → the full figures of the survivors from the exact
-simulation (:func:`~synth.sixbar.sixbar_figures`) → the six-bars that meet the request →
+simulation (:func:`~synth.figures.sixbar_figures`) → the six-bars that meet the request →
 ranked (:func:`~synth.candidates.rank`), one per segment and output type and one of a mirror
 pair → with ``request.refine``, the top ones refined by a local optimisation with exact
 simulation in the loop (:func:`synth.refine.refine`) and ranked again. Lengths are
