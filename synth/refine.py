@@ -20,7 +20,7 @@ not fallen by 1 % in ``STALL`` iterations.
 
 Objective (on the grid, cheap): the deviation g(D) / band, g(L) the smallest peak-to-peak of ψ
 over a crank window of length L containing the retrieved dwell's middle
-(:func:`~synth.sixbar.output_deviation`), D the requested dwell; plus ``PENALTY`` × the sum of
+(:func:`~synth.output_range.output_deviation`), D the requested dwell; plus ``PENALTY`` × the sum of
 the constraint excesses, each in its own unit and zero inside a margin: the dwell
 through g(D − tol/2) ≤ band (a dwell at least that long) and g(D + tol/2) ≥ band (none longer),
 |swing − S| ≤ swing_tol/2, the transmission angles, the link ratio, the torque arm, the
@@ -29,7 +29,7 @@ or revolves is worse than any other.
 
 The result is then checked as the query checks any six-bar: rounded to what its id holds
 (:func:`~synth.candidates.round_dimensions`), its full figures from
-:func:`~synth.sixbar.sixbar_figures` (720 samples, refined dwell ends), and kept only if it
+:func:`~synth.figures.sixbar_figures` (720 samples, refined dwell ends), and kept only if it
 meets the request and — for a six-bar that met it before — its deviation is smaller;
 otherwise the original is kept.
 """
@@ -86,7 +86,7 @@ class Refinement:
         The refined six-bar (crank-normalised, dimensions as its id holds them), or the
         original if refinement did not find a better one that meets the request.
     figures : SixBarFigures
-        Exact figures of ``sixbar`` (:func:`~synth.sixbar.sixbar_figures`, crank lengths).
+        Exact figures of ``sixbar`` (:func:`~synth.figures.sixbar_figures`, crank lengths).
     before : SixBarFigures
         The original's figures, as given.
     refined : bool
@@ -194,7 +194,7 @@ def refine(request: Request, sixbars: Sequence[SixBar], before: Sequence[SixBarF
     sixbars : sequence of SixBar
         Crank-normalised six-bars (a = 1), e.g. a query's candidates or nearest misses.
     before : sequence of SixBarFigures
-        Their exact figures (:func:`~synth.sixbar.sixbar_figures` with the request's band and
+        Their exact figures (:func:`~synth.figures.sixbar_figures` with the request's band and
         dwell, crank lengths): where their dwells sit, and the deviation to beat.
     radius : float
         Trust region, the largest relative change of a dimension.
