@@ -407,6 +407,7 @@ body{margin:0 auto;padding:1.2em 1.5em;max-width:1400px;line-height:1.35}
 h1{font-size:1.5em;margin:.2em 0}
 h2{font-size:1.2em;margin:.2em 0 .6em;display:flex;gap:.6em;align-items:center}
 code{font-family:ui-monospace,"SFMono-Regular",Menlo,Consolas,monospace;font-size:.92em}
+h2 .cid{min-width:0;overflow-wrap:anywhere}
 .request{color:var(--muted);margin:.3em 0 1em}
 table{border-collapse:collapse;font-size:.9em}
 table.summary{width:100%;margin-bottom:1.5em;display:block;overflow-x:auto}
