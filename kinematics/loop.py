@@ -255,8 +255,10 @@ class LineIntersection(NamedTuple):
         return self.status != 0
 
 
-def line_intersection(p1: ArrayLike, u1: ArrayLike, p2: ArrayLike, u2: ArrayLike) -> LineIntersection:
-    """Intersection of the lines p1 + t₁·u1 and p2 + t₂·u2 (complex points, unit directions).
+def line_intersection(p1: ArrayLike, u1: ArrayLike, p2: ArrayLike, u2: ArrayLike, *,
+                      parallel_eps: float = PARALLEL_EPS) -> LineIntersection:
+    """Intersection of the lines p1 + t₁·u1 and p2 + t₂·u2 (complex points, unit directions);
+    lines closer to parallel than ``parallel_eps`` (|sin| of their angle) do not meet.
 
     Notes
     -----
@@ -265,11 +267,11 @@ def line_intersection(p1: ArrayLike, u1: ArrayLike, p2: ArrayLike, u2: ArrayLike
     .. math:: t_1 = \\frac{\\operatorname{Im}(\\overline{(p_2 − p_1)}\\,u_2)}{\\operatorname{Im}(\\bar u_1 u_2)},\\quad
               t_2 = \\frac{\\operatorname{Im}(\\overline{(p_2 − p_1)}\\,u_1)}{\\operatorname{Im}(\\bar u_1 u_2)},
 
-    Im(ū₁u₂) = sin(δ₂ − δ₁); below ``PARALLEL_EPS`` in magnitude the lines are parallel.
+    Im(ū₁u₂) = sin(δ₂ − δ₁); below ``parallel_eps`` in magnitude the lines are parallel.
     """
     p1, u1, p2, u2 = (np.asarray(x, dtype=np.complex128) for x in (p1, u1, p2, u2))
     den = (np.conj(u1) * u2).imag
-    parallel = np.abs(den) < PARALLEL_EPS
+    parallel = np.abs(den) < parallel_eps
     safe = np.where(parallel, 1.0, den)
     gap = np.conj(p2 - p1)
     t1 = np.where(parallel, 0.0, (gap * u2).imag / safe)

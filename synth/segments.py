@@ -60,6 +60,9 @@ F64 = NDArray[np.float64]
 C128 = NDArray[np.complex128]
 I64 = NDArray[np.int64]
 
+#: Two stretches of a double Ball point whose lines meet at |sin| below this are one straight
+#: stretch seen twice, not two dwells (the "crossing" of two such lines is rounding): dropped.
+DOUBLE_LINE_MIN_SIN = 1e-6
 #: Interval ends are bisected on the exact path until their bracket is below this (rad): 0.001°.
 END_TOLERANCE = math.radians(1e-3)
 #: Path samples a minimum-zone fit uses, spread evenly over its interval (ends included).
@@ -674,7 +677,7 @@ def _assemble(A, E, cand, keep, search, start, end, dwell, gp, gd, gr, mu, skipp
     a_dbl = is_double
     p1, p2 = cand.point[two[:, 0]], cand.point[two[:, 1]]
     t1, t2 = cand.direction[two[:, 0]], cand.direction[two[:, 1]]
-    hit = line_intersection(p1, t1, p2, t2)
+    hit = line_intersection(p1, t1, p2, t2, parallel_eps=DOUBLE_LINE_MIN_SIN)
     parallel = a_dbl & hit.parallel
     inter = np.where(a_dbl & ~parallel, p1 + hit.t1 * t1, 0.0)
     far = a_dbl & (parallel | (np.abs(inter) > 1e6))

@@ -213,3 +213,18 @@ def test_no_linkages_no_segments():
     found = find_segments(np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0, int), SegmentSearch())
     assert len(found) == 0
     assert segment_rows(found, []) == ([], [])
+
+
+def test_one_straight_stretch_seen_twice_is_no_double_line():
+    """A standard-sweep linkage whose Ball-point track crosses itself on one straight stretch: two
+    osculating lines 0° apart met "somewhere" by rounding. They are one stretch, not a double
+    Ball point (the loop kernel's 1e-9 parallel test let 64 of them into the standard atlas)."""
+    from atlas.sweep import PRESETS
+    from synth.segments import DOUBLE_LINE_MIN_SIN
+
+    search = SegmentSearch.from_spec(PRESETS["standard"])
+    found = find_segments(np.array([4.490699319525161]), np.array([3.1460127548771815]),
+                          np.array([4.6768594773215915]), np.array([1]), search)
+    double = found.kind == SegmentKind.DOUBLE_LINE.code
+    sines = np.abs(np.imag(np.conj(found.direction[double]) * found.direction2[double]))
+    assert double.sum() == 6 and np.all(sines >= DOUBLE_LINE_MIN_SIN)
