@@ -31,11 +31,12 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from kinematics.fourbar import fourbar_motion
 from synth.kinds import OutputTag, SegmentKind
 from synth.minimum_zone import minimum_zone_fit, path_deviation
+from synth.types import C128, F64
 
 __all__ = [
     "PROFILE_LEVELS",
@@ -51,8 +52,6 @@ __all__ = [
     "rrr_min_swing",
 ]
 
-F64 = NDArray[np.float64]
-C128 = NDArray[np.complex128]
 
 #: Default profile levels: half-widths (crank lengths) 1e-5 … 1e-1, four per decade.
 PROFILE_LEVELS = tuple(float(x) for x in np.logspace(-5, -1, 17))

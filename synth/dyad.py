@@ -29,6 +29,7 @@ from kinematics.loop import circle_intersection, line_intersection, sampled_extr
 from kinematics.status import Status
 from synth.output_range import grid_step
 from synth.sixbar import OutputDyad
+from synth.types import C128, F64
 
 __all__ = [
     "SWING_TOL",
@@ -40,8 +41,6 @@ __all__ = [
     "rpr_double",
 ]
 
-F64 = NDArray[np.float64]
-C128 = NDArray[np.complex128]
 
 #: |swing − requested| (rad) below which a fitted dyad counts as achieving the swing.
 SWING_TOL = 1e-9

@@ -16,7 +16,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
 from kinematics.fourbar import FourBarMotion
 from kinematics.loop import sampled_extreme
@@ -24,11 +23,9 @@ from kinematics.status import Status
 from synth.buildability import Buildability, buildability
 from synth.output_range import Dwell, dwell_intervals, output_deviation, output_swing
 from synth.sixbar import SixBar, SixBarMotion, SixBars, as_batch, crank_grid, simulate
+from synth.types import C128, F64
 
 __all__ = ["SixBarFigures", "sixbar_figures"]
-
-F64 = NDArray[np.float64]
-C128 = NDArray[np.complex128]
 
 
 @dataclass(frozen=True, slots=True)

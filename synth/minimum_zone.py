@@ -16,11 +16,9 @@ from numpy.typing import NDArray
 
 from kinematics.loop import parabola_vertex
 from synth.kinds import SegmentKind
+from synth.types import C128, F64
 
 __all__ = ["minimum_zone_fit", "path_deviation", "peak_deviation"]
-
-F64 = NDArray[np.float64]
-C128 = NDArray[np.complex128]
 
 
 def path_deviation(z: C128, kind: NDArray[np.integer] | int, point: C128, direction: C128, radius: F64) -> F64:

@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kinematics.loop import parabola_vertex
+from synth.types import F64
 
 __all__ = [
     "Dwell",
@@ -40,7 +41,6 @@ __all__ = [
     "wrap_angle",
 ]
 
-F64 = NDArray[np.float64]
 #: ψ(φ) evaluator used to refine on the exact path: crank angles of shape ``(..., K)`` (the
 #: leading shape of the ψ samples) → ψ of the same shape, on any 2π branch.
 PsiAt = Callable[[F64], F64]

@@ -53,11 +53,10 @@ from synth.kinds import SegmentKind
 from synth.line_scan import line_scan
 from synth.minimum_zone import minimum_zone_fit, path_deviation, peak_deviation
 from synth.pole import pole
+from synth.types import C128, F64
 
 __all__ = ["END_TOLERANCE", "FoundSegments", "SegmentSearch", "find_segments"]
 
-F64 = NDArray[np.float64]
-C128 = NDArray[np.complex128]
 I64 = NDArray[np.int64]
 
 #: Two stretches of a double Ball point whose lines meet at |sin| below this are one straight

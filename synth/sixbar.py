@@ -40,6 +40,7 @@ from kinematics.status import (
 )
 from synth.kinds import OutputKind
 from synth.output_range import wrap_angle
+from synth.types import C128, F64
 
 __all__ = [
     "OutputDyad",
@@ -51,8 +52,6 @@ __all__ = [
     "simulate",
 ]
 
-F64 = NDArray[np.float64]
-C128 = NDArray[np.complex128]
 U16 = NDArray[np.uint16]
 
 
