@@ -26,8 +26,10 @@ from synth.figures import SixBarFigures
 from synth.kinds import OutputTag
 from synth.sixbar import OutputDyad, SixBar, SixBars, crank_grid, simulate
 
-__all__ = ["Candidate", "Request", "candidate_dimensions", "candidate_id", "decode_dimensions", "encode_dimensions",
-           "parse_candidate_id", "rank", "round_dimensions", "screen", "with_dimensions"]
+__all__ = ["Candidate", "Request", "candidate_dimensions", "candidate_id", "decode_dimensions", "dimension_vector",
+           "encode_dimensions",
+           "parse_candidate_id", "rank", "round_dimensions", "screen", "sixbar_from_vector",
+           "with_dimensions"]
 
 #: The --output choices: an output tag, or any single-dwell one.
 OUTPUTS = (OutputTag.RPR.value, OutputTag.RRR.value, "any")
@@ -230,10 +232,7 @@ def encode_dimensions(sixbar: SixBar) -> str:
     dy = sixbar.dyad
     rrr = dy.kind == "RRR"
     flags = (_FLAG_BRANCH * (sixbar.branch == -1) | _FLAG_DYAD_BRANCH * (dy.branch == -1) | _FLAG_RRR * rrr)
-    values = [sixbar.b / sixbar.a, sixbar.c / sixbar.a, sixbar.d / sixbar.a, sixbar.u / sixbar.a, sixbar.v / sixbar.a,
-              dy.pivot.real / sixbar.a, dy.pivot.imag / sixbar.a]
-    if rrr:
-        values += [dy.rocker / sixbar.a, dy.rod / sixbar.a]
+    values = dimension_vector(sixbar)[: 9 if rrr else 7]
     raw = struct.pack(f">B{len(values)}f", flags, *values)
     return base64.urlsafe_b64encode(raw).decode("ascii").rstrip("=")
 
@@ -253,12 +252,26 @@ def decode_dimensions(text: str) -> SixBar:
     values = [float(x) for x in struct.unpack(f">{(len(raw) - 1) // 4}f", raw[1:])]
     branch = -1 if flags & _FLAG_BRANCH else 1
     dyad_branch = -1 if flags & _FLAG_DYAD_BRANCH else 1
-    b, c, d, u, v, x, y = values[:7]
     try:
-        dyad = OutputDyad.rrr(complex(x, y), values[7], values[8], dyad_branch) if rrr else OutputDyad.rpr(complex(x, y))
-        return SixBar(1.0, b, c, d, branch, u, v, dyad)
+        return sixbar_from_vector(values + [0.0, 0.0][: 9 - len(values)], branch, dyad_branch, rrr)
     except ValueError as exc:  # AssemblyError is a ValueError
         raise ValueError(f"refined dimensions {text!r} do not describe a six-bar: {exc}") from None
+
+
+def dimension_vector(sixbar: SixBar) -> list[float]:
+    """A six-bar's free dimensions over its crank: b, c, d, u, v, D.x, D.y, L, ρ (L = ρ = 0 for
+    an RPR) — what an id carries and what refinement varies."""
+    dy, a = sixbar.dyad, sixbar.a
+    return [x / a for x in (sixbar.b, sixbar.c, sixbar.d, sixbar.u, sixbar.v, dy.pivot.real, dy.pivot.imag,
+                            dy.rocker, dy.rod)]
+
+
+def sixbar_from_vector(p, branch: int, dyad_branch: int, rrr: bool) -> SixBar:
+    """The crank-normalised six-bar of :func:`dimension_vector` ``p`` on the given branches
+    (ValueError if it is no six-bar)."""
+    pivot = complex(p[5], p[6])
+    dyad = OutputDyad.rrr(pivot, p[7], p[8], dyad_branch) if rrr else OutputDyad.rpr(pivot)
+    return SixBar(1.0, p[0], p[1], p[2], branch, p[3], p[4], dyad)
 
 
 def round_dimensions(sixbar: SixBar) -> SixBar:

@@ -43,11 +43,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from synth.buildability import clearances
-from synth.candidates import Request, round_dimensions
+from synth.candidates import Request, dimension_vector, round_dimensions, sixbar_from_vector
 from synth.figures import SixBarFigures, sixbar_figures
 from synth.kinds import OutputKind
 from synth.output_range import output_deviation
-from synth.sixbar import OutputDyad, SixBar, SixBars, crank_grid, simulate
+from synth.sixbar import SixBar, SixBars, crank_grid, simulate
 
 __all__ = ["PARAMETERS", "Refinement", "refine"]
 
@@ -105,17 +105,8 @@ class Refinement:
     evaluations: int
 
 
-def _vector(sb: SixBar) -> np.ndarray:
-    a = sb.a
-    dy = sb.dyad
-    return np.array([sb.b, sb.c, sb.d, sb.u, sb.v, dy.pivot.real, dy.pivot.imag, dy.rocker, dy.rod]) / a
-
-
 def _sixbar(p: np.ndarray, like: SixBar) -> SixBar:
-    dy = like.dyad
-    pivot = complex(p[5], p[6])
-    dyad = OutputDyad.rrr(pivot, p[7], p[8], dy.branch) if dy.kind is OutputKind.RRR else OutputDyad.rpr(pivot)
-    return SixBar(1.0, p[0], p[1], p[2], like.branch, p[3], p[4], dyad)
+    return sixbar_from_vector([float(x) for x in p], like.branch, like.dyad.branch, like.dyad.kind is OutputKind.RRR)
 
 
 def _batch(p: np.ndarray, branch: np.ndarray, rpr: np.ndarray, dyad_branch: np.ndarray) -> SixBars:
@@ -223,7 +214,7 @@ def refine(request: Request, sixbars: Sequence[SixBar], before: Sequence[SixBarF
     if not rows:
         return out
     K = len(rows)
-    p0 = np.stack([_vector(sixbars[k]) for k in rows])
+    p0 = np.array([dimension_vector(sixbars[k]) for k in rows])
     scale = np.where(_LENGTHS, np.abs(p0), np.maximum(np.abs(p0), 1.0))
     rpr = np.array([sixbars[k].dyad.kind is OutputKind.RPR for k in rows])
     scale[rpr, 7:] = 0.0  # an RPR has no rocker or rod
