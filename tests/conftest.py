@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 from pathlib import Path
 
 import pytest
@@ -14,6 +15,12 @@ from hypothesis import settings
 settings.register_profile("ci", derandomize=True, print_blob=True)
 if os.environ.get("CI"):
     settings.load_profile("ci")
+
+# A job started in the background without job control (``cmd &`` in a script) begins with
+# SIGINT ignored, and Python then leaves it ignored: the Ctrl-C tests need Python's own handler,
+# in this process and (reset to the default on exec) in the CLI processes the tests start.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 CASES_FILE = Path(__file__).resolve().parents[1] / "docs" / "cases" / "classic_mechanisms.json"
 
