@@ -1,7 +1,8 @@
-"""The atlas build's progress bar: tqdm on stderr, fed by :mod:`atlas.build`'s callback.
+"""Progress bars on stderr (tqdm), fed by the library's callbacks: the atlas build's
+(:class:`atlas.build.ShardDone` events) and the complete query's (rows searched).
 
-The library reports progress as :class:`atlas.build.ShardDone` events and never imports the
-bar; the commands that build (``dwell atlas build``, ``dwell demo``) own it here.
+The library reports progress and never imports a bar; the commands that build (``dwell atlas
+build``, ``dwell demo``) and search (``dwell query --complete``) own them here.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from atlas.build import ShardDone
 
-__all__ = ["BuildBar"]
+__all__ = ["BuildBar", "SearchBar"]
 
 
 class BuildBar:
@@ -48,6 +49,39 @@ class BuildBar:
             self._bar = None
 
     def __enter__(self) -> BuildBar:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class SearchBar:
+    """A tqdm bar of the (segment, level) rows the complete query has searched: pass the
+    instance as ``on_progress`` to :func:`synth.query.answer`; a context manager, as
+    :class:`BuildBar`. ``show``: True, False, or None for "if stderr is a terminal"."""
+
+    def __init__(self, show: bool | None = None) -> None:
+        self.show = sys.stderr.isatty() if show is None else bool(show)
+        self._bar = None
+
+    def __call__(self, done: int, total: int) -> None:
+        if not self.show:
+            return
+        if self._bar is None:
+            from tqdm import tqdm
+
+            self._bar = tqdm(total=total, unit=" rows", unit_scale=True, desc="search", file=sys.stderr,
+                             dynamic_ncols=True)
+        self._bar.update(done - self._bar.n)
+        if done >= total:
+            self.close()
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None
+
+    def __enter__(self) -> SearchBar:
         return self
 
     def __exit__(self, *exc: object) -> None:

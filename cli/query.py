@@ -31,12 +31,15 @@ def default_deg(name: str) -> float:
     return round(math.degrees(_DEFAULTS[name]), 9)
 
 
-def answer(engine, request: Request) -> QueryResult:
-    """:func:`synth.query.answer` on the atlas behind ``engine``."""
+def answer(engine, request: Request, *, progress: bool | None = False) -> QueryResult:
+    """:func:`synth.query.answer` on the atlas behind ``engine``; a complete search draws its
+    progress bar on stderr with ``progress`` (None: if stderr is a terminal)."""
+    from cli.progress import SearchBar
     from db.queries import AtlasSource
     from synth.query import answer as answer_
 
-    return answer_(request, AtlasSource(engine))
+    with SearchBar(progress) as bar:
+        return answer_(request, AtlasSource(engine), on_progress=bar)
 
 
 def rebuild(engine, ids: list[str], request: Request):
@@ -57,7 +60,8 @@ def request_from_options(dwell: float, dwell_tol: float | None = None, swing: fl
                          min_transmission: float | None = None, max_link_ratio: float | None = None,
                          top: int | None = None, *, min_arm: float | None = None, min_clearance: float | None = None,
                          rpm: float | None = None, max_accel: float | None = None,
-                         step: float | None = None, refine: bool | None = None) -> Request:
+                         step: float | None = None, refine: bool | None = None,
+                         complete: bool | None = None) -> Request:
     """A :class:`Request` from the command's units (degrees); None takes the field's default.
     A bad value is the user's error (one line naming the option)."""
     # the deviation window must hold at least two samples of the simulation's crank grid
@@ -67,7 +71,7 @@ def request_from_options(dwell: float, dwell_tol: float | None = None, swing: fl
     given = {"dwell": math.radians(dwell), "dwell_tol": _rad(dwell_tol), "swing": _rad(swing),
              "swing_tol": _rad(swing_tol), "output": output, "dwells": dwells, "band": _rad(dwell_tolerance),
              "crank": crank, "min_transmission": _rad(min_transmission), "max_link_ratio": max_link_ratio, "top": top,
-             "min_arm": min_arm, "min_clearance": min_clearance, "rpm": rpm, "refine": refine}
+             "min_arm": min_arm, "min_clearance": min_clearance, "rpm": rpm, "refine": refine, "complete": complete}
     if max_accel is not None:
         given["max_accel"] = max_accel
     if step is not None:
@@ -118,6 +122,13 @@ def refinement_json(result: QueryResult) -> dict | None:
     return {"sixbars_refined": tried, "sixbars_improved": better, "from_nearest_misses": result.from_misses}
 
 
+def _searched(result: QueryResult) -> str:
+    """``120 segments fitted`` (the sample) or ``52 310 segment levels searched: all``."""
+    if result.request.complete:
+        return f"{result.considered} segment levels searched: all"
+    return f"{result.considered} segments fitted"
+
+
 def _rad(x: float | None) -> float | None:
     return None if x is None else math.radians(x)
 
@@ -128,7 +139,7 @@ def table(result: QueryResult, units: str = "") -> str:
     req = result.request
     head = (f"{len(result.candidates)} six-bar(s) for {req.dwells} dwell(s) of {math.degrees(req.dwell):g}° ± "
             f"{math.degrees(req.dwell_tol):g}°" + ("" if req.swing is None else f", swing {math.degrees(req.swing):g}°")
-            + f" (output band {math.degrees(req.band):g}°; {result.considered} segments fitted, {result.simulated} simulated"
+            + f" (output band {math.degrees(req.band):g}°; {_searched(result)}, {result.simulated} simulated"
             + _refined_note(result) + ")")
     lines = [head]
     width = max([26] + [len(c.id) for c in result.candidates])
@@ -191,7 +202,7 @@ def no_match_message(result: QueryResult) -> str:
     """Why nothing met the request: the constraint that failed with how many fitted six-bars
     each constraint rejected, the nearest six-bar and the request it would meet (a few lines)."""
     req = result.request
-    head = f"no six-bar meets the request ({result.considered} segments fitted, {result.simulated} simulated)"
+    head = f"no six-bar meets the request ({_searched(result)}, {result.simulated} simulated)"
     nm = result.no_match
     if nm is not None and nm.fitted:
         counts = ", ".join(f"{_CONSTRAINT_NAMES[k]} {n}" for k, n in nm.rejected.items() if n)
@@ -290,23 +301,26 @@ TOP = Count(1, 1000, "candidates")
 @click.option("--refine/--no-refine", default=_DEFAULTS["refine"], show_default=True,
               help="Refine the returned six-bars (and, when nothing meets the request, the nearest misses) by a "
                    "local optimisation with exact simulation in the loop.")
+@click.option("--complete/--sampled", default=_DEFAULTS["complete"], show_default=True,
+              help="Search every stored segment at every tolerance level (every six-bar the atlas yields; "
+                   "seconds to minutes, with a progress bar) instead of the segments nearest the request.")
 @click.option("--json", "as_json", is_flag=True, help="JSON on stdout instead of a table.")
 @click.option("--report", "report_dir", type=click.Path(file_okay=False), default=None,
               help="Also write the report of the candidates to this folder.")
 @units_option
 def query(target, dwell, dwell_tol, swing, step, swing_tol, output, dwells, dwell_tolerance, crank, min_transmission,
-          max_link_ratio, top, min_arm, min_clearance, rpm, max_accel, refine, as_json, report_dir, units):
+          max_link_ratio, top, min_arm, min_clearance, rpm, max_accel, refine, complete, as_json, report_dir, units):
     """Ranked six-bars for a requested dwell and swing (see README: ranking)."""
     request = request_from_options(dwell, dwell_tol, swing, swing_tol, output.lower(), dwells, dwell_tolerance, crank,
                                    min_transmission, max_link_ratio, top, min_arm=min_arm, min_clearance=min_clearance,
-                                   rpm=rpm, max_accel=max_accel, step=step, refine=refine)
+                                   rpm=rpm, max_accel=max_accel, step=step, refine=refine, complete=complete)
     if report_dir is not None:
         _check_report_dir(Path(report_dir))
     from db.engine import open_atlas
 
     engine = open_atlas(target, readonly=True)
     try:
-        result = answer(engine, request)
+        result = answer(engine, request, progress=None)
     finally:
         engine.dispose()
     if as_json:

@@ -3,12 +3,15 @@
 
 Short walks of ``ix_dwell_query`` (kind, level, dwell_angle) outwards from each wanted dwell
 angle, joined to their segment and linkage and filtered on the linkage's constraints, then one
-read of the chosen segments and their dwell rows. Units as stored: crank lengths, radians.
+read of the chosen segments and their dwell rows; for the complete search, a keyset walk of
+the same index through every row of one kind and level. Units as stored: crank lengths,
+radians.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from typing import Any
 
 from sqlalchemy import Engine, and_, bindparam, func, or_, select
 from sqlalchemy.orm import Session
@@ -18,7 +21,11 @@ from db.schema import Dwell, Linkage, Segment
 from db.spec import last_spec, tolerances
 from synth.query import DwellWindow, SegmentRow
 
-__all__ = ["AtlasSource", "DwellWindow", "SegmentRow", "nearest_dwell_angles", "select_segments", "tolerance_levels"]
+#: Segment ids bound in one statement of :func:`select_segments`.
+IN_CHUNK = 5000
+
+__all__ = ["AtlasSource", "DwellWindow", "SegmentRow", "count_segments", "nearest_dwell_angles", "scan_segments",
+           "select_segments", "tolerance_levels"]
 
 
 def select_segments(
@@ -42,17 +49,9 @@ def select_segments(
     rows that pass or at the window's edge. The index covers every filter, so a walked row
     costs an index entry, not a join; one statement is compiled for all the walks."""
     levels = [lv for lv, _ in tolerance_levels(engine)]
-    # every filter reads ix_dwell_query's own columns: the walk never leaves the index
     base = select(Dwell.segment_id, Dwell.level, Dwell.dwell_angle).where(
-        Dwell.kind == bindparam("kind"),
-        Dwell.level == bindparam("level"),
-        Dwell.part == 0,
-        Dwell.linkage_transmission_min >= min_transmission,
-        Dwell.longest_link <= max_length,
-        or_(Dwell.radius.is_(None), Dwell.radius <= max_length),  # an arc's radius is the rod
-        *(() if min_radius_ratio <= 0 else (or_(Dwell.radius.is_(None), and_(
-            Dwell.radius >= min_radius_ratio, Dwell.radius >= min_radius_ratio * Dwell.longest_link)),)),
-    )
+        Dwell.kind == bindparam("kind"), Dwell.level == bindparam("level"),
+        *_filters(min_transmission, max_length, min_radius_ratio))
     up = (base.where(Dwell.dwell_angle >= bindparam("target"), Dwell.dwell_angle <= bindparam("high"))
           .order_by(Dwell.dwell_angle, Dwell.segment_id).limit(bindparam("n")))
     down = (base.where(Dwell.dwell_angle < bindparam("target"), Dwell.dwell_angle >= bindparam("low"))
@@ -71,19 +70,81 @@ def select_segments(
                 if h.segment_id not in seen:
                     seen.add(h.segment_id)
                     hits.append((h.segment_id, h.level))
-        if not hits:
-            return []
-        ids = [sid for sid, _ in hits]
-        segs = {r.id: r for r in conn.execute(
+        return _segment_rows(engine, conn, hits)
+
+
+def scan_segments(
+    engine: Engine,
+    kind: str,
+    level: int,
+    *,
+    min_transmission: float = 0.0,
+    max_length: float = 1e300,
+    min_radius_ratio: float = 0.0,
+    batch: int = 4000,
+) -> Iterator[list[SegmentRow]]:
+    """Every segment of ``kind`` with a dwell at ``level``, filtered as in
+    :func:`select_segments`, in batches of up to ``batch`` (in stored-dwell order: a keyset walk
+    of ``ix_dwell_query``, so each batch costs its own rows, not an offset)."""
+    page = (select(Dwell.segment_id, Dwell.dwell_angle)
+            .where(Dwell.kind == kind, Dwell.level == level, *_filters(min_transmission, max_length, min_radius_ratio),
+                   or_(Dwell.dwell_angle > bindparam("angle"),
+                       and_(Dwell.dwell_angle == bindparam("angle"), Dwell.segment_id > bindparam("sid"))))
+            .order_by(Dwell.dwell_angle, Dwell.segment_id).limit(batch))
+    angle, sid = -1.0, -1
+    while True:
+        with engine.connect() as conn:
+            hits = conn.execute(page, {"angle": angle, "sid": sid}).all()
+            if not hits:
+                return
+            rows = _segment_rows(engine, conn, [(h.segment_id, level) for h in hits])
+        angle, sid = hits[-1].dwell_angle, hits[-1].segment_id
+        yield rows
+
+
+def count_segments(engine: Engine, kind: str, level: int, *, min_transmission: float = 0.0,
+                   max_length: float = 1e300, min_radius_ratio: float = 0.0) -> int:
+    """How many segments :func:`scan_segments` walks (one count over the index)."""
+    with engine.connect() as conn:
+        return int(conn.execute(select(func.count()).select_from(Dwell).where(
+            Dwell.kind == kind, Dwell.level == level,
+            *_filters(min_transmission, max_length, min_radius_ratio))).scalar_one())
+
+
+def _filters(min_transmission: float, max_length: float, min_radius_ratio: float) -> list:
+    """The linkage's and arc's limits on a dwell row (part 0). Every filter reads
+    ix_dwell_query's own columns: a walk never leaves the index."""
+    return [
+        Dwell.part == 0,
+        Dwell.linkage_transmission_min >= min_transmission,
+        Dwell.longest_link <= max_length,
+        or_(Dwell.radius.is_(None), Dwell.radius <= max_length),  # an arc's radius is the rod
+        *(() if min_radius_ratio <= 0 else (or_(Dwell.radius.is_(None), and_(
+            Dwell.radius >= min_radius_ratio, Dwell.radius >= min_radius_ratio * Dwell.longest_link)),)),
+    ]
+
+
+def _segment_rows(engine: Engine, conn, hits: Sequence[tuple[int, int]]) -> list[SegmentRow]:
+    """The :class:`SegmentRow` of each (segment id, level) of ``hits``, in that order (a double
+    line without both stretches at its level is left out)."""
+    if not hits:
+        return []
+    ids = [sid for sid, _ in hits]
+    segs: dict[int, Any] = {}
+    parts: dict[tuple[int, int], list] = {}
+    # the ids go to the server as bound parameters: a few thousand per statement (SQLite
+    # takes at most 32 766 in one, PostgreSQL 65 535)
+    for k in range(0, len(ids), IN_CHUNK):
+        chunk = ids[k : k + IN_CHUNK]
+        segs.update((r.id, r) for r in conn.execute(
             select(Segment.id, Segment.kind, Segment.u, Segment.v, Segment.phi_gen, Linkage.b, Linkage.c, Linkage.d,
                    Linkage.branch, Linkage.transmission_min)
-            .join(Linkage, Segment.linkage_id == Linkage.id).where(Segment.id.in_(ids))
-        )}
-        parts: dict[tuple[int, int], list] = {}
+            .join(Linkage, Segment.linkage_id == Linkage.id).where(Segment.id.in_(chunk))
+        ))
         for dw in conn.execute(
             select(Dwell.segment_id, Dwell.level, Dwell.part, Dwell.tolerance, Dwell.phi_start, Dwell.phi_end, Dwell.x,
                    Dwell.y, Dwell.direction, Dwell.radius)
-            .where(Dwell.segment_id.in_(ids)).order_by(Dwell.segment_id, Dwell.level, Dwell.part)
+            .where(Dwell.segment_id.in_(chunk)).order_by(Dwell.segment_id, Dwell.level, Dwell.part)
         ):
             parts.setdefault((dw.segment_id, dw.level), []).append(dw)
     lost = [sid for sid, _ in hits if sid not in segs]
@@ -182,3 +243,11 @@ class AtlasSource:
 
     def nearest_dwell_angles(self, kinds, target):
         return nearest_dwell_angles(self.engine, kinds, target)
+
+    def scan_segments(self, kind, level, *, min_transmission, max_length, min_radius_ratio, batch):
+        return scan_segments(self.engine, kind, level, min_transmission=min_transmission, max_length=max_length,
+                             min_radius_ratio=min_radius_ratio, batch=batch)
+
+    def count_segments(self, kind, level, *, min_transmission, max_length, min_radius_ratio):
+        return count_segments(self.engine, kind, level, min_transmission=min_transmission, max_length=max_length,
+                              min_radius_ratio=min_radius_ratio)

@@ -28,8 +28,8 @@ from synth.sixbar import OutputDyad, SixBar, SixBars, crank_grid, simulate
 
 __all__ = ["Candidate", "Request", "candidate_dimensions", "candidate_id", "decode_dimensions", "dimension_vector",
            "encode_dimensions",
-           "parse_candidate_id", "rank", "round_dimensions", "screen", "sixbar_from_vector",
-           "with_dimensions"]
+           "output_may_meet", "parse_candidate_id", "rank", "round_dimensions", "screen", "sixbar_from_vector",
+           "with_dimensions", "within_band"]
 
 #: The --output choices: an output tag, or any single-dwell one.
 OUTPUTS = (OutputTag.RPR.value, OutputTag.RRR.value, "any")
@@ -59,6 +59,9 @@ class Request:
     #: Refine the returned six-bars by a local optimisation with exact simulation in the loop
     #: (synth.refine), and the nearest misses when nothing meets the request.
     refine: bool = True
+    #: Search every stored segment at every tolerance level (synth.query.search) instead of
+    #: the sample of segments nearest the request: the complete answer, and slower.
+    complete: bool = False
     #: Buildability (synth.buildability): the RPR slider's smallest distance to its slot pivot
     #: and every joint's/output link's to a fixed pivot, in crank lengths; the output's peak
     #: angular acceleration (rad/s², None: no limit) at ``rpm`` rev/min of the crank.
@@ -142,31 +145,48 @@ def screen(request: Request, sixbars: SixBars, samples: int = 720) -> np.ndarray
     dwell holds that many); and no ⌈(dwell + tol)/h⌉ + 2 consecutive samples lie within the
     band narrowed by 2m (that would be a longer dwell than allowed).
     """
-    from scipy.ndimage import maximum_filter1d, minimum_filter1d
-
-    phi = crank_grid(samples)
-    h = 2 * math.pi / samples
-    motion = simulate(sixbars, phi, order=0)
+    motion = simulate(sixbars, crank_grid(samples), order=0)
     psi = motion.psi
     ok = np.all(motion.status == 0, axis=1) & (np.abs(psi[:, -1] - psi[:, 0]) < math.pi)  # rocks, not revolves
     ok &= (motion.transmission_fourbar.min(axis=1) >= request.min_transmission)
     ok &= (motion.transmission_output.min(axis=1) >= request.min_transmission)
-    stray = np.abs(np.roll(psi, -1, axis=1) - 2 * psi + np.roll(psi, 1, axis=1)).max(axis=1) / 8
+    return ok & output_may_meet(request, psi)
+
+
+def within_band(psi: np.ndarray, length: int, band: np.ndarray | float) -> np.ndarray:
+    """Per row of ``psi`` (n, M), on a uniform full-turn grid: some run of ``length``
+    consecutive samples lies within ``band`` (cyclic: ψ of a rocker is periodic)."""
+    from scipy.ndimage import maximum_filter1d, minimum_filter1d
+
+    spread = maximum_filter1d(psi, length, axis=1, mode="wrap") - minimum_filter1d(psi, length, axis=1, mode="wrap")
+    return np.any(spread <= np.reshape(band, (-1, 1)), axis=1)
+
+
+def _stray(psi: np.ndarray) -> np.ndarray:
+    """Per row, the largest |Δ²ψ|/8 over the (cyclic) samples: how far ψ strays between two
+    samples (the parabola through three samples departs from its chord by Δ²ψ/8)."""
+    return np.abs(np.roll(psi, -1, axis=1) - 2 * psi + np.roll(psi, 1, axis=1)).max(axis=1) / 8
+
+
+def output_may_meet(request: Request, psi: np.ndarray) -> np.ndarray:
+    """Tests no six-bar that meets ``request`` can fail, per row of its output angle ``psi``
+    (n, M) sampled exactly on the uniform grid of M crank angles over the turn (h = 2π/M,
+    continuous along the turn), m the row's stray between samples (:func:`_stray`): its
+    sampled swing lies within the swing tolerance widened by 2m; a dwell of at least
+    dwell − tol holds ⌊(dwell − tol)/h⌋ grid samples, so some run of one fewer of them lies
+    within the band; and no ⌈(dwell + tol)/h⌉ + 2 consecutive samples lie within the band
+    narrowed by 2m (that would be a longer dwell than allowed)."""
+    h = 2 * math.pi / psi.shape[1]
+    ok = np.ones(psi.shape[0], bool)
     if request.swing is not None:
         swing = psi.max(axis=1) - psi.min(axis=1)
-        ok &= (swing <= request.swing + request.swing_tol) & (swing + 2 * stray >= request.swing - request.swing_tol)
-
-    def fits(length: int, band: np.ndarray | float) -> np.ndarray:
-        """Some run of ``length`` samples lies within ``band`` (cyclic: ψ of a rocker is periodic)."""
-        spread = maximum_filter1d(psi, length, axis=1, mode="wrap") - minimum_filter1d(psi, length, axis=1, mode="wrap")
-        return np.any(spread <= np.reshape(band, (-1, 1)), axis=1)
-
+        ok &= (swing <= request.swing + request.swing_tol) & (swing + 2 * _stray(psi) >= request.swing - request.swing_tol)
     shortest = math.floor((request.dwell - request.dwell_tol) / h) - 1
     if shortest >= 2:
-        ok &= fits(shortest, request.band)
+        ok &= within_band(psi, shortest, request.band)
     longest = math.ceil((request.dwell + request.dwell_tol) / h) + 2
-    if longest < samples:
-        ok &= ~fits(longest, request.band - 2 * stray)
+    if longest < psi.shape[1]:
+        ok &= ~within_band(psi, longest, request.band - 2 * _stray(psi))
     return ok
 
 
@@ -316,11 +336,14 @@ def rank(request: Request, candidates: list[Candidate]) -> list[Candidate]:
     """Candidates in rank order (Pareto layer, then score, then id), ``rank`` set from 1."""
     if not candidates:
         return []
-    obj = objectives(request, [c.figures for c in candidates])
+    # Rounded: the same six-bar's figures differ in the last bits with the batch it was
+    # simulated in, and a mirror pair's are equal only to rounding; ties then fall to the id,
+    # so a ranking does not depend on how the six-bars were batched.
+    obj = np.round(objectives(request, [c.figures for c in candidates]), 10)
     layer = _pareto_layers(obj)
     scale = np.array([max(request.dwell_tol, math.radians(0.5)), request.band, math.radians(45.0), 100.0, 1.0])
     score = (obj + np.array([0.0, 0.0, math.pi / 2, 0.0, 0.0])) / scale
-    total = score.sum(axis=1)
+    total = np.round(score.sum(axis=1), 10)
     order = sorted(range(len(candidates)), key=lambda i: (layer[i], total[i], candidates[i].id))
     return [
         dataclasses.replace(candidates[i], rank=r + 1) for r, i in enumerate(order)

@@ -25,7 +25,7 @@ import dataclasses
 import itertools
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -36,6 +36,7 @@ from synth.candidates import (
     Request,
     candidate_dimensions,
     candidate_id,
+    output_may_meet,
     parse_candidate_id,
     rank,
     screen,
@@ -51,10 +52,12 @@ __all__ = [
     "NoMatch",
     "QueryResult",
     "RebuildError",
+    "SearchCount",
     "SegmentRow",
     "SegmentSource",
     "answer",
     "rebuild",
+    "search",
 ]
 
 #: Crank samples of the exact simulation (0.5°); the figures refine beyond it.
@@ -130,6 +133,15 @@ class SegmentSource(Protocol):
 
     def nearest_dwell_angles(self, kinds: tuple[str, ...], target: float) -> tuple[float | None, float | None]:
         """The stored dwell angles (rad) of ``kinds`` just below and just above ``target``."""
+
+    def scan_segments(self, kind: str, level: int, *, min_transmission: float, max_length: float,
+                      min_radius_ratio: float, batch: int) -> Iterator[list[SegmentRow]]:
+        """Every segment of ``kind`` with a dwell at ``level`` (filtered as in
+        :meth:`select_segments`), in batches of up to ``batch``."""
+
+    def count_segments(self, kind: str, level: int, *, min_transmission: float, max_length: float,
+                       min_radius_ratio: float) -> int:
+        """How many segments :meth:`scan_segments` yields."""
 
 
 # --------------------------------------------------------------------------------------------
@@ -259,11 +271,18 @@ def _paths(rows: Sequence[SegmentRow], phi: np.ndarray) -> np.ndarray:
 
 def fit(request: Request, rows: Sequence[SegmentRow], kind: str) -> list[Fitted]:
     """Every dyad found for ``rows`` (all of segment kind ``kind``), in row and slot order."""
+    return _fit(request, rows, kind)[0]
+
+
+def _fit(request: Request, rows: Sequence[SegmentRow], kind: str) -> tuple[list[Fitted], np.ndarray, np.ndarray]:
+    """:func:`fit`, with the coupler-point paths of ``rows`` on the fit's crank grid
+    (``(len(rows), FIT_SAMPLES)``) and the row of each fitted dyad."""
     from synth.dyad import fit_rpr, fit_rrr, rpr_double
 
-    if not rows:
-        return []
     phi = crank_grid(FIT_SAMPLES)
+    if not rows:
+        return [], np.zeros((0, FIT_SAMPLES), complex), np.zeros(0, np.int64)
+    paths = _paths(rows, phi)
     out = []
     if kind == "double_line":
         line1 = (np.array([complex(r.parts[0][2], r.parts[0][3]) for r in rows]), np.array([r.parts[0][4] for r in rows]))
@@ -273,8 +292,7 @@ def fit(request: Request, rows: Sequence[SegmentRow], kind: str) -> list[Fitted]
             dyad = found.dyad((i,))
             if dyad is not None:
                 out.append(Fitted(r, "dbl", 0, dyad))
-        return out
-    paths = _paths(rows, phi)
+        return out, paths, _row_index(rows, out)
     start = np.array([r.parts[0][0] for r in rows])
     end = np.array([r.parts[0][1] for r in rows])
     point = np.array([complex(r.parts[0][2], r.parts[0][3]) for r in rows])
@@ -294,7 +312,47 @@ def fit(request: Request, rows: Sequence[SegmentRow], kind: str) -> list[Fitted]
                     dyad = OutputDyad.rrr(complex(found.pivot[i, slot]), float(found.rocker[i, slot]),
                                           float(found.rod[i, slot]), int(found.branch[i, slot]))
                     out.append(Fitted(r, "rrr", slot, dyad, complex(point[i])))
-    return out
+    return out, paths, _row_index(rows, out)
+
+
+def _row_index(rows: Sequence[SegmentRow], fitted: Sequence[Fitted]) -> np.ndarray:
+    where = {id(r): i for i, r in enumerate(rows)}
+    return np.array([where[id(f.row)] for f in fitted], np.int64)
+
+
+def prescreen(request: Request, fitted: Sequence[Fitted], paths: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """Which fitted six-bars may meet ``request``, from the paths their dyads were fitted to
+    (``paths[index[k]]``, exact coupler-point positions on the fit's crank grid), before any
+    simulation: the output angle on that grid in closed form (RPR: the slot's direction
+    P − D; RRR: the rocker's, Q from the loop's circle intersection), then tests no six-bar
+    meeting the request can fail: it assembles at every sample (RRR), and its sampled output
+    angle passes :func:`synth.candidates.output_may_meet` (swing, and the dwell in runs of
+    samples within the band). The angles are
+    measured from the direction of the stretch's line point (RPR) or arc centre (RRR) seen
+    from D, and unwrapped along the turn."""
+    from kinematics.loop import circle_intersection
+    from kinematics.status import Status
+
+    n = len(fitted)
+    if not n:
+        return np.zeros(0, bool)
+    P = paths[index]
+    D = np.array([f.dyad.pivot for f in fitted])[:, None]
+    rest = np.array([f.rest if f.rest is not None else complex(f.row.parts[0][2], f.row.parts[0][3])
+                     for f in fitted])[:, None]
+    ok = np.ones(n, bool)
+    point = P
+    rrr = np.flatnonzero([f.dyad.kind == "RRR" for f in fitted])
+    if rrr.size:
+        rho = np.array([fitted[k].dyad.rod for k in rrr])[:, None]
+        L = np.array([fitted[k].dyad.rocker for k in rrr])[:, None]
+        br = np.array([fitted[k].dyad.branch for k in rrr])[:, None]
+        loop = circle_intersection(D[rrr] - P[rrr], rho, L, br, rates=False)
+        point = P.copy()
+        point[rrr] = P[rrr] + rho * loop.e1  # Q: the rocker's direction is Q − D
+        ok[rrr] &= ~np.any((loop.status & np.uint8(Status.NOT_ASSEMBLABLE)) != 0, axis=1)
+    psi = np.unwrap(np.angle((point - D) * np.conj(rest - D)), axis=1)
+    return ok & output_may_meet(request, psi)
 
 
 def violations(request: Request, f: SixBarFigures) -> dict[str, float]:
@@ -498,22 +556,91 @@ def _refined(request: Request, candidates: Sequence[Candidate],
     return out, count
 
 
-def answer(request: Request, source: SegmentSource) -> QueryResult:
-    """Ranked candidates for ``request`` from ``source`` (a pure read)."""
+#: (segment, level) rows the complete search reads, fits and simulates at a time.
+BATCH = 4000
+#: No limit on the rows of a window (SQL LIMIT).
+ALL_ROWS = 2**62
+
+
+@dataclass(frozen=True, slots=True)
+class SearchCount:
+    """What the complete search went through: (segment, level) rows read and fitted, dyads
+    fitted, six-bars past the prescreen (:func:`prescreen`) and simulated, six-bars that met
+    the request."""
+
+    rows: int = 0
+    fitted: int = 0
+    simulated: int = 0
+    met: int = 0
+
+
+def search(request: Request, source: SegmentSource, *,
+           on_progress: Callable[[int, int], None] | None = None) -> tuple[list[Candidate], SearchCount]:
+    """Every six-bar the atlas yields for ``request`` that meets it, unranked (in the
+    crank-normalised fit's terms, scaled to ``request.crank``).
+
+    The six-bars the atlas yields: for every stored segment of the request's kinds
+    (:func:`kinds_for`) at every tolerance level, the output dyads :func:`fit` finds for it
+    (RPR: a slot pivot on each side of a straight stretch; RRR: up to two rocker directions on
+    an arc; double: the pivot at the two lines' intersection). Nothing is left out by a
+    budget: the rows are only pruned by conditions no six-bar meeting the request can fail —
+    the four-bar's transmission angle and link lengths (stored per linkage), the arc's radius
+    as the rod, then :func:`prescreen` and :func:`synth.candidates.screen` on exact samples.
+    The atlas is read in batches of ``BATCH`` rows per kind and level;
+    ``on_progress(rows done, rows in all)`` after each."""
+    limits = {"min_transmission": request.min_transmission, "max_length": request.max_link_ratio,
+              "min_radius_ratio": 1.0 / request.max_link_ratio}
+    jobs = [(kind, lv) for kind in kinds_for(request) for lv, _ in source.tolerance_levels()]
+    total = sum(source.count_segments(kind, lv, **limits) for kind, lv in jobs)
+    out: list[Candidate] = []
+    rows_n = fitted_n = simulated = 0
+    for kind, lv in jobs:
+        for rows in source.scan_segments(kind, lv, batch=BATCH, **limits):
+            fitted, paths, index = _fit(request, rows, kind)
+            keep = prescreen(request, fitted, paths, index)
+            met, n = simulate(request, [f for f, k in zip(fitted, keep) if k])
+            out += met
+            rows_n, fitted_n, simulated = rows_n + len(rows), fitted_n + len(fitted), simulated + n
+            if on_progress is not None:
+                on_progress(rows_n, total)
+    if on_progress is not None:
+        on_progress(total, total)  # a double line without both stretches at a level is read, not fitted
+    return out, SearchCount(rows_n, fitted_n, simulated, len(out))
+
+
+def answer(request: Request, source: SegmentSource, *,
+           on_progress: Callable[[int, int], None] | None = None) -> QueryResult:
+    """Ranked candidates for ``request`` from ``source`` (a pure read): from the sample of
+    segments :func:`select` takes, or with ``request.complete`` from every six-bar the atlas
+    yields (:func:`search`, which reports ``on_progress``)."""
     clock: dict[str, float] = {}
     t0 = time.perf_counter()
     kinds = kinds_for(request)
-    rows = select(source, request, kinds)
-    t1 = time.perf_counter()
-    clock["select"] = t1 - t0
+    rows: list[SegmentRow] = []
     fitted: list[Fitted] = []
-    for kind in kinds:
-        fitted += fit(request, [r for r in rows if r.kind == kind], kind)
-    t2 = time.perf_counter()
-    clock["fit"] = t2 - t1
-    candidates, simulated = simulate(request, fitted)
+
+    def sampled() -> None:
+        """The sample's rows and fits (also what a no-match is diagnosed and refined from)."""
+        nonlocal rows, fitted
+        t = time.perf_counter()
+        rows = select(source, request, kinds)
+        clock["select"] = clock.get("select", 0.0) + time.perf_counter() - t
+        t = time.perf_counter()
+        for kind in kinds:
+            fitted += fit(request, [r for r in rows if r.kind == kind], kind)
+        clock["fit"] = clock.get("fit", 0.0) + time.perf_counter() - t
+
+    if request.complete:
+        candidates, count = search(request, source, on_progress=on_progress)
+        clock["search"] = time.perf_counter() - t0
+        considered, simulated = count.rows, count.simulated
+    else:
+        sampled()
+        t2 = time.perf_counter()
+        candidates, simulated = simulate(request, fitted)
+        clock["simulate"] = time.perf_counter() - t2
+        considered = len({r.segment_id for r in rows})
     t3 = time.perf_counter()
-    clock["simulate"] = t3 - t2
     top = [dataclasses.replace(c, rank=i + 1) for i, c in enumerate(_distinct(rank(request, candidates))[: request.top])]
     clock["rank"] = time.perf_counter() - t3
     nearest: tuple[float | None, float | None] = (None, None)
@@ -527,12 +654,14 @@ def answer(request: Request, source: SegmentSource) -> QueryResult:
         refined = (len(top), better)
         clock["refine"] = time.perf_counter() - t4
     if not top:
+        if request.complete:
+            sampled()  # nothing in the whole atlas: diagnose (and refine) the sample's near misses
         nearest = source.nearest_dwell_angles(kinds, request.dwell)
         t4 = time.perf_counter()
         misses = _misses(request, fitted)
         no_match = diagnose(request, fitted, misses)
         # the diagnosis simulates the fits the screen dropped: simulation time of this answer
-        clock["simulate"] += time.perf_counter() - t4
+        clock["simulate"] = clock.get("simulate", 0.0) + time.perf_counter() - t4
         if request.refine and no_match.nearest is not None:
             t5 = time.perf_counter()
             near = [(fit_, fig) for total, fit_, fig, _ in misses if total < math.inf]
@@ -546,7 +675,7 @@ def answer(request: Request, source: SegmentSource) -> QueryResult:
             clock["refine"] = time.perf_counter() - t5
             if top:
                 no_match = None
-    return QueryResult(request, top, len({r.segment_id for r in rows}), simulated, nearest, clock, no_match, refined,
+    return QueryResult(request, top, considered, simulated, nearest, clock, no_match, refined,
                        from_misses=bool(top) and no_match is None and not before_refine)
 
 

@@ -6,7 +6,9 @@ Single dwells (RPR and RRR): dwell {30, 45, 60, 75, 90, 105, 120, 150}° × swin
 constraints and ``--top``, against one open atlas (as ``dwell bench query``). Reported per
 cell: the candidates found, the best output deviation over the requested dwell (degrees) and
 the time; per family the cells with ≥ 1 and ≥ 3 candidates. A table on stdout, or ``--json``;
-``--plot FILE.png`` draws the grids as heat maps.
+``--plot FILE.png`` draws the grids as heat maps. ``--complete`` answers every cell with the
+complete search and measures the default (sampled) query against it: the share of the
+complete answer's coupler curves the sample finds.
 """
 
 from __future__ import annotations
@@ -37,42 +39,71 @@ class Cell:
     dwell: float
     swing: float | None
 
-    def request(self, top: int, refine: bool = True):
+    def request(self, top: int, refine: bool = True, complete: bool = False):
         from cli.query import request_from_options
 
         if self.family == "double":
-            return request_from_options(self.dwell, DOUBLE_TOL, None, None, "rpr", 2, top=top, refine=refine)
-        return request_from_options(self.dwell, None, self.swing, None, self.family, 1, top=top, refine=refine)
+            return request_from_options(self.dwell, DOUBLE_TOL, None, None, "rpr", 2, top=top, refine=refine,
+                                        complete=complete)
+        return request_from_options(self.dwell, None, self.swing, None, self.family, 1, top=top, refine=refine,
+                                    complete=complete)
 
 
-def cells() -> list[Cell]:
-    """The grid, family by family, dwell-major."""
-    out = [Cell(fam, d, s) for fam in ("rpr", "rrr") for d in SINGLE_DWELLS for s in SWINGS]
-    return out + [Cell("double", d, None) for d in DOUBLE_DWELLS]
+def cells(families: tuple[str, ...] = FAMILIES) -> list[Cell]:
+    """The grid of ``families``, family by family, dwell-major."""
+    out = [Cell(fam, d, s) for fam in ("rpr", "rrr") if fam in families for d in SINGLE_DWELLS for s in SWINGS]
+    return out + [Cell("double", d, None) for d in DOUBLE_DWELLS if "double" in families]
 
 
-def _row(cell: Cell, result, seconds: float) -> dict:
-    devs = [max(c.figures.deviations) for c in result.candidates if c.figures.deviations]
+def _row(cell: Cell, result, seconds: float, top: int) -> dict:
+    shown = result.candidates[:top]
+    devs = [max(c.figures.deviations) for c in shown if c.figures.deviations]
     return {
         "family": cell.family,
         "dwell_deg": cell.dwell,
         "swing_deg": cell.swing,
-        "candidates": len(result.candidates),
+        "candidates": len(shown),
         "best_deviation_deg": None if not devs else round(math.degrees(min(devs)), 5),
-        "best": result.candidates[0].id if result.candidates else None,
+        "best": shown[0].id if shown else None,
         "failed": None if result.no_match is None else result.no_match.failed,
-        "refined": sum(c.refined_from is not None for c in result.candidates),
+        "refined": sum(c.refined_from is not None for c in shown),
         "ms": round(1000 * seconds, 1),
     }
 
 
+def _curve(c) -> tuple:
+    """A candidate's coupler curve and output type, the same for both mirror images (the two
+    assembly branches): both answers keep one six-bar per segment and of a mirror pair, not
+    always at the same tolerance level or fit slot."""
+    sb = c.sixbar
+    return (round(sb.b, 6), round(sb.c, 6), round(sb.d, 6), round(sb.u, 3), round(abs(sb.v), 3), sb.dyad.kind)
+
+
+def _recall(cell: Cell, complete, source) -> dict:
+    """What the sampled query finds of the complete answer ``complete`` (unrefined, one
+    six-bar per coupler curve and output type): how many curves each answer holds, and the
+    share of the complete ones the sample holds (None when there are none)."""
+    from synth.query import answer
+
+    sampled = answer(cell.request(1000, refine=False), source)
+    every = {_curve(c) for c in complete.candidates}
+    found = {_curve(c) for c in sampled.candidates} & every
+    return {"complete": len(every), "sampled": len(sampled.candidates),
+            "recall": None if not every else round(len(found) / len(every), 4)}
+
+
 def summary(rows: list[dict]) -> dict:
-    """Per family: cells, cells with ≥ 1 and with ≥ 3 candidates."""
+    """Per family: cells, cells with ≥ 1 and with ≥ 3 candidates; after a complete search,
+    the six-bars it found and the share of them the sampled query finds (pooled)."""
     out = {}
-    for fam in FAMILIES:
+    for fam in dict.fromkeys(r["family"] for r in rows):
         mine = [r for r in rows if r["family"] == fam]
         out[fam] = {"cells": len(mine), "answered": sum(r["candidates"] >= 1 for r in mine),
                     "three_or_more": sum(r["candidates"] >= 3 for r in mine)}
+        if mine and "recall" in mine[0]:
+            every = sum(r["complete"] for r in mine)
+            found = sum(round(r["recall"] * r["complete"]) for r in mine if r["recall"] is not None)
+            out[fam].update(complete=every, recall=None if not every else round(found / every, 4))
     return out
 
 
@@ -81,10 +112,15 @@ def summary(rows: list[dict]) -> dict:
 @click.option("--top", type=click.IntRange(1, 1000), default=10, show_default=True, help="Candidates per query.")
 @click.option("--refine/--no-refine", default=True, show_default=True,
               help="Refine the candidates (and the nearest misses) as `dwell query` does.")
+@click.option("--family", "families", type=click.Choice(FAMILIES), multiple=True,
+              help="Only this family's cells (repeat for several; default: all three).")
+@click.option("--complete", is_flag=True,
+              help="Answer every cell with the complete search (`dwell query --complete`, unrefined, all its "
+                   "six-bars kept) and report, per cell, the share of them the default sampled query finds.")
 @click.option("--json", "as_json", is_flag=True, help="JSON on stdout instead of a table.")
 @click.option("--plot", type=click.Path(dir_okay=False), callback=writable_file(".png"), default=None,
               help="Write the grids as heat maps of the candidates found (PNG).")
-def coverage(db, top, refine, as_json, plot):
+def coverage(db, top, refine, families, complete, as_json, plot):
     """Coverage of the dwell × swing grid (RPR, RRR) and the double-dwell row: candidates, best deviation, time."""
     from cli.bench.query import atlas_facts
     from db.engine import open_atlas
@@ -97,23 +133,28 @@ def coverage(db, top, refine, as_json, plot):
         source = AtlasSource(engine)
         rows = []
         start = time.perf_counter()
-        for cell in cells():
-            request = cell.request(top, refine)
+        for cell in cells(tuple(families) or FAMILIES):
+            # the complete search keeps all its six-bars (unrefined) for the recall
+            request = cell.request(1000, False, True) if complete else cell.request(top, refine)
             t0 = time.perf_counter()
             result = answer(request, source)
-            rows.append(_row(cell, result, time.perf_counter() - t0))
+            rows.append(_row(cell, result, time.perf_counter() - t0, top))
+            if complete:
+                rows[-1].update(_recall(cell, result, source))
         total = time.perf_counter() - start
     finally:
         engine.dispose()
-    report = {"benchmark": "coverage", "atlas": atlas, "top": top, "refine": refine, "seconds": round(total, 2),
-              "summary": summary(rows), "cells": rows}
+    report = {"benchmark": "coverage", "atlas": atlas, "top": top, "refine": refine and not complete,
+              "complete": complete, "seconds": round(total, 2), "summary": summary(rows), "cells": rows}
     if as_json:
         click.echo(json.dumps(report, indent=2, allow_nan=False))
     else:
         click.echo(table(report))
     s = report["summary"]
     click.echo("dwell bench coverage: " + ", ".join(
-        f"{fam} {v['three_or_more']}/{v['cells']} cells with ≥ 3 ({v['answered']} with ≥ 1)" for fam, v in s.items())
+        f"{fam} {v['three_or_more']}/{v['cells']} cells with ≥ 3 ({v['answered']} with ≥ 1"
+        + ("" if v.get("recall") is None else f"; the sampled query finds {100 * v['recall']:.1f}% of "
+           f"{v['complete']} six-bars") + ")" for fam, v in s.items())
         + f" in {total:.1f} s", err=True)
     if plot:
         _plot(report, Path(plot))
@@ -125,7 +166,7 @@ def table(report: dict) -> str:
     lines = [f"coverage of {report['atlas']['preset']} ({report['atlas']['linkages']} linkages), top {report['top']}: "
              "candidates found, best output deviation (°) [ms]"]
     rows = report["cells"]
-    for fam in FAMILIES:
+    for fam in report["summary"]:
         mine = [r for r in rows if r["family"] == fam]
         cols = sorted({r["swing_deg"] for r in mine}, key=lambda x: -1 if x is None else x)
         head = "swing →" if fam != "double" else f"±{DOUBLE_TOL:g}°"
@@ -141,7 +182,9 @@ def table(report: dict) -> str:
                 text.append(f"{r['candidates']:>3}/{dev:<6}[{r['ms']:>5.0f}]")
             lines.append(f"dwell {d:>4g}°     " + "".join(f"{t:>20}" for t in text))
         v = report["summary"][fam]
-        lines.append(f"{fam}: {v['three_or_more']}/{v['cells']} cells with ≥ 3 candidates, {v['answered']} with ≥ 1")
+        lines.append(f"{fam}: {v['three_or_more']}/{v['cells']} cells with ≥ 3 candidates, {v['answered']} with ≥ 1"
+                     + ("" if v.get("recall") is None else
+                        f"; the sampled query finds {100 * v['recall']:.1f}% of the {v['complete']} coupler curves"))
     return "\n".join(lines)
 
 
@@ -154,8 +197,12 @@ def _plot(report: dict, path: Path) -> None:
 
     rows = report["cells"]
     top = report["top"]
-    fig, axes = plt.subplots(1, 3, figsize=(12, 4.2), width_ratios=[6, 6, 1.6], constrained_layout=True)
-    for ax, fam in zip(axes, FAMILIES):
+    families = list(report["summary"])
+    widths = [1.6 if fam == "double" else 6.0 for fam in families]
+    fig, axes = plt.subplots(1, len(families), figsize=(12 * sum(widths) / 13.6 + 1.0, 4.2), width_ratios=widths,
+                             constrained_layout=True, squeeze=False)
+    axes = axes[0]
+    for ax, fam in zip(axes, families):
         mine = [r for r in rows if r["family"] == fam]
         dwells = sorted({r["dwell_deg"] for r in mine})
         swings = sorted({r["swing_deg"] for r in mine}, key=lambda x: -1 if x is None else x)

@@ -68,3 +68,49 @@ def test_coverage_table_and_bad_input(capsys, atlas_path, tmp_path):
     assert code == 2 and out == "" and len(err.strip().splitlines()) == 1
     code, out, err = run(capsys, "bench", "coverage", "--db", str(tmp_path / "none.sqlite"))
     assert code == 2 and out == ""
+
+
+def test_complete_coverage_measures_the_sampled_query_against_it(capsys, atlas_path, tmp_path):
+    """``--complete --family double``: every cell answered by the complete search (all its
+    six-bars), with the share of them the sampled query finds; the table and the plot of one
+    family."""
+    plot = tmp_path / "double.png"
+    code, out, err = run(capsys, "bench", "coverage", "--db", atlas_path, "--family", "double", "--complete", "--json",
+                         "--plot", str(plot))
+    assert code == 0, err
+    doc = json.loads(out)
+    assert doc["complete"] is True and list(doc["summary"]) == ["double"]
+    cells = doc["cells"]
+    assert [c["dwell_deg"] for c in cells] == list(DOUBLE_DWELLS)
+    for c in cells:
+        assert c["candidates"] == min(10, c["complete"])
+        assert (c["recall"] is None) == (c["complete"] == 0)
+        assert c["recall"] is None or 0.0 <= c["recall"] <= 1.0
+    v = doc["summary"]["double"]
+    assert v["complete"] == sum(c["complete"] for c in cells) > 0
+    # the sample is a subset of the complete answer: it never finds more curves than there are
+    assert all(c["sampled"] <= c["complete"] for c in cells)
+    assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "the sampled query finds" in err
+    code, out, err = run(capsys, "bench", "coverage", "--db", atlas_path, "--family", "double", "--top", "3")
+    assert code == 0 and out.count("DOUBLE") == 1 and "RPR" not in out
+
+
+def test_query_complete_holds_every_sampled_answer(capsys, atlas_path):
+    """``dwell query --complete``: every six-bar the default (sampled) query returns meets the
+    request, so the complete search returns it too (or its mirror image, or a better-ranked
+    six-bar of the same segment)."""
+    args = ["query", "--db", atlas_path, "--dwell", "45", "--swing", "40", "--output", "rpr", "--top", "1000",
+            "--no-refine"]
+    code, out, err = run(capsys, *args, "--json")
+    assert code == 0, err
+    sampled = json.loads(out)["candidates"]
+    code, out, err = run(capsys, *args, "--complete", "--json")
+    assert code == 0, err
+    complete = json.loads(out)["candidates"]
+    assert len(complete) > len(sampled) >= 1
+    curve = lambda c: (round(c["fourbar"]["b_mm"], 6), round(c["fourbar"]["c_mm"], 6), round(c["fourbar"]["d_mm"], 6),  # noqa: E731
+                       round(c["coupler_point_mm"][0], 3), round(abs(c["coupler_point_mm"][1]), 3))
+    assert {curve(c) for c in sampled} <= {curve(c) for c in complete}
+    code, out, err = run(capsys, *args, "--complete")
+    assert code == 0 and "segment levels searched: all" in out.splitlines()[0]
