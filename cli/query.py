@@ -123,10 +123,10 @@ def refinement_json(result: QueryResult) -> dict | None:
 
 
 def _searched(result: QueryResult) -> str:
-    """``120 segments fitted`` (the sample) or ``52 310 segment levels searched: all``."""
+    """``120 segments fitted, a sample: …`` or ``52310 segment levels searched: all``."""
     if result.request.complete:
         return f"{result.considered} segment levels searched: all"
-    return f"{result.considered} segments fitted"
+    return f"{result.considered} segments fitted, a sample: --complete searches all"
 
 
 def _rad(x: float | None) -> float | None:

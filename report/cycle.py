@@ -118,12 +118,15 @@ def sixbar_cycle(sixbar: SixBar, figures: SixBarFigures, *, step_deg: float = 1.
     if not (math.isfinite(samples) and abs(samples - round(samples)) < 1e-9 and round(samples) >= 8):
         raise ValueError(f"step_deg must divide 360 into at least 8 steps, got {step_deg!r}")
     phi = crank_grid(round(samples))
-    m = simulate(sixbar, phi, order=2)
+    # simulated at crank = 1, positions scaled back: the loop's Heron product of four lengths
+    # overflows beyond ~1e75 (`dwell report --crank 1e100`, found by a random-seed run)
+    scale = sixbar.a
+    m = simulate(sixbar.scaled(1.0 / scale), phi, order=2)
     fb = m.fourbar
-    A = np.broadcast_to(fb.A, phi.shape).astype(complex)
+    A = np.broadcast_to(fb.A, phi.shape).astype(complex) * scale
     return Cycle(
-        phi=phi, A=A, B=np.asarray(fb.B, complex), P=np.asarray(m.z[0], complex),
-        Q=np.asarray(m.moving_pivot, complex),
+        phi=phi, A=A, B=np.asarray(fb.B, complex) * scale, P=np.asarray(m.z[0], complex) * scale,
+        Q=np.asarray(m.moving_pivot, complex) * scale,
         theta=np.asarray(fb.theta, float), gamma=np.asarray(fb.gamma, float),
         psi=m.psi, dpsi=m.dpsi[0], ddpsi=m.dpsi[1],
         mu_fourbar=m.transmission_fourbar, mu_output=m.transmission_output,

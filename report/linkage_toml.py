@@ -13,6 +13,7 @@ its number is written in the file's header comment with the command line that re
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -124,7 +125,11 @@ def linkage_toml(candidate: Candidate, units: str = "") -> str:
     """The linkage description of ``candidate`` (its lengths in the user's units), with a
     header comment saying how to reproduce its figures with ``dwell analyze linkage``."""
     body = "\n".join(_body(candidate, units)) + "\n"
-    config = linkage_configuration(candidate, body)
+    # The configuration's number does not depend on the scale; matched at crank = 1, because
+    # the assembly solver's squares overflow for lengths near 1e100 (a random-seed run found
+    # `dwell report --crank 1e100` failing here).
+    unit = dataclasses.replace(candidate, sixbar=candidate.sixbar.scaled(1.0 / candidate.sixbar.a))
+    config = linkage_configuration(unit, "\n".join(_body(unit, units)) + "\n")
     f = candidate.figures
     dwells = ", ".join("{:.3f}..{:.3f} deg".format(*d.ends_deg()) for d in f.dwells)
     header = [

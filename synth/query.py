@@ -618,16 +618,20 @@ def answer(request: Request, source: SegmentSource, *,
     kinds = kinds_for(request)
     rows: list[SegmentRow] = []
     fitted: list[Fitted] = []
+    promising: list[Fitted] = []  # the fits past the prescreen
 
     def sampled() -> None:
-        """The sample's rows and fits (also what a no-match is diagnosed and refined from)."""
-        nonlocal rows, fitted
+        """The sample's rows and fits (all of them are what a no-match is diagnosed and
+        refined from)."""
+        nonlocal rows
         t = time.perf_counter()
         rows = select(source, request, kinds)
         clock["select"] = clock.get("select", 0.0) + time.perf_counter() - t
         t = time.perf_counter()
         for kind in kinds:
-            fitted += fit(request, [r for r in rows if r.kind == kind], kind)
+            fits, paths, index = _fit(request, [r for r in rows if r.kind == kind], kind)
+            fitted.extend(fits)
+            promising.extend(f for f, k in zip(fits, prescreen(request, fits, paths, index)) if k)
         clock["fit"] = clock.get("fit", 0.0) + time.perf_counter() - t
 
     if request.complete:
@@ -637,7 +641,7 @@ def answer(request: Request, source: SegmentSource, *,
     else:
         sampled()
         t2 = time.perf_counter()
-        candidates, simulated = simulate(request, fitted)
+        candidates, simulated = simulate(request, promising)
         clock["simulate"] = time.perf_counter() - t2
         considered = len({r.segment_id for r in rows})
     t3 = time.perf_counter()

@@ -509,6 +509,9 @@ FOUND = [
      "--dwell must be at least 1°"),
     (["query", "--db", "atlas.sqlite", "--dwell", "0.3", "--dwell-tol", "50", "--swing", "20"],
      "--dwell must be at least 1°"),
+    # the linkage file's assembly configuration was matched at the user's scale: at 1e100 the
+    # assembly solver's squares overflowed and no configuration matched (a traceback)
+    (["report", "--db", "atlas.sqlite", "--candidates", "{candidate}", "--out", "report", "--crank", "1e100"], None),
     # the rhombus's Ball-point track lies on a line: every piece overlapped every other (40 GB)
     (["curvature", "--a", "1", "--b", "1", "--c", "1", "--d", "1", "--phi", "10", "--double-ball"], None),
 ]
