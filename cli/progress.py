@@ -8,7 +8,7 @@ build``, ``dwell demo``) and search (``dwell query --complete``) own them here.
 from __future__ import annotations
 
 import sys
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Self
 
 if TYPE_CHECKING:
     from atlas.build import ShardDone
@@ -16,17 +16,33 @@ if TYPE_CHECKING:
 __all__ = ["BuildBar", "SearchBar"]
 
 
-class BuildBar:
+class _Bar:
+    """A tqdm bar on stderr, drawn when ``show`` (None: if stderr is a terminal); a context
+    manager that closes it, so that an interrupted or failed run still ends the line."""
+
+    def __init__(self, show: bool | None = None) -> None:
+        self.show = sys.stderr.isatty() if show is None else bool(show)
+        self._bar = None
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class BuildBar(_Bar):
     """A tqdm bar of linkages built (rate and ETA in linkages/s, segments so far), on stderr.
 
     Pass the instance as ``on_shard`` to :func:`atlas.build.build_atlas` and use it as a
     context manager, so that an interrupted or failed build still closes the bar. ``show``:
     True, False, or None for "if stderr is a terminal".
     """
-
-    def __init__(self, show: bool | None = None) -> None:
-        self.show = sys.stderr.isatty() if show is None else bool(show)
-        self._bar = None
 
     def __call__(self, event: ShardDone) -> None:
         if event.shard_index is None:  # the run starts: the clock and the total
@@ -43,26 +59,12 @@ class BuildBar:
         if event.shards_left == 0:
             self.close()
 
-    def close(self) -> None:
-        if self._bar is not None:
-            self._bar.close()
-            self._bar = None
-
-    def __enter__(self) -> BuildBar:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
 
-class SearchBar:
+class SearchBar(_Bar):
     """A tqdm bar of the (segment, level) rows the complete query has searched: pass the
     instance as ``on_progress`` to :func:`synth.query.answer`; a context manager, as
     :class:`BuildBar`. ``show``: True, False, or None for "if stderr is a terminal"."""
-
-    def __init__(self, show: bool | None = None) -> None:
-        self.show = sys.stderr.isatty() if show is None else bool(show)
-        self._bar = None
 
     def __call__(self, done: int, total: int) -> None:
         if not self.show:
@@ -76,13 +78,3 @@ class SearchBar:
         if done >= total:
             self.close()
 
-    def close(self) -> None:
-        if self._bar is not None:
-            self._bar.close()
-            self._bar = None
-
-    def __enter__(self) -> SearchBar:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()

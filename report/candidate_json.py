@@ -56,6 +56,7 @@ def request_json(request: Request, units: str = "mm") -> dict:
         "rpm": request.rpm,
         "max_accel_rad_s2": request.max_accel,
         "refine": request.refine,
+        "complete": request.complete,
     }
 
 

@@ -13,6 +13,11 @@ pair → with ``request.refine``, the top ones refined by a local optimisation w
 simulation in the loop (:func:`synth.refine.refine`) and ranked again. Lengths are
 crank-normalised until the end, then scaled to ``request.crank``.
 
+That pipeline runs on a sample of the atlas (:func:`select`: the stored dwells nearest a
+target per level, a budget). With ``request.complete`` it runs instead on every stored segment
+at every level (:func:`search`), pruned only by conditions no meeting six-bar can fail, the
+prescreen (:func:`prescreen`) among them: the complete answer.
+
 When nothing meets the request, the nearest misses (``MISSES`` of them, by the sum of their
 excesses over the limits) are refined toward it, and those that then meet it are the answer;
 if none does, the result carries a :class:`NoMatch`: how many fitted six-bars each constraint
@@ -327,9 +332,8 @@ def prescreen(request: Request, fitted: Sequence[Fitted], paths: np.ndarray, ind
     P − D; RRR: the rocker's, Q from the loop's circle intersection), then tests no six-bar
     meeting the request can fail: it assembles at every sample (RRR), and its sampled output
     angle passes :func:`synth.candidates.output_may_meet` (swing, and the dwell in runs of
-    samples within the band). The angles are
-    measured from the direction of the stretch's line point (RPR) or arc centre (RRR) seen
-    from D, and unwrapped along the turn."""
+    samples within the band). The angles are measured from the direction of the stretch's line
+    point (RPR) or arc centre (RRR) seen from D, and unwrapped along the turn."""
     from kinematics.loop import circle_intersection
     from kinematics.status import Status
 

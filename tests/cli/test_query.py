@@ -234,6 +234,19 @@ def test_query_on_postgresql_answers_as_on_sqlite(capsys, demo_atlases, request_
 
 
 @pytest.mark.postgres
+def test_complete_query_on_postgresql_answers_as_on_sqlite(capsys, demo_atlases):
+    """The complete search's keyset walk of the dwell index gives the same rows on both backends."""
+    docs = {}
+    for backend, target in demo_atlases.items():
+        code, out, err = run(capsys, "query", "--db", target, "--dwell", "50", "--dwell-tol", "5", "--dwells", "2",
+                             "--complete", "--no-refine", "--top", "100", "--json")
+        assert code == 0, err
+        docs[backend] = json.loads(out)
+    assert len(docs["postgresql"]["candidates"]) >= 10
+    assert docs["postgresql"] == docs["sqlite"]
+
+
+@pytest.mark.postgres
 def test_report_on_postgresql(capsys, demo_atlases, tmp_path):
     url = demo_atlases["postgresql"]
     code, out, err = run(capsys, "query", "--db", url, *PG_REQUESTS[0], "--json")
