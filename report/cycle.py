@@ -20,7 +20,7 @@ from synth.figures import SixBarFigures
 from synth.kinds import OutputKind
 from synth.sixbar import SixBar, crank_grid, simulate
 
-__all__ = ["CYCLE_COLUMNS", "Cycle", "cycle_json", "dwell_mask", "sixbar_cycle"]
+__all__ = ["CYCLE_COLUMNS", "Cycle", "cycle_json", "dwell_mask", "sixbar_cycle", "unit_motion"]
 
 F64 = NDArray[np.float64]
 C128 = NDArray[np.complex128]
@@ -108,6 +108,14 @@ def dwell_mask(phi: F64, figures: SixBarFigures) -> NDArray[np.bool_]:
     return inside
 
 
+def unit_motion(sixbar: SixBar, phi: np.ndarray, order: int = 0):
+    """:func:`synth.sixbar.simulate` of ``sixbar`` scaled to crank = 1, and the crank length
+    its positions are to be multiplied by (angles and ratios are the same at any scale): the
+    loop's Heron product of four lengths overflows beyond ~1e75 (`dwell report --crank 1e100`
+    wrote NaN and failed; found by a random-seed run)."""
+    return simulate(sixbar.scaled(1.0 / sixbar.a), phi, order=order), sixbar.a
+
+
 def sixbar_cycle(sixbar: SixBar, figures: SixBarFigures, *, step_deg: float = 1.0) -> Cycle:
     """Simulate ``sixbar`` over one turn at ``step_deg`` crank steps (a divisor of 360°).
 
@@ -118,10 +126,7 @@ def sixbar_cycle(sixbar: SixBar, figures: SixBarFigures, *, step_deg: float = 1.
     if not (math.isfinite(samples) and abs(samples - round(samples)) < 1e-9 and round(samples) >= 8):
         raise ValueError(f"step_deg must divide 360 into at least 8 steps, got {step_deg!r}")
     phi = crank_grid(round(samples))
-    # simulated at crank = 1, positions scaled back: the loop's Heron product of four lengths
-    # overflows beyond ~1e75 (`dwell report --crank 1e100`, found by a random-seed run)
-    scale = sixbar.a
-    m = simulate(sixbar.scaled(1.0 / scale), phi, order=2)
+    m, scale = unit_motion(sixbar, phi, order=2)
     fb = m.fourbar
     A = np.broadcast_to(fb.A, phi.shape).astype(complex) * scale
     return Cycle(

@@ -125,9 +125,8 @@ def linkage_toml(candidate: Candidate, units: str = "") -> str:
     """The linkage description of ``candidate`` (its lengths in the user's units), with a
     header comment saying how to reproduce its figures with ``dwell analyze linkage``."""
     body = "\n".join(_body(candidate, units)) + "\n"
-    # The configuration's number does not depend on the scale; matched at crank = 1, because
-    # the assembly solver's squares overflow for lengths near 1e100 (a random-seed run found
-    # `dwell report --crank 1e100` failing here).
+    # The configuration's number does not depend on the scale; matched at crank = 1, where the
+    # assembly solver's products of lengths cannot overflow (report.cycle.unit_motion).
     unit = dataclasses.replace(candidate, sixbar=candidate.sixbar.scaled(1.0 / candidate.sixbar.a))
     config = linkage_configuration(unit, "\n".join(_body(unit, units)) + "\n")
     f = candidate.figures

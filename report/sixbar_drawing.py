@@ -15,12 +15,11 @@ from pathlib import Path
 
 import numpy as np
 
-from report.cycle import Cycle
+from report.cycle import Cycle, unit_motion
 from report.labels import Box, place_labels
 from report.palette import BLOCK, CURVE, DWELL, GROUND, GUIDE, LINK_COLORS
 from synth.candidates import Candidate
 from synth.kinds import OutputKind
-from synth.sixbar import simulate
 
 __all__ = ["Link", "SixBarGeometry", "draw_sixbar", "guide_path", "sixbar_geometry"]
 
@@ -126,8 +125,8 @@ def sixbar_geometry(candidate: Candidate, cycle: Cycle, phi: float | None = None
     if phi is None:
         phi = 0.5 * (f.dwells[0].start + f.dwells[0].end) if f.dwells else 0.0
     phi = float(math.fmod(phi, 2 * math.pi))
-    m = simulate(sb, np.array([phi]), order=0)
-    A, B, P = complex(m.fourbar.A[0]), complex(m.fourbar.B[0]), complex(m.z[0][0])
+    m, scale = unit_motion(sb, np.array([phi]))
+    A, B, P = (complex(x[0]) * scale for x in (m.fourbar.A, m.fourbar.B, m.z[0]))
     psi = float(m.psi[0])
     D = sb.dyad.pivot
     fixed = {"A0": 0j, "B0": complex(sb.d, 0.0), "D": D}
@@ -140,20 +139,20 @@ def sixbar_geometry(candidate: Candidate, cycle: Cycle, phi: float | None = None
     ]
     stretches = [cycle.P[run] for run in _runs(cycle.dwelling & cycle.assembled)]
     if sb.dyad.kind == OutputKind.RRR:
-        Q = complex(m.moving_pivot[0])
+        Q = complex(m.moving_pivot[0]) * scale
         joints["Q"] = Q
         links += [Link("rod", f"rod ρ = {_fmt(sb.dyad.rod)}", [P, Q], sb.dyad.rod),
                   Link("output", f"output rocker L = {_fmt(sb.dyad.rocker)}", [D, Q], sb.dyad.rocker)]
         rest = candidate.dwell_position
         if rest is None:  # the arc's centre: where Q stands at mid-dwell
-            rest = complex(simulate(sb, np.array([_mid_dwell(f)]), order=0).moving_pivot[0])
+            rest = complex(unit_motion(sb, np.array([_mid_dwell(f)]))[0].moving_pivot[0]) * scale
         guide: tuple = ("circle", complex(rest), float(sb.dyad.rod))
     else:
         reach = float(np.max(np.abs(cycle.P[cycle.assembled] - D))) if cycle.assembled.any() else abs(P - D)
         slot = D + SLOT_MARGIN * reach * np.exp(1j * psi)
         links.append(Link("output", f"slotted rocker (reach {_fmt(reach)})", [D, complex(slot)], None))
         mid = _mid_dwell(f)
-        psi_mid = float(simulate(sb, np.array([mid]), order=0).psi[0])
+        psi_mid = float(unit_motion(sb, np.array([mid]))[0].psi[0])
         guide = ("line", D, complex(np.exp(1j * psi_mid)))
     ground = [("A0–B0 (d)", sb.d), ("A0–D", abs(D)), ("B0–D", abs(D - sb.d))]
     title = f"#{candidate.rank} {candidate.id} ({sb.dyad.kind}) at φ = {math.degrees(phi) % 360:.1f}°"
