@@ -20,27 +20,20 @@ shard is rolled back by the database, and the dead builder's lock is taken over.
 
 from __future__ import annotations
 
-import multiprocessing
-import os
-import signal
-import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass
-from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Protocol
 
 import atlas.shard as _shard
 from atlas.malloc import raise_malloc_thresholds
+from atlas.pool import TICK_SECONDS, pool_map
 from atlas.shard import ShardResult
 from atlas.sweep import SweepLinkages, SweepSpec, sweep_linkages
 
-__all__ = ["BuildSummary", "ShardDone", "ShardRunner", "build_atlas", "run_shards"]
-
-#: While waiting on workers, the lock's heartbeat is refreshed at least this often (seconds).
-TICK_SECONDS = 10.0
+# TICK_SECONDS: how often a runner calls its tick while waiting (the Dask engine reads it here)
+__all__ = ["TICK_SECONDS", "BuildSummary", "ShardDone", "ShardRunner", "build_atlas", "run_shards"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -96,25 +89,8 @@ class ShardRunner(Protocol):
 _WORKER_STATE: tuple[SweepSpec, SweepLinkages] | None = None
 
 
-def _exit_with_driver(lifeline: Connection) -> None:
-    """Block until the driver is gone (its end of the pipe closes), then exit at once.
-
-    A pool worker otherwise outlives a killed driver forever: it waits on a task queue whose
-    write end every worker holds too, so it never sees end-of-file.
-    """
-    try:
-        lifeline.recv()
-    except (EOFError, OSError):
-        pass
-    os._exit(1)
-
-
-def _init_worker(spec: SweepSpec, sweep: SweepLinkages, lifeline: Connection) -> None:
+def _init_worker(spec: SweepSpec, sweep: SweepLinkages) -> None:
     global _WORKER_STATE
-    # Ctrl-C reaches the whole process group; only the driver reacts (it stops the workers),
-    # so a worker never dies half-way through a task and breaks the pool.
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    threading.Thread(target=_exit_with_driver, args=(lifeline,), name="driver-watch", daemon=True).start()
     raise_malloc_thresholds()
     _WORKER_STATE = (spec, sweep)
 
@@ -123,30 +99,6 @@ def _compute_in_worker(index: int) -> ShardResult:
     assert _WORKER_STATE is not None, "worker not initialised"
     spec, sweep = _WORKER_STATE
     return _shard.compute_shard(spec, index, sweep)
-
-
-def _mp_context() -> multiprocessing.context.BaseContext:
-    """forkserver where available: workers start from a clean single-threaded server (no
-    fork of a process that holds threads or database connections), and die with the driver
-    (their task pipe closes). The server preloads the shard code, so workers start fast."""
-    if "forkserver" in multiprocessing.get_all_start_methods():
-        ctx = multiprocessing.get_context("forkserver")
-        ctx.set_forkserver_preload(["atlas.build"])
-        return ctx
-    return multiprocessing.get_context("spawn")
-
-
-def _stop(executor: ProcessPoolExecutor, pending: set[Future]) -> None:
-    """Cancel what has not started and terminate the workers (do not wait for a shard)."""
-    processes = list((getattr(executor, "_processes", None) or {}).values())
-    for f in pending:
-        f.cancel()
-    executor.shutdown(wait=False, cancel_futures=True)
-    for p in processes:
-        if p.is_alive():
-            p.terminate()
-    for p in processes:
-        p.join(timeout=5)
 
 
 def run_shards(
@@ -158,48 +110,16 @@ def run_shards(
     tick: Callable[[], None] | None = None,
 ) -> Iterator[ShardResult]:
     """The local engine: ``workers == 1`` computes in this process, in order; more runs a
-    process pool with at most ``2 · workers`` shards in flight (results are written as they
-    come, so memory stays bounded whatever the sweep size)."""
+    process pool (:func:`atlas.pool.pool_map`) with at most ``2 · workers`` shards in flight
+    (results are written as they come, so memory stays bounded whatever the sweep size)."""
     indices = list(indices)
     if workers <= 1 or len(indices) <= 1:
         raise_malloc_thresholds()
         for index in indices:
             yield _shard.compute_shard(spec, index, sweep)
         return
-    n = min(workers, len(indices))
-    ctx = _mp_context()
-    # only the driver ever holds the sending end: it closes when the driver dies, however
-    lifeline_r, lifeline_w = ctx.Pipe(duplex=False)
-    executor = ProcessPoolExecutor(max_workers=n, mp_context=ctx, initializer=_init_worker,
-                                   initargs=(spec, sweep, lifeline_r))
-    todo = iter(indices)
-    pending: set[Future] = set()
-    clean = False
-    try:
-        for index in todo:
-            pending.add(executor.submit(_compute_in_worker, index))
-            if len(pending) >= 2 * n:
-                break
-        while pending:
-            done, pending = wait(pending, timeout=TICK_SECONDS, return_when=FIRST_COMPLETED)
-            if not done:
-                if tick is not None:
-                    tick()
-                continue
-            for future in done:
-                result = future.result()
-                nxt = next(todo, None)
-                if nxt is not None:  # keep the workers busy while the driver writes
-                    pending.add(executor.submit(_compute_in_worker, nxt))
-                yield result
-        clean = True
-    finally:
-        if clean:
-            executor.shutdown(wait=True)
-        else:
-            _stop(executor, pending)
-        lifeline_w.close()
-        lifeline_r.close()
+    yield from pool_map(_compute_in_worker, indices, min(workers, len(indices)), initializer=_init_worker,
+                        initargs=(spec, sweep), preload=("atlas.build",), tick=tick)
 
 
 # ---------------------------------------------------------------------------- the writer

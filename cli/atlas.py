@@ -8,11 +8,11 @@ scipy, tqdm) happen inside the commands: ``dwell --help`` loads this module.
 from __future__ import annotations
 
 import json
-import os
 from typing import Any
 
 import click
 
+from atlas.pool import default_workers
 from atlas.sweep import PRESETS, SAMPLES_RANGE, SHARD_SIZE_RANGE, SWEEP_BYTES_PER_SAMPLE
 from cli.budget import check_memory
 from cli.options import PROPORTION, RAYS, SEARCH_STEP_DEG, SEED, Bounded, Count
@@ -21,13 +21,6 @@ __all__ = ["DEFAULT_DB", "atlas", "db_option", "sweep_spec_from_options"]
 
 #: The atlas used when neither ``--db`` nor ``$DWELL_ATLAS`` is given (relative to the cwd).
 DEFAULT_DB = "atlas.sqlite"
-
-
-def _default_workers() -> int:
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # not Linux
-        return max(1, os.cpu_count() or 1)
 
 
 db_option = click.option(
@@ -92,7 +85,7 @@ def parse_tolerances(text: str | None) -> tuple[float, ...] | None:
               help="Proportions per shard (unit of work, commit and resume).")
 @click.option("--all-linkages", is_flag=True, help="Keep every proportion, not only crank-rockers.")
 @click.option("--workers", type=click.IntRange(min=1), default=None,
-              help=f"Worker processes of the local engine (default: all CPUs, here {_default_workers()}); "
+              help=f"Worker processes of the local engine (default: all CPUs, here {default_workers()}); "
                    "ignored with --engine dask, where the cluster's workers decide.")
 @click.option("--engine", type=click.Choice(["local", "dask"]), default="local", show_default=True,
               help="Where shards are computed: local processes, or a dask.distributed cluster (needs --scheduler "
@@ -126,7 +119,7 @@ def build(db, preset, samples, seed, b_range, c_range, d_range, crank_step, rays
                  "lower --samples (the large preset draws 2 097 152)")
     with BuildBar(progress) as bar:
         if engine == "local":
-            summary = build_atlas(db, spec, workers=workers or _default_workers(), replace=replace, on_shard=bar,
+            summary = build_atlas(db, spec, workers=workers or default_workers(), replace=replace, on_shard=bar,
                                   log=_log)
         else:
             summary = _build_on_dask(db, spec, scheduler, replace=replace, on_shard=bar)

@@ -8,12 +8,14 @@ degrees) or JSON. The defaults shown in ``--help`` are the fields of ``Request``
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import math
 from pathlib import Path
 
 import click
 
+from atlas.pool import default_workers
 from cli.errors import InputError
 from cli.options import LENGTH, RPM, Bounded, Count, units_option
 from report.candidate_json import candidate_json, request_json
@@ -31,15 +33,33 @@ def default_deg(name: str) -> float:
     return round(math.degrees(_DEFAULTS[name]), 9)
 
 
-def answer(engine, request: Request, *, progress: bool | None = False) -> QueryResult:
+def answer(engine, request: Request, *, progress: bool | None = False, workers: int = 1) -> QueryResult:
     """:func:`synth.query.answer` on the atlas behind ``engine``; a complete search draws its
-    progress bar on stderr with ``progress`` (None: if stderr is a terminal)."""
+    progress bar on stderr with ``progress`` (None: if stderr is a terminal) and runs its
+    batches on ``workers`` processes (the sampled query runs in this one)."""
     from cli.progress import SearchBar
     from db.queries import AtlasSource
     from synth.query import answer as answer_
 
     with SearchBar(progress) as bar:
-        return answer_(request, AtlasSource(engine), on_progress=bar)
+        return answer_(request, AtlasSource(engine), on_progress=bar, map_batches=batch_map(workers))
+
+
+def batch_map(workers: int):
+    """The ``map_batches`` of :func:`synth.query.search`: None (this process) for one worker,
+    else a pool of ``workers`` processes (:func:`atlas.pool.pool_map`)."""
+    if workers <= 1:
+        return None
+    from atlas.pool import pool_map
+
+    return functools.partial(pool_map, workers=workers, preload=("synth.query",))
+
+
+#: ``--workers`` of the complete search (``dwell query``, ``dwell bench coverage``).
+workers_option = click.option(
+    "--workers", type=click.IntRange(min=1), default=None,
+    help=f"Worker processes of a complete search (default: all CPUs, here {default_workers()}); "
+         "the sampled query runs in one.")
 
 
 def rebuild(engine, ids: list[str], request: Request):
@@ -304,12 +324,14 @@ TOP = Count(1, 1000, "candidates")
 @click.option("--complete/--sampled", default=_DEFAULTS["complete"], show_default=True,
               help="Search every stored segment at every tolerance level (every six-bar the atlas yields; "
                    "seconds to minutes, with a progress bar) instead of the segments nearest the request.")
+@workers_option
 @click.option("--json", "as_json", is_flag=True, help="JSON on stdout instead of a table.")
 @click.option("--report", "report_dir", type=click.Path(file_okay=False), default=None,
               help="Also write the report of the candidates to this folder.")
 @units_option
 def query(target, dwell, dwell_tol, swing, step, swing_tol, output, dwells, dwell_tolerance, crank, min_transmission,
-          max_link_ratio, top, min_arm, min_clearance, rpm, max_accel, refine, complete, as_json, report_dir, units):
+          max_link_ratio, top, min_arm, min_clearance, rpm, max_accel, refine, complete, workers, as_json, report_dir,
+          units):
     """Ranked six-bars for a requested dwell and swing (see README: ranking)."""
     request = request_from_options(dwell, dwell_tol, swing, swing_tol, output.lower(), dwells, dwell_tolerance, crank,
                                    min_transmission, max_link_ratio, top, min_arm=min_arm, min_clearance=min_clearance,
@@ -320,7 +342,7 @@ def query(target, dwell, dwell_tol, swing, step, swing_tol, output, dwells, dwel
 
     engine = open_atlas(target, readonly=True)
     try:
-        result = answer(engine, request, progress=None)
+        result = answer(engine, request, progress=None, workers=workers or default_workers())
     finally:
         engine.dispose()
     if as_json:

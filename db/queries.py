@@ -129,24 +129,30 @@ def _segment_rows(engine: Engine, conn, hits: Sequence[tuple[int, int]]) -> list
     line without both stretches at its level is left out)."""
     if not hits:
         return []
-    ids = [sid for sid, _ in hits]
+    ids = list(dict.fromkeys(sid for sid, _ in hits))
+    by_level: dict[int, list[int]] = {}
+    for sid, lv in hits:
+        by_level.setdefault(lv, []).append(sid)
     segs: dict[int, Any] = {}
     parts: dict[tuple[int, int], list] = {}
     # the ids go to the server as bound parameters: a few thousand per statement (SQLite
     # takes at most 32 766 in one, PostgreSQL 65 535)
     for k in range(0, len(ids), IN_CHUNK):
-        chunk = ids[k : k + IN_CHUNK]
         segs.update((r.id, r) for r in conn.execute(
             select(Segment.id, Segment.kind, Segment.u, Segment.v, Segment.phi_gen, Linkage.b, Linkage.c, Linkage.d,
                    Linkage.branch, Linkage.transmission_min)
-            .join(Linkage, Segment.linkage_id == Linkage.id).where(Segment.id.in_(chunk))
+            .join(Linkage, Segment.linkage_id == Linkage.id).where(Segment.id.in_(ids[k : k + IN_CHUNK]))
         ))
-        for dw in conn.execute(
-            select(Dwell.segment_id, Dwell.level, Dwell.part, Dwell.tolerance, Dwell.phi_start, Dwell.phi_end, Dwell.x,
-                   Dwell.y, Dwell.direction, Dwell.radius)
-            .where(Dwell.segment_id.in_(chunk)).order_by(Dwell.segment_id, Dwell.level, Dwell.part)
-        ):
-            parts.setdefault((dw.segment_id, dw.level), []).append(dw)
+    # only the dwell rows of the wanted levels (a scan wants one of a segment's several)
+    for lv, at_level in by_level.items():
+        for k in range(0, len(at_level), IN_CHUNK):
+            for dw in conn.execute(
+                select(Dwell.segment_id, Dwell.part, Dwell.tolerance, Dwell.phi_start, Dwell.phi_end, Dwell.x,
+                       Dwell.y, Dwell.direction, Dwell.radius)
+                .where(Dwell.level == lv, Dwell.segment_id.in_(at_level[k : k + IN_CHUNK]))
+                .order_by(Dwell.segment_id, Dwell.part)
+            ):
+                parts.setdefault((dw.segment_id, lv), []).append(dw)
     lost = [sid for sid, _ in hits if sid not in segs]
     if lost:  # dwell rows whose segment (or its linkage) was deleted: only a damaged atlas
         raise damaged(atlas_name(engine), f"dwell rows name segment {lost[0]}, which does not exist")

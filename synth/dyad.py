@@ -272,8 +272,11 @@ def fit_rpr(line_point: ArrayLike, line_direction: ArrayLike, phi: ArrayLike, pa
             # The cut of the angle runs along the line from D away from the stretch.
             psi = np.arctan2(-sg * nn, -sg * dt)
             hi_, lo_, khi, klo = _extremes(psi)
-            dpsi_dt = nn / (dt * dt + nn * nn)  # ∂ψ/∂t_D = Im(−1/(P − D))
-            g = lambda k: np.take_along_axis(dpsi_dt, k[:, None], -1)[:, 0]
+
+            def g(k):  # ∂ψ/∂t_D = Im(−1/(P − D)) at the extreme samples only
+                a, b = (np.take_along_axis(x, k[:, None], -1)[:, 0] for x in (dt, nn))
+                return b / (a * a + b * b)
+
             return hi_ - lo_, (g(khi) - g(klo)) * (-side[sel] / (u * u)), _jumps(psi)
 
         return F

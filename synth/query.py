@@ -63,6 +63,7 @@ __all__ = [
     "answer",
     "rebuild",
     "search",
+    "search_batch",
 ]
 
 #: Crank samples of the exact simulation (0.5°); the figures refine beyond it.
@@ -578,8 +579,25 @@ class SearchCount:
     met: int = 0
 
 
+#: Runs a function over a stream of items and yields the results in any order
+#: (the built-in :func:`map` in this process; ``atlas.pool.pool_map`` on worker processes).
+BatchMap = Callable[[Callable[[tuple], tuple], Iterator[tuple]], Iterator[tuple]]
+
+
+def search_batch(job: tuple[Request, str, Sequence[SegmentRow]]) -> tuple[list[Candidate], int, int, int]:
+    """One batch of :func:`search`: ``job = (request, kind, rows)`` → (the six-bars that meet
+    the request, rows, fitted dyads, simulated six-bars). Module-level, so that it runs on
+    worker processes."""
+    request, kind, rows = job
+    fitted, paths, index = _fit(request, rows, kind)
+    keep = prescreen(request, fitted, paths, index)
+    met, n = simulate(request, [f for f, k in zip(fitted, keep) if k])
+    return met, len(rows), len(fitted), n
+
+
 def search(request: Request, source: SegmentSource, *,
-           on_progress: Callable[[int, int], None] | None = None) -> tuple[list[Candidate], SearchCount]:
+           on_progress: Callable[[int, int], None] | None = None,
+           map_batches: BatchMap | None = None) -> tuple[list[Candidate], SearchCount]:
     """Every six-bar the atlas yields for ``request`` that meets it, unranked (in the
     crank-normalised fit's terms, scaled to ``request.crank``).
 
@@ -590,33 +608,34 @@ def search(request: Request, source: SegmentSource, *,
     budget: the rows are only pruned by conditions no six-bar meeting the request can fail —
     the four-bar's transmission angle and link lengths (stored per linkage), the arc's radius
     as the rod, then :func:`prescreen` and :func:`synth.candidates.screen` on exact samples.
-    The atlas is read in batches of ``BATCH`` rows per kind and level;
-    ``on_progress(rows done, rows in all)`` after each."""
+    The atlas is read in batches of ``BATCH`` rows per kind and level, each evaluated by
+    :func:`search_batch` through ``map_batches`` (default: in this process, in order; the
+    answer does not depend on the order); ``on_progress(rows done, rows in all)`` after each."""
     limits = {"min_transmission": request.min_transmission, "max_length": request.max_link_ratio,
               "min_radius_ratio": 1.0 / request.max_link_ratio}
     jobs = [(kind, lv) for kind in kinds_for(request) for lv, _ in source.tolerance_levels()]
     total = sum(source.count_segments(kind, lv, **limits) for kind, lv in jobs)
+    batches = ((request, kind, rows) for kind, lv in jobs
+               for rows in source.scan_segments(kind, lv, batch=BATCH, **limits))
     out: list[Candidate] = []
     rows_n = fitted_n = simulated = 0
-    for kind, lv in jobs:
-        for rows in source.scan_segments(kind, lv, batch=BATCH, **limits):
-            fitted, paths, index = _fit(request, rows, kind)
-            keep = prescreen(request, fitted, paths, index)
-            met, n = simulate(request, [f for f, k in zip(fitted, keep) if k])
-            out += met
-            rows_n, fitted_n, simulated = rows_n + len(rows), fitted_n + len(fitted), simulated + n
-            if on_progress is not None:
-                on_progress(rows_n, total)
+    for met, n_rows, n_fitted, n_simulated in (map_batches or map)(search_batch, batches):
+        out += met
+        rows_n, fitted_n, simulated = rows_n + n_rows, fitted_n + n_fitted, simulated + n_simulated
+        if on_progress is not None:
+            on_progress(rows_n, total)
     if on_progress is not None:
         on_progress(total, total)  # a double line without both stretches at a level is read, not fitted
     return out, SearchCount(rows_n, fitted_n, simulated, len(out))
 
 
 def answer(request: Request, source: SegmentSource, *,
-           on_progress: Callable[[int, int], None] | None = None) -> QueryResult:
+           on_progress: Callable[[int, int], None] | None = None,
+           map_batches: BatchMap | None = None) -> QueryResult:
     """Ranked candidates for ``request`` from ``source`` (a pure read): from the sample of
     segments :func:`select` takes, or with ``request.complete`` from every six-bar the atlas
-    yields (:func:`search`, which reports ``on_progress``)."""
+    yields (:func:`search`, which reports ``on_progress`` and runs its batches through
+    ``map_batches``)."""
     clock: dict[str, float] = {}
     t0 = time.perf_counter()
     kinds = kinds_for(request)
@@ -639,7 +658,7 @@ def answer(request: Request, source: SegmentSource, *,
         clock["fit"] = clock.get("fit", 0.0) + time.perf_counter() - t
 
     if request.complete:
-        candidates, count = search(request, source, on_progress=on_progress)
+        candidates, count = search(request, source, on_progress=on_progress, map_batches=map_batches)
         clock["search"] = time.perf_counter() - t0
         considered, simulated = count.rows, count.simulated
     else:

@@ -21,8 +21,10 @@ from pathlib import Path
 
 import click
 
+from atlas.pool import default_workers
 from cli.atlas import db_option
 from cli.options import writable_file
+from cli.query import batch_map, workers_option
 
 SINGLE_DWELLS = (30, 45, 60, 75, 90, 105, 120, 150)
 SWINGS = (10, 20, 30, 45, 60, 90)
@@ -117,10 +119,11 @@ def summary(rows: list[dict]) -> dict:
 @click.option("--complete", is_flag=True,
               help="Answer every cell with the complete search (`dwell query --complete`, unrefined, all its "
                    "six-bars kept) and report, per cell, the share of them the default sampled query finds.")
+@workers_option
 @click.option("--json", "as_json", is_flag=True, help="JSON on stdout instead of a table.")
 @click.option("--plot", type=click.Path(dir_okay=False), callback=writable_file(".png"), default=None,
               help="Write the grids as heat maps of the candidates found (PNG).")
-def coverage(db, top, refine, families, complete, as_json, plot):
+def coverage(db, top, refine, families, complete, workers, as_json, plot):
     """Coverage of the dwell × swing grid (RPR, RRR) and the double-dwell row: candidates, best deviation, time."""
     from cli.bench.query import atlas_facts
     from db.engine import open_atlas
@@ -137,7 +140,7 @@ def coverage(db, top, refine, families, complete, as_json, plot):
             # the complete search keeps all its six-bars (unrefined) for the recall
             request = cell.request(1000, False, True) if complete else cell.request(top, refine)
             t0 = time.perf_counter()
-            result = answer(request, source)
+            result = answer(request, source, map_batches=batch_map(workers or default_workers()))
             rows.append(_row(cell, result, time.perf_counter() - t0, top))
             if complete:
                 rows[-1].update(_recall(cell, result, source))

@@ -13,6 +13,7 @@ sweep with more linkages never answers fewer requests.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 
 import pytest
@@ -97,6 +98,20 @@ def test_the_query_ranks_the_complete_set(atlas, reference):
     result = Q.answer(request, atlas)
     assert expected and [c.id for c in result.candidates] == expected
     assert [c.rank for c in result.candidates] == list(range(1, len(expected) + 1))
+
+
+def test_the_search_on_worker_processes_answers_as_in_one(atlas):
+    """Batches evaluated on a pool of two processes (in completion order) give the same
+    ranked candidates, figures and counts as in this process, in order."""
+    from atlas.pool import pool_map
+
+    pool = functools.partial(pool_map, workers=2, preload=("synth.query",))
+    for family, dwell in (("rpr", 50.0), ("rrr", 60.0)):
+        request = dataclasses.replace(FAMILIES[family], dwell=math.radians(dwell), top=1000, complete=True)
+        here, there = Q.answer(request, atlas), Q.answer(request, atlas, map_batches=pool)
+        assert here.candidates, f"{family}: nothing to compare"
+        assert there.candidates == here.candidates
+        assert (there.considered, there.simulated) == (here.considered, here.simulated)
 
 
 #: Each limit loosened: a looser request must keep every six-bar.

@@ -1,0 +1,125 @@
+"""A bounded process pool: a function over a stream of items on worker processes, results in
+completion order, with the few items in flight that keep the workers busy.
+
+The atlas build runs its shards on it (:func:`atlas.build.run_shards`) and the complete query
+its batches of segments (``dwell query --complete --workers N``). Items are read lazily, so
+memory stays bounded whatever the stream's length.
+
+Processes start from a forkserver where there is one (no fork of a driver that holds
+threads or database connections), preloaded with the modules the work needs. Workers ignore
+Ctrl-C (the whole process group gets it; only the driver reacts: it cancels what has not
+started, terminates the workers and re-raises), and exit at once when the driver dies (a pool
+worker otherwise waits forever on a task queue every worker holds open).
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import signal
+import threading
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from multiprocessing.connection import Connection
+from typing import Any, TypeVar
+
+__all__ = ["TICK_SECONDS", "default_workers", "pool_map"]
+
+#: While waiting on workers, ``tick`` is called at least this often (seconds).
+TICK_SECONDS = 10.0
+
+T = TypeVar("T")
+R = TypeVar("R")
+
+
+def default_workers() -> int:
+    """The CPUs this process may run on."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def _exit_with_driver(lifeline: Connection) -> None:
+    """Block until the driver is gone (its end of the pipe closes), then exit at once."""
+    try:
+        lifeline.recv()
+    except (EOFError, OSError):
+        pass
+    os._exit(1)
+
+
+def _init_worker(lifeline: Connection, initializer: Callable[..., None] | None, initargs: tuple) -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    threading.Thread(target=_exit_with_driver, args=(lifeline,), name="driver-watch", daemon=True).start()
+    if initializer is not None:
+        initializer(*initargs)
+
+
+def _mp_context(preload: Sequence[str]) -> multiprocessing.context.BaseContext:
+    """forkserver where available (the server preloads ``preload``, so workers start fast),
+    else spawn."""
+    if "forkserver" in multiprocessing.get_all_start_methods():
+        ctx = multiprocessing.get_context("forkserver")
+        ctx.set_forkserver_preload(list(preload))
+        return ctx
+    return multiprocessing.get_context("spawn")
+
+
+def _stop(executor: ProcessPoolExecutor, pending: set[Future]) -> None:
+    """Cancel what has not started and terminate the workers (do not wait for a task)."""
+    processes = list((getattr(executor, "_processes", None) or {}).values())
+    for f in pending:
+        f.cancel()
+    executor.shutdown(wait=False, cancel_futures=True)
+    for p in processes:
+        if p.is_alive():
+            p.terminate()
+    for p in processes:
+        p.join(timeout=5)
+
+
+def pool_map(fn: Callable[[T], R], items: Iterable[T], workers: int, *,
+             initializer: Callable[..., None] | None = None, initargs: tuple[Any, ...] = (),
+             preload: Sequence[str] = (), tick: Callable[[], None] | None = None) -> Iterator[R]:
+    """``fn(item)`` for every item, on ``workers`` processes, yielded in completion order
+    with at most ``2 · workers`` items in flight. ``fn`` and the items must pickle (``fn`` a
+    module-level function); ``initializer(*initargs)`` runs once in each worker. ``tick`` is
+    called at least every :data:`TICK_SECONDS` while waiting. Closing the iterator (or an
+    exception, Ctrl-C included) stops the workers."""
+    todo = iter(items)
+    ctx = _mp_context(preload)
+    # only the driver ever holds the sending end: it closes when the driver dies, however
+    lifeline_r, lifeline_w = ctx.Pipe(duplex=False)
+    executor = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker,
+                                   initargs=(lifeline_r, initializer, initargs))
+    pending: set[Future] = set()
+    clean = False
+    try:
+        for item in todo:
+            pending.add(executor.submit(fn, item))
+            if len(pending) >= 2 * workers:
+                break
+        while pending:
+            done, pending = wait(pending, timeout=TICK_SECONDS, return_when=FIRST_COMPLETED)
+            if not done:
+                if tick is not None:
+                    tick()
+                continue
+            for future in done:
+                result = future.result()
+                nxt = next(todo, _END)
+                if nxt is not _END:  # keep the workers busy while the driver takes the result
+                    pending.add(executor.submit(fn, nxt))
+                yield result
+        clean = True
+    finally:
+        if clean:
+            executor.shutdown(wait=True)
+        else:
+            _stop(executor, pending)
+        lifeline_w.close()
+        lifeline_r.close()
+
+
+_END = object()
