@@ -62,8 +62,10 @@ __all__ = [
     "SegmentSource",
     "answer",
     "rebuild",
+    "fit_key",
     "search",
     "search_batch",
+    "search_many",
 ]
 
 #: Crank samples of the exact simulation (0.5°); the figures refine beyond it.
@@ -584,15 +586,27 @@ class SearchCount:
 BatchMap = Callable[[Callable[[tuple], tuple], Iterator[tuple]], Iterator[tuple]]
 
 
-def search_batch(job: tuple[Request, str, Sequence[SegmentRow]]) -> tuple[list[Candidate], int, int, int]:
-    """One batch of :func:`search`: ``job = (request, kind, rows)`` → (the six-bars that meet
-    the request, rows, fitted dyads, simulated six-bars). Module-level, so that it runs on
-    worker processes."""
-    request, kind, rows = job
-    fitted, paths, index = _fit(request, rows, kind)
-    keep = prescreen(request, fitted, paths, index)
-    met, n = simulate(request, [f for f, k in zip(fitted, keep) if k])
-    return met, len(rows), len(fitted), n
+def fit_key(request: Request) -> tuple:
+    """What the rows a complete search reads and the dyads it fits depend on: requests with
+    the same key share both (:func:`search_many`); the dwell, band and the other limits only
+    decide which of the fitted six-bars meet a request."""
+    return (kinds_for(request), request.swing, request.min_transmission, request.max_link_ratio)
+
+
+def search_batch(job: tuple[Sequence[Request], str, Sequence[SegmentRow]]) -> tuple[list[list[Candidate]], int, int, list[int]]:
+    """One batch of :func:`search_many`: ``job = (requests, kind, rows)`` → per request the
+    six-bars that meet it, then the rows, the fitted dyads and per request the simulated
+    six-bars. The dyads are fitted once for all the requests (they share :func:`fit_key`).
+    Module-level, so that it runs on worker processes."""
+    requests, kind, rows = job
+    fitted, paths, index = _fit(requests[0], rows, kind)
+    met, simulated = [], []
+    for request in requests:
+        keep = prescreen(request, fitted, paths, index)
+        found, n = simulate(request, [f for f, k in zip(fitted, keep) if k])
+        met.append(found)
+        simulated.append(n)
+    return met, len(rows), len(fitted), simulated
 
 
 def search(request: Request, source: SegmentSource, *,
@@ -611,31 +625,48 @@ def search(request: Request, source: SegmentSource, *,
     The atlas is read in batches of ``BATCH`` rows per kind and level, each evaluated by
     :func:`search_batch` through ``map_batches`` (default: in this process, in order; the
     answer does not depend on the order); ``on_progress(rows done, rows in all)`` after each."""
-    limits = {"min_transmission": request.min_transmission, "max_length": request.max_link_ratio,
-              "min_radius_ratio": 1.0 / request.max_link_ratio}
-    jobs = [(kind, lv) for kind in kinds_for(request) for lv, _ in source.tolerance_levels()]
+    return search_many([request], source, on_progress=on_progress, map_batches=map_batches)[0]
+
+
+def search_many(requests: Sequence[Request], source: SegmentSource, *,
+                on_progress: Callable[[int, int], None] | None = None,
+                map_batches: BatchMap | None = None) -> list[tuple[list[Candidate], SearchCount]]:
+    """:func:`search` for several requests with one :func:`fit_key` (say, every dwell of one
+    swing): one walk of the atlas, each row fitted once; per request the same answer as its
+    own :func:`search`."""
+    requests = list(requests)
+    if not requests or any(fit_key(r) != fit_key(requests[0]) for r in requests):
+        raise ValueError("search_many needs one or more requests with the same kinds, swing, transmission and link ratio")
+    first = requests[0]
+    limits = {"min_transmission": first.min_transmission, "max_length": first.max_link_ratio,
+              "min_radius_ratio": 1.0 / first.max_link_ratio}
+    jobs = [(kind, lv) for kind in kinds_for(first) for lv, _ in source.tolerance_levels()]
     total = sum(source.count_segments(kind, lv, **limits) for kind, lv in jobs)
-    batches = ((request, kind, rows) for kind, lv in jobs
+    batches = ((tuple(requests), kind, rows) for kind, lv in jobs
                for rows in source.scan_segments(kind, lv, batch=BATCH, **limits))
-    out: list[Candidate] = []
-    rows_n = fitted_n = simulated = 0
+    out: list[list[Candidate]] = [[] for _ in requests]
+    simulated = [0] * len(requests)
+    rows_n = fitted_n = 0
     for met, n_rows, n_fitted, n_simulated in (map_batches or map)(search_batch, batches):
-        out += met
-        rows_n, fitted_n, simulated = rows_n + n_rows, fitted_n + n_fitted, simulated + n_simulated
+        for k, (found, n) in enumerate(zip(met, n_simulated)):
+            out[k] += found
+            simulated[k] += n
+        rows_n, fitted_n = rows_n + n_rows, fitted_n + n_fitted
         if on_progress is not None:
             on_progress(rows_n, total)
     if on_progress is not None:
         on_progress(total, total)  # a double line without both stretches at a level is read, not fitted
-    return out, SearchCount(rows_n, fitted_n, simulated, len(out))
+    return [(found, SearchCount(rows_n, fitted_n, n, len(found))) for found, n in zip(out, simulated)]
 
 
 def answer(request: Request, source: SegmentSource, *,
            on_progress: Callable[[int, int], None] | None = None,
-           map_batches: BatchMap | None = None) -> QueryResult:
+           map_batches: BatchMap | None = None,
+           searched: tuple[list[Candidate], SearchCount] | None = None) -> QueryResult:
     """Ranked candidates for ``request`` from ``source`` (a pure read): from the sample of
     segments :func:`select` takes, or with ``request.complete`` from every six-bar the atlas
     yields (:func:`search`, which reports ``on_progress`` and runs its batches through
-    ``map_batches``)."""
+    ``map_batches``; or ``searched``, its result for this request from :func:`search_many`)."""
     clock: dict[str, float] = {}
     t0 = time.perf_counter()
     kinds = kinds_for(request)
@@ -658,7 +689,8 @@ def answer(request: Request, source: SegmentSource, *,
         clock["fit"] = clock.get("fit", 0.0) + time.perf_counter() - t
 
     if request.complete:
-        candidates, count = search(request, source, on_progress=on_progress, map_batches=map_batches)
+        candidates, count = (searched if searched is not None else
+                             search(request, source, on_progress=on_progress, map_batches=map_batches))
         clock["search"] = time.perf_counter() - t0
         considered, simulated = count.rows, count.simulated
     else:

@@ -8,7 +8,9 @@ cell: the candidates found, the best output deviation over the requested dwell (
 the time; per family the cells with ≥ 1 and ≥ 3 candidates. A table on stdout, or ``--json``;
 ``--plot FILE.png`` draws the grids as heat maps. ``--complete`` answers every cell with the
 complete search and measures the default (sampled) query against it: the share of the
-complete answer's coupler curves the sample finds.
+complete answer's coupler curves the sample finds. The cells of one swing (and family) read
+the atlas once and share its fitted dyads (:func:`synth.query.search_many`), on ``--workers``
+processes; each cell's time is its share of that walk plus its own ranking.
 """
 
 from __future__ import annotations
@@ -128,7 +130,8 @@ def coverage(db, top, refine, families, complete, workers, as_json, plot):
     from cli.bench.query import atlas_facts
     from db.engine import open_atlas
     from db.queries import AtlasSource
-    from synth.query import answer
+    from cli.progress import SearchBar
+    from synth.query import answer, fit_key, search_many
 
     engine = open_atlas(db, readonly=True)
     try:
@@ -136,14 +139,33 @@ def coverage(db, top, refine, families, complete, workers, as_json, plot):
         source = AtlasSource(engine)
         rows = []
         start = time.perf_counter()
-        for cell in cells(tuple(families) or FAMILIES):
-            # the complete search keeps all its six-bars (unrefined) for the recall
-            request = cell.request(1000, False, True) if complete else cell.request(top, refine)
-            t0 = time.perf_counter()
-            result = answer(request, source, map_batches=batch_map(workers or default_workers()))
-            rows.append(_row(cell, result, time.perf_counter() - t0, top))
-            if complete:
-                rows[-1].update(_recall(cell, result, source))
+        grid = cells(tuple(families) or FAMILIES)
+        if complete:
+            # the complete search keeps all its six-bars (unrefined) for the recall; the
+            # cells of one swing share one walk of the atlas and its fits, and each is
+            # charged an equal share of that time
+            requests = [cell.request(1000, False, True) for cell in grid]
+            groups: dict[tuple, list[int]] = {}
+            for k, request in enumerate(requests):
+                groups.setdefault(fit_key(request), []).append(k)
+            done: dict[int, dict] = {}
+            for members in groups.values():
+                t0 = time.perf_counter()
+                with SearchBar(None) as bar:
+                    found = search_many([requests[k] for k in members], source, on_progress=bar,
+                                        map_batches=batch_map(workers or default_workers()))
+                share = (time.perf_counter() - t0) / len(members)
+                for k, searched in zip(members, found):
+                    t1 = time.perf_counter()
+                    result = answer(requests[k], source, searched=searched)
+                    done[k] = _row(grid[k], result, share + time.perf_counter() - t1, top)
+                    done[k].update(_recall(grid[k], result, source))
+            rows = [done[k] for k in range(len(grid))]
+        else:
+            for cell in grid:
+                t0 = time.perf_counter()
+                result = answer(cell.request(top, refine), source)
+                rows.append(_row(cell, result, time.perf_counter() - t0, top))
         total = time.perf_counter() - start
     finally:
         engine.dispose()

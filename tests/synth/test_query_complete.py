@@ -114,6 +114,22 @@ def test_the_search_on_worker_processes_answers_as_in_one(atlas):
         assert (there.considered, there.simulated) == (here.considered, here.simulated)
 
 
+def test_requests_that_share_their_fits_are_answered_as_one_by_one(atlas):
+    """:func:`search_many` (one walk, each row fitted once) gives every request of one swing
+    the same six-bars and counts as its own :func:`search`; requests that fit differently
+    are refused."""
+    for family in ("rpr", "rrr", "double"):
+        requests = [dataclasses.replace(FAMILIES[family], dwell=math.radians(d)) for d in (40.0, 60.0, 90.0)]
+        together = Q.search_many(requests, atlas)
+        alone = [Q.search(r, atlas) for r in requests]
+        assert sum(len(found) for found, _ in alone) > 0, f"{family}: nothing to compare"
+        for (found, count), (found1, count1) in zip(together, alone):
+            assert sorted(c.id for c in found) == sorted(c.id for c in found1)
+            assert count == count1
+    with pytest.raises(ValueError, match="same kinds, swing"):
+        Q.search_many([FAMILIES["rpr"], dataclasses.replace(FAMILIES["rpr"], swing=math.radians(30.0))], atlas)
+
+
 #: Each limit loosened: a looser request must keep every six-bar.
 LOOSER = {
     "dwell_tol": lambda r: r.dwell_tol + math.radians(2.0),
