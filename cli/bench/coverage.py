@@ -128,9 +128,9 @@ def summary(rows: list[dict]) -> dict:
 def coverage(db, top, refine, families, complete, workers, as_json, plot):
     """Coverage of the dwell × swing grid (RPR, RRR) and the double-dwell row: candidates, best deviation, time."""
     from cli.bench.query import atlas_facts
+    from cli.progress import SearchBar
     from db.engine import open_atlas
     from db.queries import AtlasSource
-    from cli.progress import SearchBar
     from synth.query import answer, fit_key, search_many
 
     engine = open_atlas(db, readonly=True)
