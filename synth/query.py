@@ -593,7 +593,8 @@ def fit_key(request: Request) -> tuple:
     return (kinds_for(request), request.swing, request.min_transmission, request.max_link_ratio)
 
 
-def search_batch(job: tuple[Sequence[Request], str, Sequence[SegmentRow]]) -> tuple[list[list[Candidate]], int, int, list[int]]:
+def search_batch(job: tuple[Sequence[Request], str, Sequence[SegmentRow]]
+                 ) -> tuple[list[list[Candidate]], int, int, list[int]]:
     """One batch of :func:`search_many`: ``job = (requests, kind, rows)`` → per request the
     six-bars that meet it, then the rows, the fitted dyads and per request the simulated
     six-bars. The dyads are fitted once for all the requests (they share :func:`fit_key`).
