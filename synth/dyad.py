@@ -20,7 +20,7 @@ solved to ``SWING_TOL`` on the path samples with the extremes refined between sa
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -480,6 +480,14 @@ def fit_rrr(circle_center: ArrayLike, radius: ArrayLike, phi: ArrayLike, path_z:
     if int(directions) < 4 or int(keep) < 1:
         raise ValueError("need directions >= 4 and keep >= 1")
     R = z.shape[0]
+    if R > _CHUNK_ROWS:
+        # each block's (rows × directions × samples) temporaries stay in the CPU cache: about
+        # twice as fast on thousands of rows, the same numbers (every step works row by row)
+        parts = [fit_rrr(C0[k : k + _CHUNK_ROWS], rho[k : k + _CHUNK_ROWS], phi, z[k : k + _CHUNK_ROWS],
+                         (s0[k : k + _CHUNK_ROWS], s1[k : k + _CHUNK_ROWS]), target[k : k + _CHUNK_ROWS],
+                         min_transmission, directions=directions, keep=keep) for k in range(0, R, _CHUNK_ROWS)]
+        return RrrFit(*(np.concatenate([getattr(f, name) for f in parts]).reshape(lead + (-1,))
+                        for name in (f.name for f in fields(RrrFit))))
     _, mid = _dwell_mask(phi0, h, m, s0.astype(float), s1.astype(float))
     w = z - C0[:, None]  # (R, M)
     cm = math.cos(min_transmission)
@@ -545,6 +553,8 @@ def fit_rrr(circle_center: ArrayLike, radius: ArrayLike, phi: ArrayLike, path_z:
                   take(found).reshape(shape))
 
 
+#: Rows fitted at a time by :func:`fit_rrr` (cache blocking; the result does not depend on it).
+_CHUNK_ROWS = 128
 #: Samples over the turn on which the rocker directions are ranked (closed-form estimates).
 _RANK_SAMPLES = 120
 #: Directions of the second fine scan around a coarse peak (±half a coarse step; the first,

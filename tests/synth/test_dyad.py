@@ -4,6 +4,7 @@ dyads on circle points — each checked by the exact simulation of the resulting
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -215,6 +216,27 @@ def test_rrr_batch_equals_single_fits():
         one = fit_rrr(C0[k], rho[k], PHI, paths[k], (phi0[k] - 0.2, phi0[k] + 0.2), 40 * DEG, 20 * DEG)
         np.testing.assert_array_equal(one.found, batch.found[k])
         np.testing.assert_allclose(one.pivot, batch.pivot[k], rtol=0, atol=1e-9)
+
+
+def test_rrr_fitted_in_blocks_is_bit_for_bit_the_whole_batch(monkeypatch):
+    """fit_rrr works through large batches in blocks of rows (cache blocking): the same
+    numbers, in the same (2-D) shape, as in one block."""
+    import synth.dyad as dyad
+
+    segs = [(_circle_segment(*fb, alpha), fb[-1]) for fb, alpha in RRR_CASES]
+    C0 = np.array([s[0][0] for s in segs] * 2).reshape(2, 4)
+    rho = np.array([s[0][1] for s in segs] * 2).reshape(2, 4)
+    paths = np.array([s[0][3] for s in segs] * 2).reshape(2, 4, -1)
+    phi0 = np.array([s[1] for s in segs] * 2).reshape(2, 4)
+    args = (C0, rho, PHI, paths, (phi0 - 0.2, phi0 + 0.2), 40 * DEG, 20 * DEG)
+    whole = fit_rrr(*args)
+    monkeypatch.setattr(dyad, "_CHUNK_ROWS", 3)
+    blocks = fit_rrr(*args)
+    assert whole.found.shape == (2, 4, 3) and whole.found.any()
+    for f in dataclasses.fields(whole):
+        a, b = getattr(whole, f.name), getattr(blocks, f.name)
+        assert a.dtype == b.dtype and a.shape == b.shape, f.name
+        np.testing.assert_array_equal(a, b, err_msg=f.name)
 
 
 def test_rrr_refuses_bad_input():
