@@ -49,6 +49,27 @@ def test_json_has_the_documented_shape_and_the_kernel_values(capsys):
     assert "double_ball_points" not in doc
 
 
+@pytest.mark.parametrize("scale", [1e-150, 1e100, 1e149])
+def test_the_unit_of_length_only_scales_the_answer(capsys, scale):
+    """Every length times ``scale`` (the command takes 1e-150 … 1e150): every point and length
+    of the answer times ``scale``, no NaN. Before the fix, Heron's product overflowed (NaN
+    pole at 1e100) or underflowed (every position a toggle at 1e-150)."""
+    def doc(k):
+        code, out, err = run(capsys, "curvature", *(f"{float(x) * k!r}" if x[0].isdigit() else x for x in LINKAGE),
+                             "--phi", "60", "--rays", "4", "--json")
+        assert code == 0, err
+        assert "NaN" not in out and "Infinity" not in out
+        return json.loads(out)
+
+    unit, scaled = doc(1.0), doc(scale)
+    assert scaled["pole"] == pytest.approx([x * scale for x in unit["pole"]], rel=1e-12)
+    assert scaled["inflection_circle"]["diameter"] == pytest.approx(unit["inflection_circle"]["diameter"] * scale,
+                                                                    rel=1e-12)
+    assert scaled["ball_point"]["xy"] == pytest.approx([x * scale for x in unit["ball_point"]["xy"]], rel=1e-12)
+    for p, q in zip(scaled["conjugate_pairs"], unit["conjugate_pairs"]):
+        assert p["center_point"] == pytest.approx([x * scale for x in q["center_point"]], rel=1e-9, abs=1e-9 * scale)
+
+
 def test_double_ball_points_and_the_dead_centre_skip(capsys):
     code, out, err = run(capsys, "curvature", *LINKAGE, "--phi", "10", "--rays", "0", "--double-ball", "--json")
     assert code == 0, err

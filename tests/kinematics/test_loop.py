@@ -34,6 +34,21 @@ def test_circle_intersection_flags_with_unit_placeholders():
     assert not np.any(loop.rates(np.ones(3) + 1j)[0])  # flagged: rates are 0
 
 
+@pytest.mark.parametrize("scale", [1e-150, 1e77, 1e100, 1e150])
+def test_circle_intersection_does_not_depend_on_the_unit(scale):
+    """Heron's product of four lengths overflows beyond ~1e77 (it did: NaN poles from
+    `dwell curvature --a 1e100 …`); the angles and status must be those of the same loop at
+    unit scale, at every scale the command line accepts."""
+    R = np.array([5 + 0j, 6.9 + 0.1j, 10 + 0j, 3 + 4j])
+    unit = circle_intersection(R, 3.0, 4.0, 1.0)
+    big = circle_intersection(R * scale, 3.0 * scale, 4.0 * scale, 1.0)
+    assert list(big.status) == list(unit.status)
+    for a, b in ((big.e1, unit.e1), (big.e2, unit.e2)):
+        assert np.all(np.isfinite(a))
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(big.height, unit.height * scale, rtol=1e-13)
+
+
 def test_rates_match_a_finite_difference():
     # R(t) = 5 + t·i moves centre 2 up; l1, l2 fixed: θ′, γ′ from i·l1·θ′e1 − i·l2·γ′e2 = R′
     h = 1e-6
