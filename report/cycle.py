@@ -110,9 +110,11 @@ def dwell_mask(phi: F64, figures: SixBarFigures) -> NDArray[np.bool_]:
 
 def unit_motion(sixbar: SixBar, phi: np.ndarray, order: int = 0):
     """:func:`synth.sixbar.simulate` of ``sixbar`` scaled to crank = 1, and the crank length
-    its positions are to be multiplied by (angles and ratios are the same at any scale): the
-    loop's Heron product of four lengths overflows beyond ~1e75 (`dwell report --crank 1e100`
-    wrote NaN and failed; found by a random-seed run)."""
+    its positions are to be multiplied by (angles and ratios are the same at any scale).
+    Written when the loop's Heron product overflowed beyond ~1e75 (`dwell report --crank 1e100`
+    wrote NaN; found by a random-seed run). The kernel now scales that product itself
+    (``kinematics.loop.HERON_SAFE``); the rest of the simulation and the linkage file's assembly
+    solver were not re-checked at every scale, so the report keeps simulating at crank = 1."""
     return simulate(sixbar.scaled(1.0 / sixbar.a), phi, order=order), sixbar.a
 
 
