@@ -297,7 +297,7 @@ def test_bench_query_reports_latency_and_answers(atlas_path, capsys, tmp_path):
     assert doc["ms_p50"] <= doc["ms_p95"] <= doc["ms_max"]
     assert doc["meets_floor"] == (doc["ms_p95"] <= doc["floor_ms_p95"])
     plain = doc["without_refine"]
-    assert plain["ms_p50"] <= plain["ms_p95"] <= plain["ms_max"] and plain["floor_ms_p95"] == 200
+    assert plain["ms_p50"] <= plain["ms_p95"] <= plain["ms_max"] and plain["floor_ms_p95"] == 100
     assert plain["meets_floor"] == (plain["ms_p95"] <= plain["floor_ms_p95"])
     answered = 0
     for row, req in zip(doc["requests"], REQUESTS, strict=True):

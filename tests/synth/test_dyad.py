@@ -205,6 +205,9 @@ def test_rrr_impossible_requests_find_nothing_and_stay_finite():
 
 
 def test_rrr_batch_equals_single_fits():
+    """A batch gives every row what it gets alone, bit for bit — also with rows between them
+    that find nothing (a rod too short to reach the curve: no feasible direction in the coarse
+    scan, so fit_rrr leaves them out of the fine scans and solves)."""
     segs = [(_circle_segment(*fb, alpha), fb[-1]) for fb, alpha in RRR_CASES]
     C0 = np.array([s[0][0] for s in segs])
     rho = np.array([s[0][1] for s in segs])
@@ -216,6 +219,13 @@ def test_rrr_batch_equals_single_fits():
         one = fit_rrr(C0[k], rho[k], PHI, paths[k], (phi0[k] - 0.2, phi0[k] + 0.2), 40 * DEG, 20 * DEG)
         np.testing.assert_array_equal(one.found, batch.found[k])
         np.testing.assert_allclose(one.pivot, batch.pivot[k], rtol=0, atol=1e-9)
+    dead = np.arange(8) % 2 == 1  # every other row: the same segment with a 1e-3 rod
+    mixed = fit_rrr(np.repeat(C0, 2), np.where(dead, 1e-3, np.repeat(rho, 2)), PHI, np.repeat(paths, 2, axis=0),
+                    (np.repeat(phi0, 2) - 0.2, np.repeat(phi0, 2) + 0.2), 40 * DEG, 20 * DEG)
+    assert not mixed.found[dead].any() and mixed.found[~dead].any()
+    np.testing.assert_array_equal(mixed.pivot[dead], np.repeat(np.repeat(C0, 2)[dead, None], 3, axis=1))
+    for f in dataclasses.fields(batch):
+        np.testing.assert_array_equal(getattr(mixed, f.name)[~dead], getattr(batch, f.name), err_msg=f.name)
 
 
 def test_rrr_fitted_in_blocks_is_bit_for_bit_the_whole_batch(monkeypatch):
