@@ -66,17 +66,30 @@ def _mp_context(preload: Sequence[str]) -> multiprocessing.context.BaseContext:
     return multiprocessing.get_context("spawn")
 
 
-def _stop(executor: ProcessPoolExecutor, pending: set[Future]) -> None:
-    """Cancel what has not started and terminate the workers (do not wait for a task)."""
+def _stop(executor: ProcessPoolExecutor) -> None:
+    """Cancel what has not started and terminate the workers (do not wait for a task).
+
+    A worker terminated while it sends a result leaves part of a message in the pool's result
+    pipe; the pool's manager thread then waits for the rest forever, and so does the
+    interpreter, which joins that thread at exit (found by a random-seed run: ``dwell atlas
+    build`` hung after Ctrl-C). The driver holds the pipe's last writing end; once every
+    worker is gone, closing it ends that read (end of file): the pool counts itself broken,
+    fails the futures nobody waits for, and its thread ends. The futures are cancelled by the
+    pool's own thread (``cancel_futures``), never here: a broken pool fails every future it
+    still holds, and failing one cancelled from outside would raise in that thread."""
     processes = list((getattr(executor, "_processes", None) or {}).values())
-    for f in pending:
-        f.cancel()
+    results = getattr(executor, "_result_queue", None)  # shutdown() drops the reference
     executor.shutdown(wait=False, cancel_futures=True)
     for p in processes:
         if p.is_alive():
             p.terminate()
     for p in processes:
         p.join(timeout=5)
+        if p.is_alive():  # SIGTERM not taken within 5 s
+            p.kill()
+            p.join(timeout=5)
+    if results is not None and not any(p.is_alive() for p in processes):
+        results._writer.close()
 
 
 def pool_map(fn: Callable[[T], R], items: Iterable[T], workers: int, *,
@@ -117,7 +130,7 @@ def pool_map(fn: Callable[[T], R], items: Iterable[T], workers: int, *,
         if clean:
             executor.shutdown(wait=True)
         else:
-            _stop(executor, pending)
+            _stop(executor)
         lifeline_w.close()
         lifeline_r.close()
 

@@ -1,0 +1,20 @@
+"""Work items that fail the way a worker of :func:`atlas.pool.pool_map` can (run in the
+workers of ``tests/atlas/test_pool.py``; importable there because the driver puts this folder
+on ``sys.path`` before the pool starts its processes)."""
+
+from __future__ import annotations
+
+import struct
+import sys
+import time
+
+
+def send_half_a_result(_item: object) -> None:
+    """Write the first bytes of a result message into the pool's result pipe — a length
+    header for 1 MiB, then 10 bytes — and hang, as a worker terminated while it sends a large
+    result leaves the pipe. The pipe is a local of the pool's worker loop, which calls this."""
+    frame = sys._getframe(1)
+    while "result_queue" not in frame.f_locals:
+        frame = frame.f_back
+    frame.f_locals["result_queue"]._writer._send(struct.pack("!i", 1 << 20) + b"x" * 10)
+    time.sleep(120)
