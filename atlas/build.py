@@ -20,7 +20,9 @@ shard is rolled back by the database, and the dead builder's lock is taken over.
 
 from __future__ import annotations
 
+import sys
 import time
+import traceback
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -301,6 +303,16 @@ def build_atlas(
         )
     finally:
         if holding:
+            in_flight = sys.exc_info()[1]
+            if in_flight is not None:
+                # A Ctrl-C that lands inside the SQLite driver (its executemany, say) leaves the
+                # statement it ran, and with it the connection's write transaction, alive for
+                # as long as the traceback's frames hold the cursor: SQLAlchemy has closed that
+                # connection, but SQLite finishes closing it only once the statement is
+                # finalized, and until then this write waits out the busy timeout (30 s; found
+                # by a random-seed run). Dropping the finished frames' locals finalizes it; the
+                # traceback's lines are kept.
+                traceback.clear_frames(in_flight.__traceback__)
             try:
                 release_lock(engine, handle.build_id, lock.token)
             except Exception:  # noqa: BLE001 - never mask the error that got us here

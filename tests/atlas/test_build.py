@@ -183,6 +183,36 @@ def test_closing_the_pool_stops_the_workers_promptly():
     assert multiprocessing.active_children() == []
 
 
+def test_ctrl_c_while_a_shard_is_written_gives_the_lock_up_at_once(tmp_path):
+    """Ctrl-C inside the SQLite driver's executemany (here: raised right after the dwell rows'
+    insert) left that connection's write transaction open while the traceback held the
+    cursor, and the lock's release waited out the 30 s busy timeout, then failed (a
+    random-seed run: Ctrl-C of a build timed out). The build must give its lock up at once."""
+    from sqlalchemy import event
+    from sqlalchemy.engine import Engine
+
+    def interrupt(conn, cursor, statement, parameters, context, executemany):
+        if executemany and statement.lstrip().upper().startswith("INSERT INTO DWELL"):
+            raise KeyboardInterrupt
+
+    path = tmp_path / "interrupted.sqlite"
+    event.listen(Engine, "after_cursor_execute", interrupt)
+    try:
+        t0 = time.perf_counter()
+        with pytest.raises(KeyboardInterrupt):
+            build_atlas(str(path), SPEC)
+        seconds = time.perf_counter() - t0
+    finally:
+        event.remove(Engine, "after_cursor_execute", interrupt)
+    con = sqlite3.connect(path)
+    try:
+        assert con.execute("select status, lock_token from build").fetchall() == [("building", None)]
+        assert con.execute("select count(*) from shard").fetchone() == (0,)  # the shard rolled back
+    finally:
+        con.close()
+    assert seconds < 10
+
+
 def test_a_refused_new_atlas_is_left_to_the_builder_that_won(tmp_path, monkeypatch):
     # on a new file open_build fails only when another builder created the build first:
     # the file is now that builder's and must survive (it may be writing into it)
