@@ -7,12 +7,15 @@ within an output band and their output deviation over a requested dwell length (
 the exact path beyond the grid, :mod:`synth.output_range`), the output swing and net turns,
 the minimum transmission angles (sample minimum refined by a parabola), the link ratio, the
 convex-hull footprint (shapely) and bounding box of the pivots and joint paths, the status
-flags met over the turn and the buildability figures (:mod:`synth.buildability`). Angles in
-radians, lengths in the unit of the links, areas in length².
+flags met over the turn and the buildability figures (:mod:`synth.buildability`).
+:func:`figures_with_dwell_bounds` gives the same figures but the dwell, and bounds on the dwell
+from the grid alone (what a no-match diagnosis decides most six-bars by). Angles in radians,
+lengths in the unit of the links, areas in length².
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,11 +24,11 @@ from kinematics.fourbar import FourBarMotion
 from kinematics.loop import sampled_extreme
 from kinematics.status import Status
 from synth.buildability import Buildability, buildability
-from synth.output_range import Dwell, dwell_intervals, output_deviation, output_swing
+from synth.output_range import Dwell, dwell_angle_bounds, dwell_intervals, output_deviation, output_swing
 from synth.sixbar import SixBar, SixBarMotion, SixBars, as_batch, crank_grid, simulate
 from synth.types import C128, F64
 
-__all__ = ["SixBarFigures", "sixbar_figures"]
+__all__ = ["SixBarFigures", "figures_with_dwell_bounds", "sixbar_figures"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -123,9 +126,41 @@ def sixbar_figures(sixbar: SixBar | SixBars, *, band: float, dwell_length: float
     -------
     SixBarFigures, or a list of them (one per row) for a batch.
     """
-    batch, single = as_batch(sixbar)
     if dwells not in (1, 2):
         raise ValueError(f"dwells must be 1 or 2, not {dwells!r}")
+    batch, single, phi, motion, psi_at = _simulated(sixbar, samples, motion)
+    N = len(batch)
+    psi, dpsi = motion.psi, motion.dpsi
+    found = dwell_intervals(phi, psi, band, count=dwells, psi_at=psi_at, dpsi1=dpsi[0])
+    if dwell_length is not None:
+        centre = 0.5 * (found.start + found.end)  # (N, C)
+        dev, _ = output_deviation(phi, np.repeat(psi[:, None, :], dwells, axis=1), centre, dwell_length,
+                                  psi_at=lambda at: psi_at(at.reshape(N, -1)).reshape(at.shape),
+                                  dpsi1=np.repeat(dpsi[0][:, None, :], dwells, axis=1))
+    else:
+        dev = np.zeros((N, 0))
+    out = [dataclasses.replace(f, dwells=tuple(found.dwells((k,))),
+                               deviations=tuple(float(x) for x, ok in zip(dev[k], found.found[k]) if ok))
+           for k, f in enumerate(_figures_but_dwells(batch, phi, motion, psi_at, footprint))]
+    return out[0] if single else out
+
+
+def figures_with_dwell_bounds(sixbars: SixBars, *, band: float, samples: int = 720
+                              ) -> tuple[list[SixBarFigures], F64, F64]:
+    """What :func:`sixbar_figures` gives for a single dwell without refining the dwell's ends:
+    every figure but the dwell (``dwells`` and ``deviations`` empty; no footprint) — each
+    exactly as :func:`sixbar_figures` computes it — and bounds (low, high) on the dwell's angle
+    (rad, :func:`~synth.output_range.dwell_angle_bounds`). Enough to decide most constraints of
+    a six-bar far from a request at a fraction of the cost (the no-match diagnosis)."""
+    batch, _, phi, motion, psi_at = _simulated(sixbars, samples, None)
+    low, high = dwell_angle_bounds(phi, motion.psi, band, dpsi1=motion.dpsi[0])
+    return _figures_but_dwells(batch, phi, motion, psi_at, footprint=False), low, high
+
+
+def _simulated(sixbar: SixBar | SixBars, samples: int, motion: SixBarMotion | None):
+    """The batch, whether one six-bar was given, the crank grid, the order-2 motion on it
+    (``motion`` checked, or simulated) and the exact ψ(φ) evaluator."""
+    batch, single = as_batch(sixbar)
     phi = crank_grid(samples)
     N = len(batch)
     if motion is None:
@@ -138,17 +173,13 @@ def sixbar_figures(sixbar: SixBar | SixBars, *, band: float, dwell_length: float
     def psi_at(at):
         return simulate(batch, at, order=0).psi
 
-    psi, dpsi = motion.psi, motion.dpsi
-    swing, turns = output_swing(phi, psi, dpsi=dpsi, psi_at=psi_at)
-    found = dwell_intervals(phi, psi, band, count=dwells, psi_at=psi_at, dpsi1=dpsi[0])
-    if dwell_length is not None:
-        centre = 0.5 * (found.start + found.end)  # (N, C)
-        dev, _ = output_deviation(phi, np.repeat(psi[:, None, :], dwells, axis=1), centre, dwell_length,
-                                  psi_at=lambda at: psi_at(at.reshape(N, -1)).reshape(at.shape),
-                                  dpsi1=np.repeat(dpsi[0][:, None, :], dwells, axis=1))
-    else:
-        dev = np.zeros((N, 0))
+    return batch, single, phi, motion, psi_at
 
+
+def _figures_but_dwells(batch: SixBars, phi: F64, motion: SixBarMotion, psi_at, footprint: bool) -> list[SixBarFigures]:
+    """Per row, the figures that do not depend on the dwell band (dwells, deviations empty)."""
+    N = len(batch)
+    swing, turns = output_swing(phi, motion.psi, dpsi=motion.dpsi, psi_at=psi_at)
     assembled = np.all(motion.assembled, axis=1)
     mu_fb = np.where(assembled, _refined_min(motion.transmission_fourbar), 0.0)
     mu_out = np.where(assembled, _refined_min(motion.transmission_output), 0.0)
@@ -170,19 +201,13 @@ def sixbar_figures(sixbar: SixBar | SixBars, *, band: float, dwell_length: float
     thin = np.concatenate([fixed] + [np.broadcast_to(p, motion.psi.shape)[:, ::2] for p in paths], axis=1)
     area = _hull_areas(thin) if footprint else np.zeros(N)
     build = buildability(batch, motion)
-
-    out = []
-    for k in range(N):
-        out.append(SixBarFigures(
-            dwells=tuple(found.dwells((k,))),
-            deviations=tuple(float(x) for x, f in zip(dev[k], found.found[k]) if f),
-            swing=float(swing[k]), turns=int(turns[k]),
-            transmission_fourbar=float(mu_fb[k]), transmission_output=float(mu_out[k]),
-            link_ratio=float(ratio[k]), footprint=float(area[k]),
-            bounds=(float(xmin[k]), float(ymin[k]), float(xmax[k]), float(ymax[k])),
-            status=int(status[k]), build=build[k],
-        ))
-    return out[0] if single else out
+    return [SixBarFigures(
+        dwells=(), deviations=(), swing=float(swing[k]), turns=int(turns[k]),
+        transmission_fourbar=float(mu_fb[k]), transmission_output=float(mu_out[k]),
+        link_ratio=float(ratio[k]), footprint=float(area[k]),
+        bounds=(float(xmin[k]), float(ymin[k]), float(xmax[k]), float(ymax[k])),
+        status=int(status[k]), build=build[k],
+    ) for k in range(N)]
 
 
 def _as_batch_motion(motion: SixBarMotion) -> SixBarMotion:

@@ -34,6 +34,7 @@ __all__ = [
     "Dwell",
     "DwellIntervals",
     "crank_degrees",
+    "dwell_angle_bounds",
     "dwell_intervals",
     "grid_step",
     "output_deviation",
@@ -361,6 +362,40 @@ def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: i
     shape = lead + (count,)
     return DwellIntervals(zero(start_n).reshape(shape), zero(end).reshape(shape), zero(angle).reshape(shape),
                           zero(low).reshape(shape), zero(high).reshape(shape), fnd.reshape(shape))
+
+
+def dwell_angle_bounds(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *,
+                       dpsi1: ArrayLike | None = None) -> tuple[F64, F64]:
+    """Bounds (low, high) on the angle (rad) of the longest dwell :func:`dwell_intervals`
+    reports when it refines on the exact path (``psi_at`` given), from the grid samples alone.
+
+    Same inputs as :func:`dwell_intervals`; shape ``(...)``. With n the longest run of
+    vertex-bounded samples within the band (what :func:`dwell_intervals` starts from), the
+    window's own pair (φ_s, φ_{s+n−2}) is among the pairs its refinement chooses from, so the
+    angle is ≥ (n − 2)·h. The samples inside the reported interval are within the band; a
+    vertex-bounded sample is at most δ (the row's largest vertex lift) beyond its sample, so
+    the interval holds at most n⁺ samples, n⁺ the longest run within band + 2δ, and is shorter
+    than (n⁺ + 1)·h. A run over the whole turn is the whole turn (2π). Checked against the
+    exact figures of every six-bar the query fits (``tests/synth/test_query_stage.py``).
+    """
+    phi0, h, m = grid_step(phi)
+    psi = np.asarray(psi, dtype=float)
+    lead = psi.shape[:-1]
+    P = psi.reshape(-1, m)
+    R = P.shape[0]
+    band_r = np.broadcast_to(np.asarray(band, dtype=float), lead).reshape(R)
+    if not np.all(np.isfinite(band_r)) or np.any(band_r < 0):
+        raise ValueError("band must be finite and >= 0")
+    d1 = None if dpsi1 is None else np.asarray(dpsi1, float).reshape(R, m)
+    E = np.concatenate([P, P + _net_change(P, d1, h)[:, None]], axis=1)
+    upper, lower = _vertex_bounds(E)
+    lift = np.maximum((upper - E).max(axis=1), (E - lower).max(axis=1))
+    tab_max, tab_min = _sparse_tables(upper, m, lower)
+    n = _lifted_lengths(tab_max, tab_min, band_r, m)[0].max(axis=1)
+    n_plus = _lifted_lengths(tab_max, tab_min, band_r + 2 * lift, m)[0].max(axis=1)
+    low = np.where(n >= m, _TWO_PI, np.maximum(n - 2, 0) * h)
+    high = np.where(n_plus >= m, _TWO_PI, np.minimum((n_plus + 1) * h, _TWO_PI))
+    return low.reshape(lead), high.reshape(lead)
 
 
 def _linear_reach(E, length, w_max, w_min, band, mask):

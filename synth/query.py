@@ -21,7 +21,9 @@ prescreen (:func:`prescreen`) among them: the complete answer.
 When nothing meets the request, the nearest misses (``MISSES`` of them, by the sum of their
 excesses over the limits) are refined toward it, and those that then meet it are the answer;
 if none does, the result carries a :class:`NoMatch`: how many fitted six-bars each constraint
-rejected, the nearest six-bar and the request that it would meet.
+rejected, the nearest six-bar and the request that it would meet. Without refinement the same
+:class:`NoMatch` comes cheaper (:func:`diagnose_by_bounds`): only the six-bars whose dwell
+decides a count or the nearest get their dwell ends refined.
 """
 
 from __future__ import annotations
@@ -47,7 +49,8 @@ from synth.candidates import (
     screen,
     with_dimensions,
 )
-from synth.figures import SixBarFigures, sixbar_figures
+from synth.figures import SixBarFigures, figures_with_dwell_bounds, sixbar_figures
+from synth.output_range import Dwell
 from synth.sixbar import OutputDyad, SixBar, SixBars, crank_grid
 from synth.sixbar import simulate as simulate_motion
 
@@ -371,8 +374,7 @@ def violations(request: Request, f: SixBarFigures) -> dict[str, float]:
     if not f.acceptable or len(f.dwells) < request.dwells:
         out["assembly"] = 1.0
         return out
-    out["dwell"] = max(max(0.0, math.degrees(abs(d.angle - request.dwell) - request.dwell_tol))
-                       for d in f.dwells[: request.dwells])
+    out["dwell"] = max(_dwell_excess(request, d.angle) for d in f.dwells[: request.dwells])
     if request.swing is not None:
         out["swing"] = max(0.0, math.degrees(abs(f.swing - request.swing) - request.swing_tol))
     if request.step is not None:
@@ -388,6 +390,11 @@ def violations(request: Request, f: SixBarFigures) -> dict[str, float]:
         if request.max_accel is not None:
             out["acceleration"] = max(0.0, b.dynamics(request.rpm)[1] - request.max_accel)
     return out
+
+
+def _dwell_excess(request: Request, angle: float) -> float:
+    """How far (°) a dwell of ``angle`` (rad) is outside the request's dwell ± tolerance."""
+    return max(0.0, math.degrees(abs(angle - request.dwell) - request.dwell_tol))
 
 
 def meets(request: Request, f: SixBarFigures) -> bool:
@@ -435,6 +442,13 @@ def _figures(request: Request, sixbars: list[SixBar], *, footprint: bool = True)
 def simulate(request: Request, fitted: Sequence[Fitted]) -> tuple[list[Candidate], int]:
     """The candidates among ``fitted`` that meet ``request`` (unranked), and how many six-bars
     were simulated."""
+    screened, n = _screened_figures(request, fitted)
+    return [_candidate(request, f, fig) for f, fig in screened if meets(request, fig)], n
+
+
+def _screened_figures(request: Request, fitted: Sequence[Fitted]) -> tuple[list[tuple[Fitted, SixBarFigures]], int]:
+    """The six-bars among ``fitted`` that pass the screen, with their full figures, and how
+    many six-bars were simulated (screened)."""
     if not fitted:
         return [], 0
     sixbars = [f.sixbar() for f in fitted]
@@ -444,8 +458,7 @@ def simulate(request: Request, fitted: Sequence[Fitted]) -> tuple[list[Candidate
     if not kept:
         return [], len(passed)
     figures = _figures(request, [sb for _, sb in kept])
-    out = [_candidate(request, f, fig) for (f, _), fig in zip(kept, figures) if meets(request, fig)]
-    return out, len(passed)
+    return [(f, fig) for (f, _), fig in zip(kept, figures)], len(passed)
 
 
 def _loosened(request: Request, f: SixBarFigures) -> Request:
@@ -482,18 +495,28 @@ def _loosened(request: Request, f: SixBarFigures) -> Request:
         return request
 
 
-def _misses(request: Request, fitted: Sequence[Fitted]) -> list[tuple[float, Fitted, SixBarFigures, dict]]:
-    """Every fitted six-bar with its figures (no footprint) and excesses over the limits
-    (:func:`violations`), nearest first by their sum (inf for one that does not assemble)."""
+def _misses(request: Request, fitted: Sequence[Fitted], known: dict[int, SixBarFigures] | None = None
+            ) -> list[tuple[float, Fitted, SixBarFigures, dict]]:
+    """Every fitted six-bar with its figures (no footprint; ``known``: figures at hand by
+    ``id`` of the fit) and excesses over the limits (:func:`violations`), nearest first by
+    their sum (inf for one that does not assemble)."""
     if not fitted:
         return []
-    figures = _figures(request, [f.sixbar() for f in fitted], footprint=False)
+    known = known or {}
+    rest = [f for f in fitted if id(f) not in known]
+    computed = dict(zip(map(id, rest), _figures(request, [f.sixbar() for f in rest], footprint=False))) if rest else {}
     out = []
-    for fit_, fig in zip(fitted, figures):
+    for fit_ in fitted:
+        fig = known[id(fit_)] if id(fit_) in known else computed[id(fit_)]
         excess = violations(request, fig)
-        total = math.inf if excess["assembly"] else sum(excess.values())
-        out.append((total, fit_, fig, excess))
+        out.append((_total(excess), fit_, fig, excess))
     return sorted(out, key=lambda t: t[0])  # stable: ties keep the fit order
+
+
+def _total(excess: dict[str, float]) -> float:
+    """How far a six-bar is from meeting a request: the sum of its excesses (inf if it does not
+    assemble)."""
+    return math.inf if excess["assembly"] else sum(excess.values())
 
 
 def diagnose(request: Request, fitted: Sequence[Fitted],
@@ -507,11 +530,79 @@ def diagnose(request: Request, fitted: Sequence[Fitted],
     for _, _, _, excess in misses:
         for k, x in excess.items():
             rejected[k] += x > 0
-    best_excess, fit_, fig, _ = misses[0]
-    if best_excess == math.inf:
-        return NoMatch(len(fitted), rejected, None, None)
+    best_total, fit_, fig, _ = misses[0]
+    return _no_match(request, len(fitted), rejected, None if best_total == math.inf else (fit_, fig))
+
+
+def _no_match(request: Request, fitted: int, rejected: dict[str, int],
+              nearest: tuple[Fitted, SixBarFigures] | None) -> NoMatch:
+    if nearest is None:
+        return NoMatch(fitted, rejected, None, None)
+    fit_, fig = nearest
     loose = _loosened(request, fig)
-    return NoMatch(len(fitted), rejected, dataclasses.replace(_candidate(loose, fit_, fig), rank=1), loose)
+    return NoMatch(fitted, rejected, dataclasses.replace(_candidate(loose, fit_, fig), rank=1), loose)
+
+
+def diagnose_by_bounds(request: Request, fitted: Sequence[Fitted],
+                       known: dict[int, SixBarFigures] | None = None) -> NoMatch:
+    """:func:`diagnose`, the same :class:`NoMatch`, refining the dwell ends only of the
+    six-bars whose dwell decides something (single dwells; a double dwell is diagnosed by
+    :func:`diagnose`).
+
+    Every figure but the dwell is computed as :func:`~synth.figures.sixbar_figures` does; the
+    dwell's angle is bounded from the grid (:func:`~synth.figures.figures_with_dwell_bounds`),
+    which bounds its excess (convex in the angle: least at the requested dwell). A six-bar
+    gets its exact figures when the bounds leave open whether it misses the dwell, or when
+    its least possible total excess is not above the smallest total known to be reachable —
+    until no six-bar not simulated exactly can be nearer (or as near: ties go to the fit
+    order, as in :func:`diagnose`). ``known``: figures at hand by ``id`` of the fit."""
+    known = dict(known or {})
+    if request.dwells != 1 or not fitted:
+        return diagnose(request, fitted, _misses(request, fitted, known))
+    rest = [k for k, f in enumerate(fitted) if id(f) not in known]
+    excess: dict[int, dict[str, float]] = {k: violations(request, known[id(f)])
+                                          for k, f in enumerate(fitted) if id(f) in known}
+    figures = {k: known[id(f)] for k, f in enumerate(fitted) if id(f) in known}
+    low_total: dict[int, float] = {}
+    high_total: dict[int, float] = {}
+    undecided: list[int] = []
+    bound: dict[int, dict[str, float]] = {}  # excesses of the decided ones (dwell: its lower bound)
+    if rest:
+        rough, low, high = figures_with_dwell_bounds(SixBars.from_sixbars([fitted[k].sixbar() for k in rest]),
+                                                     band=request.band, samples=SAMPLES)
+        for j, k in enumerate(rest):
+            nearest = min(max(request.dwell, low[j]), high[j])  # the excess is convex in the angle
+            least = violations(request, dataclasses.replace(rough[j], dwells=(Dwell(0.0, nearest, nearest),)))
+            most = max(_dwell_excess(request, low[j]), _dwell_excess(request, high[j]))
+            low_total[k] = _total(least)
+            high_total[k] = _total(dict(least, dwell=most))
+            if (least["dwell"] > 0) != (most > 0):
+                undecided.append(k)
+            bound[k] = least
+
+    def exact(ks: list[int]) -> None:
+        if not ks:
+            return
+        for k, fig in zip(ks, _figures(request, [fitted[k].sixbar() for k in ks], footprint=False)):
+            figures[k], excess[k] = fig, violations(request, fig)
+            low_total[k] = high_total[k] = _total(excess[k])
+
+    for k in excess:
+        low_total[k] = high_total[k] = _total(excess[k])
+    exact(undecided)
+    while True:
+        reach = min(high_total.values())
+        need = [k for k in rest if k not in excess and low_total[k] <= reach and low_total[k] < math.inf]
+        if not need:
+            break
+        exact(need)
+    rejected = dict.fromkeys(CONSTRAINTS, 0)
+    for k in range(len(fitted)):
+        for key, x in (excess[k] if k in excess else bound[k]).items():
+            rejected[key] += x > 0
+    totals = [(low_total[k], k) for k in excess]
+    best_total, best = min(totals)
+    return _no_match(request, len(fitted), rejected, None if best_total == math.inf else (fitted[best], figures[best]))
 
 
 def _distinct(ranked: Sequence[Candidate]) -> list[Candidate]:
@@ -674,6 +765,7 @@ def answer(request: Request, source: SegmentSource, *,
     rows: list[SegmentRow] = []
     fitted: list[Fitted] = []
     promising: list[Fitted] = []  # the fits past the prescreen
+    known: dict[int, SixBarFigures] = {}  # full figures of the sample's screened fits, by id
 
     def sampled() -> None:
         """The sample's rows and fits (all of them are what a no-match is diagnosed and
@@ -697,7 +789,10 @@ def answer(request: Request, source: SegmentSource, *,
     else:
         sampled()
         t2 = time.perf_counter()
-        candidates, simulated = simulate(request, promising)
+        screened, simulated = _screened_figures(request, promising)
+        candidates = [_candidate(request, f, fig) for f, fig in screened if meets(request, fig)]
+        # reused by a no-match diagnosis, without the footprint as the misses' own figures
+        known = {id(f): dataclasses.replace(fig, footprint=0.0) for f, fig in screened}
         clock["simulate"] = time.perf_counter() - t2
         considered = len({r.segment_id for r in rows})
     t3 = time.perf_counter()
@@ -718,8 +813,11 @@ def answer(request: Request, source: SegmentSource, *,
             sampled()  # nothing in the whole atlas: diagnose (and refine) the sample's near misses
         nearest = source.nearest_dwell_angles(kinds, request.dwell)
         t4 = time.perf_counter()
-        misses = _misses(request, fitted)
-        no_match = diagnose(request, fitted, misses)
+        if request.refine:  # the refinement starts from the nearest misses: all of them, ranked
+            misses = _misses(request, fitted, known)
+            no_match = diagnose(request, fitted, misses)
+        else:
+            no_match = diagnose_by_bounds(request, fitted, known)
         # the diagnosis simulates the fits the screen dropped: simulation time of this answer
         clock["simulate"] = clock.get("simulate", 0.0) + time.perf_counter() - t4
         if request.refine and no_match.nearest is not None:

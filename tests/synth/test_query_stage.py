@@ -135,6 +135,85 @@ def test_no_match_counts_rejections_and_loosens_to_the_nearest(source):
     assert changed <= set().union(*(field_of[k] for k in missed))
 
 
+def _no_match_requests():
+    """Requests the test atlas's sample cannot meet, single and double dwells: a spread of
+    dwells (within, at the edge of and outside the stored range) and tight tolerances."""
+    out = [Request(dwell=d * DEG, dwell_tol=t * DEG, swing=s * DEG, output=o, refine=False)
+           for o in ("rpr", "rrr", "any") for d, s, t in ((10, 10, 0.5), (30, 60, 2), (60, 30, 0.2), (75, 45, 0.5),
+                                                          (90, 90, 2), (120, 30, 2), (150, 20, 1), (180, 10, 2),
+                                                          (45, 90, 0.2), (105, 60, 0.5))]
+    out += [Request(dwell=d * DEG, dwell_tol=5 * DEG, swing=None, output="rpr", dwells=2, refine=False) for d in (10, 90)]
+    out.append(Request(dwell=60 * DEG, dwell_tol=0.0, swing=30 * DEG, output="rrr", min_transmission=45 * DEG,
+                       refine=False))
+    return out
+
+
+def test_no_match_diagnosis_by_bounds_is_the_full_diagnosis(source, monkeypatch):
+    """Without refinement a no-match is diagnosed from bounds on the dwell (``diagnose_by_bounds``):
+    the same counts per constraint, the same nearest six-bar and the same request it would meet
+    as the full diagnosis (every fitted six-bar's exact figures) — on ≥ 20 requests nothing in
+    the sample meets — while most six-bars are never refined."""
+    import synth.query as q
+
+    refined_rows, fitted_rows, refined_rows_single, cases = 0, 0, 0, 0
+    real_figures = q._figures
+
+    def counting(request, sixbars, footprint=True):
+        nonlocal refined_rows
+        refined_rows += len(sixbars)
+        return real_figures(request, sixbars, footprint=footprint)
+
+    for request in _no_match_requests():
+        monkeypatch.setattr(q, "_figures", counting)
+        refined_rows = 0
+        fast = q.answer(request, source)
+        refined_fast = refined_rows
+        monkeypatch.setattr(q, "_figures", real_figures)
+        if fast.no_match is None:
+            continue
+        monkeypatch.setattr(q, "diagnose_by_bounds", lambda r, f, k=None: q.diagnose(r, f, q._misses(r, f, k)))
+        full = q.answer(request, source)
+        monkeypatch.undo()
+        a, b = fast.no_match, full.no_match
+        assert (a.fitted, a.rejected, a.would_meet) == (b.fitted, b.rejected, b.would_meet), request
+        assert (a.nearest is None) == (b.nearest is None)
+        if a.nearest is not None:
+            assert a.nearest.id == b.nearest.id
+            # figures computed in another batch: equal to the last bits but for float rounding
+            x, y = a.nearest.figures, b.nearest.figures
+            assert [tuple(d) for d in x.dwells] == [pytest.approx(tuple(d), rel=1e-12, abs=1e-12) for d in y.dwells]
+            assert (x.swing, x.transmission_fourbar, x.link_ratio) == pytest.approx((y.swing, y.transmission_fourbar,
+                                                                                    y.link_ratio), rel=1e-12)
+        cases += 1
+        if request.dwells == 1:
+            fitted_rows += a.fitted
+            refined_rows_single += refined_fast
+    assert cases >= 20
+    print(f'{cases} no-matches; single dwells: {refined_rows_single} of {fitted_rows} six-bars refined')
+    assert refined_rows_single < 0.5 * fitted_rows
+
+
+def test_dwell_angle_bounds_hold_the_refined_dwell(source):
+    """``dwell_angle_bounds`` (what the no-match diagnosis decides by) brackets the dwell that
+    ``sixbar_figures`` refines on the exact path, for every acceptable six-bar the query fits
+    to a spread of requests, and is narrow: 3.5 grid steps wide on average, at most 4 for 95 % of
+    them (wider where ψ bends sharply between samples)."""
+    from synth.output_range import dwell_angle_bounds
+    from synth.sixbar import crank_grid, simulate
+
+    sixbars = _fitted_sixbars(source, 10**6)
+    assert len(sixbars) >= 300
+    batch = SixBars.from_sixbars(sixbars)
+    phi = crank_grid(720)
+    motion = simulate(batch, phi, order=2)
+    figs = sixbar_figures(batch, band=0.1 * DEG, samples=720, motion=motion, footprint=False)
+    low, high = dwell_angle_bounds(phi, motion.psi, 0.1 * DEG, dpsi1=motion.dpsi[0])
+    angle = np.array([f.dwells[0].angle for f in figs])
+    h = 2 * math.pi / 720
+    assert np.all(low <= angle) and np.all(angle <= high)
+    assert np.percentile(high - low, 95) <= 4 * h + 1e-12 and np.mean(high - low) <= 3.5 * h
+
+
 # ---------------------------------------------------------------------------------------------
 # Exact dwell figures: the reported ends against a brute-force 0.001° crank grid
 # ---------------------------------------------------------------------------------------------
