@@ -284,17 +284,8 @@ def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: i
     """
     if count not in (1, 2):
         raise ValueError(f"count must be 1 or 2, not {count!r}")
-    phi0, h, m = grid_step(phi)
-    psi = np.asarray(psi, dtype=float)
-    lead = psi.shape[:-1]
-    P = psi.reshape(-1, m)
-    R = P.shape[0]
-    band_r = np.broadcast_to(np.asarray(band, dtype=float), lead).reshape(R)
-    if not np.all(np.isfinite(band_r)) or np.any(band_r < 0):
-        raise ValueError("band must be finite and >= 0")
-    d1 = None if dpsi1 is None else np.asarray(dpsi1, float).reshape(R, m)
-    net = _net_change(P, d1, h)
-    E = np.concatenate([P, P + net[:, None]], axis=1)  # ψ over two turns
+    phi0, h, m, lead, E, band_r = _two_turns(phi, psi, band, dpsi1)
+    R = E.shape[0]
     # With the exact path at hand, each sample that is a local extreme stands for the vertex of
     # the parabola through it and its neighbours: a peak between samples (h²|ψ″|/8) inside a
     # dwell must not be missed once the ends are pushed to the band's edge.
@@ -364,6 +355,22 @@ def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: i
                           zero(low).reshape(shape), zero(high).reshape(shape), fnd.reshape(shape))
 
 
+def _two_turns(phi, psi, band, dpsi1):
+    """The inputs of :func:`dwell_intervals` checked and flattened to rows: (φ₀, h, M, the
+    leading shape, ψ over two turns (R, 2M) — the second continued by the net change —, the
+    band per row)."""
+    phi0, h, m = grid_step(phi)
+    psi = np.asarray(psi, dtype=float)
+    lead = psi.shape[:-1]
+    P = psi.reshape(-1, m)
+    R = P.shape[0]
+    band_r = np.broadcast_to(np.asarray(band, dtype=float), lead).reshape(R)
+    if not np.all(np.isfinite(band_r)) or np.any(band_r < 0):
+        raise ValueError("band must be finite and >= 0")
+    d1 = None if dpsi1 is None else np.asarray(dpsi1, float).reshape(R, m)
+    return phi0, h, m, lead, np.concatenate([P, P + _net_change(P, d1, h)[:, None]], axis=1), band_r
+
+
 def dwell_angle_bounds(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *,
                        dpsi1: ArrayLike | None = None) -> tuple[F64, F64]:
     """Bounds (low, high) on the angle (rad) of the longest dwell :func:`dwell_intervals`
@@ -378,16 +385,7 @@ def dwell_angle_bounds(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *,
     than (n⁺ + 1)·h. A run over the whole turn is the whole turn (2π). Checked against the
     exact figures of every six-bar the query fits (``tests/synth/test_query_stage.py``).
     """
-    phi0, h, m = grid_step(phi)
-    psi = np.asarray(psi, dtype=float)
-    lead = psi.shape[:-1]
-    P = psi.reshape(-1, m)
-    R = P.shape[0]
-    band_r = np.broadcast_to(np.asarray(band, dtype=float), lead).reshape(R)
-    if not np.all(np.isfinite(band_r)) or np.any(band_r < 0):
-        raise ValueError("band must be finite and >= 0")
-    d1 = None if dpsi1 is None else np.asarray(dpsi1, float).reshape(R, m)
-    E = np.concatenate([P, P + _net_change(P, d1, h)[:, None]], axis=1)
+    _, h, m, lead, E, band_r = _two_turns(phi, psi, band, dpsi1)
     upper, lower = _vertex_bounds(E)
     lift = np.maximum((upper - E).max(axis=1), (E - lower).max(axis=1))
     tab_max, tab_min = _sparse_tables(upper, m, lower)
