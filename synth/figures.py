@@ -28,7 +28,7 @@ from synth.output_range import Dwell, dwell_angle_bounds, dwell_intervals, outpu
 from synth.sixbar import SixBar, SixBarMotion, SixBars, as_batch, crank_grid, simulate
 from synth.types import C128, F64
 
-__all__ = ["SixBarFigures", "figures_with_dwell_bounds", "sixbar_figures"]
+__all__ = ["SixBarFigures", "figures_with_dwell_bounds", "footprints", "sixbar_figures"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -190,16 +190,10 @@ def _figures_but_dwells(batch: SixBars, phi: F64, motion: SixBarMotion, psi_at, 
                       np.where(batch.rpr, reach, batch.rocker), np.where(batch.rpr, reach, batch.rod)], axis=1)
     ratio = links.max(axis=1) / links.min(axis=1)
 
-    fixed = np.stack([np.zeros(N, complex), batch.d.astype(complex), batch.pivot], axis=1)
-    paths = [motion.fourbar.A * np.ones_like(motion.psi), motion.fourbar.B, motion.z[0],
-             np.where(batch.rpr[:, None], motion.z[0], motion.moving_pivot)]
-    pts = np.concatenate([fixed] + [np.broadcast_to(p, motion.psi.shape) for p in paths], axis=1)
+    pts = _outline(batch, motion)
     xmin, xmax = pts.real.min(axis=1), pts.real.max(axis=1)
     ymin, ymax = pts.imag.min(axis=1), pts.imag.max(axis=1)
-    # Every other sample: the hull of a path sampled at 1° misses at most the sagitta of a
-    # 1° chord (~4e-5 of the area for a circle), and halves the GEOS time.
-    thin = np.concatenate([fixed] + [np.broadcast_to(p, motion.psi.shape)[:, ::2] for p in paths], axis=1)
-    area = _hull_areas(thin) if footprint else np.zeros(N)
+    area = _footprints(batch, motion) if footprint else np.zeros(N)
     build = buildability(batch, motion)
     return [SixBarFigures(
         dwells=(), deviations=(), swing=float(swing[k]), turns=int(turns[k]),
@@ -208,6 +202,28 @@ def _figures_but_dwells(batch: SixBars, phi: F64, motion: SixBarMotion, psi_at, 
         bounds=(float(xmin[k]), float(ymin[k]), float(xmax[k]), float(ymax[k])),
         status=int(status[k]), build=build[k],
     ) for k in range(N)]
+
+
+def footprints(sixbars: SixBars, samples: int = 720) -> F64:
+    """The footprint :func:`sixbar_figures` reports (convex-hull area, length²), alone: for
+    figures computed without it."""
+    return _footprints(sixbars, simulate(sixbars, crank_grid(samples), order=0))
+
+
+def _outline(batch: SixBars, motion: SixBarMotion, every: int = 1) -> C128:
+    """Per row, the fixed pivots A0, B0, D and every ``every``-th sample of the paths of A, B,
+    P and (RRR) Q: what the footprint and bounds are taken over."""
+    N = len(batch)
+    fixed = np.stack([np.zeros(N, complex), batch.d.astype(complex), batch.pivot], axis=1)
+    paths = [motion.fourbar.A * np.ones_like(motion.psi), motion.fourbar.B, motion.z[0],
+             np.where(batch.rpr[:, None], motion.z[0], motion.moving_pivot)]
+    return np.concatenate([fixed] + [np.broadcast_to(p, motion.psi.shape)[:, ::every] for p in paths], axis=1)
+
+
+def _footprints(batch: SixBars, motion: SixBarMotion) -> F64:
+    # Every other sample: the hull of a path sampled at 1° misses at most the sagitta of a
+    # 1° chord (~4e-5 of the area for a circle), and halves the GEOS time.
+    return _hull_areas(_outline(batch, motion, every=2))
 
 
 def _as_batch_motion(motion: SixBarMotion) -> SixBarMotion:

@@ -49,7 +49,7 @@ from synth.candidates import (
     screen,
     with_dimensions,
 )
-from synth.figures import SixBarFigures, figures_with_dwell_bounds, sixbar_figures
+from synth.figures import SixBarFigures, figures_with_dwell_bounds, footprints, sixbar_figures
 from synth.output_range import Dwell
 from synth.sixbar import OutputDyad, SixBar, SixBars, crank_grid
 from synth.sixbar import simulate as simulate_motion
@@ -539,6 +539,8 @@ def _no_match(request: Request, fitted: int, rejected: dict[str, int],
     if nearest is None:
         return NoMatch(fitted, rejected, None, None)
     fit_, fig = nearest
+    # the misses are simulated without the footprint: the one shown gets it
+    fig = dataclasses.replace(fig, footprint=float(footprints(SixBars.from_sixbars([fit_.sixbar()]))[0]))
     loose = _loosened(request, fig)
     return NoMatch(fitted, rejected, dataclasses.replace(_candidate(loose, fit_, fig), rank=1), loose)
 

@@ -126,6 +126,9 @@ def test_no_match_counts_rejections_and_loosens_to_the_nearest(source):
     assert nm.failed == max(CONSTRAINTS, key=lambda k: (expected[k], -CONSTRAINTS.index(k)))
     assert nm.nearest is not None and not meets(request, nm.nearest.figures)
     assert meets(nm.would_meet, nm.nearest.figures)
+    # the nearest six-bar's footprint as the full figures give it (the misses are simulated without)
+    full = sixbar_figures(nm.nearest.sixbar, band=request.band, dwell_length=request.dwell)
+    assert nm.nearest.figures.footprint == pytest.approx(full.footprint, rel=1e-12) and full.footprint > 0
     # only what the nearest six-bar missed is loosened
     missed = {k for k, x in violations(request, nm.nearest.figures).items() if x > 0}
     changed = {f.name for f in dataclasses.fields(Request) if getattr(request, f.name) != getattr(nm.would_meet, f.name)}
