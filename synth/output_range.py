@@ -383,7 +383,8 @@ def dwell_angle_bounds(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *,
     vertex-bounded sample is at most δ (the row's largest vertex lift) beyond its sample, so
     the interval holds at most n⁺ samples, n⁺ the longest run within band + 2δ, and is shorter
     than (n⁺ + 1)·h. A run over the whole turn is the whole turn (2π). Checked against the
-    exact figures of every six-bar the query fits (``tests/synth/test_query_stage.py``).
+    refined dwells of the ~1 200 six-bars the query fits to a spread of requests on the test
+    atlas (``tests/synth/test_query_stage.py``).
     """
     _, h, m, lead, E, band_r = _two_turns(phi, psi, band, dpsi1)
     upper, lower = _vertex_bounds(E)
