@@ -122,21 +122,25 @@ def _least_squares_circle(z: C128):
 
 
 def minimum_zone_halfwidth(z: C128, kind: int) -> F64:
-    """Half-width of an (approximately) minimum-zone line (``kind`` 0) or annulus (1) of each
-    row of path samples ``z`` (n, samples), with ``synth.segments``' fitter: the peak
-    |deviation| on the samples from the fitted geometry (an upper estimate of the optimum).
+    """Half-width of the minimum-zone line (``kind`` 0: exact) or of an (approximately)
+    minimum-zone annulus (1) of each row of path samples ``z`` (n, samples).
 
-    The fit is linearised about its start, so it is re-linearised and started twice (arcs:
-    from the three-point circle and from the algebraic least-squares circle); the smaller
-    peak is kept."""
+    Line: half the samples' minimum width, which is attained across one edge of their convex
+    hull, so it is the smallest spread of the samples' projections on the normals of all
+    sample pairs (exact; O(samples³) per row). Annulus: ``synth.segments``' fitter, the peak
+    |deviation| on the samples from the fitted circle (an upper estimate of the optimum); the
+    fit is linearised about its start, so it is re-linearised and started twice (from the
+    three-point circle and from the algebraic least-squares circle), and the smallest peak —
+    or the line's, the limit of circles — is kept."""
+    if kind == SegmentKind.LINE.code:
+        return _minimum_width(z) / 2
     starts = [_start_geometry(z, kind)]
     if kind == SegmentKind.ARC.code:
         point, direction, _ = starts[0]
         centre, radius = _least_squares_circle(z)
         ok = np.isfinite(centre) & np.isfinite(radius) & (radius > 0)
         starts.append((np.where(ok, centre, starts[0][0]), direction, np.where(ok, radius, starts[0][2])))
-    # a line is the limit of circles: its half-width bounds the annulus's
-    best = minimum_zone_halfwidth(z, SegmentKind.LINE.code) if kind == SegmentKind.ARC.code else np.full(z.shape[0], np.inf)
+    best = _minimum_width(z) / 2  # a line is the limit of circles: its half-width bounds the annulus's
     for point, direction, radius in starts:
         for _ in range(_RELINEARISE):
             point, direction, radius = minimum_zone_fit(z, kind, point, direction, radius, _ITERATIONS)
@@ -146,6 +150,24 @@ def minimum_zone_halfwidth(z: C128, kind: int) -> F64:
             valid = np.isfinite(h) & (np.abs(radius) < _MAX_RADIUS) & np.isfinite(point)
             best = np.minimum(best, np.where(valid, h, np.inf))
     return best
+
+
+def _minimum_width(z: C128) -> F64:
+    """Per row of points ``z`` (n, s), the minimum width over all directions (0 for s < 3)."""
+    n, m = z.shape
+    if m < 3:
+        return np.zeros(n)
+    i, j = np.triu_indices(m, 1)
+    out = np.empty(n)
+    rows = max(1, (1 << 21) // (i.size * m))  # bounded temporaries
+    for k in range(0, n, rows):
+        zk = z[k:k + rows]
+        edge = zk[:, j] - zk[:, i]  # (r, pairs)
+        length = np.abs(edge)
+        normal = np.where(length > 0, 1j * edge / np.where(length > 0, length, 1.0), 1j)
+        proj = (zk[:, None, :] * np.conj(normal)[:, :, None]).real  # (r, pairs, s)
+        out[k:k + rows] = (proj.max(axis=2) - proj.min(axis=2)).min(axis=1)
+    return out
 
 
 def deviation_profile(b: float, c: float, d: float, branch: int, uv: complex, phi_gen: float, kind: int, *,
