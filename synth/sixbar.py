@@ -11,7 +11,8 @@ one of two output dyads (docs/curvature.md §4):
   L = |DQ| about the fixed pivot D. Output angle ψ = arg(Q − D).
 
 :func:`simulate` is the exact closed-form position and derivative solution, never the
-curvature approximation; every figure a user is shown (:mod:`synth.figures`: dwell angle,
+curvature approximation (compiled: :mod:`synth.sixbar_kernel`; the numpy functions here are
+its reference and the path for crank angles of other shapes); every figure a user is shown (:mod:`synth.figures`: dwell angle,
 output deviation, swing, transmission angles) comes from it, with dwell ends and extremes
 refined on its exact path beyond the sample grid (:mod:`synth.output_range`). Points are
 complex numbers, angles radians, lengths in the unit of the links (crank-normalised inside the
@@ -360,6 +361,11 @@ def simulate(sixbar: SixBar | SixBars, phi: ArrayLike, *, order: int = 2, on_deg
     with b, c, θ, γ → ρ, L, χ, ψ). Transmission angle at Q: the angle between e^{iχ} and
     e^{iψ}, folded to [0, π/2] (:func:`kinematics.loop.transmission_fold`).
 
+    Crank angles of shape ``(M,)``, or ``(N, M)``/``(1, M)`` for a batch, run through the
+    compiled kernel (:mod:`synth.sixbar_kernel`: these formulas in one pass per position, 2–4×
+    the numpy path); any other shape (a scalar angle, a grid to broadcast) through the numpy
+    path below, the reference the kernel is tested against (statuses equal, values to ~1e-11).
+
     References
     ----------
     ``docs/curvature.md`` §1 (loop derivatives) and §4 (output dyads).
@@ -367,10 +373,64 @@ def simulate(sixbar: SixBar | SixBars, phi: ArrayLike, *, order: int = 2, on_deg
     mode = check_on_degenerate(on_degenerate)
     if order not in (0, 1, 2):
         raise ValueError(f"order must be 0, 1 or 2, not {order!r}")
-    batch, single = as_batch(sixbar)
+    single = isinstance(sixbar, SixBar)
+    if not single and not isinstance(sixbar, SixBars):
+        raise TypeError(f"expected a SixBar or SixBars, not {type(sixbar).__name__}")
     phi = np.asarray(phi, dtype=float)
     if not np.all(np.isfinite(phi)):
         raise ValueError("crank angles must be finite")
+    phi_rows = _kernel_phi(phi, 1 if single else len(sixbar), single)
+    if phi_rows is not None:
+        motion = _simulate_compiled(sixbar, phi, phi_rows, order)
+        if mode == "raise":
+            raise_on_flags(motion.status, "six-bar", Status.NOT_ASSEMBLABLE | (Status.TOGGLE if order else Status.OK))
+        return motion
+    batch, single = as_batch(sixbar)
+    return _simulate_numpy(batch, single, phi, order, mode)
+
+
+def _kernel_phi(phi: F64, n: int, single: bool) -> F64 | None:
+    """``phi`` as the compiled kernel's ``(1, M)`` or ``(N, M)`` rows, or None for a shape it
+    does not take (then the numpy path broadcasts it)."""
+    if phi.ndim == 1 and phi.shape[0] > 0:
+        return phi[None, :]
+    if not single and phi.ndim == 2 and phi.shape[0] in (1, n) and phi.shape[1] > 0:
+        return np.ascontiguousarray(phi)
+    return None
+
+
+def _simulate_compiled(sixbar: SixBar | SixBars, phi: F64, phi_rows: F64, order: int) -> SixBarMotion:
+    """The compiled kernel (:mod:`synth.sixbar_kernel`): the numpy path's figures and statuses
+    in one pass over the positions."""
+    from synth.sixbar_kernel import kernel_parameters, sixbar_positions  # numba: imported on first use
+
+    single = isinstance(sixbar, SixBar)
+    if single:
+        dy = sixbar.dyad
+        params = np.array([[sixbar.a, sixbar.b, sixbar.c, sixbar.d, sixbar.branch, sixbar.u, sixbar.v,
+                            dy.pivot.real, dy.pivot.imag, dy.rocker, dy.rod, dy.branch]])
+        rpr = np.array([dy.kind is OutputKind.RPR])
+    else:
+        s = sixbar
+        params = kernel_parameters(s.a, s.b, s.c, s.d, s.branch, s.u, s.v, s.pivot, s.rocker, s.rod, s.dyad_branch)
+        rpr = np.ascontiguousarray(s.rpr, dtype=bool)
+    points, angles, derivs, st_fb, status = sixbar_positions(params, rpr, phi_rows, PIN_ON_PIVOT_EPS, order)
+    if single:
+        points, angles, derivs, st_fb, status = points[:, 0], angles[:, 0], derivs[:, 0], st_fb[0], status[0]
+        a, b, c, d, br = (params[:, k] for k in range(5))
+        pivot = np.complex128(sixbar.dyad.pivot)
+    else:
+        a, b, c, d, br = (params[:, k, None] for k in range(5))
+        pivot = sixbar.pivot[:, None]
+    fb = FourBarMotion(a, b, c, d, phi, br, points[0], tuple(derivs[0::3]), tuple(derivs[1::3]), st_fb)
+    z = (points[1], *points[3:])
+    psi, mu_fb, mu_out = angles
+    return SixBarMotion(phi, fb, z, pivot, points[2], psi, tuple(derivs[2::3]), mu_fb, mu_out, status)
+
+
+def _simulate_numpy(batch: SixBars, single: bool, phi: F64, order: int, mode: str) -> SixBarMotion:
+    """Every order, every broadcastable ``phi``: the reference path (see :func:`simulate`) and
+    the fallback for crank angles the compiled kernel does not take."""
     col = (lambda x: x[0]) if single else (lambda x: x[:, None])
     a, b, c, d, br, u, v = (col(x) for x in (batch.a, batch.b, batch.c, batch.d, batch.branch, batch.u, batch.v))
     fb = fourbar_motion(a, b, c, d, phi, br, order=order)

@@ -40,6 +40,7 @@ from synth.segments import SegmentSearch, find_segments
 
 DEFAULT_RESOLUTIONS = "4:18,3:24,2:36,1.5:48"
 FLOOR = 100.0  # linkages/s on 2 cores at the standard resolution (issue #4)
+STORAGE_FLOOR = 8000  # bytes per linkage (issue #16)
 
 
 #: Fastest build rate assumed when estimating ``--build`` (linkages/s per worker): about 5x
@@ -191,6 +192,8 @@ def atlas(preset, proportions, resolutions, reference_step, reference_rays, dwel
 
 def _timed_build(spec, samples: int, workers: int) -> dict:
     from atlas.build import build_atlas
+    from db.engine import open_atlas
+    from db.summary import storage_bytes
 
     small = spec.replace(samples=samples)
     with tempfile.TemporaryDirectory() as tmp:
@@ -198,8 +201,14 @@ def _timed_build(spec, samples: int, workers: int) -> dict:
         t0 = time.perf_counter()
         summary = build_atlas(target, small, workers=workers)
         seconds = time.perf_counter() - t0
+        engine = open_atlas(target, readonly=True)
+        try:
+            size = storage_bytes(engine)
+        finally:
+            engine.dispose()
     linkages = int(getattr(summary, "linkages", 0))
     rate = linkages / seconds if seconds > 0 else math.inf
+    per_linkage = size / linkages if size and linkages else None
     return {
         "samples": samples,
         "workers": workers,
@@ -209,6 +218,10 @@ def _timed_build(spec, samples: int, workers: int) -> dict:
         "linkages_per_s": round(rate, 1),
         "floor_linkages_per_s": FLOOR,
         "meets_floor": bool(rate >= FLOOR),
+        "storage_bytes": size,
+        "bytes_per_linkage": None if per_linkage is None else round(per_linkage, 1),
+        "floor_bytes_per_linkage": STORAGE_FLOOR,
+        "meets_storage_floor": None if per_linkage is None else bool(per_linkage <= STORAGE_FLOOR),
     }
 
 

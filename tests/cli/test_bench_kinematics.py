@@ -44,6 +44,21 @@ def test_bench_sixbar_json(capsys):
         assert r["max_abs_psi_difference_rad"] < 1e-12
         quotient = r["ours_positions_per_s"] / r["plain_numpy_positions_per_s"]
         assert abs(r["ratio_to_plain_numpy"] - quotient) < 1e-9 * quotient
+        # the numpy path, timed beside the kernel, on the same terms
+        quotient = r["numpy_path_positions_per_s"] / r["plain_numpy_positions_per_s"]
+        assert abs(r["numpy_path_ratio_to_plain_numpy"] - quotient) < 1e-9 * quotient
+
+
+def test_bench_atlas_build_reports_bytes_per_linkage():
+    """The timed build's bytes per linkage are the SQLite file's pages over its linkages."""
+    from atlas.sweep import PRESETS
+    from cli.bench.atlas import STORAGE_FLOOR, _timed_build
+
+    doc = _timed_build(PRESETS["demo"], 24, 1)
+    assert doc["linkages"] > 0 and doc["storage_bytes"] % 4096 == 0 and doc["storage_bytes"] > 0
+    assert abs(doc["bytes_per_linkage"] - doc["storage_bytes"] / doc["linkages"]) <= 0.05
+    assert doc["floor_bytes_per_linkage"] == STORAGE_FLOOR
+    assert doc["meets_storage_floor"] == (doc["bytes_per_linkage"] <= STORAGE_FLOOR)
 
 
 def test_plain_sixbar_matches_a_hand_built_one():

@@ -1,0 +1,252 @@
+"""The six-bar's motion compiled: one pass over (six-bar, crank angle) for
+:func:`synth.sixbar.simulate`, positions and derivatives up to order 2.
+
+The query, the figures, the refinement and the reports simulate six-bars by the million; the
+numpy path spends most of its time in temporaries (a dozen full-size arrays per call) and in
+per-call overhead at small sizes. This kernel runs the same closed forms, in the same
+floating-point order, one position at a time: the four-bar's closing triangle and its rates
+(:func:`kinematics.loop.circle_intersection_xy` and ``rates_xy``: Heron's height, its scaled
+form beyond ``HERON_SAFE``, the same thresholds and placeholders; the derivative system of
+:func:`kinematics.fourbar.solve_block`), the coupler point and its derivatives
+(:meth:`kinematics.fourbar.FourBarMotion.coupler_point`), the RPR or RRR dyad
+(:func:`synth.sixbar._rpr`, :func:`synth.sixbar._rrr`), the folded transmission angles
+(:func:`kinematics.loop.transmission_fold`) and the continuous output angle
+(:func:`synth.sixbar._unwrap`).
+
+The numpy path stays the reference and the fallback (crank angles of other shapes);
+``tests/synth/test_sixbar_kernel.py`` holds the two to the same statuses and to ~1e-11
+(numpy's complex product may fuse a multiply and an add where this kernel does not). numba
+compiles on first use (~1–3 s) and caches the machine code beside this file.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from kinematics.loop import COINCIDENT_EPS, HERON_SAFE, TOGGLE_EPS
+from kinematics.status import Status
+
+__all__ = ["PARAMETERS", "kernel_parameters", "sixbar_positions"]
+
+_NA = int(Status.NOT_ASSEMBLABLE)
+_TOGGLE = int(Status.TOGGLE)
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _closing_point(rx, ry, l1, l2, branch):
+    """Scalar :func:`kinematics.loop.circle_intersection_xy`: (cos1, sin1, cos2, sin2, status),
+    e2 put back on the unit circle where the loop does not close — the same operations."""
+    r2 = rx * rx + ry * ry
+    r = math.sqrt(r2)
+    d21 = l2 - l1
+    s12 = l1 + l2
+    if s12 > HERON_SAFE or s12 < 1.0 / HERON_SAFE:
+        s = s12
+        heron = ((r + d21) / s) * ((s12 - r) / s) * ((r - d21) / s) * ((r + s12) / s)
+        root = math.sqrt(max(heron, 0.0)) * (s * s)
+    else:
+        heron = (r + d21) * (s12 - r) * (r - d21) * (r + s12)
+        root = math.sqrt(max(heron, 0.0))
+    coincident = r <= COINCIDENT_EPS * s12
+    bad = heron < 0 or coincident
+    if coincident:
+        r = 1.0
+    inv_2r = 0.5 / (l1 * r)
+    cb = (r2 - d21 * s12) * inv_2r
+    sb = root * (branch * inv_2r)
+    if bad:
+        cb = min(max(cb, -1.0), 1.0)
+        if coincident:
+            rx, ry = 1.0, 0.0
+    inv_r = 1.0 / r
+    c1 = (rx * cb - ry * sb) * inv_r
+    s1 = (rx * sb + ry * cb) * inv_r
+    height = r * sb
+    inv_l2 = 1.0 / l2
+    c2 = (l1 * c1 - rx) * inv_l2
+    s2 = (l1 * s1 - ry) * inv_l2
+    if bad:
+        mag = math.hypot(c2, s2)
+        if mag == 0.0:
+            c2 = 1.0
+        else:
+            c2, s2 = c2 / mag, s2 / mag
+        status = _NA
+    elif abs(height) < TOGGLE_EPS * l2:
+        status = _TOGGLE
+    else:
+        status = 0
+    # Cramer factors of the rates (CircleIntersection.rates): 0 where flagged
+    k2 = 0.0 if status else 1.0 / height
+    return c1, s1, c2, s2, status, (l2 / l1) * k2, k2
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _divide(ax, ay, bx, by):
+    """(a / b) for complex a, b by Smith's scaling, as numpy divides (no overflow of |b|²)."""
+    if abs(bx) >= abs(by):
+        rat = by / bx
+        scl = 1.0 / (bx + by * rat)
+        return (ax + ay * rat) * scl, (ay - ax * rat) * scl
+    rat = bx / by
+    scl = 1.0 / (by + bx * rat)
+    return (ax * rat + ay) * scl, (ay * rat - ax) * scl
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _fold(cos_mu):
+    """:func:`kinematics.loop.transmission_fold` of the relative phasor's real part."""
+    mu = math.acos(min(max(cos_mu, -1.0), 1.0))
+    return min(mu, math.pi - mu)
+
+
+#: Columns of the kernel's parameter rows, one row per six-bar (:func:`kernel_parameters`).
+PARAMETERS = ("a", "b", "c", "d", "branch", "u", "v", "pivot_x", "pivot_y", "rocker", "rod", "dyad_branch")
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _positions(params, rpr, phi, pin_eps, order, points, angles, derivs, status_fourbar, status):
+    """Fill ``points`` (e^{iθ}, P, Q, then P′, P″ up to ``order``), ``angles`` (ψ, μ four-bar,
+    μ output), ``derivs`` ((θ′, γ′, ψ′, θ″, γ″, ψ″)[: 3·order]), each ``(k, N, M)``, and the two
+    status arrays ``(N, M)``."""
+    n, m = status.shape
+    shared_phi = phi.shape[0] == 1
+    # a crank grid shared by every six-bar: its cosines and sines once
+    cos_phi, sin_phi = np.empty(m), np.empty(m)
+    if shared_phi:
+        for j in range(m):
+            cos_phi[j], sin_phi[j] = math.cos(phi[0, j]), math.sin(phi[0, j])
+    e_theta, z, moving_pivot = points[0], points[1], points[2]
+    psi, mu_fourbar, mu_output = angles[0], angles[1], angles[2]
+    half_pi = 0.5 * math.pi
+    two_pi = 2.0 * math.pi
+    for i in range(n):
+        ai, bi, ci, di, bri, ui, vi = params[i, 0], params[i, 1], params[i, 2], params[i, 3], params[i, 4], params[i, 5], params[i, 6]
+        dxi, dyi, li, rhoi, dbri = params[i, 7], params[i, 8], params[i, 9], params[i, 10], params[i, 11]
+        size = max(max(ai, bi), max(ci, di))
+        size = max(size, math.hypot(dxi, dyi))
+        base0 = 0.0
+        acc = 0.0
+        px, py, prev_p1 = 1.0, 0.0, 0.0  # e^{iψ} and ψ′ at the previous sample
+        for j in range(m):
+            if shared_phi:
+                cphi, sphi = cos_phi[j], sin_phi[j]
+            else:
+                cphi, sphi = math.cos(phi[i, j]), math.sin(phi[i, j])
+            # four-bar: circles about A (radius b) and B0 (radius c), R = B0 − A
+            ct, st, cg, sg, fb, fk1, fk2 = _closing_point(di - ai * cphi, -(ai * sphi), bi, ci, bri)
+            e_theta[i, j] = complex(ct, st)
+            status_fourbar[i, j] = fb
+            ax, ay = ai * cphi, ai * sphi
+            wx, wy = ct * ui - st * vi, ct * vi + st * ui  # e^{iθ}(u + iv)
+            # transmission at B: e^{iθ}·conj(e^{iγ}), e^{iγ} = (A + b·e^{iθ} − d)/c
+            inv_c = 1.0 / ci
+            gx = ((ax + bi * ct) - di) * inv_c
+            gy = (ay + bi * st) * inv_c
+            mu_fourbar[i, j] = _fold(ct * gx + st * gy)
+            # coupler point P = A + e^{iθ}(u + iv) and, up to ``order``, P′ and P″
+            # (docs/curvature.md §1: P′ = iA + iθ′w, P″ = −A + (iθ″ − θ′²)w)
+            zx, zy = ax + wx, ay + wy
+            z[i, j] = complex(zx, zy)
+            t1 = g1 = t2 = g2 = 0.0
+            z1x = z1y = z2x = z2y = 0.0
+            if order >= 1:
+                # rates of the loop (CircleIntersection.rates_xy) with q = R′ = (a sin φ, −a cos φ)
+                qx, qy = ai * sphi, -(ai * cphi)
+                t1 = (qx * cg + qy * sg) * fk1
+                g1 = (qx * ct + qy * st) * fk2
+                z1x, z1y = -ay - t1 * wy, ax + t1 * wx
+                points[3, i, j] = complex(z1x, z1y)
+                if order >= 2:
+                    bt2, cg2 = bi * (t1 * t1), ci * (g1 * g1)
+                    qx, qy = ax + (bt2 * ct - cg2 * cg), ay + (bt2 * st - cg2 * sg)
+                    t2 = (qx * cg + qy * sg) * fk1
+                    g2 = (qx * ct + qy * st) * fk2
+                    tt = t1 * t1
+                    z2x, z2y = -ax + (-(tt * wx) - t2 * wy), -ay + (t2 * wx - tt * wy)
+                    points[4, i, j] = complex(z2x, z2y)
+            p1 = p2 = 0.0
+            if rpr[i]:
+                rx, ry = zx - dxi, zy - dyi
+                r = math.hypot(rx, ry)
+                # numpy's complex ÷ real: (w + 0i)·(1/r), zeros' signs included
+                if r <= pin_eps * size:
+                    st_dyad = _NA
+                    scale = 1.0 / size
+                    ex, ey = (size + 0.0 * 0.0) * scale, (0.0 - size * 0.0) * scale  # placeholder +x
+                else:
+                    st_dyad = 0
+                    scale = 1.0 / r
+                    ex, ey = (rx + ry * 0.0) * scale, (ry - rx * 0.0) * scale
+                    if order >= 1:  # ψ′ = Im(P′/W), ψ″ = Im(P″/W − (P′/W)²), W = P − D
+                        f1x, f1y = _divide(z1x, z1y, rx, ry)
+                        p1 = f1y
+                        if order >= 2:
+                            p2 = _divide(z2x, z2y, rx, ry)[1] - 2.0 * f1x * f1y
+                moving_pivot[i, j] = complex(zx, zy)
+                mu_output[i, j] = half_pi
+            else:
+                # circles about P (radius ρ) and D (radius L), R = D − P
+                cx, cy, ex, ey, st_dyad, dk1, dk2 = _closing_point(dxi - zx, dyi - zy, rhoi, li, dbri)
+                moving_pivot[i, j] = complex(dxi + li * ex, dyi + li * ey)
+                mu_output[i, j] = 0.0 if st_dyad & _NA else _fold(cx * ex + cy * ey)
+                if order >= 1:  # (χ′, ψ′) from q = −P′, then ψ″ from q = −P″ + ρχ′²e^{iχ} − Lψ′²e^{iψ}
+                    c1 = (-z1x * ex - z1y * ey) * dk1
+                    p1 = (-z1x * cx - z1y * cy) * dk2
+                    if order >= 2:
+                        rc, lp = rhoi * c1 * c1, li * p1 * p1
+                        qx, qy = -z2x + rc * cx - lp * ex, -z2y + rc * cy - lp * ey
+                        p2 = (qx * cx + qy * cy) * dk2
+            st_six = fb | st_dyad
+            status[i, j] = st_six
+            if st_six:  # derivatives at a flagged position are placeholders: 0
+                p1 = p2 = 0.0
+            if order >= 1:
+                derivs[0, i, j], derivs[1, i, j], derivs[2, i, j] = t1, g1, p1
+                if order >= 2:
+                    derivs[3, i, j], derivs[4, i, j], derivs[5, i, j] = t2, g2, p2
+            # ψ continuous: the first sample's angle plus the running sum of the steps, each
+            # (with ψ′) the 2π-branch nearest the trapezoidal prediction (synth.sixbar._unwrap)
+            if j == 0:
+                base0 = math.atan2(ey, ex)
+                psi[i, j] = base0
+            else:
+                step = math.atan2(-(ex * py) + ey * px, ex * px + ey * py)
+                if order >= 1:
+                    pred = 0.5 * (p1 + prev_p1) * (phi[0 if shared_phi else i, j] - phi[0 if shared_phi else i, j - 1])
+                    step = pred + ((step - pred + math.pi) % two_pi - math.pi)
+                acc += step
+                psi[i, j] = acc + base0
+            px, py, prev_p1 = ex, ey, p1
+
+
+def kernel_parameters(a, b, c, d, branch, u, v, pivot, rocker, rod, dyad_branch) -> np.ndarray:
+    """The ``(N, 12)`` parameter rows of :data:`PARAMETERS` from ``(N,)`` fields (the pivot complex)."""
+    pivot = np.asarray(pivot, np.complex128)
+    return np.stack([a, b, c, d, branch, u, v, pivot.real, pivot.imag, rocker, rod, dyad_branch], axis=1).astype(float)
+
+
+def sixbar_positions(params: np.ndarray, rpr: np.ndarray, phi: np.ndarray, pin_eps: float, order: int = 0):
+    """Motion of ``N`` six-bars (``params``: ``(N, 12)`` rows of :data:`PARAMETERS`,
+    C-contiguous float64; ``rpr``: ``(N,)`` bool) at crank angles ``phi`` of shape ``(1, M)``
+    (shared) or ``(N, M)``, with derivatives up to ``order`` (0, 1 or 2).
+
+    Returns (points, angles, derivs, status_fourbar, status): ``points`` complex
+    ``(3 + order, N, M)`` — the coupler phasor e^{iθ}, the coupler point P, Q (RPR: P), then
+    P′, P″; ``angles`` ``(3, N, M)`` — the continuous output angle ψ and the two folded
+    transmission angles (rad; RPR output: π/2, 0 where an RRR cannot assemble); ``derivs``
+    ``(3·order, N, M)`` — θ′, γ′, ψ′, then θ″, γ″, ψ″ (ψ's are 0 wherever the six-bar is
+    flagged); the four-bar's ``uint8`` and the six-bar's ``uint16``
+    :class:`~kinematics.status.Status` flags, ``(N, M)``.
+    """
+    n, m = params.shape[0], phi.shape[1]
+    points = np.empty((3 + order, n, m), np.complex128)
+    angles = np.empty((3, n, m))
+    derivs = np.empty((3 * order, n, m))
+    status_fourbar = np.empty((n, m), np.uint8)
+    status = np.empty((n, m), np.uint16)
+    _positions(params, rpr, phi, pin_eps, order, points, angles, derivs, status_fourbar, status)
+    return points, angles, derivs, status_fourbar, status
