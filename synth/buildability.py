@@ -122,24 +122,35 @@ def clearances(batch: SixBars, motion: SixBarMotion, every: int = 1) -> tuple[np
     D = batch.pivot[:, None]
     rpr = batch.rpr
     reach = np.abs(P - D)
-    slot_end = D + reach.max(axis=1, keepdims=True) * np.exp(1j * psi)  # the slot's far end, along ψ
 
-    # (distance (N, M), applies (N,)) in the order of CLEARANCE_PAIRS: joints to pivots they are
-    # not pinned to, output links to pivots off them
-    rrr = ~rpr
-    every = np.ones(n, bool)
+    # The pairs in the order of CLEARANCE_PAIRS: joints to pivots they are not pinned to,
+    # output links to pivots off them. Each as (distance over rows' samples, which rows it
+    # applies to: None for all); a dyad kind's pairs are measured on its rows only.
+    def rows_of(mask):  # a kind's rows: a slice where it is every row (no copies), else their indices
+        return slice(None) if mask.all() else np.flatnonzero(mask)
+
+    rr, rp = rows_of(~rpr), rows_of(rpr)
+    every_row = slice(None)
+    Pr, Qr, Dr, A0r, B0r = P[rr], Q[rr], D[rr], A0[rr], B0[rr]
+    slot_end = None
+    if np.any(rpr):  # the slot's far end, along ψ
+        slot_end = D[rp] + reach[rp].max(axis=1, keepdims=True) * np.exp(1j * psi[rp])
     pairs = [
-        (np.abs(A - B0), every), (np.abs(A - D), every),
-        (np.abs(B - A0), every), (np.abs(B - D), every),
-        (np.abs(P - A0), every), (np.abs(P - B0), every),
-        (reach, rrr),  # RPR: that is the torque arm
-        (np.abs(Q - A0), rrr), (np.abs(Q - B0), rrr),
-        (_segment_distance(A0, P, Q), rrr), (_segment_distance(B0, P, Q), rrr),
-        (_segment_distance(D, P, Q), rrr),
-        (_segment_distance(A0, D, Q), rrr), (_segment_distance(B0, D, Q), rrr),
-        (_segment_distance(A0, D, slot_end), rpr), (_segment_distance(B0, D, slot_end), rpr),
+        (lambda: np.abs(A - B0), every_row), (lambda: np.abs(A - D), every_row),
+        (lambda: np.abs(B - A0), every_row), (lambda: np.abs(B - D), every_row),
+        (lambda: np.abs(P - A0), every_row), (lambda: np.abs(P - B0), every_row),
+        (lambda: reach[rr], rr),  # RPR: that is the torque arm
+        (lambda: np.abs(Qr - A0r), rr), (lambda: np.abs(Qr - B0r), rr),
+        (lambda: _segment_distance(A0r, Pr, Qr), rr), (lambda: _segment_distance(B0r, Pr, Qr), rr),
+        (lambda: _segment_distance(Dr, Pr, Qr), rr),
+        (lambda: _segment_distance(A0r, Dr, Qr), rr), (lambda: _segment_distance(B0r, Dr, Qr), rr),
+        (lambda: _segment_distance(A0[rp], D[rp], slot_end), rp),
+        (lambda: _segment_distance(B0[rp], D[rp], slot_end), rp),
     ]
-    smallest = np.stack([np.where(applies, dist.min(axis=1), np.inf) for dist, applies in pairs], axis=1)
+    smallest = np.full((n, len(pairs)), np.inf)
+    for k, (distance, rows) in enumerate(pairs):
+        if isinstance(rows, slice) or rows.size:
+            smallest[rows, k] = distance().min(axis=1)
     which = smallest.argmin(axis=1)
     return reach, smallest[np.arange(n), which], which, rpr
 

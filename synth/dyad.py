@@ -609,6 +609,9 @@ class _RrrTerms:
         self.inv_a_rho = (inv_a / rho[:, None])[:, None, :]  # B/A = p·inv_a/ρ
         self.half = (cm * np.abs(inv_a))[:, None, :]
         self.w_mid = w_mid
+        self.rows = rho
+        # the compiled ranking's inputs: (R, S), contiguous
+        self.flat = tuple(np.ascontiguousarray(x[:, 0, :]) for x in (self.wx, self.wy, self.A, self.inv_a_rho, self.half))
 
     def _pq(self, alpha):
         c, s = np.cos(alpha)[..., None], np.sin(alpha)[..., None]
@@ -616,20 +619,17 @@ class _RrrTerms:
 
     def estimate(self, alpha: F64, target: F64, ratio: F64 | float = 1.0):
         """For directions α (R, J): branch, transmission u-interval, slider-limit u and the
-        minimum transmission angle at ``ratio`` times it (−1 where no feasible u)."""
-        p, q = self._pq(alpha)
-        centre = -p * self.inv_a_rho
-        u_hi = (centre + self.half).min(axis=-1)
-        u_lo = np.maximum((centre - self.half).max(axis=-1), 0.0)
+        minimum transmission angle at ``ratio`` times it (−1 where no feasible u); compiled
+        (:mod:`synth.dyad_kernel`, the same numbers)."""
+        from synth.dyad_kernel import direction_estimates  # numba: imported on first use
+
+        alpha = np.asarray(alpha, dtype=float)
         q_mid = (self.w_mid[:, None] * np.exp(-1j * alpha)).imag
         branch = np.where(q_mid > 0, -1, 1)
-        s = q + branch[..., None] * np.sqrt(np.maximum(self.rho ** 2 - p * p, 0.0))
-        width = s.max(axis=-1) - s.min(axis=-1)
-        u_est = target[:, None] / np.maximum(width, 1e-12)
-        u_try = ratio * u_est
-        feasible = (u_lo <= u_hi) & (u_try <= u_hi)
-        u_use = np.clip(u_try, u_lo, np.maximum(u_hi, u_lo))
-        cos_max = np.abs(self.A * u_use[..., None] + p / self.rho).max(axis=-1)
+        ratio = np.ascontiguousarray(np.broadcast_to(np.asarray(ratio, dtype=float), alpha.shape))
+        u_lo, u_hi, u_est, cos_max, feasible = direction_estimates(
+            *self.flat, np.ascontiguousarray(self.rows, dtype=float), np.ascontiguousarray(np.cos(alpha)),
+            np.ascontiguousarray(np.sin(alpha)), branch.astype(float), np.ascontiguousarray(target, dtype=float), ratio)
         mu = np.arccos(np.minimum(cos_max, 1.0))
         return branch, u_lo, u_hi, u_est, np.where(feasible, mu, -1.0)
 

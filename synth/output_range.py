@@ -11,8 +11,9 @@ step that closes the turn. Nothing here knows the mechanism: :mod:`synth.figures
 exact simulation (:func:`~synth.sixbar.simulate`). Angles in radians; a crank interval
 [start, end] has start in [φ₀, φ₀ + 2π) and end = start + angle, so it may pass 2π.
 
-On the grid, window ranges come from sparse tables of block maxima/minima and binary lifting
-(O(M log M), vectorised over rows and starts); the refinement on the exact path is described
+On the grid, the longest window within the band from every start comes from one compiled pass
+per row (:func:`synth.band_windows.longest_windows`, O(M)), other window ranges from sparse
+tables of block maxima/minima (O(M log M), vectorised over rows and starts); the refinement on the exact path is described
 in :func:`dwell_intervals` and :func:`output_deviation` (checked against brute-force fine
 grids in ``tests/synth/test_sixbar.py`` and ``tests/synth/test_query_stage.py``).
 """
@@ -264,9 +265,9 @@ def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: i
 
     Notes
     -----
-    On the grid, the longest window from every start sample is found at once by binary
-    lifting over a sparse table of block maxima/minima (O(M log M), vectorised over rows and
-    starts). The longest exact interval need not sit in the longest grid window: one of
+    On the grid, the longest window from every start sample is found in one pass per row
+    (:func:`synth.band_windows.longest_windows`, two monotone queues, O(M)). The longest
+    exact interval need not sit in the longest grid window: one of
     Λ ≥ (n − 1)·h holds at least n − 1 samples, so every start whose window holds ≥ n − 1
     samples is a candidate; the ``CANDIDATES`` of them whose band reaches furthest with ψ
     linear between samples are refined. For each, the start is searched in the step before
@@ -282,6 +283,8 @@ def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: i
     samples would otherwise let the ends overreach). Checked against a brute-force 0.001° grid
     in ``tests/synth/test_query_stage.py``.
     """
+    from synth.band_windows import longest_windows  # numba: imported on first use
+
     if count not in (1, 2):
         raise ValueError(f"count must be 1 or 2, not {count!r}")
     phi0, h, m, lead, E, band_r = _two_turns(phi, psi, band, dpsi1)
@@ -291,7 +294,7 @@ def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: i
     # dwell must not be missed once the ends are pushed to the band's edge.
     upper, lower = _vertex_bounds(E) if psi_at is not None else (E, E)
     tab_max, tab_min = _sparse_tables(upper, m, lower)
-    length, w_max, w_min = _lifted_lengths(tab_max, tab_min, band_r, m)
+    length, w_max, w_min = longest_windows(upper, lower, band_r, m)
 
     rows = np.arange(R)
     s1 = np.argmax(length, axis=1)
@@ -386,12 +389,13 @@ def dwell_angle_bounds(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *,
     refined dwells of the ~1 200 six-bars the query fits to a spread of requests on the test
     atlas (``tests/synth/test_query_stage.py``).
     """
+    from synth.band_windows import longest_windows  # numba: imported on first use
+
     _, h, m, lead, E, band_r = _two_turns(phi, psi, band, dpsi1)
     upper, lower = _vertex_bounds(E)
     lift = np.maximum((upper - E).max(axis=1), (E - lower).max(axis=1))
-    tab_max, tab_min = _sparse_tables(upper, m, lower)
-    n = _lifted_lengths(tab_max, tab_min, band_r, m)[0].max(axis=1)
-    n_plus = _lifted_lengths(tab_max, tab_min, band_r + 2 * lift, m)[0].max(axis=1)
+    n = longest_windows(upper, lower, band_r, m)[0].max(axis=1)
+    n_plus = longest_windows(upper, lower, band_r + 2 * lift, m)[0].max(axis=1)
     low = np.where(n >= m, _TWO_PI, np.maximum(n - 2, 0) * h)
     high = np.where(n_plus >= m, _TWO_PI, np.minimum((n_plus + 1) * h, _TWO_PI))
     return low.reshape(lead), high.reshape(lead)
@@ -482,28 +486,6 @@ def _sparse_tables(E: F64, max_len: int, E_min: F64 | None = None) -> tuple[list
         tab_min.append(nn)
         j += 1
     return tab_max, tab_min
-
-
-def _lifted_lengths(tab_max, tab_min, band, m):
-    """Longest window length (samples) from every start 0..M−1 with max − min ≤ band: binary
-    lifting, one block of each size 2^j (largest first) appended where the band still holds."""
-    R, T = tab_max[0].shape
-    base = np.arange(m)[None, :] + (np.arange(R) * T)[:, None]  # flat index of each start
-    length = np.ones((R, m), np.int64)
-    cur_max = tab_max[0][:, :m].copy()
-    cur_min = cur_max.copy()
-    band_c = band[:, None]
-    last = np.arange(R)[:, None] * T + (T - 1)
-    for j in range(len(tab_max) - 1, -1, -1):
-        step = 1 << j
-        pos = np.minimum(base + length, last)
-        nmax = np.maximum(cur_max, tab_max[j].ravel().take(pos))
-        nmin = np.minimum(cur_min, tab_min[j].ravel().take(pos))
-        ok = ((nmax - nmin) <= band_c) & (length + step <= m)
-        length += ok * step
-        np.copyto(cur_max, nmax, where=ok)
-        np.copyto(cur_min, nmin, where=ok)
-    return length, cur_max, cur_min
 
 
 def _range_query(tab_max, tab_min, s, n):

@@ -50,6 +50,7 @@ __all__ = [
     "SixBars",
     "as_batch",
     "crank_grid",
+    "output_angle",
     "simulate",
 ]
 
@@ -387,6 +388,21 @@ def simulate(sixbar: SixBar | SixBars, phi: ArrayLike, *, order: int = 2, on_deg
         return motion
     batch, single = as_batch(sixbar)
     return _simulate_numpy(batch, single, phi, order, mode)
+
+
+def output_angle(sixbars: SixBars, phi: ArrayLike) -> F64:
+    """ψ alone (rad, continuous along the last axis) of ``sixbars`` at crank angles ``phi``
+    (``(M,)``, or ``(N, M)``): ``simulate(sixbars, phi, order=0).psi``, without the points and
+    transmission angles — what a refinement on the exact path evaluates, many times."""
+    from synth.sixbar_kernel import kernel_parameters, output_angles  # numba: imported on first use
+
+    phi = np.asarray(phi, dtype=float)
+    phi_rows = _kernel_phi(phi, len(sixbars), False)
+    if phi_rows is None or not np.all(np.isfinite(phi)):
+        return simulate(sixbars, phi, order=0).psi
+    s = sixbars
+    params = kernel_parameters(s.a, s.b, s.c, s.d, s.branch, s.u, s.v, s.pivot, s.rocker, s.rod, s.dyad_branch)
+    return output_angles(params, np.ascontiguousarray(s.rpr, dtype=bool), phi_rows, PIN_ON_PIVOT_EPS)
 
 
 def _kernel_phi(phi: F64, n: int, single: bool) -> F64 | None:

@@ -29,7 +29,7 @@ import numpy as np
 from kinematics.loop import COINCIDENT_EPS, HERON_SAFE, TOGGLE_EPS
 from kinematics.status import Status
 
-__all__ = ["PARAMETERS", "kernel_parameters", "sixbar_positions"]
+__all__ = ["PARAMETERS", "kernel_parameters", "output_angles", "sixbar_positions"]
 
 _NA = int(Status.NOT_ASSEMBLABLE)
 _TOGGLE = int(Status.TOGGLE)
@@ -108,10 +108,10 @@ PARAMETERS = ("a", "b", "c", "d", "branch", "u", "v", "pivot_x", "pivot_y", "roc
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def _positions(params, rpr, phi, pin_eps, order, points, angles, derivs, status_fourbar, status):
+def _positions(params, rpr, phi, pin_eps, order, full, points, angles, derivs, status_fourbar, status):
     """Fill ``points`` (e^{iθ}, P, Q, then P′, P″ up to ``order``), ``angles`` (ψ, μ four-bar,
     μ output), ``derivs`` ((θ′, γ′, ψ′, θ″, γ″, ψ″)[: 3·order]), each ``(k, N, M)``, and the two
-    status arrays ``(N, M)``."""
+    status arrays ``(N, M)``; with ``full`` False (order 0) only ψ and the statuses."""
     n, m = status.shape
     shared_phi = phi.shape[0] == 1
     # a crank grid shared by every six-bar: its cosines and sines once
@@ -138,19 +138,20 @@ def _positions(params, rpr, phi, pin_eps, order, points, angles, derivs, status_
                 cphi, sphi = math.cos(phi[i, j]), math.sin(phi[i, j])
             # four-bar: circles about A (radius b) and B0 (radius c), R = B0 − A
             ct, st, cg, sg, fb, fk1, fk2 = _closing_point(di - ai * cphi, -(ai * sphi), bi, ci, bri)
-            e_theta[i, j] = complex(ct, st)
             status_fourbar[i, j] = fb
             ax, ay = ai * cphi, ai * sphi
             wx, wy = ct * ui - st * vi, ct * vi + st * ui  # e^{iθ}(u + iv)
-            # transmission at B: e^{iθ}·conj(e^{iγ}), e^{iγ} = (A + b·e^{iθ} − d)/c
-            inv_c = 1.0 / ci
-            gx = ((ax + bi * ct) - di) * inv_c
-            gy = (ay + bi * st) * inv_c
-            mu_fourbar[i, j] = _fold(ct * gx + st * gy)
             # coupler point P = A + e^{iθ}(u + iv) and, up to ``order``, P′ and P″
             # (docs/curvature.md §1: P′ = iA + iθ′w, P″ = −A + (iθ″ − θ′²)w)
             zx, zy = ax + wx, ay + wy
-            z[i, j] = complex(zx, zy)
+            if full:
+                e_theta[i, j] = complex(ct, st)
+                z[i, j] = complex(zx, zy)
+                # transmission at B: e^{iθ}·conj(e^{iγ}), e^{iγ} = (A + b·e^{iθ} − d)/c
+                inv_c = 1.0 / ci
+                gx = ((ax + bi * ct) - di) * inv_c
+                gy = (ay + bi * st) * inv_c
+                mu_fourbar[i, j] = _fold(ct * gx + st * gy)
             t1 = g1 = t2 = g2 = 0.0
             z1x = z1y = z2x = z2y = 0.0
             if order >= 1:
@@ -186,13 +187,15 @@ def _positions(params, rpr, phi, pin_eps, order, points, angles, derivs, status_
                         p1 = f1y
                         if order >= 2:
                             p2 = _divide(z2x, z2y, rx, ry)[1] - 2.0 * f1x * f1y
-                moving_pivot[i, j] = complex(zx, zy)
-                mu_output[i, j] = half_pi
+                if full:
+                    moving_pivot[i, j] = complex(zx, zy)
+                    mu_output[i, j] = half_pi
             else:
                 # circles about P (radius ρ) and D (radius L), R = D − P
                 cx, cy, ex, ey, st_dyad, dk1, dk2 = _closing_point(dxi - zx, dyi - zy, rhoi, li, dbri)
-                moving_pivot[i, j] = complex(dxi + li * ex, dyi + li * ey)
-                mu_output[i, j] = 0.0 if st_dyad & _NA else _fold(cx * ex + cy * ey)
+                if full:
+                    moving_pivot[i, j] = complex(dxi + li * ex, dyi + li * ey)
+                    mu_output[i, j] = 0.0 if st_dyad & _NA else _fold(cx * ex + cy * ey)
                 if order >= 1:  # (χ′, ψ′) from q = −P′, then ψ″ from q = −P″ + ρχ′²e^{iχ} − Lψ′²e^{iψ}
                     c1 = (-z1x * ex - z1y * ey) * dk1
                     p1 = (-z1x * cx - z1y * cy) * dk2
@@ -229,6 +232,16 @@ def kernel_parameters(a, b, c, d, branch, u, v, pivot, rocker, rod, dyad_branch)
     return np.stack([a, b, c, d, branch, u, v, pivot.real, pivot.imag, rocker, rod, dyad_branch], axis=1).astype(float)
 
 
+def output_angles(params: np.ndarray, rpr: np.ndarray, phi: np.ndarray, pin_eps: float) -> np.ndarray:
+    """The continuous output angle ψ alone (``(N, M)``, rad), as :func:`sixbar_positions` gives
+    it, without the points and transmission angles (the refinements' many small calls)."""
+    n, m = params.shape[0], phi.shape[1]
+    angles = np.empty((3, n, m))  # only ψ is written (the other two pages are never touched)
+    _positions(params, rpr, phi, pin_eps, 0, False, np.empty((3, 0, 0), np.complex128), angles,
+               np.empty((0, 0, 0)), np.empty((n, m), np.uint8), np.empty((n, m), np.uint16))
+    return angles[0]
+
+
 def sixbar_positions(params: np.ndarray, rpr: np.ndarray, phi: np.ndarray, pin_eps: float, order: int = 0):
     """Motion of ``N`` six-bars (``params``: ``(N, 12)`` rows of :data:`PARAMETERS`,
     C-contiguous float64; ``rpr``: ``(N,)`` bool) at crank angles ``phi`` of shape ``(1, M)``
@@ -248,5 +261,5 @@ def sixbar_positions(params: np.ndarray, rpr: np.ndarray, phi: np.ndarray, pin_e
     derivs = np.empty((3 * order, n, m))
     status_fourbar = np.empty((n, m), np.uint8)
     status = np.empty((n, m), np.uint16)
-    _positions(params, rpr, phi, pin_eps, order, points, angles, derivs, status_fourbar, status)
+    _positions(params, rpr, phi, pin_eps, order, True, points, angles, derivs, status_fourbar, status)
     return points, angles, derivs, status_fourbar, status

@@ -283,3 +283,44 @@ def test_random_segments_give_finite_fits(x, y, delta, radius, start, span, swin
     assert np.all(np.abs(rpr.swing[rpr.found] - swing) <= SWING_TOL)
     assert np.all(np.abs(rrr.swing[rrr.found] - swing) <= SWING_TOL)
     assert np.all(rrr.transmission[rrr.found] >= 15 * DEG - 1e-12)
+
+
+def _numpy_estimate(terms, alpha, target, ratio):
+    """The RRR direction ranking written as numpy expressions over (rows, directions,
+    samples): the reference the compiled ranking must match bit for bit."""
+    c, s = np.cos(alpha)[..., None], np.sin(alpha)[..., None]
+    p, q = terms.wx * c + terms.wy * s, terms.wy * c - terms.wx * s
+    centre = -p * terms.inv_a_rho
+    u_hi = (centre + terms.half).min(axis=-1)
+    u_lo = np.maximum((centre - terms.half).max(axis=-1), 0.0)
+    q_mid = (terms.w_mid[:, None] * np.exp(-1j * alpha)).imag
+    branch = np.where(q_mid > 0, -1, 1)
+    s_ = q + branch[..., None] * np.sqrt(np.maximum(terms.rho ** 2 - p * p, 0.0))
+    u_est = target[:, None] / np.maximum(s_.max(axis=-1) - s_.min(axis=-1), 1e-12)
+    u_try = ratio * u_est
+    feasible = (u_lo <= u_hi) & (u_try <= u_hi)
+    u_use = np.clip(u_try, u_lo, np.maximum(u_hi, u_lo))
+    cos_max = np.abs(terms.A * u_use[..., None] + p / terms.rho).max(axis=-1)
+    return branch, u_lo, u_hi, u_est, np.where(feasible, np.arccos(np.minimum(cos_max, 1.0)), -1.0)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_compiled_rrr_ranking_is_the_numpy_expressions_bit_for_bit(seed):
+    from synth.dyad import _RrrTerms
+
+    rng = np.random.default_rng(seed)
+    R, S, J = 40, 120, 24
+    t = np.linspace(0, 2 * np.pi, S, endpoint=False)
+    # near-circular paths about C₀ (as on an arc segment), some crossing their circle exactly
+    rho = rng.uniform(0.3, 4.0, R)
+    w = (rho[:, None] * (1 + rng.uniform(0, 0.3, (R, 1)) * np.sin(t * rng.integers(1, 4, (R, 1))))
+         * np.exp(1j * (t + rng.uniform(0, 6, (R, 1)))))
+    w[::7, 3] = rho[::7] + 0j
+    terms = _RrrTerms(w, rho, math.cos(math.radians(rng.uniform(20, 50))), w[:, 5])
+    alpha = rng.uniform(0, 2 * np.pi, (R, J))
+    target = rng.uniform(0.1, 1.5, R)
+    for ratio in (1.0, rng.uniform(0.5, 2.0, (R, J))):
+        got, want = terms.estimate(alpha, target, ratio), _numpy_estimate(terms, alpha, target, ratio)
+        for g, x in zip(got, want):
+            np.testing.assert_array_equal(g, x)
+        assert np.count_nonzero(want[-1] > 0) > 10 and np.count_nonzero(want[-1] < 0) > 10

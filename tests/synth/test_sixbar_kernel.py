@@ -18,7 +18,7 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from kinematics.status import AssemblyError, Status
-from synth.sixbar import OutputDyad, SixBar, SixBars, _simulate_numpy, crank_grid, simulate
+from synth.sixbar import OutputDyad, SixBar, SixBars, _simulate_numpy, crank_grid, output_angle, simulate
 
 from test_sixbar import sixbar_strategy  # tests/synth: any six-bar
 
@@ -93,6 +93,12 @@ def test_kernel_matches_the_numpy_path_on_random_six_bars(order):
     assert np.count_nonzero((ref.status & NA) != 0) > 10_000
     assert np.count_nonzero((ref.fourbar.status & NA) != 0) > 10_000
     assert len(fast.dpsi) == order and len(fast.z) == order + 1
+    if order == 0:  # ψ alone: the same numbers as the whole simulation's, bit for bit
+        np.testing.assert_array_equal(output_angle(batch, phi), fast.psi)
+        rows = np.sort(np.random.default_rng(1).uniform(0, 7, (len(batch), 9)), axis=1)
+        np.testing.assert_array_equal(output_angle(batch, rows), simulate(batch, rows, order=0).psi)
+        # a shape the kernel does not take (one angle for all) goes through simulate
+        np.testing.assert_array_equal(output_angle(batch, 0.3), simulate(batch, 0.3, order=0).psi)
 
 
 @pytest.mark.parametrize("order", [0, 2])
