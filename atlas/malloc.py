@@ -1,4 +1,4 @@
-"""glibc malloc thresholds for processes that compute shards.
+"""glibc malloc thresholds for processes that compute shards or answer queries.
 
 The segment search works on numpy temporaries of a few MB. glibc serves allocations above its
 mmap threshold (128 KiB at start, raised dynamically as big blocks are freed) with a fresh

@@ -37,10 +37,14 @@ def answer(engine, request: Request, *, progress: bool | None = False, workers: 
     """:func:`synth.query.answer` on the atlas behind ``engine``; a complete search draws its
     progress bar on stderr with ``progress`` (None: if stderr is a terminal) and runs its
     batches on ``workers`` processes (the sampled query runs in this one)."""
+    from atlas.malloc import raise_malloc_thresholds
     from cli.progress import SearchBar
     from db.queries import AtlasSource
     from synth.query import answer as answer_
 
+    # a query's temporaries are a few MB, as a shard's: kept in the heap rather than mapped
+    # and zero-filled afresh by every call (atlas.malloc)
+    raise_malloc_thresholds()
     with SearchBar(progress) as bar:
         return answer_(request, AtlasSource(engine), on_progress=bar, map_batches=batch_map(workers))
 

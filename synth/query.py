@@ -447,8 +447,9 @@ def simulate(request: Request, fitted: Sequence[Fitted]) -> tuple[list[Candidate
 
 
 def _screened_figures(request: Request, fitted: Sequence[Fitted]) -> tuple[list[tuple[Fitted, SixBarFigures]], int]:
-    """The six-bars among ``fitted`` that pass the screen, with their full figures, and how
-    many six-bars were simulated (screened)."""
+    """The six-bars among ``fitted`` that pass the screen, with their full figures (the
+    footprint, a ranking figure, only for those that meet ``request``; 0 for the others), and
+    how many six-bars were simulated (screened)."""
     if not fitted:
         return [], 0
     sixbars = [f.sixbar() for f in fitted]
@@ -457,7 +458,12 @@ def _screened_figures(request: Request, fitted: Sequence[Fitted]) -> tuple[list[
     kept = [(f, sb) for f, sb, p in zip(fitted, sixbars, passed) if p]
     if not kept:
         return [], len(passed)
-    figures = _figures(request, [sb for _, sb in kept])
+    figures = _figures(request, [sb for _, sb in kept], footprint=False)
+    meeting = [k for k, fig in enumerate(figures) if meets(request, fig)]
+    if meeting:  # the same positions as the figures' own simulation: the same areas
+        areas = footprints(SixBars.from_sixbars([kept[k][1] for k in meeting]), SAMPLES)
+        for k, area in zip(meeting, areas):
+            figures[k] = dataclasses.replace(figures[k], footprint=float(area))
     return [(f, fig) for (f, _), fig in zip(kept, figures)], len(passed)
 
 
