@@ -655,14 +655,19 @@ def _solve_rrr(w, rho, alpha, branch, u_lo, u_hi, u_est, target, active):
             rho_ = rho_f[sel][:, None]
             # the loop P + ρ·e^{iχ} = D + L·e^{iψ} (P relative to C₀, D = L·e^{iα})
             loop = circle_intersection(L * e - wk[row_of[sel]], rho_, L, br_f[sel][:, None])
-            e_chi, e_psi = loop.e1, loop.e2
+            e_psi = loop.e2
             eta = np.angle(e_psi * -np.conj(e))  # ψ − (α + π): the rocker's turn from rest, D → C₀
             hi_, lo_, khi, klo = _extremes(eta)
             singular = loop.status != 0
-            inv_s = 1.0 / np.where(singular, np.inf, loop.sin_relative)
-            # ∂ψ/∂u = −∂ψ/∂L / u², ∂ψ/∂L = −Re((e + e^{iψ}) e^{−iχ}) / (L sin(χ − ψ))
-            dpsi_du = ((e + e_psi) * np.conj(e_chi)).real * inv_s / (L * u[:, None] ** 2)
-            g = lambda k: np.take_along_axis(dpsi_du, k[:, None], -1)[:, 0]
+            scale = L * u[:, None] ** 2
+
+            def g(k):  # ∂ψ/∂u at the samples k alone (the two extremes): −∂ψ/∂L / u², with
+                # ∂ψ/∂L = −Re((e + e^{iψ}) e^{−iχ}) / (L sin(χ − ψ))
+                at = lambda x: np.take_along_axis(x, k[:, None], -1)  # noqa: E731
+                e_chi_k = at(loop.cos1) + 1j * at(loop.sin1)
+                inv_s = 1.0 / np.where(at(singular), np.inf, -at(loop.height) / L)
+                return (((e + at(e_psi)) * np.conj(e_chi_k)).real * inv_s / scale)[:, 0]
+
             invalid = np.any(singular, axis=-1) | _jumps(eta)
             return hi_ - lo_, g(khi) - g(klo), invalid
 
