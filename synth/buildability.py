@@ -124,8 +124,8 @@ def clearances(batch: SixBars, motion: SixBarMotion, every: int = 1) -> tuple[np
     reach = np.abs(P - D)
 
     # The pairs in the order of CLEARANCE_PAIRS: joints to pivots they are not pinned to,
-    # output links to pivots off them. Each as (distance over rows' samples, which rows it
-    # applies to: None for all); a dyad kind's pairs are measured on its rows only.
+    # output links to pivots off them. Each as (its distances at the samples of the rows it
+    # applies to, those rows); a dyad kind's pairs are measured on its rows only.
     def rows_of(mask):  # a kind's rows: a slice where it is every row (no copies), else their indices
         return slice(None) if mask.all() else np.flatnonzero(mask)
 

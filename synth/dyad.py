@@ -609,9 +609,10 @@ class _RrrTerms:
         self.inv_a_rho = (inv_a / rho[:, None])[:, None, :]  # B/A = p·inv_a/ρ
         self.half = (cm * np.abs(inv_a))[:, None, :]
         self.w_mid = w_mid
-        self.rows = rho
+        self.radius = rho
         # the compiled ranking's inputs: (R, S), contiguous
-        self.flat = tuple(np.ascontiguousarray(x[:, 0, :]) for x in (self.wx, self.wy, self.A, self.inv_a_rho, self.half))
+        self.flat = tuple(np.ascontiguousarray(x[:, 0, :])
+                          for x in (self.wx, self.wy, self.A, self.inv_a_rho, self.half))
 
     def _pq(self, alpha):
         c, s = np.cos(alpha)[..., None], np.sin(alpha)[..., None]
@@ -628,8 +629,9 @@ class _RrrTerms:
         branch = np.where(q_mid > 0, -1, 1)
         ratio = np.ascontiguousarray(np.broadcast_to(np.asarray(ratio, dtype=float), alpha.shape))
         u_lo, u_hi, u_est, cos_max, feasible = direction_estimates(
-            *self.flat, np.ascontiguousarray(self.rows, dtype=float), np.ascontiguousarray(np.cos(alpha)),
-            np.ascontiguousarray(np.sin(alpha)), branch.astype(float), np.ascontiguousarray(target, dtype=float), ratio)
+            *self.flat, np.ascontiguousarray(self.radius, dtype=float), np.ascontiguousarray(np.cos(alpha)),
+            np.ascontiguousarray(np.sin(alpha)), branch.astype(float), np.ascontiguousarray(target, dtype=float),
+            ratio)
         mu = np.arccos(np.minimum(cos_max, 1.0))
         return branch, u_lo, u_hi, u_est, np.where(feasible, mu, -1.0)
 

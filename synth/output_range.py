@@ -13,9 +13,10 @@ exact simulation (:func:`~synth.sixbar.simulate`). Angles in radians; a crank in
 
 On the grid, the longest window within the band from every start comes from one compiled pass
 per row (:func:`synth.band_windows.longest_windows`, O(M)), other window ranges from sparse
-tables of block maxima/minima (O(M log M), vectorised over rows and starts); the refinement on the exact path is described
-in :func:`dwell_intervals` and :func:`output_deviation` (checked against brute-force fine
-grids in ``tests/synth/test_sixbar.py`` and ``tests/synth/test_query_stage.py``).
+tables of block maxima/minima (O(M log M), vectorised over rows and starts); the refinement
+on the exact path is described in :func:`dwell_intervals` and :func:`output_deviation`
+(checked against brute-force fine grids in ``tests/synth/test_sixbar.py`` and
+``tests/synth/test_query_stage.py``).
 """
 
 from __future__ import annotations

@@ -12,9 +12,10 @@ one of two output dyads (docs/curvature.md §4):
 
 :func:`simulate` is the exact closed-form position and derivative solution, never the
 curvature approximation (compiled: :mod:`synth.sixbar_kernel`; the numpy functions here are
-its reference and the path for crank angles of other shapes); every figure a user is shown (:mod:`synth.figures`: dwell angle,
-output deviation, swing, transmission angles) comes from it, with dwell ends and extremes
-refined on its exact path beyond the sample grid (:mod:`synth.output_range`). Points are
+its reference and the path for crank angles of other shapes); every figure a user is shown
+(:mod:`synth.figures`: dwell angle, output deviation, swing, transmission angles) comes from
+it, with dwell ends and extremes refined on its exact path beyond the sample grid
+(:mod:`synth.output_range`). Points are
 complex numbers, angles radians, lengths in the unit of the links (crank-normalised inside the
 atlas: a = 1).
 

@@ -37,8 +37,9 @@ _TOGGLE = int(Status.TOGGLE)
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
 def _closing_point(rx, ry, l1, l2, branch):
-    """Scalar :func:`kinematics.loop.circle_intersection_xy`: (cos1, sin1, cos2, sin2, status),
-    e2 put back on the unit circle where the loop does not close — the same operations."""
+    """Scalar :func:`kinematics.loop.circle_intersection_xy`: (cos1, sin1, cos2, sin2, status,
+    k1, k2), e2 put back on the unit circle where the loop does not close, k1 and k2 the Cramer
+    factors of the rates (0 where flagged) — the same operations."""
     r2 = rx * rx + ry * ry
     r = math.sqrt(r2)
     d21 = l2 - l1
@@ -124,7 +125,8 @@ def _positions(params, rpr, phi, pin_eps, order, full, points, angles, derivs, s
     half_pi = 0.5 * math.pi
     two_pi = 2.0 * math.pi
     for i in range(n):
-        ai, bi, ci, di, bri, ui, vi = params[i, 0], params[i, 1], params[i, 2], params[i, 3], params[i, 4], params[i, 5], params[i, 6]
+        ai, bi, ci, di, bri, ui, vi = (params[i, 0], params[i, 1], params[i, 2], params[i, 3], params[i, 4],
+                                       params[i, 5], params[i, 6])
         dxi, dyi, li, rhoi, dbri = params[i, 7], params[i, 8], params[i, 9], params[i, 10], params[i, 11]
         size = max(max(ai, bi), max(ci, di))
         size = max(size, math.hypot(dxi, dyi))
@@ -196,7 +198,8 @@ def _positions(params, rpr, phi, pin_eps, order, full, points, angles, derivs, s
                 if full:
                     moving_pivot[i, j] = complex(dxi + li * ex, dyi + li * ey)
                     mu_output[i, j] = 0.0 if st_dyad & _NA else _fold(cx * ex + cy * ey)
-                if order >= 1:  # (χ′, ψ′) from q = −P′, then ψ″ from q = −P″ + ρχ′²e^{iχ} − Lψ′²e^{iψ}
+                # (χ′, ψ′) from q = −P′, then ψ″ from q = −P″ + ρχ′²e^{iχ} − Lψ′²e^{iψ}
+                if order >= 1:
                     c1 = (-z1x * ex - z1y * ey) * dk1
                     p1 = (-z1x * cx - z1y * cy) * dk2
                     if order >= 2:

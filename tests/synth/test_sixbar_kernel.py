@@ -138,14 +138,14 @@ def test_degenerate_positions_are_flagged_alike(order):
         SixBar(1.0, 3.0, 3.0, 3.5, 1, 0.5, 0.5, OutputDyad.rrr(6.0 + 0j, 1.0, 1.0, 1)),  # dyad cannot close
         SixBar(1.0, 1.5, 1.2, 3.2, 1, 0.3, 0.2, OutputDyad.rpr(5.0 + 5.0j)),  # crank cannot turn
         SixBar(1.0, 3.0, 3.0, 3.5, 1, 0.0, 0.0, OutputDyad.rpr(1.0 + 0j)),  # pin passes over the pivot at φ = 0
-        SixBar(1.0, 3.0, 3.0, 3.5, 1, 0.0, 0.0, OutputDyad.rrr(0j, 1.0, 1.0, 1)),  # |D − P| = 1 = ρ: centres apart, L = ρ
+        SixBar(1.0, 3.0, 3.0, 3.5, 1, 0.0, 0.0, OutputDyad.rrr(1.0 + 0j, 1.0, 1.0, 1)),  # P = D at φ = 0: centres meet
         SixBar(1e-70, 3e-70, 3e-70, 3.5e-70, 1, 1e-70, 1e-70, OutputDyad.rrr(2e-70 + 3e-70j, 3e-70, 2e-70, 1)),
         SixBar(1e70, 3e70, 3e70, 3.5e70, -1, 1e70, -1e70, OutputDyad.rrr(2e70 - 3e70j, 4e70, 3e70, -1)),
     ]
     batch = SixBars.from_sixbars(cases)
     fast, ref = simulate(batch, phi, order=order), _simulate_numpy(batch, False, phi, order, "flag")
     assert_same_motion(fast, ref, _size(batch))
-    assert fast.status[0].any() and fast.status[1].any() and fast.status[2][0] & NA
+    assert fast.status[0].any() and fast.status[1].any() and fast.status[2][0] & NA and fast.status[3][0] & NA
     assert np.all(fast.transmission_output[2] == 0.5 * math.pi)
     with pytest.raises(AssemblyError, match="not assemblable"):
         simulate(cases[0], phi, order=order, on_degenerate="raise")
