@@ -609,10 +609,9 @@ class _RrrTerms:
         self.inv_a_rho = (inv_a / rho[:, None])[:, None, :]  # B/A = p·inv_a/ρ
         self.half = (cm * np.abs(inv_a))[:, None, :]
         self.w_mid = w_mid
-        self.radius = rho
-        # the compiled ranking's inputs: (R, S), contiguous
-        self.flat = tuple(np.ascontiguousarray(x[:, 0, :])
-                          for x in (self.wx, self.wy, self.A, self.inv_a_rho, self.half))
+        # the compiled ranking's inputs: the samples' terms (R, S) and the radii (R,), contiguous
+        self.flat = (*(np.ascontiguousarray(x[:, 0, :]) for x in (self.wx, self.wy, self.A, self.inv_a_rho, self.half)),
+                     np.ascontiguousarray(rho, dtype=float))
 
     def _pq(self, alpha):
         c, s = np.cos(alpha)[..., None], np.sin(alpha)[..., None]
@@ -629,7 +628,7 @@ class _RrrTerms:
         branch = np.where(q_mid > 0, -1, 1)
         ratio = np.ascontiguousarray(np.broadcast_to(np.asarray(ratio, dtype=float), alpha.shape))
         u_lo, u_hi, u_est, cos_max, feasible = direction_estimates(
-            *self.flat, np.ascontiguousarray(self.radius, dtype=float), np.ascontiguousarray(np.cos(alpha)),
+            *self.flat, np.ascontiguousarray(np.cos(alpha)),
             np.ascontiguousarray(np.sin(alpha)), branch.astype(float), np.ascontiguousarray(target, dtype=float),
             ratio)
         mu = np.arccos(np.minimum(cos_max, 1.0))

@@ -395,15 +395,27 @@ def output_angle(sixbars: SixBars, phi: ArrayLike) -> F64:
     """ψ alone (rad, continuous along the last axis) of ``sixbars`` at crank angles ``phi``
     (``(M,)``, or ``(N, M)``): ``simulate(sixbars, phi, order=0).psi``, without the points and
     transmission angles — what a refinement on the exact path evaluates, many times."""
-    from synth.sixbar_kernel import kernel_parameters, output_angles  # numba: imported on first use
+    from synth.sixbar_kernel import output_angles  # numba: imported on first use
 
     phi = np.asarray(phi, dtype=float)
     phi_rows = _kernel_phi(phi, len(sixbars), False)
     if phi_rows is None or not np.all(np.isfinite(phi)):
         return simulate(sixbars, phi, order=0).psi
-    s = sixbars
-    params = kernel_parameters(s.a, s.b, s.c, s.d, s.branch, s.u, s.v, s.pivot, s.rocker, s.rod, s.dyad_branch)
-    return output_angles(params, np.ascontiguousarray(s.rpr, dtype=bool), phi_rows, PIN_ON_PIVOT_EPS)
+    return output_angles(*_kernel_inputs(sixbars), phi_rows, PIN_ON_PIVOT_EPS)
+
+
+def _kernel_inputs(sixbar: SixBar | SixBars) -> tuple[F64, NDArray[np.bool_]]:
+    """The compiled kernel's parameter rows ``(N, 12)`` — a, b, c, d, branch, u, v, pivot x,
+    pivot y, rocker, rod, dyad branch — and which rows are RPR."""
+    if isinstance(sixbar, SixBar):  # one row straight from the fields: the single call stays cheap
+        dy = sixbar.dyad
+        params = np.array([[sixbar.a, sixbar.b, sixbar.c, sixbar.d, sixbar.branch, sixbar.u, sixbar.v,
+                            dy.pivot.real, dy.pivot.imag, dy.rocker, dy.rod, dy.branch]])
+        return params, np.array([dy.kind is OutputKind.RPR])
+    s = sixbar
+    params = np.stack([s.a, s.b, s.c, s.d, s.branch, s.u, s.v, s.pivot.real, s.pivot.imag, s.rocker, s.rod,
+                       s.dyad_branch], axis=1, dtype=float)
+    return params, np.ascontiguousarray(s.rpr, dtype=bool)
 
 
 def _kernel_phi(phi: F64, n: int, single: bool) -> F64 | None:
@@ -419,18 +431,10 @@ def _kernel_phi(phi: F64, n: int, single: bool) -> F64 | None:
 def _simulate_compiled(sixbar: SixBar | SixBars, phi: F64, phi_rows: F64, order: int) -> SixBarMotion:
     """The compiled kernel (:mod:`synth.sixbar_kernel`): the numpy path's figures and statuses
     in one pass over the positions."""
-    from synth.sixbar_kernel import kernel_parameters, sixbar_positions  # numba: imported on first use
+    from synth.sixbar_kernel import sixbar_positions  # numba: imported on first use
 
     single = isinstance(sixbar, SixBar)
-    if single:
-        dy = sixbar.dyad
-        params = np.array([[sixbar.a, sixbar.b, sixbar.c, sixbar.d, sixbar.branch, sixbar.u, sixbar.v,
-                            dy.pivot.real, dy.pivot.imag, dy.rocker, dy.rod, dy.branch]])
-        rpr = np.array([dy.kind is OutputKind.RPR])
-    else:
-        s = sixbar
-        params = kernel_parameters(s.a, s.b, s.c, s.d, s.branch, s.u, s.v, s.pivot, s.rocker, s.rod, s.dyad_branch)
-        rpr = np.ascontiguousarray(s.rpr, dtype=bool)
+    params, rpr = _kernel_inputs(sixbar)
     points, angles, derivs, st_fb, status = sixbar_positions(params, rpr, phi_rows, PIN_ON_PIVOT_EPS, order)
     if single:
         points, angles, derivs, st_fb, status = points[:, 0], angles[:, 0], derivs[:, 0], st_fb[0], status[0]

@@ -29,7 +29,7 @@ import numpy as np
 from kinematics.loop import COINCIDENT_EPS, HERON_SAFE, TOGGLE_EPS
 from kinematics.status import Status
 
-__all__ = ["PARAMETERS", "kernel_parameters", "output_angles", "sixbar_positions"]
+__all__ = ["output_angles", "sixbar_positions"]
 
 _NA = int(Status.NOT_ASSEMBLABLE)
 _TOGGLE = int(Status.TOGGLE)
@@ -104,15 +104,12 @@ def _fold(cos_mu):
     return min(mu, math.pi - mu)
 
 
-#: Columns of the kernel's parameter rows, one row per six-bar (:func:`kernel_parameters`).
-PARAMETERS = ("a", "b", "c", "d", "branch", "u", "v", "pivot_x", "pivot_y", "rocker", "rod", "dyad_branch")
-
-
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def _positions(params, rpr, phi, pin_eps, order, full, points, angles, derivs, status_fourbar, status):
     """Fill ``points`` (e^{iθ}, P, Q, then P′, P″ up to ``order``), ``angles`` (ψ, μ four-bar,
     μ output), ``derivs`` ((θ′, γ′, ψ′, θ″, γ″, ψ″)[: 3·order]), each ``(k, N, M)``, and the two
-    status arrays ``(N, M)``; with ``full`` False (order 0) only ψ and the statuses."""
+    status arrays ``(N, M)``; with ``full`` False (order 0) only ψ and the statuses. A row of
+    ``params``: a, b, c, d, branch, u, v, pivot x, pivot y, rocker, rod, dyad branch."""
     n, m = status.shape
     shared_phi = phi.shape[0] == 1
     # a crank grid shared by every six-bar: its cosines and sines once
@@ -133,11 +130,12 @@ def _positions(params, rpr, phi, pin_eps, order, full, points, angles, derivs, s
         base0 = 0.0
         acc = 0.0
         px, py, prev_p1 = 1.0, 0.0, 0.0  # e^{iψ} and ψ′ at the previous sample
+        row = 0 if shared_phi else i
         for j in range(m):
             if shared_phi:
                 cphi, sphi = cos_phi[j], sin_phi[j]
             else:
-                cphi, sphi = math.cos(phi[i, j]), math.sin(phi[i, j])
+                cphi, sphi = math.cos(phi[row, j]), math.sin(phi[row, j])
             # four-bar: circles about A (radius b) and B0 (radius c), R = B0 − A
             ct, st, cg, sg, fb, fk1, fk2 = _closing_point(di - ai * cphi, -(ai * sphi), bi, ci, bri)
             status_fourbar[i, j] = fb
@@ -222,17 +220,11 @@ def _positions(params, rpr, phi, pin_eps, order, full, points, angles, derivs, s
             else:
                 step = math.atan2(-(ex * py) + ey * px, ex * px + ey * py)
                 if order >= 1:
-                    pred = 0.5 * (p1 + prev_p1) * (phi[0 if shared_phi else i, j] - phi[0 if shared_phi else i, j - 1])
+                    pred = 0.5 * (p1 + prev_p1) * (phi[row, j] - phi[row, j - 1])
                     step = pred + ((step - pred + math.pi) % two_pi - math.pi)
                 acc += step
                 psi[i, j] = acc + base0
             px, py, prev_p1 = ex, ey, p1
-
-
-def kernel_parameters(a, b, c, d, branch, u, v, pivot, rocker, rod, dyad_branch) -> np.ndarray:
-    """The ``(N, 12)`` parameter rows of :data:`PARAMETERS` from ``(N,)`` fields (the pivot complex)."""
-    pivot = np.asarray(pivot, np.complex128)
-    return np.stack([a, b, c, d, branch, u, v, pivot.real, pivot.imag, rocker, rod, dyad_branch], axis=1).astype(float)
 
 
 def output_angles(params: np.ndarray, rpr: np.ndarray, phi: np.ndarray, pin_eps: float) -> np.ndarray:
@@ -246,7 +238,7 @@ def output_angles(params: np.ndarray, rpr: np.ndarray, phi: np.ndarray, pin_eps:
 
 
 def sixbar_positions(params: np.ndarray, rpr: np.ndarray, phi: np.ndarray, pin_eps: float, order: int = 0):
-    """Motion of ``N`` six-bars (``params``: ``(N, 12)`` rows of :data:`PARAMETERS`,
+    """Motion of ``N`` six-bars (``params``: ``(N, 12)`` rows as :func:`_positions` reads them,
     C-contiguous float64; ``rpr``: ``(N,)`` bool) at crank angles ``phi`` of shape ``(1, M)``
     (shared) or ``(N, M)``, with derivatives up to ``order`` (0, 1 or 2).
 

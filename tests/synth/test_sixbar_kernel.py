@@ -39,17 +39,20 @@ def _random_batch(n: int, seed: int) -> SixBars:
     return SixBars(a, b, c, d, sign(), u, v, rpr, pivot, rocker, rod, sign())
 
 
-def assert_same_motion(fast, ref, size: float | np.ndarray = 1.0) -> None:
+def assert_same_motion(fast, ref, batch: SixBars) -> None:
     """Statuses equal; positions within 1e-12·size and angles within 1e-11 rad wherever the
     dyad and the four-bar close away from a toggle (there the angles' condition number is
-    below 1e3); finite everywhere."""
+    below 1e3); finite everywhere; the output's transmission placeholders (π/2 for a slotted
+    rocker, 0 where an RRR dyad cannot close)."""
     np.testing.assert_array_equal(fast.status, ref.status)
     np.testing.assert_array_equal(fast.fourbar.status, ref.fourbar.status)
     assert fast.psi.shape == ref.psi.shape and fast.status.dtype == np.uint16
     for arr in (fast.psi, fast.z[0], fast.moving_pivot, fast.transmission_fourbar, fast.transmission_output):
         assert np.all(np.isfinite(arr))
+    shape = ref.psi.shape
+    column = (lambda x: x[0]) if len(shape) == 1 else (lambda x: x[:, None])  # noqa: E731
+    size, rpr = (np.broadcast_to(column(x), shape) for x in (_size(batch), batch.rpr))
     ok = (ref.status == 0) & (ref.transmission_output > 1e-3) & (ref.transmission_fourbar > 1e-3)
-    size = np.broadcast_to(np.asarray(size, float)[..., None] if np.ndim(size) else size, ref.psi.shape)
     tol = 1e-12 * size[ok]
     assert np.all(np.abs(fast.z[0] - ref.z[0])[ok] <= tol)
     assert np.all(np.abs(fast.moving_pivot - ref.moving_pivot)[ok] <= tol)
@@ -61,21 +64,15 @@ def assert_same_motion(fast, ref, size: float | np.ndarray = 1.0) -> None:
     for k in range(len(ref.dpsi)):
         for got, want in ((fast.dpsi[k], ref.dpsi[k]), (fast.fourbar.dtheta[k], ref.fourbar.dtheta[k]),
                           (fast.fourbar.dgamma[k], ref.fourbar.dgamma[k]), (fast.z[k + 1], ref.z[k + 1])):
-            got, want = np.broadcast_to(got, ref.psi.shape), np.broadcast_to(want, ref.psi.shape)
+            got, want = np.broadcast_to(got, shape), np.broadcast_to(want, shape)
             assert np.all(np.isfinite(got))
             assert np.all((np.abs(got - want) <= 1e-9 * (np.abs(want) + size))[ok])
         assert np.all(fast.dpsi[k][ref.status != 0] == 0)
     for name in ("transmission_fourbar", "transmission_output"):
         assert np.all(np.abs(getattr(fast, name) - getattr(ref, name))[ok] <= 1e-11), name
-    # placeholders where flagged: the dyad's transmission 0 for an RRR that cannot close
-    rrr_bad = ((ref.status & NA) != 0) & ~np.broadcast_to(_rpr_mask(fast), ref.status.shape)
-    dyad_bad = rrr_bad & ((ref.fourbar.status & NA) == 0)
-    assert np.all(fast.transmission_output[dyad_bad] == 0.0)
-
-
-def _rpr_mask(motion) -> np.ndarray:
-    """True where the output is a slotted rocker (its transmission is π/2 by definition)."""
-    return motion.transmission_output == 0.5 * math.pi
+    assert np.all(fast.transmission_output[rpr] == 0.5 * math.pi)
+    dyad_apart = ((ref.status & NA) != 0) & ((ref.fourbar.status & NA) == 0) & ~rpr
+    assert np.all(fast.transmission_output[dyad_apart] == 0.0)
 
 
 def _size(batch: SixBars) -> np.ndarray:
@@ -87,7 +84,7 @@ def test_kernel_matches_the_numpy_path_on_random_six_bars(order):
     batch = _random_batch(4000, 7)
     phi = crank_grid(360)
     fast, ref = simulate(batch, phi, order=order), _simulate_numpy(batch, False, phi, order, "flag")
-    assert_same_motion(fast, ref, _size(batch))
+    assert_same_motion(fast, ref, batch)
     # the sample holds every case: running, dyad apart, four-bar apart
     assert np.count_nonzero(ref.status == 0) > 100_000
     assert np.count_nonzero((ref.status & NA) != 0) > 10_000
@@ -107,9 +104,9 @@ def test_kernel_takes_one_crank_grid_per_six_bar(order):
     rng = np.random.default_rng(0)
     phi = np.sort(rng.uniform(0, 2 * math.pi, (50, 97)), axis=1)
     fast, ref = simulate(batch, phi, order=order), _simulate_numpy(batch, False, phi, order, "flag")
-    assert_same_motion(fast, ref, _size(batch))
+    assert_same_motion(fast, ref, batch)
     shared = simulate(batch, phi[:1], order=order)  # (1, M): one grid for all
-    assert_same_motion(shared, _simulate_numpy(batch, False, phi[:1], order, "flag"), _size(batch))
+    assert_same_motion(shared, _simulate_numpy(batch, False, phi[:1], order, "flag"), batch)
 
 
 @pytest.mark.parametrize("order", [0, 1, 2])
@@ -119,7 +116,8 @@ def test_single_six_bar_and_shapes_the_kernel_does_not_take(order):
     one = simulate(sb, phi, order=order)
     assert one.psi.shape == (360,) and one.fourbar.A.shape == (360,) and np.ndim(one.pivot) == 0
     assert all(x.shape == (360,) for x in (*one.z, *one.dpsi, *one.fourbar.dtheta))
-    assert_same_motion(one, _simulate_numpy(SixBars.from_sixbars([sb]), True, phi, order, "flag"), 4.0)
+    one_batch = SixBars.from_sixbars([sb])
+    assert_same_motion(one, _simulate_numpy(one_batch, True, phi, order, "flag"), one_batch)
     batch = SixBars.from_sixbars([sb, sb])
     np.testing.assert_array_equal(simulate(batch, phi, order=order).psi[1], one.psi)
     # a scalar crank angle goes through the numpy path
@@ -144,7 +142,7 @@ def test_degenerate_positions_are_flagged_alike(order):
     ]
     batch = SixBars.from_sixbars(cases)
     fast, ref = simulate(batch, phi, order=order), _simulate_numpy(batch, False, phi, order, "flag")
-    assert_same_motion(fast, ref, _size(batch))
+    assert_same_motion(fast, ref, batch)
     assert fast.status[0].any() and fast.status[1].any() and fast.status[2][0] & NA and fast.status[3][0] & NA
     assert np.all(fast.transmission_output[2] == 0.5 * math.pi)
     with pytest.raises(AssemblyError, match="not assemblable"):
@@ -159,4 +157,4 @@ def test_any_six_bar_runs_the_same_in_the_kernel(sbs, samples, start, order):
     batch = SixBars.from_sixbars(sbs)
     phi = crank_grid(samples, start)
     fast, ref = simulate(batch, phi, order=order), _simulate_numpy(batch, False, phi, order, "flag")
-    assert_same_motion(fast, ref, _size(batch))
+    assert_same_motion(fast, ref, batch)
