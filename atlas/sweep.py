@@ -23,7 +23,7 @@ from kinematics.fourbar import GrashofType, grashof_type
 __all__ = ["PRESETS", "SweepLinkages", "SweepSpec", "SweepSpecError", "sweep_linkages"]
 
 
-#: Tolerance levels a sweep may have: dwell ids leave room for 32 (``db.rows.DWELLS_PER_SEGMENT``).
+#: Tolerance levels a sweep may have (each is a dwell row per segment: more is storage, not precision).
 MAX_TOLERANCE_LEVELS = 32
 #: Accepted ranges of a sweep's fields (the command line shows and checks the same ones).
 #: Proportions (crank = 1): beyond 1:1000 a four-bar is a drawing error, not a mechanism.

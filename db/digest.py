@@ -1,8 +1,9 @@
 """The content digest of an atlas: one hash for "these two atlases hold the same data".
 
 SHA-256 (hex) over every linkage, segment and dwell row, table by table, each in canonical
-order (by id — ids are deterministic in the sweep, see ``db.rows``), all columns in
-schema order except volatile or bookkeeping ones:
+order (by primary key: ids are deterministic in the sweep, see ``db.rows``, and a dwell row's key
+is its kind, level, dwell angle and segment id), all columns in schema order except volatile or
+bookkeeping ones:
 
 * ``linkage.build_id`` — an autoincrement handle of the build row, not content (a rebuild
   after ``--replace`` gets a new one);
@@ -79,7 +80,7 @@ def _statements(build_id: int | None) -> list[tuple[str, list[Column], Select]]:
                 stmt = stmt.where(Segment.linkage_id.in_(links))
             else:
                 stmt = stmt.where(Dwell.segment_id.in_(select(Segment.id).where(Segment.linkage_id.in_(links))))
-        out.append((table.name, cols, stmt.order_by(table.c.id)))
+        out.append((table.name, cols, stmt.order_by(*table.primary_key.columns)))
     return out
 
 

@@ -374,9 +374,9 @@ def start_writing(engine: Engine) -> None:
 
 
 def settle_sqlite(engine: Engine) -> bool:
-    """After a complete build: fold the WAL into the file and switch it to DELETE journal
-    mode, so that a complete atlas is one file (read-only folders can read it, and any ``-wal``
-    found beside it later is refused). Disposes ``engine``'s connections. Returns False when
+    """After a complete build: pack the file (``VACUUM``), fold the WAL into it and switch it
+    to DELETE journal mode, so that a complete atlas is one file (read-only folders can read
+    it, and any ``-wal`` found beside it later is refused). Disposes ``engine``'s connections. Returns False when
     another connection (a reader) kept the file busy: it then stays in WAL mode, which is
     safe, and the next ``dwell atlas build`` of the same sweep switches it."""
     if engine.dialect.name != "sqlite":
@@ -387,6 +387,10 @@ def settle_sqlite(engine: Engine) -> bool:
             conn.exec_driver_sql("PRAGMA busy_timeout=2000")  # a reader must not hold the build up long
             mode = str(conn.exec_driver_sql("PRAGMA journal_mode").scalar()).lower()
             if mode != "delete":
+                # the dwell table's b-tree grew by inserts in key order of no shard's making:
+                # its pages are ~88 % full; rewritten once they are packed (standard: 8 090 →
+                # 7 340 bytes per linkage, ~2 s). Still in WAL mode, so a kill here loses nothing.
+                conn.exec_driver_sql("VACUUM")
                 mode = str(conn.exec_driver_sql("PRAGMA journal_mode=DELETE").scalar()).lower()
     except OperationalError:
         return False

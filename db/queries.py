@@ -1,10 +1,11 @@
 """Indexed candidate selection for the synthesis query: :class:`AtlasSource` is the
 :class:`synth.query.SegmentSource` of an atlas.
 
-Short walks of ``ix_dwell_query`` (kind, level, dwell_angle) outwards from each wanted dwell
-angle, joined to their segment and linkage and filtered on the linkage's constraints, then one
-read of the chosen segments and their dwell rows; for the complete search, a keyset walk of
-the same index through every row of one kind and level. Units as stored: crank lengths,
+Short walks of the ``dwell`` table's key (kind, level, dwell_angle, segment_id) outwards from
+each wanted dwell angle, filtered on the linkage's constraints inside the walk (the table is
+the index: every column the query needs comes with the walked row), then one read of the
+chosen segments and their linkages by primary key; for the complete search, a keyset walk of
+the same key through every row of one kind and level. Units as stored: crank lengths,
 radians.
 """
 
@@ -17,8 +18,10 @@ from sqlalchemy import Engine, and_, bindparam, func, or_, select
 from sqlalchemy.orm import Session
 
 from db.engine import atlas_name, damaged
+from db.rows import length_ceil_milli, line_point, transmission_floor_cdeg
 from db.schema import Dwell, Linkage, Segment
 from db.spec import last_spec, tolerances
+from synth.kinds import SegmentKind
 from synth.query import DwellWindow, SegmentRow
 
 #: Segment ids bound in one statement of :func:`select_segments`.
@@ -44,33 +47,34 @@ def select_segments(
     are considered; an arc's radius (the RRR rod) must lie in [longest four-bar link ·
     ``min_radius_ratio``, ``max_length``].
 
-    Each (kind, level, window) is read as two walks of ``ix_dwell_query`` outwards from the
+    Each (kind, level, window) is read as two walks of the dwell table's key outwards from the
     target — dwell ≥ target upwards, dwell < target downwards, each stopping after ``limit``
-    rows that pass or at the window's edge. The index covers every filter, so a walked row
-    costs an index entry, not a join; one statement is compiled for all the walks."""
-    levels = [lv for lv, _ in tolerance_levels(engine)]
-    base = select(Dwell.segment_id, Dwell.level, Dwell.dwell_angle).where(
+    rows that pass or at the window's edge. The rows hold every filtered column, so a walked
+    row costs one b-tree entry, not a join; one statement is compiled for all the walks."""
+    tolerance = dict(tolerance_levels(engine))
+    base = select(*_DWELL_COLUMNS).where(
         Dwell.kind == bindparam("kind"), Dwell.level == bindparam("level"),
         *_filters(min_transmission, max_length, min_radius_ratio))
     up = (base.where(Dwell.dwell_angle >= bindparam("target"), Dwell.dwell_angle <= bindparam("high"))
           .order_by(Dwell.dwell_angle, Dwell.segment_id).limit(bindparam("n")))
     down = (base.where(Dwell.dwell_angle < bindparam("target"), Dwell.dwell_angle >= bindparam("low"))
             .order_by(Dwell.dwell_angle.desc(), Dwell.segment_id).limit(bindparam("n")))
-    hits: list[tuple[int, int]] = []
+    hits: list = []
     seen: set[int] = set()
     with engine.connect() as conn:
         for w in windows:
             found = []
             for kind in kinds:
-                for lv in levels if w.level is None else [w.level]:
-                    args = {"kind": kind, "level": lv, "target": w.target, "low": w.low, "high": w.high, "n": w.limit}
+                for lv in tolerance if w.level is None else [w.level]:
+                    args = {"kind": SegmentKind(kind).code, "level": lv, "target": w.target, "low": w.low,
+                            "high": w.high, "n": w.limit}
                     found += conn.execute(up, args).all() + conn.execute(down, args).all()
             found.sort(key=lambda h: (abs(h.dwell_angle - w.target), h.segment_id, h.level))
             for h in found[: w.limit]:
                 if h.segment_id not in seen:
                     seen.add(h.segment_id)
-                    hits.append((h.segment_id, h.level))
-        return _segment_rows(engine, conn, hits)
+                    hits.append(h)
+        return _segment_rows(engine, conn, hits, tolerance)
 
 
 def scan_segments(
@@ -85,19 +89,21 @@ def scan_segments(
 ) -> Iterator[list[SegmentRow]]:
     """Every segment of ``kind`` with a dwell at ``level``, filtered as in
     :func:`select_segments`, in batches of up to ``batch`` (in stored-dwell order: a keyset walk
-    of ``ix_dwell_query``, so each batch costs its own rows, not an offset)."""
-    page = (select(Dwell.segment_id, Dwell.dwell_angle)
-            .where(Dwell.kind == kind, Dwell.level == level, *_filters(min_transmission, max_length, min_radius_ratio),
+    of the dwell table's key, so each batch costs its own rows, not an offset)."""
+    page = (select(*_DWELL_COLUMNS)
+            .where(Dwell.kind == SegmentKind(kind).code, Dwell.level == level,
+                   *_filters(min_transmission, max_length, min_radius_ratio),
                    or_(Dwell.dwell_angle > bindparam("angle"),
                        and_(Dwell.dwell_angle == bindparam("angle"), Dwell.segment_id > bindparam("sid"))))
             .order_by(Dwell.dwell_angle, Dwell.segment_id).limit(batch))
+    tolerance = dict(tolerance_levels(engine))
     angle, sid = -1.0, -1
     while True:
         with engine.connect() as conn:
             hits = conn.execute(page, {"angle": angle, "sid": sid}).all()
             if not hits:
                 return
-            rows = _segment_rows(engine, conn, [(h.segment_id, level) for h in hits])
+            rows = _segment_rows(engine, conn, hits, tolerance)
         angle, sid = hits[-1].dwell_angle, hits[-1].segment_id
         yield rows
 
@@ -107,34 +113,58 @@ def count_segments(engine: Engine, kind: str, level: int, *, min_transmission: f
     """How many segments :func:`scan_segments` walks (one count over the index)."""
     with engine.connect() as conn:
         return int(conn.execute(select(func.count()).select_from(Dwell).where(
-            Dwell.kind == kind, Dwell.level == level,
+            Dwell.kind == SegmentKind(kind).code, Dwell.level == level,
             *_filters(min_transmission, max_length, min_radius_ratio))).scalar_one())
 
 
+#: What the walks read of a dwell row: the key, then the stretch(es) it describes.
+_DWELL_COLUMNS = (Dwell.segment_id, Dwell.level, Dwell.dwell_angle, Dwell.phi_start, Dwell.x, Dwell.y, Dwell.direction,
+                  Dwell.radius, Dwell.dwell_angle2, Dwell.phi_start2, Dwell.x2, Dwell.direction2)
+#: Beyond this a length limit (cranks) filters nothing and would overflow a 64-bit integer.
+_NO_LENGTH_LIMIT = 1e12
+
+
 def _filters(min_transmission: float, max_length: float, min_radius_ratio: float) -> list:
-    """The linkage's and arc's limits on a dwell row (part 0). Every filter reads
-    ix_dwell_query's own columns: a walk never leaves the index."""
-    return [
-        Dwell.part == 0,
-        Dwell.linkage_transmission_min >= min_transmission,
-        Dwell.longest_link <= max_length,
-        or_(Dwell.radius.is_(None), Dwell.radius <= max_length),  # an arc's radius is the rod
-        *(() if min_radius_ratio <= 0 else (or_(Dwell.radius.is_(None), and_(
-            Dwell.radius >= min_radius_ratio, Dwell.radius >= min_radius_ratio * Dwell.longest_link)),)),
-    ]
+    """The linkage's and arc's limits on a dwell row, on its own columns: a walk never leaves
+    the table's b-tree. The linkage's figures are stored floored (transmission, 0.01°) and
+    ceiled (longest link, 0.001 crank); comparing them with the limit rounded the same way
+    keeps every linkage that meets the limit (rounding is monotone) and lets through a few
+    within 0.01° or 0.001 crank of it, which the exact figures then reject."""
+    out = [Dwell.transmission_min_cdeg >= transmission_floor_cdeg(min_transmission)]
+    if max_length < _NO_LENGTH_LIMIT:
+        out += [Dwell.longest_link_milli <= length_ceil_milli(max_length),
+                or_(Dwell.radius.is_(None), Dwell.radius <= max_length)]  # an arc's radius is the rod
+    if min_radius_ratio > 0:
+        out.append(or_(Dwell.radius.is_(None), and_(
+            # (milli − 2)/1000 is below the longest link whatever the rounding of its copy
+            Dwell.radius >= min_radius_ratio, Dwell.radius * 1000 >= min_radius_ratio * (Dwell.longest_link_milli - 2))))
+    return out
 
 
-def _segment_rows(engine: Engine, conn, hits: Sequence[tuple[int, int]]) -> list[SegmentRow]:
-    """The :class:`SegmentRow` of each (segment id, level) of ``hits``, in that order (a double
-    line without both stretches at its level is left out)."""
+def _parts(dw) -> tuple[tuple, ...]:
+    """A walked dwell row as :attr:`SegmentRow.parts`: per stretch (phi_start, phi_end, x, y,
+    direction or None, radius or None); a line's point is its foot from A0."""
+    if dw.radius is not None:
+        return ((dw.phi_start, dw.phi_start + dw.dwell_angle, dw.x, dw.y, None, dw.radius),)
+    parts = [_line_part(dw.phi_start, dw.dwell_angle, dw.x, dw.direction)]
+    if dw.dwell_angle2 is not None:
+        parts.append(_line_part(dw.phi_start2, dw.dwell_angle2, dw.x2, dw.direction2))
+    return tuple(parts)
+
+
+def _line_part(phi_start: float, dwell_angle: float, offset: float, direction: float) -> tuple:
+    foot = line_point(offset, direction)
+    return (phi_start, phi_start + dwell_angle, foot.real, foot.imag, direction, None)
+
+
+def _segment_rows(engine: Engine, conn, hits: Sequence, tolerance: dict[int, float]) -> list[SegmentRow]:
+    """The :class:`SegmentRow` of each walked dwell row of ``hits`` (:data:`_DWELL_COLUMNS`),
+    in that order, with its segment and linkage read by primary key; ``tolerance``: level →
+    path tolerance (crank lengths)."""
     if not hits:
         return []
-    ids = list(dict.fromkeys(sid for sid, _ in hits))
-    by_level: dict[int, list[int]] = {}
-    for sid, lv in hits:
-        by_level.setdefault(lv, []).append(sid)
+    ids = list(dict.fromkeys(h.segment_id for h in hits))
     segs: dict[int, Any] = {}
-    parts: dict[tuple[int, int], list] = {}
     # the ids go to the server as bound parameters: a few thousand per statement (SQLite
     # takes at most 32 766 in one, PostgreSQL 65 535)
     for k in range(0, len(ids), IN_CHUNK):
@@ -143,42 +173,18 @@ def _segment_rows(engine: Engine, conn, hits: Sequence[tuple[int, int]]) -> list
                    Linkage.branch, Linkage.transmission_min)
             .join(Linkage, Segment.linkage_id == Linkage.id).where(Segment.id.in_(ids[k : k + IN_CHUNK]))
         ))
-    # only the dwell rows of the wanted levels (a scan wants one of a segment's several)
-    for lv, at_level in by_level.items():
-        for k in range(0, len(at_level), IN_CHUNK):
-            for dw in conn.execute(
-                select(Dwell.segment_id, Dwell.part, Dwell.tolerance, Dwell.phi_start, Dwell.phi_end, Dwell.x,
-                       Dwell.y, Dwell.direction, Dwell.radius)
-                .where(Dwell.level == lv, Dwell.segment_id.in_(at_level[k : k + IN_CHUNK]))
-                .order_by(Dwell.segment_id, Dwell.part)
-            ):
-                parts.setdefault((dw.segment_id, lv), []).append(dw)
-    lost = [sid for sid, _ in hits if sid not in segs]
+    lost = [h.segment_id for h in hits if h.segment_id not in segs]
     if lost:  # dwell rows whose segment (or its linkage) was deleted: only a damaged atlas
         raise damaged(atlas_name(engine), f"dwell rows name segment {lost[0]}, which does not exist")
-    out: list[SegmentRow] = []
-    for sid, lv in hits:
-        seg, dws = segs[sid], parts.get((sid, lv), [])
-        if seg.kind == "double_line" and len(dws) != 2:
-            continue  # a double line needs both stretches at this level
-        out.append(
-            SegmentRow(
-                segment_id=sid,
-                kind=seg.kind,
-                level=lv,
-                tolerance=dws[0].tolerance,
-                b=seg.b,
-                c=seg.c,
-                d=seg.d,
-                branch=seg.branch,
-                u=seg.u,
-                v=seg.v,
-                phi_gen=seg.phi_gen,
-                parts=tuple((dw.phi_start, dw.phi_end, dw.x, dw.y, dw.direction, dw.radius) for dw in dws),
-                fourbar_transmission_min=seg.transmission_min,
-            )
-        )
-    return out
+    return [_segment_row(segs[h.segment_id], h, tolerance.get(h.level, 0.0)) for h in hits]
+
+
+def _segment_row(seg, dw, tolerance: float) -> SegmentRow:
+    return SegmentRow(
+        segment_id=seg.id, kind=seg.kind, level=dw.level, tolerance=tolerance, b=seg.b, c=seg.c, d=seg.d,
+        branch=seg.branch, u=seg.u, v=seg.v, phi_gen=seg.phi_gen, parts=_parts(dw),
+        fourbar_transmission_min=seg.transmission_min,
+    )
 
 
 def nearest_dwell_angles(engine: Engine, kinds: tuple[str, ...], target: float) -> tuple[float | None, float | None]:
@@ -189,7 +195,7 @@ def nearest_dwell_angles(engine: Engine, kinds: tuple[str, ...], target: float) 
     with Session(engine) as s:
         for kind in kinds:
             for lv, _ in tolerance_levels(engine):
-                here = and_(Dwell.kind == kind, Dwell.level == lv)
+                here = and_(Dwell.kind == SegmentKind(kind).code, Dwell.level == lv)
                 b = s.execute(select(func.max(Dwell.dwell_angle)).where(here, Dwell.dwell_angle <= target)).scalar()
                 a = s.execute(select(func.min(Dwell.dwell_angle)).where(here, Dwell.dwell_angle >= target)).scalar()
                 below += [] if b is None else [b]
@@ -205,8 +211,9 @@ def tolerance_levels(engine: Engine) -> list[tuple[int, float]]:
 
 
 def segment_row(engine: Engine, segment_id: int, level: int) -> SegmentRow | None:
-    """Segment ``segment_id`` with its dwell row(s) at ``level`` (``parts`` empty if it has
-    none there); None if the atlas has no such segment."""
+    """Segment ``segment_id`` with its dwell row at ``level`` (``parts`` empty if it has none
+    there); None if the atlas has no such segment. A rare path (reports, rebuilt ids): the
+    dwell row is found by a scan of its kind and level, which no index serves."""
     with engine.connect() as conn:
         seg = conn.execute(
             select(Segment.id, Segment.kind, Segment.u, Segment.v, Segment.phi_gen, Linkage.b, Linkage.c, Linkage.d,
@@ -215,16 +222,13 @@ def segment_row(engine: Engine, segment_id: int, level: int) -> SegmentRow | Non
         ).first()
         if seg is None:
             return None
-        dws = conn.execute(
-            select(Dwell.tolerance, Dwell.phi_start, Dwell.phi_end, Dwell.x, Dwell.y, Dwell.direction, Dwell.radius)
-            .where(Dwell.segment_id == segment_id, Dwell.level == level).order_by(Dwell.part)
-        ).all()
-    return SegmentRow(
-        segment_id=seg.id, kind=seg.kind, level=level, tolerance=dws[0].tolerance if dws else 0.0,
-        b=seg.b, c=seg.c, d=seg.d, branch=seg.branch, u=seg.u, v=seg.v, phi_gen=seg.phi_gen,
-        parts=tuple((dw.phi_start, dw.phi_end, dw.x, dw.y, dw.direction, dw.radius) for dw in dws),
-        fourbar_transmission_min=seg.transmission_min,
-    )
+        dw = conn.execute(select(*_DWELL_COLUMNS).where(
+            Dwell.kind == SegmentKind(seg.kind).code, Dwell.level == level, Dwell.segment_id == segment_id)).first()
+    if dw is None:
+        return SegmentRow(segment_id=seg.id, kind=seg.kind, level=level, tolerance=0.0, b=seg.b, c=seg.c, d=seg.d,
+                          branch=seg.branch, u=seg.u, v=seg.v, phi_gen=seg.phi_gen, parts=(),
+                          fourbar_transmission_min=seg.transmission_min)
+    return _segment_row(seg, dw, dict(tolerance_levels(engine)).get(level, 0.0))
 
 
 class AtlasSource:

@@ -8,7 +8,8 @@ interrupted and resumed:
 
 * linkage id = 2·sweep_index + (0 for branch +1, 1 for branch −1) + 1
 * segment id = linkage id · :data:`SEGMENTS_PER_LINKAGE` + ordinal of the segment in its linkage
-* dwell id   = segment id · :data:`DWELLS_PER_SEGMENT` + 2·level + part
+* a dwell row is named by (segment id, level); its key in the table is (kind code, level,
+  dwell angle, segment id), the query's walk order (:class:`db.schema.Dwell`)
 
 Values are plain Python (no numpy scalars); units as :mod:`db.schema` says (crank lengths,
 radians, fixed frame).
@@ -16,6 +17,7 @@ radians, fixed frame).
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -24,12 +26,11 @@ from numpy.typing import NDArray
 from synth.kinds import SEGMENT_KINDS, SegmentKind
 from synth.segments import FoundSegments
 
-__all__ = ["DWELLS_PER_SEGMENT", "SEGMENTS_PER_LINKAGE", "linkage_id", "linkage_rows", "segment_rows"]
+__all__ = ["SEGMENTS_PER_LINKAGE", "length_ceil_milli", "line_offset", "line_point", "linkage_id", "linkage_rows", "segment_rows",
+           "transmission_floor_cdeg"]
 
 #: Room for segment ordinals inside one linkage's id range (ids stay below 2^63 for 10^8 linkages).
 SEGMENTS_PER_LINKAGE = 100_000
-#: Room for (level, part) inside one segment's id range: up to 32 tolerance levels.
-DWELLS_PER_SEGMENT = 64
 
 
 def linkage_id(sweep_index: int, branch: int) -> int:
@@ -58,11 +59,39 @@ def linkage_rows(shard_index: int, sweep_index: NDArray, b: NDArray, c: NDArray,
     ]
 
 
+def transmission_floor_cdeg(angle: float) -> int:
+    """A transmission angle (rad) as the atlas's filters store and compare it: floor(° · 100).
+    Monotone (each float step is correctly rounded), so ``angle ≥ limit`` implies
+    ``transmission_floor_cdeg(angle) ≥ transmission_floor_cdeg(limit)``."""
+    return math.floor(math.degrees(angle) * 100)
+
+
+def length_ceil_milli(length: float) -> int:
+    """A length (cranks) as the atlas's filters store and compare it: ceil(length · 1000).
+    Monotone, so ``length ≤ limit`` implies ``length_ceil_milli(length) ≤ length_ceil_milli(limit)``;
+    and ``(length_ceil_milli(length) − 2) / 1000 < length`` whatever the rounding."""
+    return math.ceil(length * 1000)
+
+
+def line_offset(point: complex, direction: float) -> float:
+    """The signed distance of the line through ``point`` at angle ``direction`` (rad) from the
+    origin A0, as the atlas stores a line: the line is {offset·i·e^{iδ} + t·e^{iδ}}."""
+    return float((point * np.exp(-1j * direction)).imag)
+
+
+def line_point(offset: float, direction: float) -> complex:
+    """The foot from A0 of the stored line (``offset``, ``direction``): the inverse of
+    :func:`line_offset` up to the line's own points."""
+    return offset * 1j * complex(math.cos(direction), math.sin(direction))
+
+
 def segment_rows(found: FoundSegments, linkages: list[dict[str, Any]]) -> tuple[list[dict], list[dict]]:
     """Rows of the ``segment`` and ``dwell`` tables for ``found``, whose ``linkage`` indexes
-    ``linkages`` (the rows of :func:`linkage_rows`). Each dwell row carries copies of its
-    linkage's constraint figures (smallest transmission angle, longest link), so that the
-    query's covering index filters on them without a join."""
+    ``linkages`` (the rows of :func:`linkage_rows`). Each dwell row carries conservative
+    integer copies of its linkage's constraint figures (smallest transmission angle floored
+    to 0.01°, longest link ceiled to 0.001 crank), so that the query's walk filters on them
+    without a join. A double line gets a dwell row only at the levels where both its
+    stretches have one."""
     segments: list[dict] = []
     dwells: list[dict] = []
     ordinal = _ordinals(found.linkage)
@@ -79,32 +108,34 @@ def segment_rows(found: FoundSegments, linkages: list[dict[str, Any]]) -> tuple[
             "u": float(found.uv[i].real),
             "v": float(found.uv[i].imag),
         })
-        copies = {"linkage_transmission_min": link["transmission_min"],
-                  "longest_link": max(link["b"], link["c"], link["d"])}
-        for level, tol in enumerate(found.tolerances):
-            for part in range(2 if kind is SegmentKind.DOUBLE_LINE else 1):
-                if not found.has_dwell[i, level, part]:
-                    continue
-                p = found.fit_point[i, level, part]
-                start, end = float(found.phi_start[i, level, part]), float(found.phi_end[i, level, part])
-                arc = kind is SegmentKind.ARC
-                dwells.append({
-                    "id": sid * DWELLS_PER_SEGMENT + 2 * level + part,
-                    "segment_id": sid,
-                    "kind": kind.value,
-                    "level": level,
-                    "tolerance": float(tol),
-                    "part": part,
-                    "phi_start": start,
-                    "phi_end": end,
-                    "dwell_angle": end - start,
-                    "x": float(p.real),
-                    "y": float(p.imag),
-                    "direction": None if arc else float(np.angle(found.fit_direction[i, level, part])),
-                    "radius": float(found.fit_radius[i, level, part]) if arc else None,
-                    **copies,
-                })
+        copies = {"transmission_min_cdeg": transmission_floor_cdeg(link["transmission_min"]),
+                  "longest_link_milli": length_ceil_milli(max(link["b"], link["c"], link["d"]))}
+        double = kind is SegmentKind.DOUBLE_LINE
+        for level in range(len(found.tolerances)):
+            if not found.has_dwell[i, level, 0] or (double and not found.has_dwell[i, level, 1]):
+                continue
+            row = {"kind": kind.code, "level": level, "segment_id": sid, **copies,
+                   **_stretch(found, i, level, 0, arc=kind is SegmentKind.ARC)}
+            if double:
+                second = _stretch(found, i, level, 1, arc=False)
+                row.update(dwell_angle2=second["dwell_angle"], phi_start2=second["phi_start"], x2=second["x"],
+                           direction2=second["direction"])
+            else:
+                row.update(dwell_angle2=None, phi_start2=None, x2=None, direction2=None)
+            dwells.append(row)
     return segments, dwells
+
+
+def _stretch(found: FoundSegments, i: int, level: int, part: int, *, arc: bool) -> dict[str, Any]:
+    """The dwell columns of one stretch: interval, and circle or line (as direction, offset)."""
+    p = found.fit_point[i, level, part]
+    start, end = float(found.phi_start[i, level, part]), float(found.phi_end[i, level, part])
+    if arc:
+        return {"dwell_angle": end - start, "phi_start": start, "x": float(p.real), "y": float(p.imag),
+                "direction": None, "radius": float(found.fit_radius[i, level, part])}
+    direction = float(np.angle(found.fit_direction[i, level, part]))
+    return {"dwell_angle": end - start, "phi_start": start, "x": line_offset(complex(p), direction), "y": None,
+            "direction": direction, "radius": None}
 
 
 def _ordinals(linkage: NDArray[np.int64]) -> NDArray[np.int64]:

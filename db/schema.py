@@ -13,7 +13,8 @@ non-finite values before writing. ``tests/db/test_engine.py`` tries every float 
 
 from __future__ import annotations
 
-from sqlalchemy import BigInteger, CheckConstraint, Float, ForeignKey, Index, Integer, String, Text, UniqueConstraint
+from sqlalchemy import (BigInteger, CheckConstraint, Float, ForeignKey, Index, Integer, PrimaryKeyConstraint, String, Text,
+                        UniqueConstraint)
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 
 from synth.kinds import SEGMENT_KINDS
@@ -25,8 +26,13 @@ __all__ = ["SCHEMA_VERSION", "APPLICATION", "Base", "Meta", "Build", "Shard", "L
 #: in ``dwell`` (with copies of the linkage's constraint figures for the query's covering
 #: index), the builder lock columns and the stored content digest of ``build``. 3: only what
 #: is read — the segment's osculating geometry, its transmission range, the double line's
-#: intersection, the scan ray and the dwell's deviation from its fit are no longer stored.
-SCHEMA_VERSION = 3
+#: intersection, the scan ray and the dwell's deviation from its fit are no longer stored. 4: the
+#: ``dwell`` table is the query's index (one row per segment and level, clustered on the walk's
+#: key, ``WITHOUT ROWID`` on SQLite), a double line's second stretch in the same row, a line as
+#: (direction, offset), no stored ``phi_end`` or tolerance, the linkage's constraint copies as
+#: conservative integers, no index that only a rare path uses (issue #16: 19 972 → ~7 300 bytes
+#: per linkage on ``standard``).
+SCHEMA_VERSION = 4
 #: Written to the meta table so that a foreign SQLite file is recognised as such.
 APPLICATION = "dwell-atlas"
 
@@ -139,6 +145,10 @@ class Segment(Base):
     line's second stretch at ``phi_gen2``), traced by the coupler point (``u``, ``v``). Its
     lines or circle, fitted per tolerance level, are in its ``dwell`` rows: that is what the
     query reads (the osculating geometry at ``phi_gen`` is not stored).
+
+    No index on ``linkage_id``: only resume's clean-up and the digest of one build of several
+    read by it, and both scan anyway (a segment id is its linkage's id · ``SEGMENTS_PER_LINKAGE``
+    plus an ordinal, ``db.rows``).
     """
 
     __tablename__ = "segment"
@@ -153,48 +163,52 @@ class Segment(Base):
         CheckConstraint(f"kind IN ({', '.join(repr(k.value) for k in SEGMENT_KINDS)})", name="ck_segment_kind"),
         *_finite_checks("segment", "phi_gen", "u", "v"),
         *_finite_or_null_checks("segment", "phi_gen2"),
-        Index("ix_segment_linkage", "linkage_id"),
     )
 
 
 class Dwell(Base):
-    """The dwell interval of a segment at one tolerance level (band half-width, crank lengths).
+    """A segment's dwell interval and fitted geometry at one tolerance level: what the query walks.
 
-    ``part`` is 0, or 1 for the second line of a double Ball point. ``kind`` repeats the
-    segment's kind so that the query's index covers its filter. Each level has its own
-    minimum-zone line (``x``, ``y``, ``direction``) or circle (centre ``x``, ``y``, ``radius``),
-    fitted to its own interval: the interval is the largest crank interval around the
-    generating angle on which the coupler point stays within ``tolerance`` of that geometry.
+    One row per (segment, level). The interval [``phi_start``, ``phi_start`` + ``dwell_angle``]
+    (rad, counter-clockwise) is the largest crank interval around the generating angle on which
+    the coupler point stays within that level's tolerance (the build's sweep spec, by
+    ``level``) of the level's own minimum-zone geometry: a circle (centre ``x``, ``y``,
+    ``radius``) or a line (``direction`` δ, rad, and signed ``x`` = its distance from A0: the
+    line is {x·i·e^{iδ} + t·e^{iδ}}; ``y`` and ``radius`` NULL). A double line's second stretch
+    is in the ``*2`` columns of the same row (a double line is stored at a level only when
+    both stretches have a dwell there: the query needs both).
+
+    The table **is** the query's index: the primary key (``kind`` as the
+    :data:`synth.kinds.SEGMENT_KINDS` code, ``level``, ``dwell_angle``, ``segment_id``) is the
+    walk's order, and on SQLite (``WITHOUT ROWID``) the row lives in that b-tree, so a walked
+    row costs no second look-up. The linkage's constraint figures ride along for the walk's
+    filters as conservative integers: the smallest folded transmission angle floored to
+    0.01° and the longest of b, c, d ceiled to 0.001 crank. They can only let through a
+    linkage that the exact figures then reject, never hold back one that meets a request.
     """
 
     __tablename__ = "dwell"
-    id: Mapped[int] = mapped_column(RowId, primary_key=True, autoincrement=False)
-    segment_id: Mapped[int] = mapped_column(RowId, ForeignKey("segment.id"))
-    kind: Mapped[str] = mapped_column(String(12))
+    kind: Mapped[int] = mapped_column(Integer)  #: synth.kinds.SegmentKind.code
     level: Mapped[int] = mapped_column(Integer)
-    tolerance: Mapped[float] = mapped_column(Float)
-    part: Mapped[int] = mapped_column(Integer)
-    phi_start: Mapped[float] = mapped_column(Float)  #: rad; the interval runs counter-clockwise
-    phi_end: Mapped[float] = mapped_column(Float)
-    dwell_angle: Mapped[float] = mapped_column(Float)  #: rad, phi_end − phi_start
-    x: Mapped[float] = mapped_column(Float)  #: line point or circle centre, fixed frame
-    y: Mapped[float] = mapped_column(Float)
-    direction: Mapped[float | None] = mapped_column(Float, nullable=True)  #: line direction (rad)
-    radius: Mapped[float | None] = mapped_column(Float, nullable=True)  #: circle radius
-    # copies of the linkage's constraint figures, so that the query filters inside the index
-    # (no join per row walked): smallest folded transmission angle (rad), longest of b, c, d
-    linkage_transmission_min: Mapped[float] = mapped_column(Float)
-    longest_link: Mapped[float] = mapped_column(Float)
+    dwell_angle: Mapped[float] = mapped_column(Float)  #: rad
+    segment_id: Mapped[int] = mapped_column(RowId, ForeignKey("segment.id"))
+    transmission_min_cdeg: Mapped[int] = mapped_column(Integer)  #: floor(min folded transmission, ° · 100)
+    longest_link_milli: Mapped[int] = mapped_column(Integer)  #: ceil(max(b, c, d) · 1000), crank = 1000
+    radius: Mapped[float | None] = mapped_column(Float, nullable=True)  #: arc: circle radius
+    phi_start: Mapped[float] = mapped_column(Float)  #: rad
+    x: Mapped[float] = mapped_column(Float)  #: arc: centre x; line: signed distance of the line from A0
+    y: Mapped[float | None] = mapped_column(Float, nullable=True)  #: arc: centre y
+    direction: Mapped[float | None] = mapped_column(Float, nullable=True)  #: line: direction δ (rad)
+    # a double line's second stretch, at the same level
+    dwell_angle2: Mapped[float | None] = mapped_column(Float, nullable=True)
+    phi_start2: Mapped[float | None] = mapped_column(Float, nullable=True)
+    x2: Mapped[float | None] = mapped_column(Float, nullable=True)
+    direction2: Mapped[float | None] = mapped_column(Float, nullable=True)
     __table_args__ = (
-        CheckConstraint("part IN (0, 1)", name="ck_dwell_part"),
+        PrimaryKeyConstraint("kind", "level", "dwell_angle", "segment_id", name="pk_dwell"),
+        CheckConstraint(f"kind BETWEEN 0 AND {len(SEGMENT_KINDS) - 1}", name="ck_dwell_kind"),
         CheckConstraint("dwell_angle > 0", name="ck_dwell_positive"),
-        *_finite_checks("dwell", "tolerance", "phi_start", "phi_end", "dwell_angle", "x", "y",
-                        "linkage_transmission_min", "longest_link"),
-        *_finite_or_null_checks("dwell", "direction", "radius"),
-        # dwell query: WHERE kind = ? AND level = ? AND dwell_angle BETWEEN ? AND ?, walked in
-        # (dwell_angle, segment_id) order from a target outwards; covering: the filters read
-        # the index only
-        Index("ix_dwell_query", "kind", "level", "dwell_angle", "segment_id", "part", "linkage_transmission_min",
-              "longest_link", "radius"),
-        Index("ix_dwell_segment", "segment_id"),
+        *_finite_checks("dwell", "dwell_angle", "phi_start", "x"),
+        *_finite_or_null_checks("dwell", "radius", "y", "direction", "dwell_angle2", "phi_start2", "x2", "direction2"),
+        {"sqlite_with_rowid": False},
     )

@@ -78,8 +78,8 @@ class AtlasSummary:
         }
 
 
-def _histogram_rows(engine: Engine) -> dict[tuple[str, int], tuple[float, list[int], float]]:
-    """(kind, level) → (tolerance, counts per bin, max dwell in rad), one portable scan.
+def _histogram_rows(engine: Engine) -> dict[tuple[str, int], tuple[list[int], float]]:
+    """(kind, level) → (counts per bin, max dwell in rad), one portable scan.
 
     Bins are counted with ``SUM(CASE …)`` rather than ``FLOOR``/``CAST`` arithmetic, which
     differs between SQLite (truncation) and PostgreSQL (rounding).
@@ -90,13 +90,13 @@ def _histogram_rows(engine: Engine) -> dict[tuple[str, int], tuple[float, list[i
         upper = Dwell.dwell_angle <= edges[i + 1] if i == _N_BINS - 1 else Dwell.dwell_angle < edges[i + 1]
         bins.append(func.sum(case(((Dwell.dwell_angle >= edges[i]) & upper, 1), else_=0)))
     stmt = (
-        select(Dwell.kind, Dwell.level, func.min(Dwell.tolerance), func.max(Dwell.dwell_angle), *bins)
+        select(Dwell.kind, Dwell.level, func.max(Dwell.dwell_angle), *bins)
         .group_by(Dwell.kind, Dwell.level)
     )
     out = {}
     with engine.connect() as conn:
-        for kind, level, tol, top, *counts in conn.execute(stmt):
-            out[(kind, int(level))] = (float(tol), [int(c or 0) for c in counts], float(top))
+        for kind, level, top, *counts in conn.execute(stmt):
+            out[(SEGMENT_KINDS[int(kind)].value, int(level))] = ([int(c or 0) for c in counts], float(top))
     return out
 
 
@@ -125,7 +125,8 @@ def atlas_summary(engine: Engine) -> AtlasSummary:
         segments = dict.fromkeys(SEGMENT_KINDS, 0)
         segments.update({k: int(n) for k, n in conn.execute(select(Segment.kind, func.count()).group_by(Segment.kind))})
         dwells = dict.fromkeys(SEGMENT_KINDS, 0)
-        dwells.update({k: int(n) for k, n in conn.execute(select(Dwell.kind, func.count()).group_by(Dwell.kind))})
+        dwells.update({SEGMENT_KINDS[int(k)].value: int(n)
+                       for k, n in conn.execute(select(Dwell.kind, func.count()).group_by(Dwell.kind))})
         builds = conn.execute(select(Build).order_by(Build.id)).all()
         skipped: dict[str, int] = {}
         for (text,) in conn.execute(select(Shard.skipped_json)):
@@ -167,12 +168,10 @@ def atlas_summary(engine: Engine) -> AtlasSummary:
     for kind in SEGMENT_KINDS:
         per_level = []
         for lvl in levels:
-            tol, counts, top = found.get((kind, lvl), (None, [0] * _N_BINS, None))
-            if tol is None and lvl < len(levels_tol):
-                tol = levels_tol[lvl]
+            counts, top = found.get((kind, lvl), ([0] * _N_BINS, None))
             per_level.append({
                 "level": lvl,
-                "tolerance": tol,
+                "tolerance": levels_tol[lvl] if lvl < len(levels_tol) else None,
                 "counts": counts,
                 "max_dwell_deg": None if top is None else math.degrees(top),
             })

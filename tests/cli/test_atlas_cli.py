@@ -154,12 +154,13 @@ def test_info_json_is_consistent_with_the_database(reference, capsys):
     assert doc["linkages"] == query(db, "select count(*) from linkage")[0][0] > 0
     by_kind = dict(query(db, "select kind, count(*) from segment group by kind"))
     assert doc["segments"] == {k: by_kind.get(k, 0) for k in ("line", "arc", "double_line")}
-    dwells = dict(query(db, "select kind, count(*) from dwell group by kind"))
-    assert doc["dwells"] == {k: dwells.get(k, 0) for k in ("line", "arc", "double_line")}
+    dwells = dict(query(db, "select kind, count(*) from dwell group by kind"))  # kind: its code
+    assert doc["dwells"] == {k: dwells.get(code, 0) for code, k in enumerate(("line", "arc", "double_line"))}
     hist = doc["dwell_histogram"]
     assert hist["bin_deg"] == 10 and len(hist["edges_deg"]) == 37 and hist["edges_deg"][-1] == 360
     assert set(hist["kinds"]) == {"line", "arc", "double_line"}
-    per_level = dict(((k, lvl), n) for k, lvl, n in query(db, "select kind, level, count(*) from dwell group by kind, level"))
+    per_level = dict(((("line", "arc", "double_line")[k], lvl), n)
+                     for k, lvl, n in query(db, "select kind, level, count(*) from dwell group by kind, level"))
     for kind, levels in hist["kinds"].items():
         assert [lv["level"] for lv in levels] == [0, 1, 2]
         assert [lv["tolerance"] for lv in levels] == list(SPEC.tolerances)

@@ -45,9 +45,9 @@ def test_canonical_text_of_a_known_atlas(atlas_url):
         "1\t0\t0\t3\t2.5\t3\t1\t1\t0.5\t1.5\n"
         "#segment\tid\tlinkage_id\tkind\tphi_gen\tphi_gen2\tu\tv\n"
         f"{sg['id']}\t1\t\"arc\"\t1\t~\t1.2\t0.8\n"
-        "#dwell\tid\tsegment_id\tkind\tlevel\ttolerance\tpart\tphi_start\tphi_end\tdwell_angle\tx\ty"
-        "\tdirection\tradius\tlinkage_transmission_min\tlongest_link\n"
-        f"{dw['id']}\t{sg['id']}\t\"arc\"\t0\t0.001\t0\t0.75\t1.25\t0.5\t0.5\t0.25\t~\t2\t0.5\t3\n"
+        "#dwell\tkind\tlevel\tdwell_angle\tsegment_id\ttransmission_min_cdeg\tlongest_link_milli\tradius\tphi_start"
+        "\tx\ty\tdirection\tdwell_angle2\tphi_start2\tx2\tdirection2\n"
+        f"1\t0\t0.5\t{sg['id']}\t2864\t3000\t2\t0.75\t0.5\t0.25\t~\t~\t~\t~\t~\n"
     )
     assert lk["id"] == 1
     assert content_digest(engine) == hashlib.sha256(text.encode()).hexdigest()
@@ -81,7 +81,9 @@ def test_digest_sees_content_changes_and_ignores_noise(atlas_url, table, column,
     engine = make(atlas_url, [shard_rows(0), shard_rows(1)])
     before = content_digest(engine)
     with engine.begin() as conn:
-        conn.execute(update(table).where(table.id == conn.execute(table.__table__.select()).first().id).values({column: value}))
+        first = conn.execute(table.__table__.select()).first()  # by primary key: a dwell row has no id
+        conn.execute(update(table).where(*(c == getattr(first, c.name) for c in table.__table__.primary_key.columns))
+                     .values({column: value}))
     assert (content_digest(engine) == before) is same
     engine.dispose()
 

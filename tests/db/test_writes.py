@@ -87,8 +87,8 @@ def test_a_bad_row_rolls_the_whole_shard_back(engine, bad):
 def test_a_duplicate_id_rolls_back(engine):
     h, lock = start(engine)
     write_shard(engine, h.build_id, shard_rows(0), lock_token=lock.token)
-    dup = replace(shard_rows(1), dwells=[{**shard_rows(0).dwells[0]}])  # shard 0's dwell id again
-    dup.dwells[0]["segment_id"] = shard_rows(1).segments[0]["id"]
+    one = shard_rows(1)
+    dup = replace(one, dwells=[one.dwells[0], {**one.dwells[0]}])  # the same (segment, level) twice
     with pytest.raises(ShardWriteError, match="rolled back"):
         write_shard(engine, h.build_id, dup, lock_token=lock.token)
     assert count(engine, Shard) == 1 and count(engine, Linkage) == 1

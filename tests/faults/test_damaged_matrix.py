@@ -22,7 +22,7 @@ from processes import QUERY, SMALL, run
 from test_bad_atlases import snapshot
 
 #: table → the column dropped or renamed in it
-COLUMNS = {"dwell": "tolerance", "segment": "phi_gen2", "linkage": "grashof", "build": "finished_at",
+COLUMNS = {"dwell": "phi_start", "segment": "phi_gen2", "linkage": "grashof", "build": "finished_at",
            "shard": "seconds", "meta": "value"}
 #: seeded single-bit flips in page data (past the 100-byte file header)
 N_FLIPS = 24

@@ -1,0 +1,115 @@
+"""The query's reads of the atlas (``db.queries``): the dwell table's conservative integer
+filters never hold back a linkage that meets a limit, a stored line is the fitted line, and the
+rows read back are the rows written — on SQLite and PostgreSQL (``atlas_url``)."""
+
+from __future__ import annotations
+
+import cmath
+import math
+from dataclasses import replace
+
+from hypothesis import example, given
+from hypothesis import strategies as st
+from shards import shard_rows
+from sqlalchemy import insert
+
+from db import SCHEMA_VERSION, Build, open_atlas
+from db.queries import AtlasSource, scan_segments, segment_row, select_segments
+from db.rows import length_ceil_milli, line_offset, line_point, transmission_floor_cdeg
+from db.writes import write_shard
+from synth.query import DwellWindow
+
+angles = st.floats(0.0, math.pi / 2, allow_nan=False)
+lengths = st.floats(1e-3, 1e3, allow_nan=False)
+
+
+@given(angles, angles)
+@example(math.radians(30.0), math.radians(30.0))
+@example(math.nextafter(math.radians(30.0), 1.0), math.radians(30.0))
+def test_the_transmission_floor_keeps_every_linkage_that_meets_the_limit(angle, limit):
+    if angle >= limit:
+        assert transmission_floor_cdeg(angle) >= transmission_floor_cdeg(limit)
+    # and it lets through at most 0.01° more
+    assert math.degrees(angle) * 100 - 1 < transmission_floor_cdeg(angle) <= math.degrees(angle) * 100
+
+
+@given(lengths, lengths)
+@example(3.0, 3.0)
+@example(2.9999999999999996, 3.0)
+@example(0.1 + 0.2, 0.30000000000000004)
+def test_the_length_ceiling_keeps_every_linkage_that_meets_the_limit(length, limit):
+    if length <= limit:
+        assert length_ceil_milli(length) <= length_ceil_milli(limit)
+    assert (length_ceil_milli(length) - 2) / 1000 < length <= length_ceil_milli(length) / 1000 + 1e-12 * length
+
+
+@given(st.complex_numbers(max_magnitude=1e3, allow_nan=False, allow_infinity=False), st.floats(-math.pi, math.pi))
+def test_a_stored_line_is_the_fitted_line(point, direction):
+    """The foot rebuilt from (offset, direction) lies on the line through ``point``: the
+    across-line coordinate of their difference vanishes (to rounding of the largest term)."""
+    foot = line_point(line_offset(point, direction), direction)
+    across = ((point - foot) * cmath.exp(-1j * direction)).imag
+    assert abs(across) <= 1e-12 * max(1.0, abs(point))
+    assert abs(foot) <= abs(point) * (1 + 1e-12) + 1e-12  # the foot is the nearest point to A0
+
+
+def _atlas(target: str, shard):
+    engine = open_atlas(target, create=True)
+    with engine.begin() as conn:
+        build_id = conn.execute(insert(Build).values(
+            spec_json='{"name": "test", "tolerances": [0.001]}', spec_digest="a" * 64, code_version="0",
+            schema_version=SCHEMA_VERSION, status="building", n_shards=1, created_at="t")).inserted_primary_key[0]
+    write_shard(engine, build_id, shard)
+    return engine
+
+
+def _boundary_shard(transmission: float, longest: float, radius: float):
+    """One linkage whose smallest transmission angle and longest link, and one arc whose radius,
+    are the given values, with the integer copies computed as the build computes them."""
+    rows = shard_rows(0, radius=radius)
+    link = {**rows.linkages[0], "transmission_min": transmission, "b": longest, "c": longest / 2, "d": longest / 2}
+    dwell = {**rows.dwells[0], "transmission_min_cdeg": transmission_floor_cdeg(transmission),
+             "longest_link_milli": length_ceil_milli(longest)}
+    return replace(rows, linkages=[link], dwells=[dwell])
+
+
+def test_a_linkage_exactly_at_every_limit_is_walked(atlas_url):
+    """Transmission angle = the limit, longest link = the link ratio, rod = longest / ratio: it
+    meets every limit, so every walk finds it; 0.02° less transmission and it is left out."""
+    ratio = 7.3
+    longest = 3.1234567
+    engine = _atlas(atlas_url, _boundary_shard(math.radians(33.333333), longest, longest / ratio * (1 + 1e-15)))
+    limits = dict(min_transmission=math.radians(33.333333), max_length=ratio, min_radius_ratio=1 / ratio)
+    window = [DwellWindow(0, 0.0, 7.0, 0.5, 10)]
+    found = select_segments(engine, ("arc",), window, **limits)
+    assert [r.segment_id for r in found] == [shard_rows(0).segments[0]["id"]]
+    assert [r.segment_id for rows in scan_segments(engine, "arc", 0, **limits) for r in rows] == \
+        [shard_rows(0).segments[0]["id"]]
+    assert AtlasSource(engine).count_segments("arc", 0, **limits) == 1
+    stricter = {**limits, "min_transmission": math.radians(33.333333 + 0.02)}
+    assert select_segments(engine, ("arc",), window, **stricter) == []
+    engine.dispose()
+
+
+def test_rows_read_back_as_written(atlas_url):
+    """An arc and a double line: the query's rows hold the stored interval, geometry and the
+    level's tolerance (from the sweep spec), the line as a point on it and its direction."""
+    rows = shard_rows(0)
+    sid = rows.segments[0]["id"]
+    point, direction = 0.4 - 1.3j, 0.7
+    offset = line_offset(point, direction)
+    double = {**rows.segments[0], "id": sid + 1, "kind": "double_line", "phi_gen2": 4.0}
+    line_row = {**rows.dwells[0], "segment_id": sid + 1, "kind": 2, "x": offset, "y": None, "direction": direction,
+                "radius": None, "dwell_angle2": 0.25, "phi_start2": 3.5, "x2": -offset, "direction2": direction + 1}
+    engine = _atlas(atlas_url, replace(rows, segments=[rows.segments[0], double], dwells=[rows.dwells[0], line_row]))
+    arc = segment_row(engine, sid, 0)
+    assert arc.kind == "arc" and arc.tolerance == 0.001 and arc.parts == ((0.75, 1.25, 0.5, 0.25, None, 2.0),)
+    dbl = segment_row(engine, sid + 1, 0)
+    assert dbl.kind == "double_line" and len(dbl.parts) == 2
+    (s1, e1, x1, y1, d1, r1), (s2, e2, x2, y2, d2, r2) = dbl.parts
+    assert (s1, e1, d1, r1) == (0.75, 1.25, direction, None) and (s2, e2, d2, r2) == (3.5, 3.75, direction + 1, None)
+    assert abs(((complex(x1, y1) - point) * cmath.exp(-1j * direction)).imag) < 1e-15
+    assert abs(line_offset(complex(x2, y2), direction + 1) + offset) < 1e-15
+    assert segment_row(engine, sid, 1).parts == ()  # no row at that level
+    assert segment_row(engine, sid + 7, 0) is None
+    engine.dispose()
