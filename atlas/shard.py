@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from atlas.sweep import SweepLinkages, SweepSpec, sweep_linkages
+from db.digest import shard_digest
 from db.rows import linkage_rows, segment_rows
 from kinematics.fourbar import fourbar_motion
 from kinematics.loop import transmission_fold
@@ -29,7 +30,8 @@ _TRANSMISSION_SAMPLES = 360
 class ShardResult:
     """Rows of one shard, ready for bulk insertion: dicts keyed by column name, plain Python
     values (no numpy scalars, no NaN/inf), ids included. ``skipped`` counts degenerate cases
-    by reason; ``seconds`` is the compute time (not part of the content)."""
+    by reason; ``seconds`` is the compute time (not part of the content); ``digest`` the
+    shard's ``db.digest.shard_digest`` (None: the writer computes it)."""
 
     shard_index: int
     linkages: list[dict[str, Any]]
@@ -37,6 +39,7 @@ class ShardResult:
     dwells: list[dict[str, Any]]
     skipped: dict[str, int] = field(default_factory=dict)
     seconds: float = 0.0
+    digest: str | None = None
 
 
 def compute_shard(spec: SweepSpec, shard_index: int, linkages: SweepLinkages | None = None) -> ShardResult:
@@ -72,6 +75,7 @@ def compute_shard(spec: SweepSpec, shard_index: int, linkages: SweepLinkages | N
     found = find_segments(b[keep], c[keep], d[keep], br[keep], SegmentSearch.from_spec(spec))
     skipped.update(found.skipped)
     segments, dwells = segment_rows(found, links)
+    digest = shard_digest(links, segments, dwells)  # here, on a worker: the writer stays free
     return ShardResult(
         shard_index=int(shard_index),
         linkages=links,
@@ -79,4 +83,5 @@ def compute_shard(spec: SweepSpec, shard_index: int, linkages: SweepLinkages | N
         dwells=dwells,
         skipped=dict(sorted(skipped.items())),
         seconds=time.perf_counter() - t0,
+        digest=digest,
     )

@@ -1,38 +1,52 @@
 """The content digest of an atlas: one hash for "these two atlases hold the same data".
 
-SHA-256 (hex) over every linkage, segment and dwell row, table by table, each in canonical
-order (by primary key: ids are deterministic in the sweep, see ``db.rows``, and a dwell row's key
-is its kind, level, dwell angle and segment id), all columns in schema order except volatile or
-bookkeeping ones:
+Definition (schema 4). A **shard's digest** is SHA-256 (hex) over its linkage, segment and
+dwell rows, table by table: a header line naming the table and its columns, then the shard's
+rows of that table in primary-key order (ids are deterministic in the sweep, see ``db.rows``;
+a dwell row's key is its kind, level, dwell angle and segment id), all columns in schema order
+except volatile or bookkeeping ones:
 
 * ``linkage.build_id`` — an autoincrement handle of the build row, not content (a rebuild
   after ``--replace`` gets a new one);
 * the ``shard`` and ``build`` tables entirely (compute seconds, timestamps, lock, versions).
 
+The **content digest** of a build (or of the whole atlas) is SHA-256 over one line per shard,
+``<shard index>\\t<shard digest>\\n``, in shard order. A segment or dwell row belongs to the
+shard of its linkage (a segment id is its linkage id · ``SEGMENTS_PER_LINKAGE`` plus an
+ordinal).
+
 Canonical text of a value: floats ``'%.12g'`` (12 significant digits, so that the last-bit
 noise of a different BLAS or CPU does not change the digest) with −0 written as 0; integers
-in decimal; strings as JSON; NULL as ``~``. Fields are tab-separated, rows end with a newline,
-and each table starts with a header naming it and its columns, so a schema change changes
-the digest. Two builds of the same spec give the same digest whatever the worker count,
-completion order or resume history.
+in decimal; strings as JSON; NULL as ``~``. Fields are tab-separated, rows end with a newline.
+
+Why per shard: the worker that computes a shard digests its rows (:func:`shard_digest`, in
+``atlas.shard``), the driver stores it in the shard's row, and a build's digest at the end
+reads one row per shard (:func:`stored_digest`) instead of every row of the atlas — the single
+writer does not re-read what it wrote. :func:`content_digest` recomputes it from the rows (one
+pass over each table; ``dwell atlas info --verify``), and :func:`shard_digests` names the shards
+whose rows no longer give their stored digest. Two builds of the same spec give the same digest
+whatever the worker count, completion order or resume history.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any
 
-from sqlalchemy import Column, Connection, Engine, Float, Integer, select
-from sqlalchemy.sql import Select
+from sqlalchemy import Column, Connection, Engine, Float, Integer, select, union_all
 
-from db.schema import Dwell, Linkage, Segment
+from db.rows import SEGMENTS_PER_LINKAGE
+from db.schema import Dwell, Linkage, Segment, Shard, dwell_staging
 
-__all__ = ["DIGEST_EXCLUDED", "content_digest", "format_value"]
+__all__ = ["DIGEST_EXCLUDED", "combine", "content_digest", "format_value", "shard_digest", "shard_digests",
+           "stored_digest"]
 
 #: Columns left out of the digest, by table.
 DIGEST_EXCLUDED: dict[str, frozenset[str]] = {"linkage": frozenset({"build_id"}), "segment": frozenset(), "dwell": frozenset()}
+#: The tables digested, in digest order.
+_MODELS = (Linkage, Segment, Dwell)
 
 _NULL = "~"
 _BATCH = 20_000
@@ -66,53 +80,109 @@ def format_value(column: Column, value: Any) -> str:
     return _NULL if value is None else _formatter(column)(value)
 
 
-def _statements(build_id: int | None) -> list[tuple[str, list[Column], Select]]:
+def _columns(model: type) -> list[Column]:
+    table = model.__table__
+    return [c for c in table.columns if c.name not in DIGEST_EXCLUDED[table.name]]
+
+
+def _header(model: type) -> bytes:
+    return ("#" + model.__tablename__ + "\t" + "\t".join(c.name for c in _columns(model)) + "\n").encode()
+
+
+def _lines(model: type, rows: Iterable[Sequence[Any]]) -> bytes:
+    """The canonical text of ``rows`` (values in :func:`_columns` order)."""
+    fmts = [_formatter(c) for c in _columns(model)]
     out = []
-    for model in (Linkage, Segment, Dwell):
-        table = model.__table__
-        cols = [c for c in table.columns if c.name not in DIGEST_EXCLUDED[table.name]]
-        stmt = select(*cols)
-        if build_id is not None:
-            links = select(Linkage.id).where(Linkage.build_id == build_id)
-            if model is Linkage:
-                stmt = stmt.where(Linkage.build_id == build_id)
-            elif model is Segment:
-                stmt = stmt.where(Segment.linkage_id.in_(links))
-            else:
-                stmt = stmt.where(Dwell.segment_id.in_(select(Segment.id).where(Segment.linkage_id.in_(links))))
-        out.append((table.name, cols, stmt.order_by(*table.primary_key.columns)))
-    return out
+    for row in rows:
+        out.append("\t".join(_NULL if v is None else f(v) for f, v in zip(fmts, row)))
+        out.append("\n")
+    return "".join(out).encode()
+
+
+def _key(model: type) -> Callable[[Mapping[str, Any]], tuple]:
+    names = [c.name for c in model.__table__.primary_key.columns]
+    return lambda row: tuple(row[n] for n in names)
+
+
+def shard_digest(linkages: Sequence[Mapping[str, Any]], segments: Sequence[Mapping[str, Any]],
+                 dwells: Sequence[Mapping[str, Any]]) -> str:
+    """The digest of one shard's rows, given as dicts keyed by column name (as ``db.rows``
+    makes them; columns the digest leaves out may be absent)."""
+    h = hashlib.sha256()
+    for model, rows in zip(_MODELS, (linkages, segments, dwells)):
+        names = [c.name for c in _columns(model)]
+        h.update(_header(model))
+        h.update(_lines(model, ([row[n] for n in names] for row in sorted(rows, key=_key(model)))))
+    return h.hexdigest()
+
+
+def combine(digests: Iterable[tuple[int, str]]) -> str:
+    """The content digest of shards given as (shard index, shard digest), in any order."""
+    h = hashlib.sha256()
+    for index, digest in sorted(digests):
+        h.update(f"{index}\t{digest}\n".encode())
+    return h.hexdigest()
+
+
+def stored_digest(conn: Connection, build_id: int) -> str:
+    """The content digest of build ``build_id`` from the shard digests stored in its shard rows."""
+    return combine(conn.execute(select(Shard.shard_index, Shard.digest).where(Shard.build_id == build_id)).all())
+
+
+def shard_digests(bind: Engine | Connection, build_id: int | None = None) -> dict[int, str]:
+    """Every shard's digest recomputed from the rows (of build ``build_id``, or of the whole
+    atlas): one pass over each table in key order. Shards come from the shard table and from
+    the linkage rows (rows without a shard row, a damage, count too)."""
+    if isinstance(bind, Connection):
+        return _shard_digests(bind, build_id)
+    with bind.connect() as conn:
+        return _shard_digests(conn, build_id)
 
 
 def content_digest(bind: Engine | Connection, build_id: int | None = None) -> str:
-    """SHA-256 hex of the atlas content (of one build if ``build_id`` is given).
-
-    ``bind`` may be a connection, to digest inside a transaction (``db.writes.finish_build``).
-    """
-    if isinstance(bind, Connection):
-        return _digest(bind, build_id)
-    with bind.connect() as conn:
-        return _digest(conn, build_id)
+    """SHA-256 hex of the atlas content (of one build if ``build_id`` is given), recomputed
+    from its rows. ``bind`` may be a connection, to digest inside a transaction."""
+    return combine(shard_digests(bind, build_id).items())
 
 
-def _digest(conn: Connection, build_id: int | None) -> str:
-    h = hashlib.sha256()
-    for name, cols, stmt in _statements(build_id):
-        h.update(_header(name, cols))
-        fmts = [_formatter(c) for c in cols]
+def _shard_digests(conn: Connection, build_id: int | None) -> dict[int, str]:
+    shards = select(Shard.shard_index)
+    links = select(Linkage.id, Linkage.shard_index)
+    if build_id is not None:
+        shards = shards.where(Shard.build_id == build_id)
+        links = links.where(Linkage.build_id == build_id)
+    hashers: dict[int, Any] = {int(i): hashlib.sha256() for i in conn.execute(shards).scalars()}
+    shard_of: dict[int, int] = {}
+    for lid, index in conn.execute(links.execution_options(yield_per=_BATCH)):
+        shard_of[int(lid)] = int(index)
+        hashers.setdefault(int(index), hashlib.sha256())
+    for model in _MODELS:
+        cols = _columns(model)
+        header = _header(model)
+        for h in hashers.values():
+            h.update(header)
+        if model is Linkage:
+            owner = [c.name for c in cols].index("id")
+            linkage_of = lambda v: v  # noqa: E731 - the row's own id
+        else:
+            owner = [c.name for c in cols].index("linkage_id" if model is Segment else "segment_id")
+            linkage_of = (lambda v: v) if model is Segment else (lambda v: v // SEGMENTS_PER_LINKAGE)
+        key = [c.name for c in model.__table__.primary_key.columns]
+        if model is Dwell:  # a build in progress holds its dwell rows in the staging table
+            both = union_all(select(*cols), select(*(dwell_staging.c[c.name] for c in cols)))
+            stmt = both.order_by(*(both.selected_columns[n] for n in key))
+        else:
+            stmt = select(*cols).order_by(*(model.__table__.c[n] for n in key))
         # streamed in batches: a big atlas does not fit in memory. The option goes on the
         # statement: ``Connection.execution_options`` changes the connection itself, and on
         # PostgreSQL every later statement of the transaction would then run through a
         # server-side cursor (which an UPDATE cannot).
-        result = conn.execute(stmt.execution_options(yield_per=_BATCH))
-        for part in result.partitions():
-            lines = []
+        for part in conn.execute(stmt.execution_options(yield_per=_BATCH)).partitions():
+            by_shard: dict[int, list] = {}
             for row in part:
-                lines.append("\t".join(_NULL if v is None else f(v) for f, v in zip(fmts, row)))
-                lines.append("\n")
-            h.update("".join(lines).encode())
-    return h.hexdigest()
-
-
-def _header(name: str, cols: list[Column]) -> bytes:
-    return ("#" + name + "\t" + "\t".join(c.name for c in cols) + "\n").encode()
+                index = shard_of.get(int(linkage_of(row[owner])))
+                if index is not None:  # another build's row (or an orphan: --verify counts those)
+                    by_shard.setdefault(index, []).append(row)
+            for index, rows in by_shard.items():
+                hashers[index].update(_lines(model, rows))
+    return {index: h.hexdigest() for index, h in sorted(hashers.items())}

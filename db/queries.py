@@ -59,7 +59,7 @@ def select_segments(
           .order_by(Dwell.dwell_angle, Dwell.segment_id).limit(bindparam("n")))
     down = (base.where(Dwell.dwell_angle < bindparam("target"), Dwell.dwell_angle >= bindparam("low"))
             .order_by(Dwell.dwell_angle.desc(), Dwell.segment_id).limit(bindparam("n")))
-    hits: list = []
+    hits: list[Any] = []
     seen: set[int] = set()
     with engine.connect() as conn:
         for w in windows:

@@ -13,13 +13,14 @@ non-finite values before writing. ``tests/db/test_engine.py`` tries every float 
 
 from __future__ import annotations
 
-from sqlalchemy import (BigInteger, CheckConstraint, Float, ForeignKey, Index, Integer, PrimaryKeyConstraint, String, Text,
-                        UniqueConstraint)
+from sqlalchemy import (BigInteger, CheckConstraint, Column, Float, ForeignKey, Index, Integer, PrimaryKeyConstraint, String,
+                        Table, Text, UniqueConstraint)
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 
 from synth.kinds import SEGMENT_KINDS
 
-__all__ = ["SCHEMA_VERSION", "APPLICATION", "Base", "Meta", "Build", "Shard", "Linkage", "Segment", "Dwell"]
+__all__ = ["SCHEMA_VERSION", "APPLICATION", "Base", "Meta", "Build", "Shard", "Linkage", "Segment", "Dwell",
+           "dwell_staging"]
 
 #: Bumped whenever a table or column changes meaning; an atlas of a newer version is refused,
 #: an older one must be rebuilt. 2: deterministic 64-bit row ids, per-level fitted geometry
@@ -31,7 +32,9 @@ __all__ = ["SCHEMA_VERSION", "APPLICATION", "Base", "Meta", "Build", "Shard", "L
 #: key, ``WITHOUT ROWID`` on SQLite), a double line's second stretch in the same row, a line as
 #: (direction, offset), no stored ``phi_end`` or tolerance, the linkage's constraint copies as
 #: conservative integers, no index that only a rare path uses (issue #16: 19 972 → ~7 300 bytes
-#: per linkage on ``standard``).
+#: per linkage on ``standard``); each shard row holds its shard's digest, and the content digest
+#: is defined over them (``db.digest``); shards append their dwell rows to ``dwell_staging``,
+#: moved into ``dwell`` in key order when the build completes.
 SCHEMA_VERSION = 4
 #: Written to the meta table so that a foreign SQLite file is recognised as such.
 APPLICATION = "dwell-atlas"
@@ -53,6 +56,16 @@ def _finite_or_null_checks(table: str, *columns: str) -> tuple[CheckConstraint, 
     # optional geometry (a line has no radius): NULL allowed, but never NaN/inf
     return tuple(
         CheckConstraint(f"{c} IS NULL OR {c} {_FINITE}", name=f"ck_{table}_{c}_finite") for c in columns
+    )
+
+
+def _dwell_checks(table: str) -> tuple[CheckConstraint, ...]:
+    """The row checks of ``dwell`` and of its staging table (the same rows, before and after)."""
+    return (
+        CheckConstraint(f"kind BETWEEN 0 AND {len(SEGMENT_KINDS) - 1}", name=f"ck_{table}_kind"),
+        CheckConstraint("dwell_angle > 0", name=f"ck_{table}_positive"),
+        *_finite_checks(table, "dwell_angle", "phi_start", "x"),
+        *_finite_or_null_checks(table, "radius", "y", "direction", "dwell_angle2", "phi_start2", "x2", "direction2"),
     )
 
 
@@ -100,7 +113,8 @@ class Build(Base):
 
 
 class Shard(Base):
-    """A shard written in full (its linkages and segments commit in the same transaction).
+    """A shard written in full (its linkages, segments and dwells commit in the same
+    transaction), with the digest of its rows.
 
     Resume = build the shards that have no row here.
     """
@@ -112,6 +126,9 @@ class Shard(Base):
     n_segments: Mapped[int] = mapped_column(Integer)
     skipped_json: Mapped[str] = mapped_column(Text)  #: {"reason": count} of degenerate cases
     seconds: Mapped[float] = mapped_column(Float)
+    #: ``db.digest.shard_digest`` of the shard's rows, computed where they were computed; the
+    #: build's content digest combines these (``db.digest.stored_digest``)
+    digest: Mapped[str] = mapped_column(String(64))
     __table_args__ = _finite_checks("shard", "seconds")
 
 
@@ -206,9 +223,23 @@ class Dwell(Base):
     direction2: Mapped[float | None] = mapped_column(Float, nullable=True)
     __table_args__ = (
         PrimaryKeyConstraint("kind", "level", "dwell_angle", "segment_id", name="pk_dwell"),
-        CheckConstraint(f"kind BETWEEN 0 AND {len(SEGMENT_KINDS) - 1}", name="ck_dwell_kind"),
-        CheckConstraint("dwell_angle > 0", name="ck_dwell_positive"),
-        *_finite_checks("dwell", "dwell_angle", "phi_start", "x"),
-        *_finite_or_null_checks("dwell", "radius", "y", "direction", "dwell_angle2", "phi_start2", "x2", "direction2"),
+        *_dwell_checks("dwell"),
         {"sqlite_with_rowid": False},
     )
+
+
+#: Where a build's shards append their dwell rows: the columns and row checks of ``dwell``, no
+#: clustered key — a shard's rows go to the end of the table, a few pages per shard — and a
+#: unique (segment, level), which a shard's ascending segment ids fill in order. The build's
+#: last transaction moves the rows into ``dwell`` in its key order (``db.writes.finish_build``),
+#: so the clustered table is written once, sequentially, instead of at a random place per row,
+#: which rewrote pages all over it at every shard (the write-ahead log of a ``standard`` build
+#: took ~10 GB of writes). Empty in a complete atlas; digested and counted with ``dwell``.
+dwell_staging = Table(
+    "dwell_staging",
+    Base.metadata,
+    *(Column(c.name, c.type, *([ForeignKey("segment.id")] if c.name == "segment_id" else []), nullable=c.nullable)
+      for c in Dwell.__table__.columns),
+    UniqueConstraint("segment_id", "level", name="uq_dwell_staging_segment_level"),
+    *_dwell_checks("dwell_staging"),
+)

@@ -12,11 +12,11 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from sqlalchemy import Engine, bindparam, case, func, select, text
+from sqlalchemy import Engine, bindparam, case, func, select, text, union_all
 
-from db.digest import content_digest
+from db.digest import combine, content_digest, shard_digests
 from db.engine import display_target
-from db.schema import Base, Build, Dwell, Linkage, Segment, Shard
+from db.schema import Base, Build, Dwell, Linkage, Segment, Shard, dwell_staging
 from db.spec import stored_spec, tolerances
 from synth.kinds import SEGMENT_KINDS
 
@@ -78,6 +78,14 @@ class AtlasSummary:
         }
 
 
+def _dwell_rows():
+    """Every dwell row's kind, level, angle and segment: the ``dwell`` table's and, while a
+    build is in progress, the staging table's (empty in a complete atlas)."""
+    cols = ("kind", "level", "dwell_angle", "segment_id")
+    return union_all(select(*(Dwell.__table__.c[n] for n in cols)),
+                     select(*(dwell_staging.c[n] for n in cols))).subquery("dwell_rows")
+
+
 def _histogram_rows(engine: Engine) -> dict[tuple[str, int], tuple[list[int], float]]:
     """(kind, level) → (counts per bin, max dwell in rad), one portable scan.
 
@@ -85,13 +93,14 @@ def _histogram_rows(engine: Engine) -> dict[tuple[str, int], tuple[list[int], fl
     differs between SQLite (truncation) and PostgreSQL (rounding).
     """
     edges = [math.radians(BIN_DEG * i) for i in range(_N_BINS + 1)]
+    rows = _dwell_rows()
     bins = []
     for i in range(_N_BINS):
-        upper = Dwell.dwell_angle <= edges[i + 1] if i == _N_BINS - 1 else Dwell.dwell_angle < edges[i + 1]
-        bins.append(func.sum(case(((Dwell.dwell_angle >= edges[i]) & upper, 1), else_=0)))
+        upper = rows.c.dwell_angle <= edges[i + 1] if i == _N_BINS - 1 else rows.c.dwell_angle < edges[i + 1]
+        bins.append(func.sum(case(((rows.c.dwell_angle >= edges[i]) & upper, 1), else_=0)))
     stmt = (
-        select(Dwell.kind, Dwell.level, func.max(Dwell.dwell_angle), *bins)
-        .group_by(Dwell.kind, Dwell.level)
+        select(rows.c.kind, rows.c.level, func.max(rows.c.dwell_angle), *bins)
+        .group_by(rows.c.kind, rows.c.level)
     )
     out = {}
     with engine.connect() as conn:
@@ -106,12 +115,13 @@ def row_counts(engine: Engine, build_id: int | None = None) -> tuple[int, dict[s
     if build_id is not None:
         links = links.where(Linkage.build_id == build_id)
     seg_q = select(Segment.kind, func.count()).group_by(Segment.kind)
-    dwell_q = select(func.count()).select_from(Dwell)
+    rows = _dwell_rows()
+    dwell_q = select(func.count()).select_from(rows)
     link_q = select(func.count()).select_from(Linkage)
     if build_id is not None:
         link_q = link_q.where(Linkage.build_id == build_id)
         seg_q = seg_q.where(Segment.linkage_id.in_(links))
-        dwell_q = dwell_q.where(Dwell.segment_id.in_(select(Segment.id).where(Segment.linkage_id.in_(links))))
+        dwell_q = dwell_q.where(rows.c.segment_id.in_(select(Segment.id).where(Segment.linkage_id.in_(links))))
     with engine.connect() as conn:
         segments = dict.fromkeys(SEGMENT_KINDS, 0)
         segments.update({k: int(n) for k, n in conn.execute(seg_q)})
@@ -125,8 +135,9 @@ def atlas_summary(engine: Engine) -> AtlasSummary:
         segments = dict.fromkeys(SEGMENT_KINDS, 0)
         segments.update({k: int(n) for k, n in conn.execute(select(Segment.kind, func.count()).group_by(Segment.kind))})
         dwells = dict.fromkeys(SEGMENT_KINDS, 0)
+        rows = _dwell_rows()
         dwells.update({SEGMENT_KINDS[int(k)].value: int(n)
-                       for k, n in conn.execute(select(Dwell.kind, func.count()).group_by(Dwell.kind))})
+                       for k, n in conn.execute(select(rows.c.kind, func.count()).group_by(rows.c.kind))})
         builds = conn.execute(select(Build).order_by(Build.id)).all()
         skipped: dict[str, int] = {}
         for (text,) in conn.execute(select(Shard.skipped_json)):
@@ -322,9 +333,13 @@ def verify_atlas(engine: Engine) -> Verification:
         for build_id, status, stored in conn.execute(select(Build.id, Build.status, Build.content_digest)):
             if status != "complete":
                 continue  # a build in progress has no stored digest yet
-            again = content_digest(conn, build_id)
+            per_shard = shard_digests(conn, build_id)
+            again = combine(per_shard.items())
             digests[int(build_id)] = (stored, again)
             if stored != again:
+                kept = dict(conn.execute(select(Shard.shard_index, Shard.digest).where(Shard.build_id == build_id)).all())
+                changed = [i for i, d in per_shard.items() if kept.get(i) != d]
+                where = f"; shards whose rows changed: {', '.join(map(str, changed[:10]))}" if changed else ""
                 problems.append(f"build {build_id}'s rows do not give its stored content digest "
-                                f"({(stored or 'none')[:12]}…, recomputed {again[:12]}…)")
+                                f"({(stored or 'none')[:12]}…, recomputed {again[:12]}…{where})")
     return Verification(integrity, orphans, digests, tuple(problems))

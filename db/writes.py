@@ -7,7 +7,10 @@ Invariants
   of this shard is here". Resume = compute the shards without a shard row. On PostgreSQL
   with psycopg the rows go in by ``COPY`` (in the same transaction, CHECKs enforced alike):
   ten times faster than an executemany of ``INSERT``, which would make the single writer
-  the bottleneck of a big build.
+  the bottleneck of a big build; on SQLite one raw ``executemany`` of tuples per table. A
+  shard's dwell rows are appended to ``dwell_staging``; :func:`finish_build` moves them into
+  the clustered ``dwell`` table in its key order, in the transaction that completes the build
+  (and stores its digest, combined from the shard digests of the shard rows).
 * **An atlas holds one build.** A different sweep (by spec digest, the preset name is
   ignored) is refused unless ``replace`` is given; replacing deletes the old build's rows in
   the same transaction that creates the new build row.
@@ -38,14 +41,16 @@ import time
 import uuid
 from dataclasses import dataclass
 from datetime import UTC, datetime
+from operator import itemgetter
 from typing import Any, Protocol
 
-from sqlalchemy import Connection, Engine, Table, delete, func, insert, select, update
+from sqlalchemy import Connection, Engine, Float, Table, delete, func, insert, select, update
 from sqlalchemy.exc import IntegrityError
 
+from db.digest import shard_digest, stored_digest
 from db.engine import AtlasError, atlas_name, damaged, display_target, start_writing
 from db.spec import spec_name
-from db.schema import SCHEMA_VERSION, Build, Dwell, Linkage, Segment, Shard
+from db.schema import SCHEMA_VERSION, Build, Dwell, Linkage, Segment, Shard, dwell_staging
 
 __all__ = [
     "PID_REUSE_SECONDS",
@@ -198,6 +203,7 @@ def _delete_rows(conn: Connection, build_id: int, *, unfinished_only: bool = Fal
         # a subquery, not a literal list: thousands of shards would exceed SQLite's parameter limit
         links = links.where(Linkage.shard_index.not_in(select(Shard.shard_index).where(Shard.build_id == build_id)))
     segs = select(Segment.id).where(Segment.linkage_id.in_(links))
+    conn.execute(delete(dwell_staging).where(dwell_staging.c.segment_id.in_(segs)))
     conn.execute(delete(Dwell).where(Dwell.segment_id.in_(segs)))
     conn.execute(delete(Segment).where(Segment.linkage_id.in_(links)))
     conn.execute(delete(Linkage).where(Linkage.id.in_(links)))
@@ -249,8 +255,9 @@ def open_build(
             for row in builds:
                 _take_lock(conn, row, lock, target)  # first: fails fast if a builder sneaked in
             # everything, children first: also rows a damaged atlas holds for no recorded build
-            for model in (Dwell, Segment, Linkage, Shard, Build):
-                conn.execute(delete(model))
+            for table in (dwell_staging, Dwell.__table__, Segment.__table__, Linkage.__table__, Shard.__table__,
+                          Build.__table__):
+                conn.execute(delete(table))
             build_id = _insert_build(conn, spec_json, spec_digest, n_shards, lock, version)
         return BuildHandle(build_id, n_shards, frozenset(), resumed=False, complete=False, replaced=replaced)
 
@@ -343,37 +350,56 @@ def _first_nonfinite(rows: list[dict[str, Any]]) -> tuple[int, str, float] | Non
     return None
 
 
+def _all_finite(table: Table, names: list[str], tuples: list[tuple]) -> bool:
+    """Whether every float column of ``tuples`` (values in ``names`` order) is finite: one
+    ``fsum`` per column, in C (NaN and ±inf make it non-finite). False also when a sum
+    overflows or a value is not a number; :func:`_first_nonfinite` then looks row by row."""
+    floats = {c.name for c in table.columns if isinstance(c.type, Float)}
+    columns = list(zip(*tuples))
+    try:
+        return all(math.isfinite(math.fsum(filter(None, columns[k]))) for k, n in enumerate(names) if n in floats)
+    except (OverflowError, TypeError):
+        return False
+
+
 def _uses_copy(conn: Connection) -> bool:
     """Whether rows are bulk-loaded with ``COPY`` (PostgreSQL through psycopg 3's copy API)."""
     return conn.dialect.name == "postgresql" and conn.dialect.driver == "psycopg"
 
 
-def _copy_rows(conn: Connection, table: Table, rows: list[dict[str, Any]]) -> None:
-    """``COPY table FROM STDIN`` of ``rows`` inside ``conn``'s transaction.
+def _copy_rows(conn: Connection, table: Table, names: list[str], tuples: list[tuple]) -> None:
+    """``COPY table FROM STDIN`` of ``tuples`` (values in ``names`` order) inside ``conn``'s
+    transaction.
 
     Text format: psycopg writes floats with ``repr`` (shortest round trip), so the stored
     values are bit-identical to an ``INSERT``'s. A violated constraint is re-raised as
     SQLAlchemy's :class:`IntegrityError`, as an ``INSERT`` would have raised it.
     """
     quote = conn.dialect.identifier_preparer.quote
-    names = [c.name for c in table.columns if c.name in rows[0]]
     sql = f"COPY {quote(table.name)} ({', '.join(quote(n) for n in names)}) FROM STDIN"
     raw = conn.connection.dbapi_connection
     try:
         with raw.cursor() as cur, cur.copy(sql) as copy:
-            for row in rows:
-                copy.write_row([row[n] for n in names])
+            for row in tuples:
+                copy.write_row(row)
     except conn.dialect.loaded_dbapi.IntegrityError as exc:
         raise IntegrityError(sql, None, exc) from exc
 
 
-def _insert_rows(conn: Connection, model: type, rows: list[dict[str, Any]]) -> None:
-    if not rows:
+def _insert_rows(conn: Connection, table: Table, names: list[str], tuples: list[tuple]) -> None:
+    """Bulk insert: ``COPY`` on PostgreSQL (psycopg 3); on a qmark driver (SQLite) one
+    ``executemany`` of the tuples as they are (SQLAlchemy's per-row parameter processing cost
+    as much as SQLite's own inserts); elsewhere SQLAlchemy's executemany."""
+    if not tuples:
         return
     if _uses_copy(conn):
-        _copy_rows(conn, model.__table__, rows)
+        _copy_rows(conn, table, names, tuples)
+    elif conn.dialect.paramstyle == "qmark":
+        quote = conn.dialect.identifier_preparer.quote
+        conn.exec_driver_sql(f"INSERT INTO {quote(table.name)} ({', '.join(map(quote, names))}) "
+                             f"VALUES ({', '.join('?' * len(names))})", tuples)
     else:
-        conn.execute(insert(model), rows)
+        conn.execute(insert(table), [dict(zip(names, t)) for t in tuples])
 
 
 def write_shard(engine: Engine, build_id: int, result: ShardRows, *, lock_token: str | None = None) -> None:
@@ -385,14 +411,20 @@ def write_shard(engine: Engine, build_id: int, result: ShardRows, *, lock_token:
     silently take it) or a constraint violation raises :class:`ShardWriteError`.
     """
     index = int(result.shard_index)
-    for table, rows in (("linkage", result.linkages), ("segment", result.segments), ("dwell", result.dwells)):
-        bad = _first_nonfinite(rows)
-        if bad is not None:
-            i, key, value = bad
-            raise ShardWriteError(f"shard {index}: {table} row {i} has {key}={value!r}; nothing of the shard was written")
+    linkages = [{**row, "build_id": build_id} for row in result.linkages]
+    batches = []  # (table, column names, rows as tuples), parents first: foreign keys are checked row by row
+    for name, table, rows in (("linkage", Linkage.__table__, linkages), ("segment", Segment.__table__, result.segments),
+                              ("dwell", dwell_staging, result.dwells)):
+        names = [c.name for c in table.columns if rows and c.name in rows[0]]
+        tuples = list(map(itemgetter(*names), rows)) if names else []
+        if not _all_finite(table, names, tuples):
+            bad = _first_nonfinite(rows)
+            if bad is not None:
+                i, key, value = bad
+                raise ShardWriteError(f"shard {index}: {name} row {i} has {key}={value!r}; nothing of the shard was written")
+        batches.append((table, names, tuples))
     if not math.isfinite(result.seconds):
         raise ShardWriteError(f"shard {index}: seconds={result.seconds!r}; nothing of the shard was written")
-    linkages = [{**row, "build_id": build_id} for row in result.linkages]
     shard_row = dict(
         build_id=build_id,
         shard_index=index,
@@ -400,15 +432,14 @@ def write_shard(engine: Engine, build_id: int, result: ShardRows, *, lock_token:
         n_segments=len(result.segments),
         skipped_json=json.dumps(dict(sorted(result.skipped.items())), sort_keys=True),
         seconds=float(result.seconds),
+        digest=result.digest or shard_digest(result.linkages, result.segments, result.dwells),
     )
     try:
         with engine.begin() as conn:
             if lock_token is not None:
                 _assert_lock(conn, build_id, lock_token)
-            # parents first: the foreign keys are checked row by row
-            _insert_rows(conn, Linkage, linkages)
-            _insert_rows(conn, Segment, result.segments)
-            _insert_rows(conn, Dwell, result.dwells)
+            for table, names, tuples in batches:
+                _insert_rows(conn, table, names, tuples)
             conn.execute(insert(Shard), [shard_row])
     except IntegrityError as exc:
         clash = _stored_already(engine, result)
@@ -435,20 +466,25 @@ def _stored_already(engine: Engine, result: ShardRows) -> str | None:
 def finish_build(engine: Engine, build_id: int, token: str) -> bool:
     """Mark the build complete, store its content digest and release the lock — if every
     shard is written. Returns True when it was complete; otherwise only the heartbeat is
-    refreshed. The digest is computed in the same transaction, so a complete build always
-    has the digest of exactly its rows."""
-    from db.digest import content_digest
-
+    refreshed. The digest combines the shard digests stored with the shards, in the same
+    transaction (each was stored in the transaction that wrote its shard's rows)."""
     with engine.begin() as conn:
         _assert_lock(conn, build_id, token)
         n_shards = conn.execute(select(Build.n_shards).where(Build.id == build_id)).scalar_one()
         done = conn.execute(select(func.count()).select_from(Shard).where(Shard.build_id == build_id)).scalar_one()
         if done < n_shards:
             return False
+        # the shards' dwell rows into the clustered table, in its key order: written once,
+        # page after page (see ``db.schema.dwell_staging``)
+        names = [c.name for c in Dwell.__table__.columns]
+        staged = select(*(dwell_staging.c[n] for n in names)).order_by(
+            *(dwell_staging.c[c.name] for c in Dwell.__table__.primary_key.columns))
+        conn.execute(insert(Dwell).from_select(names, staged))
+        conn.execute(delete(dwell_staging))
         conn.execute(
             update(Build)
             .where(Build.id == build_id)
-            .values(status="complete", finished_at=_now_iso(), content_digest=content_digest(conn, build_id),
+            .values(status="complete", finished_at=_now_iso(), content_digest=stored_digest(conn, build_id),
                     lock_token=None, lock_pid=None, lock_host=None, lock_heartbeat=None)
         )
     return True

@@ -61,6 +61,22 @@ def test_bench_atlas_build_reports_bytes_per_linkage():
     assert doc["meets_storage_floor"] == (doc["bytes_per_linkage"] <= STORAGE_FLOOR)
 
 
+def test_bench_atlas_ingest_writes_every_shard_it_computed():
+    """The ingest timing writes the computed shards (all their linkages) through the product's
+    build, and its rate is those linkages over the timed seconds."""
+    from atlas.sweep import PRESETS, sweep_linkages
+    from cli.bench.atlas import INGEST_FLOOR, _timed_ingest
+
+    spec = PRESETS["demo"].replace(shard_size=8)
+    doc = _timed_ingest(spec, 24, 1)
+    sweep = sweep_linkages(spec.replace(samples=24))
+    assert doc["shards"] == sweep.n_shards(8) >= 2
+    assert 0 < doc["linkages"] <= len(sweep) * len(spec.branches) and doc["dwell_rows"] > doc["linkages"]
+    t, n = doc["seconds"], doc["linkages"]  # seconds rounded to 1 ms, the rate to 0.1
+    assert n / (t + 5e-4) - 0.05 <= doc["linkages_per_s"] <= n / max(t - 5e-4, 1e-9) + 0.05
+    assert doc["floor_linkages_per_s"] == INGEST_FLOOR and doc["meets_floor"] == (doc["linkages_per_s"] >= INGEST_FLOOR)
+
+
 def test_plain_sixbar_matches_a_hand_built_one():
     """The yardstick's ψ at one angle against a six-bar assembled by hand (independent: points
     found by intersecting circles in the frame of their centres' line)."""

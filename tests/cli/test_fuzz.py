@@ -132,7 +132,7 @@ STRUCTURED = {
 }
 #: options whose values set how much work a run does: mostly small, sometimes invalid
 SIZES = {"--samples", "--shard-size", "--rays", "--workers", "--angles", "--repeat", "--linkages", "--batch",
-         "--double-ball-linkages", "--proportions", "--dwell-samples", "--build", "--reference-rays", "--top",
+         "--double-ball-linkages", "--proportions", "--dwell-samples", "--build", "--ingest", "--reference-rays", "--top",
          "--trials", "--kills", "--phases", "--configuration", "--dwells"}
 
 

@@ -12,15 +12,15 @@ from sqlalchemy import insert, select, update
 
 from atlas.build import build_atlas
 from atlas.sweep import PRESETS
-from db import SCHEMA_VERSION, Build, Dwell, Linkage, Segment, open_atlas
-from db.digest import content_digest, format_value
+from db import SCHEMA_VERSION, Build, Dwell, Linkage, Segment, Shard, open_atlas
+from db.digest import content_digest, format_value, shard_digest, shard_digests, stored_digest
 from db.summary import atlas_summary
-from db.writes import write_shard
+from db.writes import finish_build, write_shard
 
 
 def make(target, shards, *, spec_json='{"name": "demo"}', extra_builds=0):
-    """An atlas at ``target`` holding ``shards``; ``extra_builds`` empty build rows first shift
-    the build id."""
+    """An atlas at ``target`` holding ``shards``, its build complete; ``extra_builds`` empty
+    build rows first shift the build id."""
     engine = open_atlas(target, create=True)
     with engine.begin() as conn:
         for k in range(extra_builds):
@@ -29,9 +29,11 @@ def make(target, shards, *, spec_json='{"name": "demo"}', extra_builds=0):
                                               created_at="t"))
         build_id = conn.execute(insert(Build).values(spec_json=spec_json, spec_digest="a" * 64, code_version="0",
                                                      schema_version=SCHEMA_VERSION, status="building",
-                                                     n_shards=len(shards), created_at="t")).inserted_primary_key[0]
+                                                     n_shards=len(shards), created_at="t",
+                                                     lock_token="t")).inserted_primary_key[0]
     for rows in shards:
         write_shard(engine, build_id, rows)
+    assert finish_build(engine, build_id, "t")  # the dwell rows into their table
     return engine
 
 
@@ -50,7 +52,11 @@ def test_canonical_text_of_a_known_atlas(atlas_url):
         f"1\t0\t0.5\t{sg['id']}\t2864\t3000\t2\t0.75\t0.5\t0.25\t~\t~\t~\t~\t~\n"
     )
     assert lk["id"] == 1
-    assert content_digest(engine) == hashlib.sha256(text.encode()).hexdigest()
+    shard = hashlib.sha256(text.encode()).hexdigest()
+    assert shard_digest(rows.linkages, rows.segments, rows.dwells) == shard
+    assert content_digest(engine) == hashlib.sha256(f"0\t{shard}\n".encode()).hexdigest()
+    with engine.connect() as conn:
+        assert stored_digest(conn, 1) == content_digest(engine)  # from the shard row's digest
     engine.dispose()
 
 
@@ -85,6 +91,21 @@ def test_digest_sees_content_changes_and_ignores_noise(atlas_url, table, column,
         conn.execute(update(table).where(*(c == getattr(first, c.name) for c in table.__table__.primary_key.columns))
                      .values({column: value}))
     assert (content_digest(engine) == before) is same
+    engine.dispose()
+
+
+def test_a_build_stores_the_digest_its_rows_give(tmp_path):
+    """The shard digests the workers computed (stored in the shard rows) are the digests of the
+    rows as read back, shard by shard, and the build's digest combines them."""
+    path = str(tmp_path / "small.sqlite")
+    summary = build_atlas(path, PRESETS["demo"].replace(samples=96, shard_size=16), workers=1)
+    assert summary.complete and summary.n_shards >= 3 and summary.dwells > 0
+    engine = open_atlas(path, readonly=True)
+    with engine.connect() as conn:
+        kept = dict(conn.execute(select(Shard.shard_index, Shard.digest)).all())
+        stored = conn.execute(select(Build.content_digest)).scalar_one()
+    assert shard_digests(engine) == kept and len(kept) == summary.n_shards
+    assert content_digest(engine) == stored == content_digest(engine, build_id=1)
     engine.dispose()
 
 

@@ -46,16 +46,17 @@ def test_settling_a_built_atlas_packs_it(tmp_path):
     freed or half filled by the build's writes are gone, the rows are kept."""
     from shards import shard_rows
 
-    from db.writes import write_shard
+    from db.writes import finish_build, write_shard
 
     path = str(tmp_path / "a.sqlite")
     engine = open_atlas(path, create=True)
     with engine.begin() as conn:
         conn.execute(insert(Build), [dict(id=1, spec_json="{}", spec_digest="x", code_version="0",
                                           schema_version=SCHEMA_VERSION, status="building", n_shards=60,
-                                          created_at="t")])
+                                          created_at="t", lock_token="t")])
     for i in range(60):
         write_shard(engine, 1, shard_rows(i, dwell_angle=0.1 + 0.01 * ((37 * i) % 60)))
+    assert finish_build(engine, 1, "t")
     with engine.begin() as conn:  # free pages, as a resume's clean-up deleting rows would
         conn.execute(text("CREATE TABLE scratch (x)"))
         conn.execute(text("INSERT INTO scratch SELECT zeroblob(2000) FROM dwell"))
@@ -134,8 +135,11 @@ def test_nan_and_inf_never_stored(atlas, bad):
 
 
 def _one_row_per_table(engine) -> None:
-    """A valid row in every table (build 1 exists): the hand-made shard of ``shards.py``."""
+    """A valid row in every table (build 1 exists): the hand-made shard of ``shards.py`` (its
+    dwell row staged, and the same row in the dwell table)."""
     write_shard(engine, 1, shard_rows(0))
+    with engine.begin() as conn:
+        conn.execute(insert(Dwell), shard_rows(0).dwells)
 
 
 def _float_columns_in_database(engine) -> tuple[int, int]:

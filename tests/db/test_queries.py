@@ -16,7 +16,7 @@ from sqlalchemy import insert
 from db import SCHEMA_VERSION, Build, open_atlas
 from db.queries import AtlasSource, scan_segments, segment_row, select_segments
 from db.rows import length_ceil_milli, line_offset, line_point, transmission_floor_cdeg
-from db.writes import write_shard
+from db.writes import finish_build, write_shard
 from synth.query import DwellWindow
 
 angles = st.floats(0.0, math.pi / 2, allow_nan=False)
@@ -58,8 +58,10 @@ def _atlas(target: str, shard):
     with engine.begin() as conn:
         build_id = conn.execute(insert(Build).values(
             spec_json='{"name": "test", "tolerances": [0.001]}', spec_digest="a" * 64, code_version="0",
-            schema_version=SCHEMA_VERSION, status="building", n_shards=1, created_at="t")).inserted_primary_key[0]
+            schema_version=SCHEMA_VERSION, status="building", n_shards=1, created_at="t",
+            lock_token="t")).inserted_primary_key[0]
     write_shard(engine, build_id, shard)
+    assert finish_build(engine, build_id, "t")
     return engine
 
 

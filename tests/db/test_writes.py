@@ -19,6 +19,7 @@ from sqlalchemy import delete, func, insert, inspect, select, text, update
 
 import db.writes
 from db import SCHEMA_VERSION, AtlasError, Build, Dwell, Linkage, Segment, Shard, open_atlas
+from db.schema import dwell_staging
 from db.writes import (
     STALE_SECONDS,
     BuildLock,
@@ -67,7 +68,8 @@ def test_new_build_row_and_shard_rows(engine):
     assert (b.lock_token, b.lock_pid, b.lock_host) == (lock.token, os.getpid(), socket.gethostname())
     assert (shard.shard_index, shard.n_linkages, shard.n_segments, shard.seconds) == (0, 1, 1, 0.25)
     assert json.loads(shard.skipped_json) == {"pole at infinity": 0}
-    assert [count(engine, m) for m in (Linkage, Segment, Dwell)] == [1, 1, 1]
+    # a shard's dwell rows wait in the staging table until the build completes
+    assert [count(engine, m) for m in (Linkage, Segment, dwell_staging, Dwell)] == [1, 1, 1, 0]
 
 
 @pytest.mark.parametrize("bad", [
@@ -81,7 +83,7 @@ def test_a_bad_row_rolls_the_whole_shard_back(engine, bad):
     with pytest.raises(ShardWriteError, match="shard 1"):
         write_shard(engine, h.build_id, shard_rows(1, **bad), lock_token=lock.token)
     # shard 0 intact, nothing at all of shard 1 (its linkage came first in the transaction)
-    assert [count(engine, m) for m in (Linkage, Segment, Dwell, Shard)] == [1, 1, 1, 1]
+    assert [count(engine, m) for m in (Linkage, Segment, dwell_staging, Shard)] == [1, 1, 1, 1]
 
 
 def test_a_duplicate_id_rolls_back(engine):
@@ -102,14 +104,20 @@ def test_resume_knows_done_shards_and_drops_orphans(engine):
     with engine.begin() as conn:
         conn.execute(insert(Linkage), [{**orphan.linkages[0], "build_id": h.build_id}])
         conn.execute(insert(Segment), orphan.segments)
-        conn.execute(insert(Dwell), orphan.dwells)
+        conn.execute(insert(dwell_staging), orphan.dwells)
+        conn.execute(insert(Dwell), orphan.dwells)  # in either table
     release_lock(engine, h.build_id, lock.token)
     h2, lock2 = start(engine)
     assert h2.build_id == h.build_id and h2.done == {0} and h2.resumed
-    assert [count(engine, m) for m in (Linkage, Segment, Dwell)] == [1, 1, 1]
+    assert [count(engine, m) for m in (Linkage, Segment, dwell_staging, Dwell)] == [1, 1, 1, 0]
     for i in (1, 2):
         write_shard(engine, h2.build_id, shard_rows(i), lock_token=lock2.token)
     assert finish_build(engine, h2.build_id, lock2.token)
+    # the staged rows moved into the dwell table, in its key order
+    assert [count(engine, m) for m in (Linkage, Segment, dwell_staging, Dwell)] == [3, 3, 0, 3]
+    with engine.connect() as conn:  # equal angles: in segment order
+        assert conn.execute(select(Dwell.segment_id)).scalars().all() == [shard_rows(i).dwells[0]["segment_id"]
+                                                                          for i in range(3)]
     with engine.connect() as conn:
         b = conn.execute(select(Build)).one()
     assert b.status == "complete" and b.finished_at and b.lock_token is None
@@ -134,7 +142,7 @@ def test_different_sweep_refused_then_replaced(engine):
     assert count(engine, Linkage) == 1  # nothing changed
     h2, _ = start(engine, digest=DIGEST_B, spec=SPEC_B, replace=True)
     assert h2.replaced and "preset demo" in h2.replaced and h2.done == frozenset()
-    assert [count(engine, m) for m in (Linkage, Segment, Dwell, Shard)] == [0, 0, 0, 0]
+    assert [count(engine, m) for m in (Linkage, Segment, dwell_staging, Dwell, Shard)] == [0, 0, 0, 0, 0]
     with engine.connect() as conn:
         assert conn.execute(select(Build.spec_digest)).scalars().all() == [DIGEST_B]
 
@@ -221,7 +229,7 @@ def test_a_writer_blocked_behind_a_takeover_loses_cleanly(engine):
     holder.close()
     writer.join(60)
     assert len(outcome) == 1 and isinstance(outcome[0], LockLostError), outcome
-    assert [count(engine, m) for m in (Linkage, Segment, Dwell, Shard)] == [0, 0, 0, 0]
+    assert [count(engine, m) for m in (Linkage, Segment, dwell_staging, Dwell, Shard)] == [0, 0, 0, 0, 0]
 
 
 AWKWARD = [1 / 3, 2.0**-1074, 1e-300, -1e300, math.pi * 1e17, math.nextafter(1.0, 2.0), -0.0]
@@ -242,7 +250,13 @@ def test_floats_round_trip_bit_for_bit(engine, monkeypatch, path):
     write_shard(engine, h.build_id, rows, lock_token=lock.token)
     with engine.connect() as conn:
         got = [*conn.execute(select(*(getattr(Segment, k) for k in values))).one(),
-               *conn.execute(select(*(getattr(Dwell, k) for k in dwell))).one()]
+               *conn.execute(select(*(dwell_staging.c[k] for k in dwell))).one()]
+    for i in (1, 2):  # the move into the dwell table at the end keeps them too
+        write_shard(engine, h.build_id, shard_rows(i), lock_token=lock.token)
+    assert finish_build(engine, h.build_id, lock.token)
+    with engine.connect() as conn:
+        assert conn.execute(select(*(getattr(Dwell, k) for k in dwell)).where(
+            Dwell.segment_id == rows.dwells[0]["segment_id"])).one() == tuple(got[len(values):])
     values |= dwell
     # x + 0.0 turns −0.0 into 0.0: SQLite does not keep the sign of zero (PostgreSQL does),
     # which is why the content digest writes both as 0
@@ -265,10 +279,12 @@ def test_verify_passes_a_whole_atlas_and_names_a_changed_value_and_orphans(engin
     assert ok.problems == () and ok.orphans == {"dwell": 0, "segment": 0, "linkage": 0, "shard": 0}
     assert list(ok.digests) == [h.build_id] and ok.digests[h.build_id][0] == ok.digests[h.build_id][1]
     assert ok.integrity == ("ok" if engine.dialect.name == "sqlite" else None)
-    with engine.begin() as conn:
-        conn.execute(update(Dwell).values(x=Dwell.x + 1e-6))  # above the digest's 12 digits
+    with engine.begin() as conn:  # shard 1's dwell row (segment ids follow linkage ids)
+        first = conn.execute(select(func.max(Dwell.segment_id))).scalar_one()
+        conn.execute(update(Dwell).where(Dwell.segment_id == first).values(x=Dwell.x + 1e-6))  # above 12 digits
     bad = verify_atlas(engine)
     assert len(bad.problems) == 1 and "do not give its stored content digest" in bad.problems[0]
+    assert bad.problems[0].endswith("shards whose rows changed: 1)")
 
 
 def test_a_build_row_deleted_is_one_line_not_a_collision(engine):
