@@ -53,14 +53,12 @@ _BATCH = 20_000
 
 
 def _float(value: Any) -> str:
-    x = float(value)
-    if x == 0.0:  # also −0.0
-        return "0"
-    return "%.12g" % x
+    text = "%.12g" % value
+    return "0" if text == "-0" else text  # −0.0 is 0
 
 
 def _int(value: Any) -> str:
-    return str(int(value))
+    return "%d" % value
 
 
 def _text(value: Any) -> str:
@@ -94,9 +92,9 @@ def _lines(model: type, rows: Iterable[Sequence[Any]]) -> bytes:
     fmts = [_formatter(c) for c in _columns(model)]
     out = []
     for row in rows:
-        out.append("\t".join(_NULL if v is None else f(v) for f, v in zip(fmts, row)))
-        out.append("\n")
-    return "".join(out).encode()
+        out.append("\t".join([_NULL if v is None else f(v) for f, v in zip(fmts, row)]))
+    out.append("")
+    return "\n".join(out).encode()
 
 
 def _key(model: type) -> Callable[[Mapping[str, Any]], tuple]:
