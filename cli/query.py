@@ -123,6 +123,9 @@ def _refined_note(result: QueryResult) -> str:
     seconds = result.seconds.get("refine", 0.0)
     if result.from_misses:
         return f"; nothing in the atlas met the request: {better} of its {tried} nearest misses refined to meet it ({seconds:.2f} s)"
+    if result.misses_met:
+        return (f"; {better} of {tried} refined, {result.misses_met} of the six-bars near misses refined to meet "
+                f"the request ({seconds:.2f} s)")
     return f"; {better} of {tried} refined ({seconds:.2f} s)"
 
 
@@ -138,12 +141,15 @@ def _refined_text(c, req: Request) -> str:
 
 def refinement_json(result: QueryResult) -> dict | None:
     """What refinement did (``--json``): six-bars refined, how many came out better, whether
-    they were the nearest misses of a request nothing met; None with --no-refine. (No time:
-    the same request gives the same document; ``dwell bench query`` times it.)"""
+    they were the nearest misses of a request nothing met, how many of the returned six-bars
+    are near misses refined to meet it (an answer with fewer than ``synth.query.FILL`` is
+    topped up so); None with --no-refine. (No time: the same request gives the same document;
+    ``dwell bench query`` times it.)"""
     if not result.request.refine:
         return None
     tried, better = result.refined
-    return {"sixbars_refined": tried, "sixbars_improved": better, "from_nearest_misses": result.from_misses}
+    return {"sixbars_refined": tried, "sixbars_improved": better, "from_nearest_misses": result.from_misses,
+            "near_misses_met": result.misses_met}
 
 
 def _searched(result: QueryResult) -> str:

@@ -351,6 +351,12 @@ def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: i
     start = np.where(whole, phi0, start)
     end = np.where(whole, phi0 + _TWO_PI, end)
     angle = end - start
+    if count == 2:
+        # The grid windows are disjoint, but refinement may carry the second into the first:
+        # then the output stays within one band across both — one rest that drifts, not two
+        # (found by the query's refined near misses: two dwells reported as the same interval).
+        into = np.mod(start[:, 1] - start[:, 0], _TWO_PI)
+        fnd[:, 1] &= (into >= angle[:, 0]) & (into + angle[:, 1] <= _TWO_PI)
     start_n = phi0 + np.mod(start - phi0, _TWO_PI)
     end = start_n + angle
     zero = lambda x: np.where(fnd, x, 0.0)

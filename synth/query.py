@@ -18,9 +18,10 @@ target per level, a budget). With ``request.complete`` it runs instead on every 
 at every level (:func:`search`), pruned only by conditions no meeting six-bar can fail, the
 prescreen (:func:`prescreen`) among them: the complete answer.
 
-When nothing meets the request, the nearest misses (``MISSES`` of them, by the sum of their
-excesses over the limits) are refined toward it, and those that then meet it are the answer;
-if none does, the result carries a :class:`NoMatch`: how many fitted six-bars each constraint
+When fewer than ``FILL`` six-bars meet the request (and refinement is on), the nearest misses
+(``MISSES`` of them, by the sum of their excesses over the limits) are refined toward it, and
+those that then meet it join the answer; if nothing meets it even so, the result carries a
+:class:`NoMatch`: how many fitted six-bars each constraint
 rejected, the nearest six-bar and the request that it would meet. Without refinement the same
 :class:`NoMatch` comes cheaper (:func:`diagnose_by_bounds`): only the six-bars whose dwell
 decides a count or the nearest get their dwell ends refined.
@@ -78,10 +79,16 @@ SAMPLES = 720
 FIT_SAMPLES = 360
 #: Segments taken from the atlas per kind and tolerance level, closest to that level's target first.
 PER_LEVEL = 10
+#: With refinement on, an answer with fewer than FILL six-bars samples again, this many times
+#: wider, before its near misses are refined (the no-refinement query keeps PER_LEVEL).
+WIDER = 3
 #: Output link lengths (crank lengths) tried in the band conversion of ``_select``.
-REACHES = (2.0, 5.0, 12.0)
-#: Nearest misses refined toward a request nothing met.
-MISSES = 8
+REACHES = (0.8, 1.5, 3.0)
+#: Nearest misses refined toward a request that fewer than FILL six-bars met.
+MISSES = 16
+#: An answer with fewer candidates than this (or than ``--top``) is topped up from the
+#: nearest misses, refined to meet the request (with refinement on).
+FILL = 3
 #: The request's constraints, in the order a no-match names them (see :func:`violations`).
 CONSTRAINTS = ("assembly", "dwell", "swing", "step", "transmission", "link_ratio", "arm", "clearance", "acceleration")
 
@@ -206,6 +213,8 @@ class QueryResult:
     refined: tuple[int, int] = (0, 0)
     #: True when nothing in the atlas met the request and the candidates are refined near misses
     from_misses: bool = False
+    #: how many of the candidates are near misses refined to meet the request (see FILL)
+    misses_met: int = 0
 
 
 class RebuildError(ValueError):
@@ -224,7 +233,7 @@ def kinds_for(request: Request) -> tuple[str, ...]:
     return {"rpr": ("line",), "rrr": ("arc",), "any": ("line", "arc")}[request.output]
 
 
-def select(source: SegmentSource, request: Request, kinds: tuple[str, ...]) -> list[SegmentRow]:
+def select(source: SegmentSource, request: Request, kinds: tuple[str, ...], per_level: int = PER_LEVEL) -> list[SegmentRow]:
     """Segments worth fitting, per kind and tolerance level.
 
     A six-bar's dwell is measured with an output band (an angle), a segment's with a path band
@@ -232,15 +241,16 @@ def select(source: SegmentSource, request: Request, kinds: tuple[str, ...]) -> l
     ε* = R·band/2 of the segment's line or circle, R the output link's length (slot reach or
     rocker), a few cranks. Dwells grow like ε^¼ (four-point contact), so at level ε_ℓ the
     segment dwell that gives the requested six-bar dwell is about dwell·(ε_ℓ/ε*)^¼; each level
-    is searched around its own target, generously — the simulation decides."""
+    is searched around its own target, generously — the simulation decides. ``per_level``
+    segments are taken per kind, level and target (twice that closest to the request itself)."""
     windows = []
     # the stored dwells closest to the request at any level, then each level's own target
     width = request.dwell_tol + math.radians(10.0)
-    windows.append(DwellWindow(None, request.dwell - width, request.dwell + width, request.dwell, 2 * PER_LEVEL))
+    windows.append(DwellWindow(None, request.dwell - width, request.dwell + width, request.dwell, 2 * per_level))
     for (level, eps), reach in itertools.product(source.tolerance_levels(), REACHES):
         target = request.dwell * (eps / (reach * request.band / 2)) ** 0.25
         width = request.dwell_tol + 0.2 * target
-        windows.append(DwellWindow(level, target - width, target + width, target, PER_LEVEL))
+        windows.append(DwellWindow(level, target - width, target + width, target, per_level))
     # constraints the four-bar alone already decides (crank = 1, the shortest link); an arc's
     # radius becomes the rod, which must not be the link that breaks the ratio
     rows = []
@@ -775,19 +785,36 @@ def answer(request: Request, source: SegmentSource, *,
     promising: list[Fitted] = []  # the fits past the prescreen
     known: dict[int, SixBarFigures] = {}  # full figures of the sample's screened fits, by id
 
-    def sampled() -> None:
+    def sampled(per_level: int = PER_LEVEL) -> list[Fitted]:
         """The sample's rows and fits (all of them are what a no-match is diagnosed and
-        refined from)."""
+        refined from); a wider sample adds the rows the narrower one did not have. Returns
+        the new fits past the prescreen."""
         nonlocal rows
         t = time.perf_counter()
-        rows = select(source, request, kinds)
+        had = {(r.segment_id, r.level) for r in rows}
+        new = [r for r in select(source, request, kinds, per_level) if (r.segment_id, r.level) not in had]
+        rows = [*rows, *new]
         clock["select"] = clock.get("select", 0.0) + time.perf_counter() - t
         t = time.perf_counter()
+        passed = []
         for kind in kinds:
-            fits, paths, index = _fit(request, [r for r in rows if r.kind == kind], kind)
+            fits, paths, index = _fit(request, [r for r in new if r.kind == kind], kind)
             fitted.extend(fits)
-            promising.extend(f for f, k in zip(fits, prescreen(request, fits, paths, index)) if k)
+            passed += [f for f, k in zip(fits, prescreen(request, fits, paths, index)) if k]
+        promising.extend(passed)
         clock["fit"] = clock.get("fit", 0.0) + time.perf_counter() - t
+        return passed
+
+    def meeting(fits: list[Fitted]) -> list[Candidate]:
+        """The candidates among ``fits`` (simulated), their figures kept for a diagnosis."""
+        nonlocal simulated
+        t = time.perf_counter()
+        screened, n = _screened_figures(request, fits)
+        simulated += n
+        # reused by a no-match diagnosis, without the footprint as the misses' own figures
+        known.update({id(f): dataclasses.replace(fig, footprint=0.0) for f, fig in screened})
+        clock["simulate"] = clock.get("simulate", 0.0) + time.perf_counter() - t
+        return [_candidate(request, f, fig) for f, fig in screened if meets(request, fig)]
 
     if request.complete:
         candidates, count = (searched if searched is not None else
@@ -795,13 +822,10 @@ def answer(request: Request, source: SegmentSource, *,
         clock["search"] = time.perf_counter() - t0
         considered, simulated = count.rows, count.simulated
     else:
-        sampled()
-        t2 = time.perf_counter()
-        screened, simulated = _screened_figures(request, promising)
-        candidates = [_candidate(request, f, fig) for f, fig in screened if meets(request, fig)]
-        # reused by a no-match diagnosis, without the footprint as the misses' own figures
-        known = {id(f): dataclasses.replace(fig, footprint=0.0) for f, fig in screened}
-        clock["simulate"] = time.perf_counter() - t2
+        simulated = 0
+        candidates = meeting(sampled())
+        if request.refine and len(_distinct(candidates)) < min(FILL, request.top):
+            candidates += meeting(sampled(WIDER * PER_LEVEL))  # sparse: a wider sample first
         considered = len({r.segment_id for r in rows})
     t3 = time.perf_counter()
     top = [dataclasses.replace(c, rank=i + 1) for i, c in enumerate(_distinct(rank(request, candidates))[: request.top])]
@@ -816,33 +840,51 @@ def answer(request: Request, source: SegmentSource, *,
         top = rank(request, top)
         refined = (len(top), better)
         clock["refine"] = time.perf_counter() - t4
-    if not top:
-        if request.complete:
-            sampled()  # nothing in the whole atlas: diagnose (and refine) the sample's near misses
-        nearest = source.nearest_dwell_angles(kinds, request.dwell)
+    misses_met = 0
+    if request.refine and len(top) < min(FILL, request.top):
+        if request.complete and not fitted:
+            sampled()  # too little in the whole atlas: the sample's near misses are refined
         t4 = time.perf_counter()
-        if request.refine:  # the refinement starts from the nearest misses: all of them, ranked
-            misses = _misses(request, fitted, known)
+        misses = _misses(request, fitted, known)  # all of the fits, nearest first
+        if not top:
             no_match = diagnose(request, fitted, misses)
-        else:
-            no_match = diagnose_by_bounds(request, fitted, known)
         # the diagnosis simulates the fits the screen dropped: simulation time of this answer
         clock["simulate"] = clock.get("simulate", 0.0) + time.perf_counter() - t4
-        if request.refine and no_match.nearest is not None:
-            t5 = time.perf_counter()
-            near = [(fit_, fig) for total, fit_, fig, _ in misses if total < math.inf]
-            # the nearest distinct misses (one per segment and output type, one of a mirror pair)
-            pool = _distinct([_candidate(request, fit_, fig) for fit_, fig in near])[:MISSES]
-            by_id = {_candidate(request, fit_, fig).id: fig for fit_, fig in near}
-            tried, better = _refined(request, pool, [by_id[c.id] for c in pool])
-            found = [c for c in tried if c.refined_from is not None]
-            top = [dataclasses.replace(c, rank=i + 1) for i, c in enumerate(_distinct(rank(request, found))[: request.top])]
-            refined = (len(pool), better)
-            clock["refine"] = time.perf_counter() - t5
-            if top:
-                no_match = None
+        t5 = time.perf_counter()
+        found, tried, better = _refined_misses(request, misses, {c.id.split("~")[0] for c in top})
+        if found:
+            top = [dataclasses.replace(c, rank=i + 1)
+                   for i, c in enumerate(_distinct(rank(request, [*top, *found]))[: request.top])]
+            misses_met = len({c.id for c in found} & {c.id for c in top})
+            no_match = None
+        refined = (refined[0] + tried, refined[1] + better)
+        clock["refine"] = clock.get("refine", 0.0) + time.perf_counter() - t5
+    if not top:
+        nearest = source.nearest_dwell_angles(kinds, request.dwell)
+        if no_match is None:
+            if request.complete and not fitted:
+                sampled()  # nothing in the whole atlas: diagnose the sample's near misses
+            t4 = time.perf_counter()
+            no_match = diagnose_by_bounds(request, fitted, known)
+            clock["simulate"] = clock.get("simulate", 0.0) + time.perf_counter() - t4
     return QueryResult(request, top, considered, simulated, nearest, clock, no_match, refined,
-                       from_misses=bool(top) and no_match is None and not before_refine)
+                       from_misses=bool(top) and not before_refine, misses_met=misses_met)
+
+
+def _refined_misses(request: Request, misses: list[tuple[float, Fitted, SixBarFigures, dict]],
+                    taken: set[str]) -> tuple[list[Candidate], int, int]:
+    """The nearest distinct misses (one per segment and output type, one of a mirror pair; not
+    one of the ``taken`` ids), ``MISSES`` of them, refined toward ``request``: (those that now
+    meet it, how many were tried, how many came out refined)."""
+    near = [(fit_, fig) for total, fit_, fig, _ in misses if total < math.inf]
+    by_id = {}
+    for fit_, fig in near:
+        by_id.setdefault(_candidate(request, fit_, fig).id, (fit_, fig))
+    pool = [c for c in _distinct([_candidate(request, fit_, fig) for fit_, fig in near]) if c.id not in taken][:MISSES]
+    if not pool:
+        return [], 0, 0
+    tried, better = _refined(request, pool, [by_id[c.id][1] for c in pool])
+    return [c for c in tried if c.refined_from is not None], len(pool), better
 
 
 def rebuild(ids: Sequence[str], source: SegmentSource, request: Request) -> list[Candidate]:

@@ -12,6 +12,8 @@ import pytest
 from synth.candidates import Request, screen
 from synth.query import (
     CONSTRAINTS,
+    PER_LEVEL,
+    WIDER,
     QueryResult,
     RebuildError,
     SegmentSource,
@@ -117,7 +119,13 @@ def test_no_match_counts_rejections_and_loosens_to_the_nearest(source):
     assert result.candidates == []
     nm = result.no_match
     assert nm is not None and nm.fitted > 0
-    fitted = [f for kind in kinds_for(request) for f in fit(request, select(source, request, (kind,)), kind)]
+    # the sample, then (refinement on, nothing met) the wider one's further rows
+    fitted = []
+    for kind in kinds_for(request):
+        rows = select(source, request, (kind,))
+        seen = {(r.segment_id, r.level) for r in rows}
+        rows += [r for r in select(source, request, (kind,), WIDER * PER_LEVEL) if (r.segment_id, r.level) not in seen]
+        fitted += fit(request, rows, kind)
     assert nm.fitted == len(fitted)
     figures = sixbar_figures(SixBars.from_sixbars([f.sixbar() for f in fitted]), band=request.band,
                              dwell_length=request.dwell, footprint=False)

@@ -342,6 +342,26 @@ def test_dwell_of_a_resting_output_is_the_whole_turn():
     assert found.found.tolist() == [True, False] and found.angle[1] == 0.0
 
 
+def test_one_drifting_rest_is_not_two_dwells():
+    """A single rest whose output drifts slowly at one end: the grid finds a second window
+    next to the first, which refinement on the exact path slides back into the first. Found by
+    the query's refined near misses (the same interval reported as both dwells of a "double
+    dwell", step 0): the second dwell is not found, the first is the rest itself."""
+    from synth.candidates import candidate_dimensions
+
+    sb = candidate_dimensions("26600020-dbl0.0@free~AUBV0QtAbVtfQD58GECTNV2_qdBMPcBOQ8CfRgM")
+    f = sixbar_figures(sb, band=math.radians(0.1), dwell_length=math.radians(50), dwells=2)
+    assert len(f.dwells) == 1 and f.step is None
+    assert math.degrees(f.dwells[0].angle) == pytest.approx(52.484, abs=0.01)
+    # the output leaves the band on both sides (a brute-force 0.05° walk around the rest)
+    phi = np.radians(np.arange(200.0, 380.0, 0.05))
+    psi = np.unwrap(simulate(sb, phi, order=0).psi.ravel())
+    inside = np.abs(psi - f.dwells[0].rest) <= math.radians(0.05) + 1e-12
+    assert not inside[0] and not inside[-1]
+    runs = np.flatnonzero(np.diff(inside.astype(int)))
+    assert len(runs) == 2  # one run within the band: one rest
+
+
 def test_output_deviation_of_a_window_longer_than_the_rest():
     # ψ = k·dist(φ, [0.5, 1.5])² near the rest: the best window of length 1.4 overhangs the
     # rest by 0.2 on each side, so the deviation is k·0.2².
