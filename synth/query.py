@@ -233,7 +233,8 @@ def kinds_for(request: Request) -> tuple[str, ...]:
     return {"rpr": ("line",), "rrr": ("arc",), "any": ("line", "arc")}[request.output]
 
 
-def select(source: SegmentSource, request: Request, kinds: tuple[str, ...], per_level: int = PER_LEVEL) -> list[SegmentRow]:
+def select(source: SegmentSource, request: Request, kinds: tuple[str, ...],
+           per_level: int = PER_LEVEL) -> list[SegmentRow]:
     """Segments worth fitting, per kind and tolerance level.
 
     A six-bar's dwell is measured with an output band (an angle), a segment's with a path band
@@ -782,7 +783,6 @@ def answer(request: Request, source: SegmentSource, *,
     kinds = kinds_for(request)
     rows: list[SegmentRow] = []
     fitted: list[Fitted] = []
-    promising: list[Fitted] = []  # the fits past the prescreen
     known: dict[int, SixBarFigures] = {}  # full figures of the sample's screened fits, by id
 
     def sampled(per_level: int = PER_LEVEL) -> list[Fitted]:
@@ -801,7 +801,6 @@ def answer(request: Request, source: SegmentSource, *,
             fits, paths, index = _fit(request, [r for r in new if r.kind == kind], kind)
             fitted.extend(fits)
             passed += [f for f, k in zip(fits, prescreen(request, fits, paths, index)) if k]
-        promising.extend(passed)
         clock["fit"] = clock.get("fit", 0.0) + time.perf_counter() - t
         return passed
 
