@@ -159,12 +159,10 @@ def _shard_digests(conn: Connection, build_id: int | None) -> dict[int, str]:
         header = _header(model)
         for h in hashers.values():
             h.update(header)
-        if model is Linkage:
-            owner = [c.name for c in cols].index("id")
-            linkage_of = lambda v: v  # noqa: E731 - the row's own id
-        else:
-            owner = [c.name for c in cols].index("linkage_id" if model is Segment else "segment_id")
-            linkage_of = (lambda v: v) if model is Segment else (lambda v: v // SEGMENTS_PER_LINKAGE)
+        # the column naming the row's linkage (a segment id is its linkage id · SEGMENTS_PER_LINKAGE + ordinal)
+        owner, per_linkage = {Linkage: ("id", 1), Segment: ("linkage_id", 1),
+                              Dwell: ("segment_id", SEGMENTS_PER_LINKAGE)}[model]
+        owner = [c.name for c in cols].index(owner)
         key = [c.name for c in model.__table__.primary_key.columns]
         if model is Dwell:  # a build in progress holds its dwell rows in the staging table
             both = union_all(select(*cols), select(*(dwell_staging.c[c.name] for c in cols)))
@@ -178,7 +176,7 @@ def _shard_digests(conn: Connection, build_id: int | None) -> dict[int, str]:
         for part in conn.execute(stmt.execution_options(yield_per=_BATCH)).partitions():
             by_shard: dict[int, list] = {}
             for row in part:
-                index = shard_of.get(int(linkage_of(row[owner])))
+                index = shard_of.get(int(row[owner]) // per_linkage)
                 if index is not None:  # another build's row (or an orphan: --verify counts those)
                     by_shard.setdefault(index, []).append(row)
             for index, rows in by_shard.items():

@@ -120,6 +120,9 @@ def count_segments(engine: Engine, kind: str, level: int, *, min_transmission: f
 #: What the walks read of a dwell row: the key, then the stretch(es) it describes.
 _DWELL_COLUMNS = (Dwell.segment_id, Dwell.level, Dwell.dwell_angle, Dwell.phi_start, Dwell.x, Dwell.y, Dwell.direction,
                   Dwell.radius, Dwell.dwell_angle2, Dwell.phi_start2, Dwell.x2, Dwell.direction2)
+#: What a query reads of a segment: its own columns and its linkage's (one join by primary key).
+_SEGMENTS = (select(Segment.id, Segment.kind, Segment.u, Segment.v, Segment.phi_gen, Linkage.b, Linkage.c, Linkage.d,
+                    Linkage.branch, Linkage.transmission_min).join(Linkage, Segment.linkage_id == Linkage.id))
 #: Beyond this a length limit (cranks) filters nothing and would overflow a 64-bit integer.
 _NO_LENGTH_LIMIT = 1e12
 
@@ -168,21 +171,19 @@ def _segment_rows(engine: Engine, conn, hits: Sequence, tolerance: dict[int, flo
     # the ids go to the server as bound parameters: a few thousand per statement (SQLite
     # takes at most 32 766 in one, PostgreSQL 65 535)
     for k in range(0, len(ids), IN_CHUNK):
-        segs.update((r.id, r) for r in conn.execute(
-            select(Segment.id, Segment.kind, Segment.u, Segment.v, Segment.phi_gen, Linkage.b, Linkage.c, Linkage.d,
-                   Linkage.branch, Linkage.transmission_min)
-            .join(Linkage, Segment.linkage_id == Linkage.id).where(Segment.id.in_(ids[k : k + IN_CHUNK]))
-        ))
+        segs.update((r.id, r) for r in conn.execute(_SEGMENTS.where(Segment.id.in_(ids[k : k + IN_CHUNK]))))
     lost = [h.segment_id for h in hits if h.segment_id not in segs]
     if lost:  # dwell rows whose segment (or its linkage) was deleted: only a damaged atlas
         raise damaged(atlas_name(engine), f"dwell rows name segment {lost[0]}, which does not exist")
-    return [_segment_row(segs[h.segment_id], h, tolerance.get(h.level, 0.0)) for h in hits]
+    return [_segment_row(segs[h.segment_id], h.level, tolerance.get(h.level, 0.0), h) for h in hits]
 
 
-def _segment_row(seg, dw, tolerance: float) -> SegmentRow:
+def _segment_row(seg, level: int, tolerance: float, dw) -> SegmentRow:
+    """A segment (:data:`_SEGMENTS` row) at ``level`` with its dwell row ``dw`` (None: no
+    dwell there, ``parts`` empty)."""
     return SegmentRow(
-        segment_id=seg.id, kind=seg.kind, level=dw.level, tolerance=tolerance, b=seg.b, c=seg.c, d=seg.d,
-        branch=seg.branch, u=seg.u, v=seg.v, phi_gen=seg.phi_gen, parts=_parts(dw),
+        segment_id=seg.id, kind=seg.kind, level=level, tolerance=tolerance, b=seg.b, c=seg.c, d=seg.d,
+        branch=seg.branch, u=seg.u, v=seg.v, phi_gen=seg.phi_gen, parts=() if dw is None else _parts(dw),
         fourbar_transmission_min=seg.transmission_min,
     )
 
@@ -215,20 +216,12 @@ def segment_row(engine: Engine, segment_id: int, level: int) -> SegmentRow | Non
     there); None if the atlas has no such segment. A rare path (reports, rebuilt ids): the
     dwell row is found by a scan of its kind and level, which no index serves."""
     with engine.connect() as conn:
-        seg = conn.execute(
-            select(Segment.id, Segment.kind, Segment.u, Segment.v, Segment.phi_gen, Linkage.b, Linkage.c, Linkage.d,
-                   Linkage.branch, Linkage.transmission_min)
-            .join(Linkage, Segment.linkage_id == Linkage.id).where(Segment.id == segment_id)
-        ).first()
+        seg = conn.execute(_SEGMENTS.where(Segment.id == segment_id)).first()
         if seg is None:
             return None
         dw = conn.execute(select(*_DWELL_COLUMNS).where(
             Dwell.kind == SegmentKind(seg.kind).code, Dwell.level == level, Dwell.segment_id == segment_id)).first()
-    if dw is None:
-        return SegmentRow(segment_id=seg.id, kind=seg.kind, level=level, tolerance=0.0, b=seg.b, c=seg.c, d=seg.d,
-                          branch=seg.branch, u=seg.u, v=seg.v, phi_gen=seg.phi_gen, parts=(),
-                          fourbar_transmission_min=seg.transmission_min)
-    return _segment_row(seg, dw, dict(tolerance_levels(engine)).get(level, 0.0))
+    return _segment_row(seg, level, 0.0 if dw is None else dict(tolerance_levels(engine)).get(level, 0.0), dw)
 
 
 class AtlasSource:

@@ -251,7 +251,8 @@ def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: i
         Total band width (rad, ≥ 0).
     count : {1, 2}
         1: the longest interval. 2: the two longest disjoint intervals (a double-dwell
-        mechanism), longest first.
+        mechanism), longest first; a second that the refinement on the exact path carries
+        into the first is one rest, not found.
     psi_at : callable, optional
         Exact ψ(φ) (shape ``(..., K)`` → ``(..., K)``, any 2π branch). With it both ends are
         refined on the exact path (see Notes) to well under 0.005° on the 0.5° grid; without

@@ -875,14 +875,14 @@ def _refined_misses(request: Request, misses: list[tuple[float, Fitted, SixBarFi
     """The nearest distinct misses (one per segment and output type, one of a mirror pair; not
     one of the ``taken`` ids), ``MISSES`` of them, refined toward ``request``: (those that now
     meet it, how many were tried, how many came out refined)."""
-    near = [(fit_, fig) for total, fit_, fig, _ in misses if total < math.inf]
-    by_id = {}
-    for fit_, fig in near:
-        by_id.setdefault(_candidate(request, fit_, fig).id, (fit_, fig))
-    pool = [c for c in _distinct([_candidate(request, fit_, fig) for fit_, fig in near]) if c.id not in taken][:MISSES]
+    near = [(_candidate(request, fit_, fig), fig) for total, fit_, fig, _ in misses if total < math.inf]
+    figures = {}  # crank-normalised, by id (the candidates' own are in the user's units)
+    for c, fig in near:
+        figures.setdefault(c.id, fig)
+    pool = [c for c in _distinct([c for c, _ in near]) if c.id not in taken][:MISSES]
     if not pool:
         return [], 0, 0
-    tried, better = _refined(request, pool, [by_id[c.id][1] for c in pool])
+    tried, better = _refined(request, pool, [figures[c.id] for c in pool])
     return [c for c in tried if c.refined_from is not None], len(pool), better
 
 
