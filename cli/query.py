@@ -118,15 +118,17 @@ def _sixbar_text(sb) -> str:
 def _refined_note(result: QueryResult) -> str:
     """``; 6 of 7 refined (0.37 s)`` for the table's head ('' without refinement)."""
     tried, better = result.refined
+    moved = (f"; {result.reseated} with the slot pivot moved off their lines' crossing "
+             f"({result.seconds.get('reseat', 0.0):.2f} s)") if result.reseated else ""
     if not tried:
-        return ""
+        return moved
     seconds = result.seconds.get("refine", 0.0)
     if result.from_misses:
         return f"; nothing in the atlas met the request: {better} of its {tried} nearest misses refined to meet it ({seconds:.2f} s)"
     if result.misses_met:
-        return (f"; {better} of {tried} refined, {result.misses_met} of the six-bars near misses refined to meet "
+        return (f"{moved}; {better} of {tried} refined, {result.misses_met} of the six-bars near misses refined to meet "
                 f"the request ({seconds:.2f} s)")
-    return f"; {better} of {tried} refined ({seconds:.2f} s)"
+    return f"{moved}; {better} of {tried} refined ({seconds:.2f} s)"
 
 
 def _refined_text(c, req: Request) -> str:
@@ -143,13 +145,14 @@ def refinement_json(result: QueryResult) -> dict | None:
     """What refinement did (``--json``): six-bars refined, how many came out better, whether
     they were the nearest misses of a request nothing met, how many of the returned six-bars
     are near misses refined to meet it (an answer with fewer than ``synth.query.FILL`` is
-    topped up so); None with --no-refine. (No time: the same request gives the same document;
+    topped up so) and how many are double dwells with the slot pivot moved off their lines'
+    crossing (``synth.query.reseat``); None with --no-refine. (No time: the same request gives the same document;
     ``dwell bench query`` times it.)"""
     if not result.request.refine:
         return None
     tried, better = result.refined
     return {"sixbars_refined": tried, "sixbars_improved": better, "from_nearest_misses": result.from_misses,
-            "near_misses_met": result.misses_met}
+            "near_misses_met": result.misses_met, "pivots_moved": result.reseated}
 
 
 def _searched(result: QueryResult) -> str:

@@ -38,6 +38,7 @@ __all__ = [
     "RrrFit",
     "fit_rpr",
     "fit_rrr",
+    "pivots_around",
     "rpr_double",
 ]
 
@@ -353,6 +354,33 @@ def rpr_double(line1: tuple[ArrayLike, ArrayLike], line2: tuple[ArrayLike, Array
     D = np.where(none, 0.5 * (p1 + p2), D)
     status = np.where(none, np.uint16(Status.AT_INFINITY), np.uint16(0)).astype(np.uint16)
     return DoubleRprPivot(D, status)
+
+
+#: Pivots around a double line's crossing (:func:`pivots_around`): distances as fractions of
+#: the crossing's reach, nearest first, each in ``AROUND_DIRECTIONS`` directions.
+AROUND_STEPS = (0.02, 0.05, 0.1, 0.2)
+AROUND_DIRECTIONS = 8
+#: The reach a pivot's distance is scaled by is at least this (crank lengths): a crossing
+#: close to both stretches still moves by a visible amount.
+AROUND_MIN_REACH = 0.5
+
+
+def pivots_around(pivot: ArrayLike, line_points: tuple[ArrayLike, ArrayLike]) -> C128:
+    """Slot pivots around a double line's crossing ``pivot`` (...,): at distances
+    ``AROUND_STEPS`` × reach, in ``AROUND_DIRECTIONS`` directions each, nearest first,
+    shape (..., steps × directions); the reach is the crossing's mean distance to the two
+    line points (at least ``AROUND_MIN_REACH``).
+
+    Off the crossing, D no longer lies on both lines: the output creeps during each stretch,
+    slower the nearer D is to its line, so each dwell at a given output band shortens —
+    how a double dwell shorter than the crossing's own is met (the family of every D,
+    docs/complete-query.md §1)."""
+    X = np.asarray(pivot, complex)
+    p1, p2 = (np.asarray(x, complex) for x in line_points)
+    reach = np.maximum(0.5 * (np.abs(X - p1) + np.abs(X - p2)), AROUND_MIN_REACH)
+    steps = np.repeat(np.asarray(AROUND_STEPS, float), AROUND_DIRECTIONS)
+    turns = np.exp(2j * math.pi * np.tile(np.arange(AROUND_DIRECTIONS), len(AROUND_STEPS)) / AROUND_DIRECTIONS)
+    return X[..., None] + reach[..., None] * steps * turns
 
 
 # --------------------------------------------------------------------------------------------

@@ -40,6 +40,7 @@ from typing import Protocol
 import numpy as np
 
 from synth.candidates import (
+    REFINED_MARK,
     Candidate,
     Request,
     candidate_dimensions,
@@ -47,6 +48,7 @@ from synth.candidates import (
     output_may_meet,
     parse_candidate_id,
     rank,
+    round_dimensions,
     screen,
     with_dimensions,
 )
@@ -89,6 +91,12 @@ MISSES = 16
 #: An answer with fewer candidates than this (or than ``--top``) is topped up from the
 #: nearest misses, refined to meet the request (with refinement on).
 FILL = 3
+#: With refinement on, a sparse double-dwell answer also tries each fit's slot pivot moved off
+#: its lines' crossing (:func:`reseat`): at most this many moved pivots per fit, nearest first.
+RESEAT_PER_FIT = 1
+#: A creeping rest is shorter than its crossing's: the segments the sample would take for
+#: these multiples of the requested dwell are moved too.
+RESEAT_LONGER = (2.0, 4.0)
 #: The request's constraints, in the order a no-match names them (see :func:`violations`).
 CONSTRAINTS = ("assembly", "dwell", "swing", "step", "transmission", "link_ratio", "arm", "clearance", "acceleration")
 
@@ -215,6 +223,9 @@ class QueryResult:
     from_misses: bool = False
     #: how many of the candidates are near misses refined to meet the request (see FILL)
     misses_met: int = 0
+    #: how many of the candidates are double-dwell six-bars whose slot pivot was moved off
+    #: their lines' crossing (:func:`reseat`; their ids carry the dimensions)
+    reseated: int = 0
 
 
 class RebuildError(ValueError):
@@ -273,6 +284,8 @@ class Fitted:
     slot: int
     dyad: OutputDyad
     rest: complex | None = None
+    #: The dyad was moved off the fit's own (:func:`reseat`): the id carries the dimensions.
+    moved: bool = False
 
     def sixbar(self) -> SixBar:
         r = self.row
@@ -372,8 +385,63 @@ def prescreen(request: Request, fitted: Sequence[Fitted], paths: np.ndarray, ind
         point = P.copy()
         point[rrr] = P[rrr] + rho * loop.e1  # Q: the rocker's direction is Q − D
         ok[rrr] &= ~np.any((loop.status & np.uint8(Status.NOT_ASSEMBLABLE)) != 0, axis=1)
-    psi = np.unwrap(np.angle((point - D) * np.conj(rest - D)), axis=1)
-    return ok & output_may_meet(request, psi)
+    return ok & _slot_screen(request, point, D, rest)
+
+
+def reseat(request: Request, fitted: Sequence[Fitted]) -> list[Fitted]:
+    """Double dwells: every fit's slot pivot moved off its lines' crossing
+    (:func:`synth.dyad.pivots_around`), the moved six-bars that pass :func:`prescreen`, at
+    most ``RESEAT_PER_FIT`` per fit (the nearest pivots first). The crossing is the one pivot
+    on both fitted lines; the request's dwells may want another (a shorter rest creeps), and
+    the atlas yields every pivot (docs/complete-query.md §1). Their ids carry the dimensions."""
+    from synth.dyad import pivots_around
+
+    doubles = [f for f in fitted if f.output == "dbl"]
+    if not doubles:
+        return []
+    line_points = tuple(np.array([complex(f.row.parts[k][2], f.row.parts[k][3]) for f in doubles]) for k in (0, 1))
+    pivots = pivots_around(np.array([f.dyad.pivot for f in doubles]), line_points)  # (n, K)
+    paths = _paths([f.row for f in doubles], crank_grid(FIT_SAMPLES))
+    passed = np.concatenate([  # prescreen's test of an RPR, in blocks of fits (n × K × samples)
+        _slot_screen(request, paths[k : k + _BLOCK, None], pivots[k : k + _BLOCK, :, None],
+                     line_points[0][k : k + _BLOCK, None, None]) for k in range(0, len(doubles), _BLOCK)])
+    keep = passed & (np.cumsum(passed, axis=1) <= RESEAT_PER_FIT)  # the first passes of each fit
+    # a search, not a bound: the screen ran on the dimensions before the rounding to the id's
+    return [_as_stored(dataclasses.replace(doubles[i], dyad=OutputDyad.rpr(complex(pivots[i, k])), moved=True))
+            for i, k in zip(*np.nonzero(keep))]
+
+
+_BLOCK = 256
+
+
+def _slot_screen(request: Request, point: np.ndarray, pivot: np.ndarray, rest: np.ndarray) -> np.ndarray:
+    """:func:`prescreen`'s test of the output angle, the angle of ``point − pivot`` (the slot's
+    direction; an RRR's rocker with ``point`` = Q) measured from the direction of ``rest``
+    and unwrapped along the last axis (the crank grid): arrays broadcast, the result has
+    their shape without that axis."""
+    psi = np.unwrap(np.angle((point - pivot) * np.conj(rest - pivot)), axis=-1)
+    return output_may_meet(request, psi.reshape(-1, psi.shape[-1])).reshape(psi.shape[:-1])
+
+
+def _with_origins(request: Request, found: list[Candidate], fitted: Sequence[Fitted],
+                  known: dict[int, SixBarFigures]) -> list[Candidate]:
+    """Reseated candidates (:func:`reseat`) with ``refined_from``: the figures of the fit they
+    were moved from (``known`` by the fit's ``id``, or computed), in the user's units."""
+    base = {candidate_id(f.row.segment_id, f.output, f.slot, f.row.level, request.swing): f for f in fitted}
+    origins = {c.id.split(REFINED_MARK)[0] for c in found}
+    todo = [base[k] for k in origins if id(base[k]) not in known]
+    if todo:
+        known = {**known, **dict(zip(map(id, todo), _figures(request, [f.sixbar() for f in todo], footprint=False)))}
+    return [dataclasses.replace(c, refined_from=_scaled_figures(known[id(base[c.id.split(REFINED_MARK)[0]])], request.crank))
+            for c in found]
+
+
+def _as_stored(fitted: Fitted) -> Fitted:
+    """``fitted`` with the dimensions its id will hold (:func:`~synth.candidates.round_dimensions`),
+    so that its figures are the ones a rebuild from the id gives."""
+    sb = round_dimensions(fitted.sixbar())
+    row = dataclasses.replace(fitted.row, b=sb.b, c=sb.c, d=sb.d, u=sb.u, v=sb.v)
+    return dataclasses.replace(fitted, row=row, dyad=sb.dyad)
 
 
 def violations(request: Request, f: SixBarFigures) -> dict[str, float]:
@@ -437,7 +505,8 @@ def _scaled_figures(f: SixBarFigures, scale: float) -> SixBarFigures:
 def _candidate(request: Request, fitted: Fitted, f: SixBarFigures) -> Candidate:
     r = fitted.row
     return Candidate(
-        id=candidate_id(r.segment_id, fitted.output, fitted.slot, r.level, request.swing),
+        id=candidate_id(r.segment_id, fitted.output, fitted.slot, r.level, request.swing,
+                        fitted.sixbar() if fitted.moved else None),
         segment_id=r.segment_id,
         sixbar=fitted.sixbar().scaled(request.crank),
         figures=_scaled_figures(f, request.crank),
@@ -669,7 +738,8 @@ def _refined(request: Request, candidates: Sequence[Candidate],
         rest = _rest(r.sixbar, r.figures)
         out.append(dataclasses.replace(
             c, id=with_dimensions(c.id, r.sixbar), sixbar=r.sixbar.scaled(s), figures=_scaled_figures(r.figures, s),
-            dwell_position=None if rest is None else rest * s, refined_from=c.figures))
+            # a reseated six-bar keeps the fit it was moved from as "before" (as a rebuild does)
+            dwell_position=None if rest is None else rest * s, refined_from=c.refined_from or c.figures))
     return out, count
 
 
@@ -815,6 +885,7 @@ def answer(request: Request, source: SegmentSource, *,
         clock["simulate"] = clock.get("simulate", 0.0) + time.perf_counter() - t
         return [_candidate(request, f, fig) for f, fig in screened if meets(request, fig)]
 
+    moved_ids: set[str] = set()  # ids of the fits whose answer is a reseated six-bar
     if request.complete:
         candidates, count = (searched if searched is not None else
                              search(request, source, on_progress=on_progress, map_batches=map_batches))
@@ -825,6 +896,23 @@ def answer(request: Request, source: SegmentSource, *,
         candidates = meeting(sampled())
         if request.refine and len(_distinct(candidates)) < min(FILL, request.top):
             candidates += meeting(sampled(WIDER * PER_LEVEL))  # sparse: a wider sample first
+        if request.refine and request.dwells == 2 and len(_distinct(candidates)) < min(FILL, request.top):
+            t = time.perf_counter()
+            # still sparse: the slot pivots moved off the crossings, of the sample's fits and
+            # of the segments whose crossing rests are longer than the request
+            had = {(r.segment_id, r.level) for r in rows}
+            longer = {(r.segment_id, r.level): r for k in RESEAT_LONGER if 2 * k * request.dwell < 2 * math.pi
+                      for r in select(source, dataclasses.replace(request, dwell=k * request.dwell), kinds,
+                                      WIDER * PER_LEVEL) if (r.segment_id, r.level) not in had}
+            origins = [*fitted, *fit(request, list(longer.values()), "double_line")]
+            moved = reseat(request, origins)
+            clock["reseat"] = time.perf_counter() - t
+            found = meeting(moved)
+            t = time.perf_counter()
+            found = _with_origins(request, found, origins, known)
+            clock["reseat"] += time.perf_counter() - t
+            moved_ids = {c.id.split(REFINED_MARK)[0] for c in found} - {c.id for c in candidates}
+            candidates += found
         considered = len({r.segment_id for r in rows})
     t3 = time.perf_counter()
     top = [dataclasses.replace(c, rank=i + 1) for i, c in enumerate(_distinct(rank(request, candidates))[: request.top])]
@@ -867,7 +955,8 @@ def answer(request: Request, source: SegmentSource, *,
             no_match = diagnose_by_bounds(request, fitted, known)
             clock["simulate"] = clock.get("simulate", 0.0) + time.perf_counter() - t4
     return QueryResult(request, top, considered, simulated, nearest, clock, no_match, refined,
-                       from_misses=bool(top) and not before_refine, misses_met=misses_met)
+                       from_misses=bool(top) and not before_refine, misses_met=misses_met,
+                       reseated=sum(c.id.split(REFINED_MARK)[0] in moved_ids for c in top))
 
 
 def _refined_misses(request: Request, misses: list[tuple[float, Fitted, SixBarFigures, dict]],

@@ -40,7 +40,7 @@ FLOOR_MS = 1500.0  # p95 per request with refinement, --top 10 (issue #13 item 7
 GOAL_MS = 500.0
 PLAIN_FLOOR_MS = 100.0  # p95 per request without refinement, --top 10 (issue #13 item 7)
 PLAIN_GOAL_MS = 50.0
-STAGES = ("select", "fit", "simulate", "rank", "refine")
+STAGES = ("select", "fit", "simulate", "reseat", "rank", "refine")
 
 
 @dataclass(frozen=True, slots=True)

@@ -354,11 +354,12 @@ def test_no_match_names_the_failed_constraint_and_the_nearest_six_bar(capsys, at
     assert lines[2].strip().startswith("it meets: --dwell ")
 
 
-def test_an_unbuildable_double_dwell_is_refused_by_the_default_arm(capsys, atlas_path):
+def test_an_unbuildable_double_dwell_is_refused_by_the_default_arm(capsys, atlas_path, tmp_path):
     """Issue 14: the 30° double-dwell candidate brings its slider within 0.02 cranks of its
     slot pivot; the default --min-arm refuses it and the no-match says what would admit it.
-    Refined, the nearest misses that then meet the request keep their sliders ≥ 0.2 cranks
-    from the pivot."""
+    Refined (sparse: the slot pivots moved off the lines' crossings), the six-bars that meet
+    the request keep their sliders ≥ 0.2 cranks from the pivot, meet it by the independent
+    solver, and `dwell report` rebuilds a moved one from its id."""
     args = ["query", "--db", atlas_path, "--dwell", "30", "--dwell-tol", "5", "--dwells", "2"]
     code, out, err = run(capsys, *args, "--no-refine")
     assert code == 0 and out == ""
@@ -366,8 +367,22 @@ def test_an_unbuildable_double_dwell_is_refused_by_the_default_arm(capsys, atlas
     code, out, err = run(capsys, *args, "--json")
     assert code == 0, err
     doc = json.loads(out)
-    assert doc["refinement"]["from_nearest_misses"] is True
-    assert all(c["buildability"]["arm_mm"] >= 0.2 for c in doc["candidates"])
+    cands, summary = doc["candidates"], doc["refinement"]
+    assert cands and summary["from_nearest_misses"] is False and summary["pivots_moved"] > 0
+    for cand in cands:
+        assert cand["buildability"]["arm_mm"] >= 0.2 and "~" in cand["id"]
+        assert all(abs(d["dwell_deg"] - 30) <= 5 for d in cand["dwells"]) and len(cand["dwells"]) == 2
+        independent = _independent(cand, 0.1)  # the longer rest
+        longest = max(d["dwell_deg"] for d in cand["dwells"])
+        assert longest - 2 * STEP <= independent["dwell_deg"] <= longest + 0.02
+    code, out, err = run(capsys, *args)
+    assert code == 0 and f"{summary['pivots_moved']} with the slot pivot moved off their lines' crossing" in out
+    code, out, err = run(capsys, "report", "--db", atlas_path, "--candidates", cands[0]["id"], "--out",
+                         str(tmp_path / "r"), "--dwell", "30")
+    assert code == 0, err
+    rebuilt = json.loads((tmp_path / "r" / "candidates.json").read_text())["candidates"][0]
+    assert rebuilt["id"] == cands[0]["id"] and rebuilt["output"] == cands[0]["output"]
+    assert [d["dwell_deg"] for d in rebuilt["dwells"]] == pytest.approx([d["dwell_deg"] for d in cands[0]["dwells"]], abs=1e-9)
 
 
 def test_refinement_answers_a_missed_rrr_request_and_the_report_rebuilds_it(capsys, atlas_path, tmp_path):
