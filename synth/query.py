@@ -419,7 +419,11 @@ def _slot_screen(request: Request, point: np.ndarray, pivot: np.ndarray, rest: n
     direction; an RRR's rocker with ``point`` = Q) measured from the direction of ``rest``
     and unwrapped along the last axis (the crank grid): arrays broadcast, the result has
     their shape without that axis."""
-    psi = np.unwrap(np.angle((point - pivot) * np.conj(rest - pivot)), axis=-1)
+    w = (point - pivot) * np.conj(rest - pivot)
+    # unwrapped as the sum of the turns between samples (each < π on a path): np.unwrap's
+    # result, in fewer passes
+    psi = np.angle(w[..., :1]) + np.concatenate(
+        [np.zeros(w.shape[:-1] + (1,)), np.cumsum(np.angle(w[..., 1:] * np.conj(w[..., :-1])), axis=-1)], axis=-1)
     return output_may_meet(request, psi.reshape(-1, psi.shape[-1])).reshape(psi.shape[:-1])
 
 
@@ -897,22 +901,30 @@ def answer(request: Request, source: SegmentSource, *,
         if request.refine and len(_distinct(candidates)) < min(FILL, request.top):
             candidates += meeting(sampled(WIDER * PER_LEVEL))  # sparse: a wider sample first
         if request.refine and request.dwells == 2 and len(_distinct(candidates)) < min(FILL, request.top):
-            t = time.perf_counter()
-            # still sparse: the slot pivots moved off the crossings, of the sample's fits and
-            # of the segments whose crossing rests are longer than the request
+            # still sparse: the slot pivots moved off the crossings, of the sample's fits, then
+            # of the segments whose crossing rests are longer than the request, until --top
+            # segments have a six-bar that meets it
             had = {(r.segment_id, r.level) for r in rows}
-            longer = {(r.segment_id, r.level): r for k in RESEAT_LONGER if 2 * k * request.dwell < 2 * math.pi
-                      for r in select(source, dataclasses.replace(request, dwell=k * request.dwell), kinds,
-                                      WIDER * PER_LEVEL) if (r.segment_id, r.level) not in had}
-            origins = [*fitted, *fit(request, list(longer.values()), "double_line")]
-            moved = reseat(request, origins)
-            clock["reseat"] = time.perf_counter() - t
-            found = meeting(moved)
-            t = time.perf_counter()
-            found = _with_origins(request, found, origins, known)
-            clock["reseat"] += time.perf_counter() - t
-            moved_ids = {c.id.split(REFINED_MARK)[0] for c in found} - {c.id for c in candidates}
-            candidates += found
+            origins = list(fitted)
+            for k in (1.0, *RESEAT_LONGER):
+                t = time.perf_counter()
+                if k > 1:
+                    if 2 * k * request.dwell >= 2 * math.pi:
+                        break
+                    longer = [r for r in select(source, dataclasses.replace(request, dwell=k * request.dwell), kinds,
+                                                WIDER * PER_LEVEL) if (r.segment_id, r.level) not in had]
+                    had |= {(r.segment_id, r.level) for r in longer}
+                    origins = fit(request, longer, "double_line")
+                moved = reseat(request, origins)
+                clock["reseat"] = clock.get("reseat", 0.0) + time.perf_counter() - t
+                found = meeting(moved)
+                t = time.perf_counter()
+                found = _with_origins(request, found, origins, known)
+                clock["reseat"] += time.perf_counter() - t
+                moved_ids |= {c.id.split(REFINED_MARK)[0] for c in found} - {c.id for c in candidates}
+                candidates += found
+                if len(_distinct(candidates)) >= request.top:
+                    break
         considered = len({r.segment_id for r in rows})
     t3 = time.perf_counter()
     top = [dataclasses.replace(c, rank=i + 1) for i, c in enumerate(_distinct(rank(request, candidates))[: request.top])]
