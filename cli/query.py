@@ -118,7 +118,7 @@ def _sixbar_text(sb) -> str:
 def _refined_note(result: QueryResult) -> str:
     """``; 6 of 7 refined (0.37 s)`` for the table's head ('' without refinement)."""
     tried, better = result.refined
-    moved = (f"; {result.reseated} with the slot pivot moved off their lines' crossing "
+    moved = (f"; {result.reseated} with the output pivot moved off the fitted one "
              f"({result.seconds.get('reseat', 0.0):.2f} s)") if result.reseated else ""
     if not tried:
         return moved
@@ -145,8 +145,8 @@ def refinement_json(result: QueryResult) -> dict | None:
     """What refinement did (``--json``): six-bars refined, how many came out better, whether
     they were the nearest misses of a request nothing met, how many of the returned six-bars
     are near misses refined to meet it (an answer with fewer than ``synth.query.FILL`` is
-    topped up so) and how many are double dwells with the slot pivot moved off their lines'
-    crossing (``synth.query.reseat``); None with --no-refine. (No time: the same request gives the same document;
+    topped up so) and how many have their output pivot moved off the fitted one
+    (``synth.query.reseat``); None with --no-refine. (No time: the same request gives the same document;
     ``dwell bench query`` times it.)"""
     if not result.request.refine:
         return None

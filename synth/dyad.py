@@ -356,28 +356,28 @@ def rpr_double(line1: tuple[ArrayLike, ArrayLike], line2: tuple[ArrayLike, Array
     return DoubleRprPivot(D, status)
 
 
-#: Pivots around a double line's crossing (:func:`pivots_around`): distances as fractions of
-#: the crossing's reach, nearest first, each in ``AROUND_DIRECTIONS`` directions.
+#: Output pivots around a fitted one (:func:`pivots_around`): distances as fractions of the
+#: dyad's reach, nearest first, each in ``AROUND_DIRECTIONS`` directions.
 AROUND_STEPS = (0.02, 0.05, 0.1, 0.2)
 AROUND_DIRECTIONS = 8
-#: The reach a pivot's distance is scaled by is at least this (crank lengths): a crossing
-#: close to both stretches still moves by a visible amount.
+#: The reach a pivot's distance is scaled by is at least this (crank lengths): a pivot close
+#: to the stretch still moves by a visible amount.
 AROUND_MIN_REACH = 0.5
 
 
-def pivots_around(pivot: ArrayLike, line_points: tuple[ArrayLike, ArrayLike]) -> C128:
-    """Slot pivots around a double line's crossing ``pivot`` (...,): at distances
-    ``AROUND_STEPS`` × reach, in ``AROUND_DIRECTIONS`` directions each, nearest first,
-    shape (..., steps × directions); the reach is the crossing's mean distance to the two
-    line points (at least ``AROUND_MIN_REACH``).
+def pivots_around(pivot: ArrayLike, reach: ArrayLike) -> C128:
+    """Output pivots around a fitted ``pivot`` (...,): at distances ``AROUND_STEPS`` × ``reach``
+    (at least ``AROUND_MIN_REACH``), in ``AROUND_DIRECTIONS`` directions each, nearest first,
+    shape (..., steps × directions). The reach is the dyad's own length scale: an RPR's distance
+    from its pivot to the stretch, a double line's mean distance from the crossing to its two
+    stretches, an RRR's rocker.
 
-    Off the crossing, D no longer lies on both lines: the output creeps during each stretch,
-    slower the nearer D is to its line, so each dwell at a given output band shortens —
-    how a double dwell shorter than the crossing's own is met (the family of every D,
-    docs/complete-query.md §1)."""
+    Off the fitted pivot, a slot no longer lies along the stretch (an RRR's moving pivot no
+    longer rests at the arc's centre): the output creeps during the stretch, slower the nearer
+    the pivot, so a dwell at a given output band shortens — how a dwell shorter than the fitted
+    one is met (the family of every pivot, docs/complete-query.md §1)."""
     X = np.asarray(pivot, complex)
-    p1, p2 = (np.asarray(x, complex) for x in line_points)
-    reach = np.maximum(0.5 * (np.abs(X - p1) + np.abs(X - p2)), AROUND_MIN_REACH)
+    reach = np.maximum(np.asarray(reach, float), AROUND_MIN_REACH)
     steps = np.repeat(np.asarray(AROUND_STEPS, float), AROUND_DIRECTIONS)
     turns = np.exp(2j * math.pi * np.tile(np.arange(AROUND_DIRECTIONS), len(AROUND_STEPS)) / AROUND_DIRECTIONS)
     return X[..., None] + reach[..., None] * steps * turns

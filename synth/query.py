@@ -91,10 +91,12 @@ MISSES = 16
 #: An answer with fewer candidates than this (or than ``--top``) is topped up from the
 #: nearest misses, refined to meet the request (with refinement on).
 FILL = 3
-#: With refinement on, a sparse double-dwell answer also tries each fit's slot pivot moved off
-#: its lines' crossing (:func:`reseat`): at most this many moved pivots per fit, nearest first.
+#: With refinement on, a sparse answer also tries each fit's output pivot moved off the fitted
+#: one (:func:`reseat`): at most this many moved pivots per fit, nearest first.
 RESEAT_PER_FIT = 1
-#: A creeping rest is shorter than its crossing's: the segments the sample would take for
+#: Moved six-bars simulated at a time; the reseat stops once --top segments are answered.
+RESEAT_BATCH = 128
+#: A creeping rest is shorter than the fitted one: the segments the sample would take for
 #: these multiples of the requested dwell are moved too.
 RESEAT_LONGER = (2.0, 4.0)
 #: The request's constraints, in the order a no-match names them (see :func:`violations`).
@@ -223,8 +225,8 @@ class QueryResult:
     from_misses: bool = False
     #: how many of the candidates are near misses refined to meet the request (see FILL)
     misses_met: int = 0
-    #: how many of the candidates are double-dwell six-bars whose slot pivot was moved off
-    #: their lines' crossing (:func:`reseat`; their ids carry the dimensions)
+    #: how many of the candidates are six-bars whose output pivot was moved off the fitted one
+    #: (:func:`reseat`; their ids carry the dimensions)
     reseated: int = 0
 
 
@@ -364,54 +366,99 @@ def prescreen(request: Request, fitted: Sequence[Fitted], paths: np.ndarray, ind
     angle passes :func:`synth.candidates.output_may_meet` (swing, and the dwell in runs of
     samples within the band). The angles are measured from the direction of the stretch's line
     point (RPR) or arc centre (RRR) seen from D, and unwrapped along the turn."""
-    from kinematics.loop import circle_intersection
-    from kinematics.status import Status
-
     n = len(fitted)
     if not n:
         return np.zeros(0, bool)
     P = paths[index]
     D = np.array([f.dyad.pivot for f in fitted])[:, None]
-    rest = np.array([f.rest if f.rest is not None else complex(f.row.parts[0][2], f.row.parts[0][3])
-                     for f in fitted])[:, None]
-    ok = np.ones(n, bool)
-    point = P
-    rrr = np.flatnonzero([f.dyad.kind == "RRR" for f in fitted])
-    if rrr.size:
-        rho = np.array([fitted[k].dyad.rod for k in rrr])[:, None]
-        L = np.array([fitted[k].dyad.rocker for k in rrr])[:, None]
-        br = np.array([fitted[k].dyad.branch for k in rrr])[:, None]
-        loop = circle_intersection(D[rrr] - P[rrr], rho, L, br, rates=False)
-        point = P.copy()
-        point[rrr] = P[rrr] + rho * loop.e1  # Q: the rocker's direction is Q − D
-        ok[rrr] &= ~np.any((loop.status & np.uint8(Status.NOT_ASSEMBLABLE)) != 0, axis=1)
-    return ok & _slot_screen(request, point, D, rest)
+    rest = np.array([_reference(f) for f in fitted])[:, None]
+    ok = np.empty(n, bool)
+    rrr = np.array([f.dyad.kind == "RRR" for f in fitted])
+    if not rrr.all():
+        ok[~rrr] = _output_screen(request, P[~rrr], D[~rrr], rest[~rrr])
+    if rrr.any():
+        ok[rrr] = _output_screen(request, P[rrr], D[rrr], rest[rrr], _rrr_links([f for f, r in zip(fitted, rrr) if r]))
+    return ok
+
+
+def _reference(f: Fitted) -> complex:
+    """Where the output angle is measured towards: an RRR's rest, else the stretch's line point."""
+    return f.rest if f.rest is not None else complex(f.row.parts[0][2], f.row.parts[0][3])
+
+
+def _rrr_links(fitted: Sequence[Fitted]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rod, rocker and branch of RRR fits, shaped (n, 1) to broadcast over the crank grid."""
+    return tuple(np.array([getattr(f.dyad, k) for f in fitted])[:, None] for k in ("rod", "rocker", "branch"))
+
+
+def _output_screen(request: Request, P: np.ndarray, D: np.ndarray, rest: np.ndarray,
+                   rrr: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    """:func:`prescreen`'s tests for coupler points ``P`` (..., M) on the fit's crank grid,
+    output pivots ``D`` and references ``rest`` (broadcasting, last axis 1): a slot's angle
+    (``rrr`` None) or, with ``rrr`` = (rod, rocker, branch), the rocker's, Q from the loop's
+    circle intersection, which must assemble at every sample. Shape: the broadcast without
+    the last axis."""
+    if rrr is None:
+        return _slot_screen(request, P, D, rest)
+    from kinematics.loop import circle_intersection
+    from kinematics.status import Status
+
+    rho, L, br = rrr
+    loop = circle_intersection(D - P, rho, L, br, rates=False)
+    assembles = ~np.any((loop.status & np.uint8(Status.NOT_ASSEMBLABLE)) != 0, axis=-1)
+    return assembles & _slot_screen(request, P + rho * loop.e1, D, rest)  # Q: the rocker's direction is Q − D
 
 
 def reseat(request: Request, fitted: Sequence[Fitted]) -> list[Fitted]:
-    """Double dwells: every fit's slot pivot moved off its lines' crossing
-    (:func:`synth.dyad.pivots_around`), the moved six-bars that pass :func:`prescreen`, at
-    most ``RESEAT_PER_FIT`` per fit (the nearest pivots first). The crossing is the one pivot
-    on both fitted lines; the request's dwells may want another (a shorter rest creeps), and
-    the atlas yields every pivot (docs/complete-query.md §1). Their ids carry the dimensions."""
+    """Every fit's output pivot moved off the fitted one (:func:`synth.dyad.pivots_around`:
+    an RPR's slot pivot off its line, a double line's off the lines' crossing, an RRR's rocker
+    pivot with its rocker and rod kept), the moved six-bars that pass :func:`prescreen`, at
+    most ``RESEAT_PER_FIT`` per fit (the nearest pivots first). The fit puts the pivot where the
+    stretch is seen straight on (or the rest at the arc's centre); a shorter dwell than that
+    gives wants another — the rest then creeps — and the atlas yields every pivot
+    (docs/complete-query.md §1). Their ids carry the dimensions."""
     from synth.dyad import pivots_around
 
-    doubles = [f for f in fitted if f.output == "dbl"]
-    if not doubles:
+    if not fitted:
         return []
-    line_points = tuple(np.array([complex(f.row.parts[k][2], f.row.parts[k][3]) for f in doubles]) for k in (0, 1))
-    pivots = pivots_around(np.array([f.dyad.pivot for f in doubles]), line_points)  # (n, K)
-    paths = _paths([f.row for f in doubles], crank_grid(FIT_SAMPLES))
-    passed = np.concatenate([  # prescreen's test of an RPR, in blocks of fits (n × K × samples)
-        _slot_screen(request, paths[k : k + _BLOCK, None], pivots[k : k + _BLOCK, :, None],
-                     line_points[0][k : k + _BLOCK, None, None]) for k in range(0, len(doubles), _BLOCK)])
+    paths = _paths([f.row for f in fitted], crank_grid(FIT_SAMPLES))
+    rest = np.array([_reference(f) for f in fitted])
+    reach = np.array([f.dyad.rocker if f.dyad.kind == "RRR" else
+                      np.mean([abs(f.dyad.pivot - complex(p[2], p[3])) for p in f.row.parts]) for f in fitted])
+    pivots = pivots_around(np.array([f.dyad.pivot for f in fitted]), reach)  # (n, K)
+    rrr = np.array([f.dyad.kind == "RRR" for f in fitted])
+    links = _rrr_links(fitted) if rrr.any() else None
+
+    def screen(i: np.ndarray, k: np.ndarray, every: int) -> np.ndarray:
+        """The screen of the pivots (i, k) on every ``every``-th sample of the grid (a
+        uniform grid too: the same necessary tests, weaker), in blocks of one kind."""
+        ok = np.zeros(i.size, bool)
+        for kind in (False, True):
+            of_kind = np.flatnonzero(rrr[i] == kind)
+            for b in (of_kind[s : s + _BLOCK] for s in range(0, of_kind.size, _BLOCK)):
+                fits = i[b]
+                ok[b] = _output_screen(request, paths[fits, ::every], pivots[fits, k[b]][:, None], rest[fits, None],
+                                       tuple(x[fits] for x in links) if kind else None)
+        return ok
+
+    # first on a 4° grid, then the survivors on the fit's 1° grid
+    i, k = (x.ravel() for x in np.indices(pivots.shape))
+    coarse = screen(i, k, _COARSE)
+    passed = np.zeros(pivots.shape, bool)
+    passed[i[coarse], k[coarse]] = screen(i[coarse], k[coarse], 1)
     keep = passed & (np.cumsum(passed, axis=1) <= RESEAT_PER_FIT)  # the first passes of each fit
-    # a search, not a bound: the screen ran on the dimensions before the rounding to the id's
-    return [_as_stored(dataclasses.replace(doubles[i], dyad=OutputDyad.rpr(complex(pivots[i, k])), moved=True))
+    # a search, not a bound: the screen ran on the dimensions before the rounding to the id's.
+    # Where a moved RRR rests is not known before its simulation (its reference direction,
+    # the arc's centre, stays the row's).
+    return [_as_stored(dataclasses.replace(fitted[i], dyad=dataclasses.replace(fitted[i].dyad, pivot=complex(pivots[i, k])),
+                                           rest=None, moved=True))
             for i, k in zip(*np.nonzero(keep))]
 
 
-_BLOCK = 256
+#: Pivots screened at a time by :func:`reseat` (n × samples temporaries), and its coarse
+#: screen's sample step (every 4th of the fit's 1° grid).
+_BLOCK = 8192
+_COARSE = 4
 
 
 def _slot_screen(request: Request, point: np.ndarray, pivot: np.ndarray, rest: np.ndarray) -> np.ndarray:
@@ -430,13 +477,17 @@ def _slot_screen(request: Request, point: np.ndarray, pivot: np.ndarray, rest: n
 def _with_origins(request: Request, found: list[Candidate], fitted: Sequence[Fitted],
                   known: dict[int, SixBarFigures]) -> list[Candidate]:
     """Reseated candidates (:func:`reseat`) with ``refined_from``: the figures of the fit they
-    were moved from (``known`` by the fit's ``id``, or computed), in the user's units."""
+    were moved from (``known`` by the fit's ``id``, or computed), in the user's units; and an
+    RRR's ``dwell_position`` from its simulation."""
+    if not found:
+        return []
     base = {candidate_id(f.row.segment_id, f.output, f.slot, f.row.level, request.swing): f for f in fitted}
     origins = {c.id.split(REFINED_MARK)[0] for c in found}
     todo = [base[k] for k in origins if id(base[k]) not in known]
     if todo:
         known = {**known, **dict(zip(map(id, todo), _figures(request, [f.sixbar() for f in todo], footprint=False)))}
-    return [dataclasses.replace(c, refined_from=_scaled_figures(known[id(base[c.id.split(REFINED_MARK)[0]])], request.crank))
+    return [dataclasses.replace(c, refined_from=_scaled_figures(known[id(base[c.id.split(REFINED_MARK)[0]])], request.crank),
+                                dwell_position=_rest(c.sixbar, c.figures))
             for c in found]
 
 
@@ -889,6 +940,34 @@ def answer(request: Request, source: SegmentSource, *,
         clock["simulate"] = clock.get("simulate", 0.0) + time.perf_counter() - t
         return [_candidate(request, f, fig) for f, fig in screened if meets(request, fig)]
 
+    def moved_pivots(answered: list[Candidate]) -> list[Candidate]:
+        """The six-bars with the output pivot moved off the fitted one (:func:`reseat`) that
+        meet the request: of the sample's fits, then of the segments whose fitted rests are
+        longer than the request (``RESEAT_LONGER``), ``RESEAT_BATCH`` at a time, until --top
+        segments (``answered`` and these) have one."""
+        found: list[Candidate] = []
+        had = {(r.segment_id, r.level) for r in rows}
+        origins = list(fitted)
+        for k in (1.0, *RESEAT_LONGER):
+            t = time.perf_counter()
+            if k > 1:
+                if request.dwells * k * request.dwell >= 2 * math.pi:
+                    break
+                longer = [r for r in select(source, dataclasses.replace(request, dwell=k * request.dwell), kinds,
+                                            WIDER * PER_LEVEL) if (r.segment_id, r.level) not in had]
+                had |= {(r.segment_id, r.level) for r in longer}
+                origins = [f for kind in kinds for f in fit(request, [r for r in longer if r.kind == kind], kind)]
+            moved = reseat(request, origins)
+            clock["reseat"] = clock.get("reseat", 0.0) + time.perf_counter() - t
+            for b in range(0, len(moved), RESEAT_BATCH):  # the fits nearest the request first
+                met = meeting(moved[b : b + RESEAT_BATCH])
+                t = time.perf_counter()
+                found += _with_origins(request, met, origins, known)
+                clock["reseat"] += time.perf_counter() - t
+                if len(_distinct([*answered, *found])) >= request.top:
+                    return found
+        return found
+
     moved_ids: set[str] = set()  # ids of the fits whose answer is a reseated six-bar
     if request.complete:
         candidates, count = (searched if searched is not None else
@@ -900,31 +979,10 @@ def answer(request: Request, source: SegmentSource, *,
         candidates = meeting(sampled())
         if request.refine and len(_distinct(candidates)) < min(FILL, request.top):
             candidates += meeting(sampled(WIDER * PER_LEVEL))  # sparse: a wider sample first
-        if request.refine and request.dwells == 2 and len(_distinct(candidates)) < min(FILL, request.top):
-            # still sparse: the slot pivots moved off the crossings, of the sample's fits, then
-            # of the segments whose crossing rests are longer than the request, until --top
-            # segments have a six-bar that meets it
-            had = {(r.segment_id, r.level) for r in rows}
-            origins = list(fitted)
-            for k in (1.0, *RESEAT_LONGER):
-                t = time.perf_counter()
-                if k > 1:
-                    if 2 * k * request.dwell >= 2 * math.pi:
-                        break
-                    longer = [r for r in select(source, dataclasses.replace(request, dwell=k * request.dwell), kinds,
-                                                WIDER * PER_LEVEL) if (r.segment_id, r.level) not in had]
-                    had |= {(r.segment_id, r.level) for r in longer}
-                    origins = fit(request, longer, "double_line")
-                moved = reseat(request, origins)
-                clock["reseat"] = clock.get("reseat", 0.0) + time.perf_counter() - t
-                found = meeting(moved)
-                t = time.perf_counter()
-                found = _with_origins(request, found, origins, known)
-                clock["reseat"] += time.perf_counter() - t
-                moved_ids |= {c.id.split(REFINED_MARK)[0] for c in found} - {c.id for c in candidates}
-                candidates += found
-                if len(_distinct(candidates)) >= request.top:
-                    break
+        if request.refine and len(_distinct(candidates)) < min(FILL, request.top):
+            found = moved_pivots(candidates)  # still sparse
+            moved_ids = {c.id.split(REFINED_MARK)[0] for c in found} - {c.id for c in candidates}
+            candidates += found
         considered = len({r.segment_id for r in rows})
     t3 = time.perf_counter()
     top = [dataclasses.replace(c, rank=i + 1) for i, c in enumerate(_distinct(rank(request, candidates))[: request.top])]

@@ -306,16 +306,15 @@ def test_dwell_ends_and_deviation_window_agree_with_a_brute_force_grid(source):
     assert worst["deviation"] <= 1e-3 * DEG
 
 
-def test_pivots_around_a_crossing_are_at_the_stated_distances_nearest_first():
-    """``pivots_around``: ``AROUND_STEPS`` × the reach (the crossing's mean distance to the two
-    line points, at least ``AROUND_MIN_REACH``), ``AROUND_DIRECTIONS`` evenly turned each."""
+def test_pivots_around_a_fitted_pivot_are_at_the_stated_distances_nearest_first():
+    """``pivots_around``: ``AROUND_STEPS`` × the reach (at least ``AROUND_MIN_REACH``),
+    ``AROUND_DIRECTIONS`` evenly turned each."""
     from synth.dyad import AROUND_DIRECTIONS, AROUND_MIN_REACH, AROUND_STEPS, pivots_around
 
     X = np.array([1 + 2j, 0.1 + 0j])
-    p1, p2 = np.array([4 + 6j, 0.2 + 0j]), np.array([1 - 1j, 0.1 + 0.1j])
-    got = pivots_around(X, (p1, p2))
+    got = pivots_around(X, np.array([4.0, 0.1]))
     assert got.shape == (2, len(AROUND_STEPS) * AROUND_DIRECTIONS)
-    reach = np.array([0.5 * (5 + 3), AROUND_MIN_REACH])  # the second crossing is 0.1 from both points
+    reach = np.array([4.0, AROUND_MIN_REACH])
     dist = np.abs(got - X[:, None])
     assert dist == pytest.approx(np.repeat(np.array(AROUND_STEPS)[None, :], AROUND_DIRECTIONS, axis=1) * reach[:, None],
                                  rel=1e-12)
@@ -324,29 +323,48 @@ def test_pivots_around_a_crossing_are_at_the_stated_distances_nearest_first():
     assert turn == pytest.approx(np.full(turn.shape, 2 * math.pi / AROUND_DIRECTIONS), rel=1e-12)
 
 
-def test_a_sparse_double_dwell_moves_the_slot_pivot_off_the_crossing(source):
-    """Two rests of 20° ± 5°: no crossing of the test atlas's sample gives them (its rests are
-    longer). Refined, the slot pivots moved off the crossings do: each six-bar meets the request,
-    on a brute-force 0.01° grid too, its pivot is off its lines' crossing, and a rebuild from its
-    id gives the same six-bar and figures."""
+def _check_moved(request, source, result):
+    """Every candidate of a reseated answer meets ``request`` — on a brute-force 0.01° grid
+    too — its output pivot is off the fitted one, and a rebuild from its id gives the same
+    six-bar and figures."""
     from synth.query import FILL
 
-    request = Request(dwell=20 * DEG, dwell_tol=5 * DEG, dwells=2, output="rpr")
-    assert not answer(dataclasses.replace(request, refine=False), source).candidates
-    result = answer(request, source)
-    moved = [c for c in result.candidates if c.refined_from is not None]
     assert len(result.candidates) >= FILL and result.reseated >= FILL and not result.from_misses
     for c in result.candidates:
         assert meets(request, c.figures) and "~" in c.id
-        crossing = rebuild([c.id.split("~")[0]], source, request)[0].sixbar.dyad.pivot
-        assert abs(c.sixbar.dyad.pivot - crossing) > 1e-3
+        fitted = rebuild([c.id.split("~")[0]], source, request)[0].sixbar.dyad
+        assert abs(c.sixbar.dyad.pivot - fitted.pivot) > 1e-3
+        if fitted.kind == "RRR":  # the rocker and the rod kept (up to the id's float32 and refinement)
+            assert c.sixbar.dyad.rocker == pytest.approx(fitted.rocker, rel=0.06)
+            # where Q rests: on the rocker's circle, at the rod's length from P mid-dwell
+            d = c.figures.dwells[0]
+            motion = simulate_motion(c.sixbar, np.array([0.5 * (d.start + d.end)]), order=0)
+            assert abs(c.dwell_position - c.sixbar.dyad.pivot) == pytest.approx(c.sixbar.dyad.rocker, rel=1e-9)
+            assert c.dwell_position == pytest.approx(complex(motion.moving_pivot[0]), abs=1e-9)
         again = rebuild([c.id], source, request)[0]
         assert again.sixbar == c.sixbar and again.figures.dwells == c.figures.dwells
-        # both rests on a fine grid: the band holds over each reported interval
+        # each rest on a fine grid: the band holds over each reported interval
         for d in c.figures.dwells:
             phi = np.linspace(d.start, d.end, max(3, round(math.degrees(d.end - d.start) / 0.01)))
-            psi = simulate_motion(c.sixbar, np.mod(phi, 2 * math.pi), order=0).psi
-            psi = np.unwrap(psi)
+            psi = np.unwrap(simulate_motion(c.sixbar, np.mod(phi, 2 * math.pi), order=0).psi)
             assert psi.max() - psi.min() <= request.band + 1e-6 * DEG  # the ends' refinement, as above
             assert abs(d.angle - request.dwell) <= request.dwell_tol
-    assert moved
+        if request.swing is not None:
+            assert abs(c.figures.swing - request.swing) <= request.swing_tol
+
+
+@pytest.mark.parametrize("output, dwell, swing", [("rpr", 30, 10), ("rrr", 30, 10)])
+def test_a_sparse_single_dwell_moves_the_output_pivot_off_the_fitted_one(source, output, dwell, swing):
+    """Single dwells shorter than the sample's fits give (the test atlas's sample answers
+    nothing): with the output pivot moved off the fitted one, they are met."""
+    request = Request(dwell=dwell * DEG, swing=swing * DEG, output=output)
+    assert not answer(dataclasses.replace(request, refine=False), source).candidates
+    _check_moved(request, source, answer(request, source))
+
+
+def test_a_sparse_double_dwell_moves_the_slot_pivot_off_the_crossing(source):
+    """Two rests of 20° ± 5°: no crossing of the test atlas's sample gives them (its rests are
+    longer). Refined, the slot pivots moved off the crossings do."""
+    request = Request(dwell=20 * DEG, dwell_tol=5 * DEG, dwells=2, output="rpr")
+    assert not answer(dataclasses.replace(request, refine=False), source).candidates
+    _check_moved(request, source, answer(request, source))
