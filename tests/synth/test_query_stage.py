@@ -336,6 +336,7 @@ def _check_moved(request, source, result):
         assert abs(c.sixbar.dyad.pivot - fitted.pivot) > 1e-3
         if fitted.kind == "RRR":  # the rocker and the rod kept (up to the id's float32 and refinement)
             assert c.sixbar.dyad.rocker == pytest.approx(fitted.rocker, rel=0.06)
+            assert c.sixbar.dyad.rod == pytest.approx(fitted.rod, rel=0.06)
             # where Q rests: on the rocker's circle, at the rod's length from P mid-dwell
             d = c.figures.dwells[0]
             motion = simulate_motion(c.sixbar, np.array([0.5 * (d.start + d.end)]), order=0)
