@@ -354,7 +354,7 @@ def _check_moved(request, source, result):
             assert abs(c.figures.swing - request.swing) <= request.swing_tol
 
 
-@pytest.mark.parametrize("output, dwell, swing", [("rpr", 30, 10), ("rrr", 30, 10)])
+@pytest.mark.parametrize("output, dwell, swing", [("rpr", 30, 10), ("rrr", 30, 10), ("any", 30, 10)])
 def test_a_sparse_single_dwell_moves_the_output_pivot_off_the_fitted_one(source, output, dwell, swing):
     """Single dwells shorter than the sample's fits give (the test atlas's sample answers
     nothing): with the output pivot moved off the fitted one, they are met."""
