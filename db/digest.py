@@ -1,9 +1,9 @@
 """The content digest of an atlas: one hash for "these two atlases hold the same data".
 
-Definition (schema 4). A **shard's digest** is SHA-256 (hex) over its linkage, segment and
-dwell rows, table by table: a header line naming the table and its columns, then the shard's
-rows of that table in primary-key order (ids are deterministic in the sweep, see ``db.rows``;
-a dwell row's key is its kind, level, dwell angle and segment id), all columns in schema order
+Definition (schema 4; schema 5 adds an arc's dwell key). A **shard's digest** is SHA-256
+(hex) over its linkage, segment and dwell rows, table by table: a header line naming the
+table and its columns, then the shard's rows of that table in primary-key order (ids are deterministic in the sweep, see ``db.rows``;
+a dwell row's key is its kind, level, dwell key and segment id), all columns in schema order
 except volatile or bookkeeping ones:
 
 * ``linkage.build_id`` — an autoincrement handle of the build row, not content (a rebuild

@@ -592,7 +592,8 @@ def _check_schema(conn: Connection, tables: set[str], target: str) -> None:
             f"{target!r} has schema version {version}, newer than this dwell-atlas ({SCHEMA_VERSION}); upgrade the tool"
         )
     if version < SCHEMA_VERSION:
-        raise AtlasError(f"{target!r} has schema version {version}, older than {SCHEMA_VERSION}; rebuild the atlas")
+        raise AtlasError(f"{target!r} has schema version {version}, older than {SCHEMA_VERSION}; rebuild the atlas "
+                         "(delete it and build again, or build into another --db: --replace cannot open an older schema)")
     missing = set(Base.metadata.tables) - tables
     if missing:
         raise AtlasError(f"{target!r} is an incomplete atlas (missing tables: {', '.join(sorted(missing))})")

@@ -1,10 +1,10 @@
 """Indexed candidate selection for the synthesis query: :class:`AtlasSource` is the
 :class:`synth.query.SegmentSource` of an atlas.
 
-Short walks of the ``dwell`` table's key (kind, level, dwell_angle, segment_id) outwards from
-each wanted dwell angle, filtered on the linkage's constraints inside the walk (the table is
-the index: every column the query needs comes with the walked row), then one read of the
-chosen segments and their linkages by primary key; for the complete search, a keyset walk of
+Short walks of the ``dwell`` table's key (kind, level, dwell_key, segment_id) outwards from
+each wanted key (a line's dwell angle, an arc's dwell key: :mod:`synth.dwell_key`), filtered
+on the linkage's constraints inside the walk (the table is the index: every column the
+query needs comes with the walked row), then one read of the chosen segments and their linkages by primary key; for the complete search, a keyset walk of
 the same key through every row of one kind and level. Units as stored: crank lengths,
 radians.
 """
@@ -19,7 +19,7 @@ from sqlalchemy.orm import Session
 
 from db.engine import atlas_name, damaged
 from db.rows import length_ceil_milli, line_point, transmission_floor_cdeg
-from db.schema import Dwell, Linkage, Segment
+from db.schema import Dwell, Linkage, Segment, stored_dwell_angle
 from db.spec import last_spec, tolerances
 from synth.kinds import SegmentKind
 from synth.query import DwellWindow, SegmentRow
@@ -40,7 +40,7 @@ def select_segments(
     max_length: float = 1e300,
     min_radius_ratio: float = 0.0,
 ) -> list[SegmentRow]:
-    """Segments of ``kinds`` whose dwell (part 0) lies in one of ``windows``: window by window,
+    """Segments of ``kinds`` whose dwell key (part 0) lies in one of ``windows``: window by window,
     each window's closest first (then id, for a stable order); a segment is returned once, at
     the level of its first match. Only linkages whose transmission angle stays ≥
     ``min_transmission`` (rad) over the turn and whose links are all ≤ ``max_length`` (cranks)
@@ -48,17 +48,17 @@ def select_segments(
     ``min_radius_ratio``, ``max_length``].
 
     Each (kind, level, window) is read as two walks of the dwell table's key outwards from the
-    target — dwell ≥ target upwards, dwell < target downwards, each stopping after ``limit``
+    target — key ≥ target upwards, key < target downwards, each stopping after ``limit``
     rows that pass or at the window's edge. The rows hold every filtered column, so a walked
     row costs one b-tree entry, not a join; one statement is compiled for all the walks."""
     tolerance = dict(tolerance_levels(engine))
     base = select(*_DWELL_COLUMNS).where(
         Dwell.kind == bindparam("kind"), Dwell.level == bindparam("level"),
         *_filters(min_transmission, max_length, min_radius_ratio))
-    up = (base.where(Dwell.dwell_angle >= bindparam("target"), Dwell.dwell_angle <= bindparam("high"))
-          .order_by(Dwell.dwell_angle, Dwell.segment_id).limit(bindparam("n")))
-    down = (base.where(Dwell.dwell_angle < bindparam("target"), Dwell.dwell_angle >= bindparam("low"))
-            .order_by(Dwell.dwell_angle.desc(), Dwell.segment_id).limit(bindparam("n")))
+    up = (base.where(Dwell.dwell_key >= bindparam("target"), Dwell.dwell_key <= bindparam("high"))
+          .order_by(Dwell.dwell_key, Dwell.segment_id).limit(bindparam("n")))
+    down = (base.where(Dwell.dwell_key < bindparam("target"), Dwell.dwell_key >= bindparam("low"))
+            .order_by(Dwell.dwell_key.desc(), Dwell.segment_id).limit(bindparam("n")))
     hits: list[Any] = []
     seen: set[int] = set()
     with engine.connect() as conn:
@@ -69,7 +69,7 @@ def select_segments(
                     args = {"kind": SegmentKind(kind).code, "level": lv, "target": w.target, "low": w.low,
                             "high": w.high, "n": w.limit}
                     found += conn.execute(up, args).all() + conn.execute(down, args).all()
-            found.sort(key=lambda h: (abs(h.dwell_angle - w.target), h.segment_id, h.level))
+            found.sort(key=lambda h: (abs(h.dwell_key - w.target), h.segment_id, h.level))
             for h in found[: w.limit]:
                 if h.segment_id not in seen:
                     seen.add(h.segment_id)
@@ -88,23 +88,23 @@ def scan_segments(
     batch: int = 4000,
 ) -> Iterator[list[SegmentRow]]:
     """Every segment of ``kind`` with a dwell at ``level``, filtered as in
-    :func:`select_segments`, in batches of up to ``batch`` (in stored-dwell order: a keyset walk
+    :func:`select_segments`, in batches of up to ``batch`` (in dwell-key order: a keyset walk
     of the dwell table's key, so each batch costs its own rows, not an offset)."""
     page = (select(*_DWELL_COLUMNS)
             .where(Dwell.kind == SegmentKind(kind).code, Dwell.level == level,
                    *_filters(min_transmission, max_length, min_radius_ratio),
-                   or_(Dwell.dwell_angle > bindparam("angle"),
-                       and_(Dwell.dwell_angle == bindparam("angle"), Dwell.segment_id > bindparam("sid"))))
-            .order_by(Dwell.dwell_angle, Dwell.segment_id).limit(batch))
+                   or_(Dwell.dwell_key > bindparam("key"),
+                       and_(Dwell.dwell_key == bindparam("key"), Dwell.segment_id > bindparam("sid"))))
+            .order_by(Dwell.dwell_key, Dwell.segment_id).limit(batch))
     tolerance = dict(tolerance_levels(engine))
-    angle, sid = -1.0, -1
+    key, sid = -1.0, -1
     while True:
         with engine.connect() as conn:
-            hits = conn.execute(page, {"angle": angle, "sid": sid}).all()
+            hits = conn.execute(page, {"key": key, "sid": sid}).all()
             if not hits:
                 return
             rows = _segment_rows(engine, conn, hits, tolerance)
-        angle, sid = hits[-1].dwell_angle, hits[-1].segment_id
+        key, sid = hits[-1].dwell_key, hits[-1].segment_id
         yield rows
 
 
@@ -118,7 +118,8 @@ def count_segments(engine: Engine, kind: str, level: int, *, min_transmission: f
 
 
 #: What the walks read of a dwell row: the key, then the stretch(es) it describes.
-_DWELL_COLUMNS = (Dwell.segment_id, Dwell.level, Dwell.dwell_angle, Dwell.phi_start, Dwell.x, Dwell.y, Dwell.direction,
+_DWELL_COLUMNS = (Dwell.segment_id, Dwell.level, Dwell.dwell_key, stored_dwell_angle(Dwell).label("dwell_angle"),
+                  Dwell.phi_start, Dwell.x, Dwell.y, Dwell.direction,
                   Dwell.radius, Dwell.dwell_angle2, Dwell.phi_start2, Dwell.x2, Dwell.direction2)
 #: What a query reads of a segment: its own columns and its linkage's (one join by primary key).
 _SEGMENTS = (select(Segment.id, Segment.kind, Segment.u, Segment.v, Segment.phi_gen, Linkage.b, Linkage.c, Linkage.d,
@@ -190,15 +191,17 @@ def _segment_row(seg, level: int, tolerance: float, dw) -> SegmentRow:
 
 def nearest_dwell_angles(engine: Engine, kinds: tuple[str, ...], target: float) -> tuple[float | None, float | None]:
     """The stored dwell angles (rad) of ``kinds`` just below and just above ``target``: what
-    the atlas could offer instead when nothing matches (one index probe per kind and level)."""
+    the atlas could offer instead when nothing matches (one index probe per kind and level for
+    lines; arcs are keyed otherwise, so their level's rows are scanned)."""
     below: list[float] = []
     above: list[float] = []
     with Session(engine) as s:
         for kind in kinds:
             for lv, _ in tolerance_levels(engine):
                 here = and_(Dwell.kind == SegmentKind(kind).code, Dwell.level == lv)
-                b = s.execute(select(func.max(Dwell.dwell_angle)).where(here, Dwell.dwell_angle <= target)).scalar()
-                a = s.execute(select(func.min(Dwell.dwell_angle)).where(here, Dwell.dwell_angle >= target)).scalar()
+                angle = Dwell.dwell_angle if kind == SegmentKind.ARC else Dwell.dwell_key
+                b = s.execute(select(func.max(angle)).where(here, angle <= target)).scalar()
+                a = s.execute(select(func.min(angle)).where(here, angle >= target)).scalar()
                 below += [] if b is None else [b]
                 above += [] if a is None else [a]
     return max(below, default=None), min(above, default=None)

@@ -9,7 +9,8 @@ interrupted and resumed:
 * linkage id = 2·sweep_index + (0 for branch +1, 1 for branch −1) + 1
 * segment id = linkage id · :data:`SEGMENTS_PER_LINKAGE` + ordinal of the segment in its linkage
 * a dwell row is named by (segment id, level); its key in the table is (kind code, level,
-  dwell angle, segment id), the query's walk order (:class:`db.schema.Dwell`)
+  dwell key, segment id), the query's walk order (:class:`db.schema.Dwell`): a line's dwell
+  key is its dwell angle, an arc's its dwell angle × excursion^¼ (:mod:`synth.dwell_key`)
 
 Values are plain Python (no numpy scalars); units as :mod:`db.schema` says (crank lengths,
 radians, fixed frame).
@@ -23,6 +24,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from synth.dwell_key import arc_dwell_key
 from synth.kinds import SEGMENT_KINDS, SegmentKind
 from synth.segments import FoundSegments
 
@@ -118,7 +120,7 @@ def segment_rows(found: FoundSegments, linkages: list[dict[str, Any]]) -> tuple[
                    **_stretch(found, i, level, 0, arc=kind is SegmentKind.ARC)}
             if double:
                 second = _stretch(found, i, level, 1, arc=False)
-                row.update(dwell_angle2=second["dwell_angle"], phi_start2=second["phi_start"], x2=second["x"],
+                row.update(dwell_angle2=second["dwell_key"], phi_start2=second["phi_start"], x2=second["x"],
                            direction2=second["direction"])
             else:
                 row.update(dwell_angle2=None, phi_start2=None, x2=None, direction2=None)
@@ -127,15 +129,18 @@ def segment_rows(found: FoundSegments, linkages: list[dict[str, Any]]) -> tuple[
 
 
 def _stretch(found: FoundSegments, i: int, level: int, part: int, *, arc: bool) -> dict[str, Any]:
-    """The dwell columns of one stretch: interval, and circle or line (as direction, offset)."""
+    """The dwell columns of one stretch: key and interval, and circle or line (as direction,
+    offset). A line's key is its dwell angle; an arc's is its dwell key, the angle in a column
+    of its own."""
     p = found.fit_point[i, level, part]
     start, end = float(found.phi_start[i, level, part]), float(found.phi_end[i, level, part])
     if arc:
-        return {"dwell_angle": end - start, "phi_start": start, "x": float(p.real), "y": float(p.imag),
-                "direction": None, "radius": float(found.fit_radius[i, level, part])}
+        key = float(arc_dwell_key(end - start, found.excursion[i, level], found.tolerances[level]))
+        return {"dwell_key": key, "dwell_angle": end - start, "phi_start": start, "x": float(p.real),
+                "y": float(p.imag), "direction": None, "radius": float(found.fit_radius[i, level, part])}
     direction = float(np.angle(found.fit_direction[i, level, part]))
-    return {"dwell_angle": end - start, "phi_start": start, "x": line_offset(complex(p), direction), "y": None,
-            "direction": direction, "radius": None}
+    return {"dwell_key": end - start, "dwell_angle": None, "phi_start": start, "x": line_offset(complex(p), direction),
+            "y": None, "direction": direction, "radius": None}
 
 
 def _ordinals(linkage: NDArray[np.int64]) -> NDArray[np.int64]:

@@ -14,13 +14,14 @@ non-finite values before writing. ``tests/db/test_engine.py`` tries every float 
 from __future__ import annotations
 
 from sqlalchemy import (BigInteger, CheckConstraint, Column, Float, ForeignKey, Index, Integer, PrimaryKeyConstraint, String,
-                        Table, Text, UniqueConstraint)
+                        Table, Text, UniqueConstraint, func)
+from sqlalchemy.sql.elements import ColumnElement
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 
 from synth.kinds import SEGMENT_KINDS
 
 __all__ = ["SCHEMA_VERSION", "APPLICATION", "Base", "Meta", "Build", "Shard", "Linkage", "Segment", "Dwell",
-           "dwell_staging"]
+           "dwell_staging", "stored_dwell_angle"]
 
 #: Bumped whenever a table or column changes meaning; an atlas of a newer version is refused,
 #: an older one must be rebuilt. 2: deterministic 64-bit row ids, per-level fitted geometry
@@ -34,8 +35,10 @@ __all__ = ["SCHEMA_VERSION", "APPLICATION", "Base", "Meta", "Build", "Shard", "L
 #: conservative integers, no index that only a rare path uses (issue #16: 19 972 → ~7 300 bytes
 #: per linkage on ``standard``); each shard row holds its shard's digest, and the content digest
 #: is defined over them (``db.digest``); shards append their dwell rows to ``dwell_staging``,
-#: moved into ``dwell`` in key order when the build completes.
-SCHEMA_VERSION = 4
+#: moved into ``dwell`` in key order when the build completes. 5: arc rows are keyed by their dwell
+#: key (the stored dwell × the path's excursion from the circle^¼, :mod:`synth.dwell_key`), which
+#: orders them by the RRR dwell they predict; their dwell angle moves to a column of its own.
+SCHEMA_VERSION = 5
 #: Written to the meta table so that a foreign SQLite file is recognised as such.
 APPLICATION = "dwell-atlas"
 
@@ -63,9 +66,11 @@ def _dwell_checks(table: str) -> tuple[CheckConstraint, ...]:
     """The row checks of ``dwell`` and of its staging table (the same rows, before and after)."""
     return (
         CheckConstraint(f"kind BETWEEN 0 AND {len(SEGMENT_KINDS) - 1}", name=f"ck_{table}_kind"),
-        CheckConstraint("dwell_angle > 0", name=f"ck_{table}_positive"),
-        *_finite_checks(table, "dwell_angle", "phi_start", "x"),
-        *_finite_or_null_checks(table, "radius", "y", "direction", "dwell_angle2", "phi_start2", "x2", "direction2"),
+        CheckConstraint("dwell_key > 0", name=f"ck_{table}_positive"),
+        CheckConstraint("dwell_angle IS NULL OR dwell_angle > 0", name=f"ck_{table}_dwell_angle_positive"),
+        *_finite_checks(table, "dwell_key", "phi_start", "x"),
+        *_finite_or_null_checks(table, "dwell_angle", "radius", "y", "direction", "dwell_angle2", "phi_start2", "x2",
+                                "direction2"),
     )
 
 
@@ -186,9 +191,9 @@ class Segment(Base):
 class Dwell(Base):
     """A segment's dwell interval and fitted geometry at one tolerance level: what the query walks.
 
-    One row per (segment, level). The interval [``phi_start``, ``phi_start`` + ``dwell_angle``]
-    (rad, counter-clockwise) is the largest crank interval around the generating angle on which
-    the coupler point stays within that level's tolerance (the build's sweep spec, by
+    One row per (segment, level). The interval [``phi_start``, ``phi_start`` + its dwell angle]
+    (rad, counter-clockwise; the angle as :func:`stored_dwell_angle` reads it) is the largest
+    crank interval around the generating angle on which the coupler point stays within that level's tolerance (the build's sweep spec, by
     ``level``) of the level's own minimum-zone geometry: a circle (centre ``x``, ``y``,
     ``radius``) or a line (``direction`` δ, rad, and signed ``x`` = its distance from A0: the
     line is {x·i·e^{iδ} + t·e^{iδ}}; ``y`` and ``radius`` NULL). A double line's second stretch
@@ -196,9 +201,12 @@ class Dwell(Base):
     both stretches have a dwell there: the query needs both).
 
     The table **is** the query's index: the primary key (``kind`` as the
-    :data:`synth.kinds.SEGMENT_KINDS` code, ``level``, ``dwell_angle``, ``segment_id``) is the
-    walk's order, and on SQLite (``WITHOUT ROWID``) the row lives in that b-tree, so a walked
-    row costs no second look-up. The linkage's constraint figures ride along for the walk's
+    :data:`synth.kinds.SEGMENT_KINDS` code, ``level``, ``dwell_key``, ``segment_id``) is the
+    walk's order. A line's (and a double line's) ``dwell_key`` is its dwell angle and its
+    ``dwell_angle`` is NULL (no second copy); an arc's ``dwell_key`` is its dwell angle ×
+    ``excursion``^¼ (:func:`synth.dwell_key.arc_dwell_key`), the order of the RRR dwells it
+    predicts, and ``dwell_angle`` holds the angle itself. On SQLite (``WITHOUT ROWID``) the row
+    lives in that b-tree, so a walked row costs no second look-up. The linkage's constraint figures ride along for the walk's
     filters as conservative integers: the smallest folded transmission angle floored to
     0.01° and the longest of b, c, d ceiled to 0.001 crank. They can only let through a
     linkage that the exact figures then reject, never hold back one that meets a request.
@@ -207,8 +215,9 @@ class Dwell(Base):
     __tablename__ = "dwell"
     kind: Mapped[int] = mapped_column(Integer)  #: synth.kinds.SegmentKind.code
     level: Mapped[int] = mapped_column(Integer)
-    dwell_angle: Mapped[float] = mapped_column(Float)  #: rad
+    dwell_key: Mapped[float] = mapped_column(Float)  #: line: dwell angle (rad); arc: rad · crank^¼
     segment_id: Mapped[int] = mapped_column(RowId, ForeignKey("segment.id"))
+    dwell_angle: Mapped[float | None] = mapped_column(Float, nullable=True)  #: arc: rad (a line's is its key)
     transmission_min_cdeg: Mapped[int] = mapped_column(Integer)  #: floor(min folded transmission, ° · 100)
     longest_link_milli: Mapped[int] = mapped_column(Integer)  #: ceil(max(b, c, d) · 1000), crank = 1000
     radius: Mapped[float | None] = mapped_column(Float, nullable=True)  #: arc: circle radius
@@ -222,7 +231,7 @@ class Dwell(Base):
     x2: Mapped[float | None] = mapped_column(Float, nullable=True)
     direction2: Mapped[float | None] = mapped_column(Float, nullable=True)
     __table_args__ = (
-        PrimaryKeyConstraint("kind", "level", "dwell_angle", "segment_id", name="pk_dwell"),
+        PrimaryKeyConstraint("kind", "level", "dwell_key", "segment_id", name="pk_dwell"),
         *_dwell_checks("dwell"),
         {"sqlite_with_rowid": False},
     )
@@ -243,3 +252,10 @@ dwell_staging = Table(
     UniqueConstraint("segment_id", "level", name="uq_dwell_staging_segment_level"),
     *_dwell_checks("dwell_staging"),
 )
+
+
+def stored_dwell_angle(table) -> ColumnElement[float]:
+    """A dwell row's dwell angle (rad) as SQL, for ``dwell`` or its staging table: an arc's own
+    column, a line's key (see :class:`Dwell`)."""
+    t = getattr(table, "__table__", table)
+    return func.coalesce(t.c.dwell_angle, t.c.dwell_key)

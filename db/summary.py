@@ -16,7 +16,7 @@ from sqlalchemy import Engine, bindparam, case, func, select, text, union_all
 
 from db.digest import combine, content_digest, shard_digests
 from db.engine import display_target
-from db.schema import Base, Build, Dwell, Linkage, Segment, Shard, dwell_staging
+from db.schema import Base, Build, Dwell, Linkage, Segment, Shard, dwell_staging, stored_dwell_angle
 from db.spec import stored_spec, tolerances
 from synth.kinds import SEGMENT_KINDS
 
@@ -81,9 +81,8 @@ class AtlasSummary:
 def _dwell_rows():
     """Every dwell row's kind, level, angle and segment: the ``dwell`` table's and, while a
     build is in progress, the staging table's (empty in a complete atlas)."""
-    cols = ("kind", "level", "dwell_angle", "segment_id")
-    return union_all(select(*(Dwell.__table__.c[n] for n in cols)),
-                     select(*(dwell_staging.c[n] for n in cols))).subquery("dwell_rows")
+    return union_all(*(select(t.c.kind, t.c.level, stored_dwell_angle(t).label("dwell_angle"), t.c.segment_id)
+                       for t in (Dwell.__table__, dwell_staging))).subquery("dwell_rows")
 
 
 def _histogram_rows(engine: Engine) -> dict[tuple[str, int], tuple[list[int], float]]:

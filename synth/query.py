@@ -2,7 +2,7 @@
 six-bars out (pure: no click, no ORM, no I/O — segments are read through a
 :class:`SegmentSource`, which ``db.queries.AtlasSource`` implements over an engine).
 
-Pipeline (:func:`answer`): the segments whose stored dwell (any tolerance level) lies near the
+Pipeline (:func:`answer`): the segments whose stored dwell (an arc's dwell key) lies near the
 request (:meth:`SegmentSource.select_segments`) → output dyads fitted to every segment in one
 batch per kind (``synth.dyad``: RPR on straight segments, RPR at the lines' intersection for
 double Ball points, RRR on arcs) → a necessary screen on the crank grid
@@ -13,10 +13,11 @@ pair → with ``request.refine``, the top ones refined by a local optimisation w
 simulation in the loop (:func:`synth.refine.refine`) and ranked again. Lengths are
 crank-normalised until the end, then scaled to ``request.crank``.
 
-That pipeline runs on a sample of the atlas (:func:`select`: the stored dwells nearest a
-target per level, a budget). With ``request.complete`` it runs instead on every stored segment
-at every level (:func:`search`), pruned only by conditions no meeting six-bar can fail, the
-prescreen (:func:`prescreen`) among them: the complete answer.
+That pipeline runs on a sample of the atlas (:func:`select`: per level, the stored rows
+nearest a target — a line's dwell, an arc's dwell key, :mod:`synth.dwell_key` — a budget;
+a sparse answer samples wider, moves the fits' pivots, then reads deeper along the arcs).
+With ``request.complete`` it runs instead on every stored segment at every level
+(:func:`search`), pruned only by conditions no meeting six-bar can fail, the prescreen (:func:`prescreen`) among them: the complete answer.
 
 When fewer than ``FILL`` six-bars meet the request (and refinement is on), the nearest misses
 (``MISSES`` of them, by the sum of their excesses over the limits) are refined toward it, and
@@ -52,6 +53,7 @@ from synth.candidates import (
     screen,
     with_dimensions,
 )
+from synth.dwell_key import arc_key_target
 from synth.figures import SixBarFigures, figures_with_dwell_bounds, footprints, sixbar_figures
 from synth.output_range import Dwell
 from synth.sixbar import OutputDyad, SixBar, SixBars, crank_grid
@@ -81,9 +83,13 @@ SAMPLES = 720
 FIT_SAMPLES = 360
 #: Segments taken from the atlas per kind and tolerance level, closest to that level's target first.
 PER_LEVEL = 10
-#: With refinement on, an answer with fewer than FILL six-bars samples again, this many times
-#: wider, before its near misses are refined (the no-refinement query keeps PER_LEVEL).
+#: With refinement on, a sparse answer (fewer than FILL six-bars) samples again, this many
+#: times wider (the no-refinement query keeps PER_LEVEL).
 WIDER = 3
+#: Last, if still sparse after the moved pivots, this many times PER_LEVEL arcs per level
+#: (RRR): their dwell key ranks them (``synth.dwell_key``), and the longest rests (150° at
+#: swings of 20°–30° on ``standard``) lie a few hundred rows deep.
+DEEPER = 10
 #: Output link lengths (crank lengths) tried in the band conversion of ``_select``.
 REACHES = (0.8, 1.5, 3.0)
 #: Nearest misses refined toward a request that fewer than FILL six-bars met.
@@ -91,8 +97,8 @@ MISSES = 16
 #: An answer with fewer candidates than this (or than ``--top``) is topped up from the
 #: nearest misses, refined to meet the request (with refinement on).
 FILL = 3
-#: With refinement on, a sparse answer also tries each fit's output pivot moved off the fitted
-#: one (:func:`reseat`): at most this many moved pivots per fit, nearest first.
+#: After the wider sample, while it holds fewer than --top, each fit's output pivot moved off
+#: the fitted one (:func:`reseat`): at most this many moved pivots per fit, nearest first.
 RESEAT_PER_FIT = 1
 #: Moved six-bars simulated at a time; the reseat stops once --top segments are answered.
 RESEAT_BATCH = 128
@@ -131,8 +137,9 @@ class SegmentRow:
 
 @dataclass(frozen=True, slots=True)
 class DwellWindow:
-    """Stored dwells wanted: at tolerance ``level`` (None: any level), with a dwell angle (rad)
-    in [low, high], the ``limit`` closest to ``target``."""
+    """Stored rows wanted: at tolerance ``level`` (None: any level), with a dwell key in [low,
+    high], the ``limit`` closest to ``target``. A line's dwell key is its dwell angle (rad), an
+    arc's the dwell angle × its excursion^¼ (:mod:`synth.dwell_key`)."""
 
     level: int | None
     low: float
@@ -149,7 +156,7 @@ class SegmentSource(Protocol):
 
     def select_segments(self, kinds: tuple[str, ...], windows: Sequence[DwellWindow], *,
                         min_transmission: float, max_length: float, min_radius_ratio: float) -> list[SegmentRow]:
-        """Segments of ``kinds`` whose stored dwell lies in one of ``windows`` (each window's
+        """Segments of ``kinds`` whose dwell key lies in one of ``windows`` (each window's
         closest first, a segment once, at the level of its first match), of linkages whose
         transmission angle stays ≥ ``min_transmission`` (rad) and whose links are ≤
         ``max_length`` (cranks); an arc's radius in [longest link · ``min_radius_ratio``,
@@ -215,7 +222,8 @@ class QueryResult:
     candidates: list[Candidate]
     considered: int  #: segments fitted
     simulated: int  #: six-bars simulated
-    nearest: tuple[float | None, float | None]  #: stored dwell angles (rad) around the request when empty
+    #: stored dwell angles (rad) around the request when nothing was fitted (else None, None)
+    nearest: tuple[float | None, float | None]
     seconds: dict[str, float]
     no_match: NoMatch | None = None
     #: six-bars refined (the returned ones, or the nearest misses when nothing met the
@@ -248,31 +256,48 @@ def kinds_for(request: Request) -> tuple[str, ...]:
 
 def select(source: SegmentSource, request: Request, kinds: tuple[str, ...],
            per_level: int = PER_LEVEL) -> list[SegmentRow]:
-    """Segments worth fitting, per kind and tolerance level.
-
-    A six-bar's dwell is measured with an output band (an angle), a segment's with a path band
-    ε (a length): the output stands still while the coupler point stays within about
-    ε* = R·band/2 of the segment's line or circle, R the output link's length (slot reach or
-    rocker), a few cranks. Dwells grow like ε^¼ (four-point contact), so at level ε_ℓ the
-    segment dwell that gives the requested six-bar dwell is about dwell·(ε_ℓ/ε*)^¼; each level
-    is searched around its own target, generously — the simulation decides. ``per_level``
-    segments are taken per kind, level and target (twice that closest to the request itself)."""
-    windows = []
-    # the stored dwells closest to the request at any level, then each level's own target
-    width = request.dwell_tol + math.radians(10.0)
-    windows.append(DwellWindow(None, request.dwell - width, request.dwell + width, request.dwell, 2 * per_level))
-    for (level, eps), reach in itertools.product(source.tolerance_levels(), REACHES):
-        target = request.dwell * (eps / (reach * request.band / 2)) ** 0.25
-        width = request.dwell_tol + 0.2 * target
-        windows.append(DwellWindow(level, target - width, target + width, target, per_level))
-    # constraints the four-bar alone already decides (crank = 1, the shortest link); an arc's
-    # radius becomes the rod, which must not be the link that breaks the ratio
+    """Segments worth fitting, per kind and tolerance level (each kind's rows in the order of
+    its windows, :func:`_line_windows` and :func:`_arc_windows`). Only constraints the four-bar
+    alone decides are applied here (crank = 1, the shortest link); an arc's radius becomes the
+    rod, which must not be the link that breaks the ratio."""
     rows = []
     for kind in kinds:
+        windows = (_arc_windows if kind == "arc" else _line_windows)(source, request, per_level)
         rows += source.select_segments((kind,), windows, min_transmission=request.min_transmission,
                                        max_length=request.max_link_ratio,
                                        min_radius_ratio=1.0 / request.max_link_ratio)
     return rows
+
+
+def _line_windows(source: SegmentSource, request: Request, per_level: int) -> list[DwellWindow]:
+    """Stored dwells of lines (and double lines) worth fitting.
+
+    A six-bar's dwell is measured with an output band (an angle), a segment's with a path band
+    ε (a length): the output stands still while the coupler point stays within about
+    ε* = R·band/2 of the segment's line, R the slot's reach, a few cranks. Dwells grow like
+    ε^¼ (four-point contact), so at level ε_ℓ the segment dwell that gives the requested
+    six-bar dwell is about dwell·(ε_ℓ/ε*)^¼; each level is searched around its own target for
+    each of :data:`REACHES`, generously — the simulation decides. ``per_level`` segments are
+    taken per level and target (twice that closest to the request itself)."""
+    width = request.dwell_tol + math.radians(10.0)
+    windows = [DwellWindow(None, request.dwell - width, request.dwell + width, request.dwell, 2 * per_level)]
+    for (level, eps), reach in itertools.product(source.tolerance_levels(), REACHES):
+        target = request.dwell * (eps / (reach * request.band / 2)) ** 0.25
+        width = request.dwell_tol + 0.2 * target
+        windows.append(DwellWindow(level, target - width, target + width, target, per_level))
+    return windows
+
+
+def _arc_windows(source: SegmentSource, request: Request, per_level: int) -> list[DwellWindow]:
+    """Dwell keys of arcs worth fitting: per level, the keys nearest the one that predicts the
+    requested dwell at the requested swing and band (:func:`synth.dwell_key.arc_key_target`;
+    the rocker is implied by the swing, so no reaches are guessed), as many as
+    :func:`_line_windows` takes per level, within a factor of 2 of it."""
+    windows = []
+    for level, eps in source.tolerance_levels():
+        target = arc_key_target(request.dwell, request.swing, request.band, eps)
+        windows.append(DwellWindow(level, target / 2, 2 * target, target, len(REACHES) * per_level))
+    return windows
 
 
 @dataclass(frozen=True, slots=True)
@@ -909,7 +934,7 @@ def answer(request: Request, source: SegmentSource, *,
     fitted: list[Fitted] = []
     known: dict[int, SixBarFigures] = {}  # full figures of the sample's screened fits, by id
 
-    def sampled(per_level: int = PER_LEVEL) -> list[Fitted]:
+    def sampled(per_level: int = PER_LEVEL, kinds: tuple[str, ...] = kinds) -> list[Fitted]:
         """The sample's rows and fits (all of them are what a no-match is diagnosed and
         refined from); a wider sample adds the rows the narrower one did not have. Returns
         the new fits past the prescreen."""
@@ -928,14 +953,18 @@ def answer(request: Request, source: SegmentSource, *,
         clock["fit"] = clock.get("fit", 0.0) + time.perf_counter() - t
         return passed
 
-    def meeting(fits: list[Fitted]) -> list[Candidate]:
-        """The candidates among ``fits`` (simulated), their figures kept for a diagnosis."""
+    def meeting(fits: list[Fitted], sample: bool = True) -> list[Candidate]:
+        """The candidates among ``fits`` (simulated); the figures of the sample's fits are kept
+        for a diagnosis."""
         nonlocal simulated
         t = time.perf_counter()
         screened, n = _screened_figures(request, fits)
         simulated += n
-        # reused by a no-match diagnosis, without the footprint as the misses' own figures
-        known.update({id(f): dataclasses.replace(fig, footprint=0.0) for f, fig in screened})
+        # reused by a no-match diagnosis, without the footprint as the misses' own figures.
+        # Only the sample's fits, which ``fitted`` keeps alive: ``known`` is keyed by id(), and
+        # a moved fit's id is reused once the fit is freed (a later fit then read its figures)
+        if sample:
+            known.update({id(f): dataclasses.replace(fig, footprint=0.0) for f, fig in screened})
         clock["simulate"] = clock.get("simulate", 0.0) + time.perf_counter() - t
         return [_candidate(request, f, fig) for f, fig in screened if meets(request, fig)]
 
@@ -959,7 +988,7 @@ def answer(request: Request, source: SegmentSource, *,
             moved = reseat(request, origins)
             clock["reseat"] = clock.get("reseat", 0.0) + time.perf_counter() - t
             for b in range(0, len(moved), RESEAT_BATCH):  # the fits nearest the request first
-                met = meeting(moved[b : b + RESEAT_BATCH])
+                met = meeting(moved[b : b + RESEAT_BATCH], sample=False)
                 t = time.perf_counter()
                 found += _with_origins(request, met, origins, known)
                 clock["reseat"] += time.perf_counter() - t
@@ -976,12 +1005,18 @@ def answer(request: Request, source: SegmentSource, *,
     else:
         simulated = 0
         candidates = meeting(sampled())
-        if request.refine and len(_distinct(candidates)) < min(FILL, request.top):
-            candidates += meeting(sampled(WIDER * PER_LEVEL))  # sparse: a wider sample first
-        if request.refine and len(_distinct(candidates)) < min(FILL, request.top):
-            found = moved_pivots(candidates)  # still sparse
+        # a sparse answer (fewer than FILL) samples wider, is filled towards --top with the
+        # fits' pivots moved (short rests), and if still sparse reads deeper along the arcs'
+        # keys (long rests)
+        sparse = request.refine and len(_distinct(candidates)) < min(FILL, request.top)
+        if sparse:
+            candidates += meeting(sampled(WIDER * PER_LEVEL))
+        if sparse and len(_distinct(candidates)) < request.top:
+            found = moved_pivots(candidates)
             moved_ids = {c.id.split(REFINED_MARK)[0] for c in found} - {c.id for c in candidates}
             candidates += found
+        if sparse and "arc" in kinds and len(_distinct(candidates)) < min(FILL, request.top):
+            candidates += meeting(sampled(DEEPER * PER_LEVEL, ("arc",)))
         considered = len({r.segment_id for r in rows})
     t3 = time.perf_counter()
     top = [dataclasses.replace(c, rank=i + 1) for i, c in enumerate(_distinct(rank(request, candidates))[: request.top])]
@@ -1016,13 +1051,14 @@ def answer(request: Request, source: SegmentSource, *,
         refined = (refined[0] + tried, refined[1] + better)
         clock["refine"] = clock.get("refine", 0.0) + time.perf_counter() - t5
     if not top:
-        nearest = source.nearest_dwell_angles(kinds, request.dwell)
         if no_match is None:
             if request.complete and not fitted:
                 sampled()  # nothing in the whole atlas: diagnose the sample's near misses
             t4 = time.perf_counter()
             no_match = diagnose_by_bounds(request, fitted, known)
             clock["simulate"] = clock.get("simulate", 0.0) + time.perf_counter() - t4
+        if not no_match.fitted:  # no six-bar to show: the stored dwells the atlas has instead
+            nearest = source.nearest_dwell_angles(kinds, request.dwell)
     return QueryResult(request, top, considered, simulated, nearest, clock, no_match, refined,
                        from_misses=bool(top) and not before_refine, misses_met=misses_met,
                        reseated=sum(c.id.split(REFINED_MARK)[0] in moved_ids for c in top))

@@ -127,7 +127,10 @@ class FoundSegments:
     [0, π/2]). Per segment, level and part (``[:, level, part]``): ``has_dwell``, the interval
     ``phi_start`` < ``phi_end`` (rad, ``phi_start`` in [0, 2π)), ``max_deviation`` from the
     fitted geometry, which is ``fit_point`` + ``fit_direction`` (lines) or ``fit_point`` +
-    ``fit_radius`` (arcs).
+    ``fit_radius`` (arcs). Per segment and level (``[:, level]``), arcs only: ``excursion``,
+    the path's largest distance from that level's circle over the whole turn (crank lengths,
+    on the fine grid; 0 for lines and where there is no dwell): it sets the RRR rocker a
+    swing needs (:mod:`synth.dwell_key`).
     """
 
     linkage: I64
@@ -153,6 +156,7 @@ class FoundSegments:
     fit_point: C128
     fit_direction: C128
     fit_radius: F64
+    excursion: F64
     skipped: dict[str, int] = field(default_factory=dict)
 
     def __len__(self) -> int:
@@ -626,6 +630,27 @@ def _near_duplicates(cand: _Candidates, dwell: F64, start: F64, end: F64, keep: 
     return drop
 
 
+def _arc_excursion(A, E, cand, first, kind, has, gp, gr) -> F64:
+    """(S, levels): per arc segment (candidate ``first``) and level with a dwell, the path's
+    largest distance from that level's fitted circle (``gp``, ``gr``) over the whole fine grid;
+    0 elsewhere. In blocks of segments: a block's paths are (block, fine grid) samples."""
+    out = np.zeros(has.shape)
+    arcs = np.flatnonzero(kind == SegmentKind.ARC.code)
+    for k in range(0, arcs.size, _EXCURSION_BLOCK):
+        at = arcs[k : k + _EXCURSION_BLOCK]
+        r = first[at]
+        z = A[cand.linkage[r]] + E[cand.linkage[r]] * cand.uv[r][:, None]
+        for level in range(has.shape[1]):
+            far = np.abs(path_deviation(z, SegmentKind.ARC.code, gp[r, level][:, None], 1.0,
+                                        gr[r, level][:, None])).max(axis=1)
+            out[at, level] = np.where(has[at, level], far, 0.0)
+    return out
+
+
+#: Arc segments whose whole-turn paths are held at once by :func:`_arc_excursion`.
+_EXCURSION_BLOCK = 512
+
+
 def _assemble(A, E, cand, keep, search, start, end, dwell, gp, gd, gr, mu, skipped) -> FoundSegments:
     levels = len(search.tolerances)
     first = np.flatnonzero(keep & ((cand.partner < 0) | (np.arange(keep.size) < cand.partner)))
@@ -673,6 +698,7 @@ def _assemble(A, E, cand, keep, search, start, end, dwell, gp, gd, gr, mu, skipp
                     vals = mu[link, idx]
                     tmin[at] = np.minimum(tmin[at], np.where(inside, vals, np.inf).min(axis=1))
                     tmax[at] = np.maximum(tmax[at], np.where(inside, vals, -np.inf).max(axis=1))
+    excursion = _arc_excursion(A, E, cand, first, kind, has[:, :, 0], gp, gr)
     a_dbl = is_double
     p1, p2 = cand.point[two[:, 0]], cand.point[two[:, 1]]
     t1, t2 = cand.direction[two[:, 0]], cand.direction[two[:, 1]]
@@ -707,6 +733,7 @@ def _assemble(A, E, cand, keep, search, start, end, dwell, gp, gd, gr, mu, skipp
         fit_point=gp[two].transpose(0, 2, 1)[sel],
         fit_direction=gd[two].transpose(0, 2, 1)[sel],
         fit_radius=gr[two].transpose(0, 2, 1)[sel],
+        excursion=excursion[sel],
         skipped=dict(sorted((k, v) for k, v in skipped.items() if v)),
     )
 

@@ -386,12 +386,12 @@ def test_an_unbuildable_double_dwell_is_refused_by_the_default_arm(capsys, atlas
 
 
 def test_refinement_answers_a_missed_rrr_request_and_the_report_rebuilds_it(capsys, atlas_path, tmp_path):
-    """120° ± 1° / 45° RRR: nothing in the test atlas's samples meets it (--no-refine, the
-    wider sample a sparse refined answer takes, and their pivots moved); refined, the nearest
-    misses do — each checked
+    """105° ± 1° / 60° RRR: nothing in the test atlas's samples meets it (--no-refine, the
+    wider and deeper samples a sparse refined answer takes, and their pivots moved); refined,
+    the nearest misses do — each checked
     by the independent solver — and `dwell report` rebuilds a refined id with the same
     dimensions and figures."""
-    args = ["query", "--db", atlas_path, "--dwell", "120", "--dwell-tol", "1", "--swing", "45", "--output", "rrr"]
+    args = ["query", "--db", atlas_path, "--dwell", "105", "--dwell-tol", "1", "--swing", "60", "--output", "rrr"]
     code, out, err = run(capsys, *args, "--no-refine", "--json")
     assert code == 0 and json.loads(out)["candidates"] == [] and "no six-bar meets the request" in err
     assert json.loads(out)["refinement"] is None
@@ -412,15 +412,15 @@ def test_refinement_answers_a_missed_rrr_request_and_the_report_rebuilds_it(caps
         assert set(ref["after"]) == {"dwell_deg", "swing_deg", "output_deviation_deg"}
         assert ref["after"]["dwell_deg"] == [d["dwell_deg"] for d in cand["dwells"]]
         assert ref["after"]["output_deviation_deg"] == cand["dwells"][0]["output_deviation_deg"]
-        assert abs(ref["before"]["dwell_deg"][0] - 120) > 1  # it missed before
-        assert abs(cand["dwells"][0]["dwell_deg"] - 120) <= 1 and abs(cand["swing_deg"] - 45) <= 0.5
+        assert abs(ref["before"]["dwell_deg"][0] - 105) > 1  # it missed before
+        assert abs(cand["dwells"][0]["dwell_deg"] - 105) <= 1 and abs(cand["swing_deg"] - 60) <= 0.5
         assert min(cand["transmission_deg"].values()) >= 30
         independent = _independent(cand, 0.1)
         assert independent["swing_deg"] == pytest.approx(cand["swing_deg"], abs=0.01)
         assert cand["dwells"][0]["dwell_deg"] - 2 * STEP <= independent["dwell_deg"] <= cand["dwells"][0]["dwell_deg"] + 0.02
     first = cands[0]
     code, out, err = run(capsys, "report", "--db", atlas_path, "--candidates", first["id"], "--out", str(tmp_path / "r"),
-                         "--dwell", "120")
+                         "--dwell", "105")
     assert code == 0, err
     rebuilt = json.loads((tmp_path / "r" / "candidates.json").read_text())["candidates"][0]
     assert rebuilt["id"] == first["id"]
@@ -438,17 +438,17 @@ def test_refinement_answers_a_missed_rrr_request_and_the_report_rebuilds_it(caps
 
 
 def test_a_sparse_answer_is_topped_up_from_the_nearest_misses(capsys, atlas_path):
-    """RRR 105° ± 2° / 30°: one or two six-bars of the test atlas's sample meet it
-    (--no-refine). Refined, the answer keeps them and adds what a wider sample finds, six-bars
-    with the rocker pivot moved and near misses refined to meet the request (fewer than FILL
-    met): each meets it by the independent solver."""
+    """RRR 105° ± 2° / 45°: nothing of the test atlas's first sample meets it (--no-refine).
+    Refined, the answer keeps what it had and adds what the wider and deeper samples find,
+    six-bars with the rocker pivot moved and — those still fewer than FILL — near misses
+    refined to meet the request: each meets it by the independent solver."""
     from synth.query import FILL
 
-    args = ["query", "--db", atlas_path, "--dwell", "105", "--swing", "30", "--output", "rrr", "--json"]
+    args = ["query", "--db", atlas_path, "--dwell", "105", "--swing", "45", "--output", "rrr", "--json"]
     code, out, err = run(capsys, *args, "--no-refine")
     assert code == 0, err
     plain = json.loads(out)["candidates"]
-    assert 0 < len(plain) < FILL
+    assert len(plain) < FILL
     code, out, err = run(capsys, *args)
     assert code == 0, err
     doc = json.loads(out)
@@ -457,9 +457,12 @@ def test_a_sparse_answer_is_topped_up_from_the_nearest_misses(capsys, atlas_path
     assert {c["id"] for c in plain} <= {c["id"].split("~")[0] for c in cands}
     missed = [c for c in cands if c["refinement"] is not None and abs(c["refinement"]["before"]["dwell_deg"][0] - 105) > 2]
     assert summary["near_misses_met"] > 0 and summary["pivots_moved"] > 0
-    assert summary["near_misses_met"] + summary["pivots_moved"] == len(missed)
+    # a six-bar whose figures before missed the dwell is a near miss met or a moved pivot; one
+    # of those may also have missed only another limit (its dwell already within ± 2°)
+    assert len(missed) <= summary["near_misses_met"] + summary["pivots_moved"] <= \
+        sum(c["refinement"] is not None for c in cands)
     for cand in cands:
-        assert abs(cand["dwells"][0]["dwell_deg"] - 105) <= 2 and abs(cand["swing_deg"] - 30) <= 0.5
+        assert abs(cand["dwells"][0]["dwell_deg"] - 105) <= 2 and abs(cand["swing_deg"] - 45) <= 0.5
         independent = _independent(cand, 0.1)
         assert independent["swing_deg"] == pytest.approx(cand["swing_deg"], abs=0.01)
         assert cand["dwells"][0]["dwell_deg"] - 2 * STEP <= independent["dwell_deg"] <= cand["dwells"][0]["dwell_deg"] + 0.02

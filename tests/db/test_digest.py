@@ -47,9 +47,9 @@ def test_canonical_text_of_a_known_atlas(atlas_url):
         "1\t0\t0\t3\t2.5\t3\t1\t1\t0.5\t1.5\n"
         "#segment\tid\tlinkage_id\tkind\tphi_gen\tphi_gen2\tu\tv\n"
         f"{sg['id']}\t1\t\"arc\"\t1\t~\t1.2\t0.8\n"
-        "#dwell\tkind\tlevel\tdwell_angle\tsegment_id\ttransmission_min_cdeg\tlongest_link_milli\tradius\tphi_start"
-        "\tx\ty\tdirection\tdwell_angle2\tphi_start2\tx2\tdirection2\n"
-        f"1\t0\t0.5\t{sg['id']}\t2864\t3000\t2\t0.75\t0.5\t0.25\t~\t~\t~\t~\t~\n"
+        "#dwell\tkind\tlevel\tdwell_key\tsegment_id\tdwell_angle\ttransmission_min_cdeg\tlongest_link_milli\tradius"
+        "\tphi_start\tx\ty\tdirection\tdwell_angle2\tphi_start2\tx2\tdirection2\n"
+        f"1\t0\t0.5\t{sg['id']}\t0.5\t2864\t3000\t2\t0.75\t0.5\t0.25\t~\t~\t~\t~\t~\n"
     )
     assert lk["id"] == 1
     shard = hashlib.sha256(text.encode()).hexdigest()

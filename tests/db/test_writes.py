@@ -75,7 +75,7 @@ def test_new_build_row_and_shard_rows(engine):
 @pytest.mark.parametrize("bad", [
     dict(radius=float("nan")),        # a nullable column: SQLite would store NaN as NULL silently
     dict(radius=float("inf")),
-    dict(dwell_angle=-0.1),           # CHECK dwell_angle > 0, caught by the database
+    dict(dwell_angle=-0.1),           # CHECK dwell_key > 0 (and dwell_angle), caught by the database
 ])
 def test_a_bad_row_rolls_the_whole_shard_back(engine, bad):
     h, lock = start(engine)

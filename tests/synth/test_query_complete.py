@@ -57,7 +57,7 @@ def _every_fit(source, request: Request) -> list:
     out = []
     for kind in Q.kinds_for(request):
         for level, _ in source.tolerance_levels():
-            rows = source.select_segments((kind,), [Q.DwellWindow(level, 0.0, 7.0, 0.0, Q.ALL_ROWS)],
+            rows = source.select_segments((kind,), [Q.DwellWindow(level, 0.0, 1e300, 0.0, Q.ALL_ROWS)],
                                           min_transmission=0.0, max_length=1e300, min_radius_ratio=0.0)
             fitted = Q.fit(request, rows, kind)
             out += zip(fitted, Q._figures(request, [f.sixbar() for f in fitted], footprint=False))

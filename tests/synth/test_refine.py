@@ -84,10 +84,10 @@ def test_refined_candidates_meet_the_request_and_deviate_less(source, kw):
 
 
 def test_a_request_the_atlas_misses_is_answered_by_refining_the_nearest(source):
-    """The test atlas's samples (the query's and the wider one of a sparse answer) hold no RRR
-    six-bar for 120° ± 1° / 45°, nor do they with their rocker pivots moved: refining the
-    nearest misses toward it answers it."""
-    kw = dict(dwell=120 * DEG, dwell_tol=1 * DEG, swing=45 * DEG, output="rrr")
+    """The test atlas's samples (the query's, and the wider and deeper ones of a sparse answer)
+    hold no RRR six-bar for 105° ± 1° / 60°, nor do they with their rocker pivots moved:
+    refining the nearest misses toward it answers it."""
+    kw = dict(dwell=105 * DEG, dwell_tol=1 * DEG, swing=60 * DEG, output="rrr")
     plain = answer(Request(**kw, refine=False), source)
     assert plain.candidates == [] and plain.no_match is not None and plain.no_match.nearest is not None
     request = Request(**kw)

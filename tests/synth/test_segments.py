@@ -200,6 +200,28 @@ def test_double_ball_point_stores_both_stretches_and_their_intersection(batch):
         assert found.phi_gen2[i] > found.phi_gen[i]
 
 
+def test_excursion_is_the_paths_farthest_distance_from_the_circle(batch):
+    """The arc's excursion (what the dwell key scales by) against a 0.05° march over the whole
+    turn, which holds the search's fine grid: never above it, and short of it by at most the
+    grid's sampling (≤ 1 %; 0.15 % at worst over the 513 arc rows here); zero for lines."""
+    b, c, d, br, found = batch
+    phi = np.arange(7200) * (2 * np.pi / 7200)
+    worst, arcs = 0.0, 0
+    for i in range(len(found)):
+        arc = SEGMENT_KINDS[found.kind[i]] is SegmentKind.ARC
+        for level in range(len(found.tolerances)):
+            if not (arc and found.has_dwell[i, level, 0]):
+                assert found.excursion[i, level] == 0.0
+                continue
+            lk = found.linkage[i]
+            z = _path(b[lk], c[lk], d[lk], br[lk], found.uv[i], phi)
+            dense = np.abs(_distance(z, True, _geometry(found, i, level, 0))).max()
+            assert found.excursion[i, level] <= dense * (1 + 1e-12)
+            worst = max(worst, 1 - found.excursion[i, level] / dense)
+            arcs += 1
+    assert arcs > 100 and worst < 0.01
+
+
 def test_same_input_same_output(batch):
     b, c, d, br, found = batch
     again = find_segments(b[:4], c[:4], d[:4], br[:4], SegmentSearch.from_spec(SPEC))
