@@ -932,7 +932,8 @@ def answer(request: Request, source: SegmentSource, *,
     kinds = kinds_for(request)
     rows: list[SegmentRow] = []
     fitted: list[Fitted] = []
-    known: dict[int, SixBarFigures] = {}  # full figures of the sample's screened fits, by id
+    known: dict[int, SixBarFigures] = {}  # full figures of the screened fits, by id
+    held: list[Fitted] = []  # every fit in ``known``, kept alive: no id is reused while the answer runs
 
     def sampled(per_level: int = PER_LEVEL, kinds: tuple[str, ...] = kinds) -> list[Fitted]:
         """The sample's rows and fits (all of them are what a no-match is diagnosed and
@@ -953,18 +954,17 @@ def answer(request: Request, source: SegmentSource, *,
         clock["fit"] = clock.get("fit", 0.0) + time.perf_counter() - t
         return passed
 
-    def meeting(fits: list[Fitted], sample: bool = True) -> list[Candidate]:
-        """The candidates among ``fits`` (simulated); the figures of the sample's fits are kept
-        for a diagnosis."""
+    def meeting(fits: list[Fitted]) -> list[Candidate]:
+        """The candidates among ``fits`` (simulated), their figures kept for a diagnosis."""
         nonlocal simulated
         t = time.perf_counter()
         screened, n = _screened_figures(request, fits)
         simulated += n
         # reused by a no-match diagnosis, without the footprint as the misses' own figures.
-        # Only the sample's fits, which ``fitted`` keeps alive: ``known`` is keyed by id(), and
-        # a moved fit's id is reused once the fit is freed (a later fit then read its figures)
-        if sample:
-            known.update({id(f): dataclasses.replace(fig, footprint=0.0) for f, fig in screened})
+        # ``known`` is keyed by id(): its fits are held, or a freed (moved) fit's id would be
+        # reused by a later fit, which then read its figures
+        known.update({id(f): dataclasses.replace(fig, footprint=0.0) for f, fig in screened})
+        held.extend(f for f, _ in screened)
         clock["simulate"] = clock.get("simulate", 0.0) + time.perf_counter() - t
         return [_candidate(request, f, fig) for f, fig in screened if meets(request, fig)]
 
@@ -988,7 +988,7 @@ def answer(request: Request, source: SegmentSource, *,
             moved = reseat(request, origins)
             clock["reseat"] = clock.get("reseat", 0.0) + time.perf_counter() - t
             for b in range(0, len(moved), RESEAT_BATCH):  # the fits nearest the request first
-                met = meeting(moved[b : b + RESEAT_BATCH], sample=False)
+                met = meeting(moved[b : b + RESEAT_BATCH])
                 t = time.perf_counter()
                 found += _with_origins(request, met, origins, known)
                 clock["reseat"] += time.perf_counter() - t
