@@ -20,8 +20,9 @@ With ``request.complete`` it runs instead on every stored segment at every level
 (:func:`search`), pruned only by conditions no meeting six-bar can fail, the prescreen (:func:`prescreen`) among them: the complete answer.
 
 When fewer than ``FILL`` six-bars meet the request (and refinement is on), the nearest misses
-(``MISSES`` of them, by the sum of their excesses over the limits) are refined toward it, and
-those that then meet it join the answer; if nothing meets it even so, the result carries a
+(``MISSES`` of them, by the sum of their excesses over the limits) are refined toward it
+(the refinement's reach: a CMA-ES in a wider trust region), and those that then meet it join
+the answer; if nothing meets it even so, the result carries a
 :class:`NoMatch`: how many fitted six-bars each constraint
 rejected, the nearest six-bar and the request that it would meet. Without refinement the same
 :class:`NoMatch` comes cheaper (:func:`diagnose_by_bounds`): only the six-bars whose dwell
@@ -796,11 +797,12 @@ def _rest(sixbar: SixBar, f: SixBarFigures) -> complex | None:
 
 
 def _refined(request: Request, candidates: Sequence[Candidate],
-             before: Sequence[SixBarFigures] | None = None) -> tuple[list[Candidate], int]:
-    """``candidates`` (the user's units) refined toward ``request`` (:func:`synth.refine.refine`):
-    the refined ones with their new id, six-bar and figures and ``refined_from``, the others
-    as they were; and how many were refined. ``before``: their figures crank-normalised, if
-    at hand."""
+             before: Sequence[SixBarFigures] | None = None, *, reach: bool = False
+             ) -> tuple[list[Candidate], int]:
+    """``candidates`` (the user's units) refined toward ``request`` (:func:`synth.refine.refine`,
+    its reach for near misses): the refined ones with their new id, six-bar and figures and
+    ``refined_from``, the others as they were; and how many were refined. ``before``: their
+    figures crank-normalised, if at hand."""
     from synth.refine import refine
 
     if not candidates:
@@ -809,7 +811,7 @@ def _refined(request: Request, candidates: Sequence[Candidate],
     sixbars = [c.sixbar.scaled(1.0 / s) for c in candidates]
     before = [_scaled_figures(c.figures, 1.0 / s) for c in candidates] if before is None else before
     out, count = [], 0
-    for c, r in zip(candidates, refine(request, sixbars, before)):
+    for c, r in zip(candidates, refine(request, sixbars, before, reach=reach)):
         if not r.refined:
             out.append(c)
             continue
@@ -1076,7 +1078,7 @@ def _refined_misses(request: Request, misses: list[tuple[float, Fitted, SixBarFi
     pool = [c for c in _distinct([c for c, _ in near]) if c.id not in taken][:MISSES]
     if not pool:
         return [], 0, 0
-    tried, better = _refined(request, pool, [figures[c.id] for c in pool])
+    tried, better = _refined(request, pool, [figures[c.id] for c in pool], reach=True)
     return [c for c in tried if c.refined_from is not None], len(pool), better
 
 

@@ -331,9 +331,9 @@ def test_help_shows_the_request_defaults_and_ranges(capsys):
 
 def test_no_match_names_the_failed_constraint_and_the_nearest_six_bar(capsys, atlas_path):
     """An RRR request none of whose fitted six-bars meets it, nor any of its nearest misses
-    refined: the no-match names the constraint that rejected most, shows the nearest six-bar
-    and a request its figures meet."""
-    args = ["query", "--db", atlas_path, "--dwell", "150", "--swing", "30", "--output", "rrr"]
+    refined (150°/30° is reached since session 16; 150°/60° is not): the no-match names the
+    constraint that rejected most, shows the nearest six-bar and a request its figures meet."""
+    args = ["query", "--db", atlas_path, "--dwell", "150", "--swing", "60", "--output", "rrr"]
     code, out, err = run(capsys, *args, "--json")
     assert code == 0, err
     doc = json.loads(out)
@@ -400,7 +400,8 @@ def test_refinement_answers_a_missed_rrr_request_and_the_report_rebuilds_it(caps
     doc = json.loads(out)
     assert doc["request"]["refine"] is True and "no_match" not in doc
     summary = doc["refinement"]
-    assert summary["from_nearest_misses"] is True and summary["sixbars_improved"] == len(doc["candidates"])
+    # more misses may come to meet it than --top shows
+    assert summary["from_nearest_misses"] is True and summary["sixbars_improved"] >= len(doc["candidates"])
     assert summary["pivots_moved"] == 0
     assert summary["sixbars_refined"] >= summary["sixbars_improved"]
     cands = doc["candidates"]
