@@ -22,7 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from synth.figures import SixBarFigures
+from synth.buildability import clearances
+from synth.figures import SixBarFigures, link_ratios
 from synth.kinds import OutputTag
 from synth.sixbar import OutputDyad, SixBar, SixBars, crank_grid, simulate
 
@@ -143,14 +144,22 @@ def screen(request: Request, sixbars: SixBars, samples: int = 720) -> np.ndarray
     (the true minimum is lower still); its sampled swing lies within the swing tolerance
     widened by 2m; some ⌊(dwell − tol)/h⌋ − 1 consecutive samples lie within the band (the
     dwell holds that many); and no ⌈(dwell + tol)/h⌉ + 2 consecutive samples lie within the
-    band narrowed by 2m (that would be a longer dwell than allowed).
+    band narrowed by 2m (that would be a longer dwell than allowed). ``samples`` must be the
+    grid the figures are computed on (the query's): the link ratio, clearance and torque arm
+    are then tested as the figures have them (:func:`~synth.figures.link_ratios`,
+    :func:`~synth.buildability.clearances`), which on another grid would not be bounds.
     """
     motion = simulate(sixbars, crank_grid(samples), order=0)
     psi = motion.psi
     ok = np.all(motion.status == 0, axis=1) & (np.abs(psi[:, -1] - psi[:, 0]) < math.pi)  # rocks, not revolves
     ok &= (motion.transmission_fourbar.min(axis=1) >= request.min_transmission)
     ok &= (motion.transmission_output.min(axis=1) >= request.min_transmission)
-    return ok & output_may_meet(request, psi)
+    ok &= output_may_meet(request, psi)
+    # the figures' link ratio, clearance and torque arm are read off the positions of their
+    # grid — this one: exact tests, not bounds
+    reach, clear, _, rpr = clearances(sixbars, motion)
+    ok &= (link_ratios(sixbars, motion) <= request.max_link_ratio) & (clear >= request.min_clearance)
+    return ok & (~rpr | (reach.min(axis=1) >= request.min_arm))
 
 
 def within_band(psi: np.ndarray, length: int, band: np.ndarray | float) -> np.ndarray:

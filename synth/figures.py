@@ -185,10 +185,7 @@ def _figures_but_dwells(batch: SixBars, phi: F64, motion: SixBarMotion, psi_at, 
     mu_out = np.where(assembled, _refined_min(motion.transmission_output), 0.0)
     status = np.bitwise_or.reduce(motion.status, axis=1)
 
-    reach = np.max(np.abs(motion.z[0] - motion.pivot), axis=1)
-    links = np.stack([batch.a, batch.b, batch.c, batch.d,
-                      np.where(batch.rpr, reach, batch.rocker), np.where(batch.rpr, reach, batch.rod)], axis=1)
-    ratio = links.max(axis=1) / links.min(axis=1)
+    ratio = link_ratios(batch, motion)
 
     pts = _outline(batch, motion)
     xmin, xmax = pts.real.min(axis=1), pts.real.max(axis=1)
@@ -202,6 +199,16 @@ def _figures_but_dwells(batch: SixBars, phi: F64, motion: SixBarMotion, psi_at, 
         bounds=(float(xmin[k]), float(ymin[k]), float(xmax[k]), float(ymax[k])),
         status=int(status[k]), build=build[k],
     ) for k in range(N)]
+
+
+def link_ratios(batch: SixBars, motion: SixBarMotion) -> F64:
+    """Per row, the longest link over the shortest (the figures' ``link_ratio``): crank,
+    coupler, rocker, ground and the output dyad's two — an RPR's slot counted as its longest
+    reach |P − D| over ``motion``'s samples (any order: positions only)."""
+    reach = np.max(np.abs(motion.z[0] - motion.pivot), axis=1)
+    links = np.stack([batch.a, batch.b, batch.c, batch.d,
+                      np.where(batch.rpr, reach, batch.rocker), np.where(batch.rpr, reach, batch.rod)], axis=1)
+    return links.max(axis=1) / links.min(axis=1)
 
 
 def footprints(sixbars: SixBars, samples: int = 720) -> F64:

@@ -112,6 +112,25 @@ def test_grid_screen_never_rejects_a_six_bar_that_meets_the_request(source, outp
     assert sum(not p for p in passed) >= 0.2 * sum(not m for m in met)
 
 
+@pytest.mark.parametrize("output, ratio, clearance, arm", [("rpr", 4.0, 0.3, 0.5), ("rrr", 5.0, 0.4, 0.0),
+                                                          ("any", 6.0, 0.2, 0.3)])
+def test_grid_screen_holds_the_figures_link_ratio_clearance_and_arm(source, output, ratio, clearance, arm):
+    """On the figures' own grid the screen tests the link ratio, the clearance and the torque
+    arm as the figures have them: every fitted six-bar whose figures miss one of them is
+    rejected, none that meets the request is (tight limits, so that many miss them)."""
+    request = Request(dwell=50 * DEG, dwell_tol=20 * DEG, swing=35 * DEG, swing_tol=10 * DEG, output=output,
+                      min_transmission=20 * DEG, max_link_ratio=ratio, min_clearance=clearance, min_arm=arm)
+    fitted = [f for kind in kinds_for(request) for f in fit(request, select(source, request, (kind,)), kind)]
+    batch = SixBars.from_sixbars([f.sixbar() for f in fitted])
+    passed = screen(request, batch)
+    figures = sixbar_figures(batch, band=request.band, dwell_length=request.dwell)
+    misses = [f.link_ratio > ratio or f.build.clearance < clearance or (f.build.arm is not None and f.build.arm < arm)
+              for f in figures]
+    assert sum(misses) >= 10
+    assert not any(p and m for p, m in zip(passed, misses))
+    assert all(passed[k] for k, f in enumerate(figures) if meets(request, f))
+
+
 def test_no_match_counts_rejections_and_loosens_to_the_nearest(source):
     """Nothing meets a 60°/30° RRR request held to a 0.01° dwell: every fitted six-bar is
     counted against the constraints it misses (checked one by one), and the request the
