@@ -47,6 +47,11 @@ class CMAResult:
     iterations: np.ndarray
 
 
+def _whiten(B: np.ndarray, D: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """C^(−1/2)·v = B·diag(1/D)·Bᵀ·v per problem (C = B·diag(D²)·Bᵀ; v (W, n) or (W, T, n))."""
+    return np.einsum("kij,kj,klj,k...l->k...i", B, 1.0 / D, B, v)
+
+
 def cma_es(evaluate: Callable[[np.ndarray, np.ndarray], np.ndarray], start: np.ndarray, sigma: float,
            rngs: Sequence[np.random.Generator], *, population: int = 16, iterations: int = 100,
            box: float = math.inf, stop_below: float = -math.inf, tol_sigma: float = 1e-12) -> CMAResult:
@@ -56,8 +61,7 @@ def cma_es(evaluate: Callable[[np.ndarray, np.ndarray], np.ndarray], start: np.n
     ----------
     evaluate : callable
         ``evaluate(x, who)``: objectives (len(who), T) of the points x (len(who), T, n) of
-        problems ``who`` (indices into ``start``); lower is better, any finite float (+inf is
-        ranked last).
+        problems ``who`` (indices into ``start``); lower is better (+inf and NaN rank last).
     start : ndarray (K, n)
         Initial means; also the points the best is compared with.
     sigma : float
@@ -126,14 +130,12 @@ def cma_es(evaluate: Callable[[np.ndarray, np.ndarray], np.ndarray], start: np.n
         yw = np.einsum("i,kin->kn", w[:mu], ranked[:, :mu])
         mean[who] = mean[who] + step[who, None] * yw
         g[who] += 1
-        # C^(-1/2)·v = B·diag(1/D)·Bᵀ·v
-        whiten = lambda v: np.einsum("kij,kj,klj,k...l->k...i", B[who], 1.0 / D[who], B[who], v)  # noqa: E731
-        ps[who] = (1 - cs) * ps[who] + math.sqrt(cs * (2 - cs) * mueff) * whiten(yw)
+        ps[who] = (1 - cs) * ps[who] + math.sqrt(cs * (2 - cs) * mueff) * _whiten(B[who], D[who], yw)
         norm = np.linalg.norm(ps[who], axis=1)
         hs = norm / np.sqrt(1 - (1 - cs) ** (2 * g[who])) < (1.4 + 2 / (n + 1)) * chin
         pc[who] = (1 - cc) * pc[who] + (hs * math.sqrt(cc * (2 - cc) * mueff))[:, None] * yw
         # the negative weights act on steps rescaled to the length n has under C (eq. 46)
-        length2 = np.sum(whiten(ranked) ** 2, axis=2)
+        length2 = np.sum(_whiten(B[who], D[who], ranked) ** 2, axis=2)
         wo = np.where(w >= 0, w, w * n / np.maximum(length2, 1e-300))            # (W, λ)
         rank_mu = np.einsum("ki,kin,kim->knm", wo, ranked, ranked)
         keep = 1 + (~hs) * c1 * cc * (2 - cc) - c1 - cmu * w.sum()
