@@ -1068,18 +1068,28 @@ def answer(request: Request, source: SegmentSource, *,
 
 def _refined_misses(request: Request, misses: list[tuple[float, Fitted, SixBarFigures, dict]],
                     taken: set[str]) -> tuple[list[Candidate], int, int]:
-    """The nearest distinct misses (one per segment and output type, one of a mirror pair; not
-    one of the ``taken`` ids), ``MISSES`` of them, refined toward ``request``: (those that now
-    meet it, how many were tried, how many came out refined)."""
-    near = [(_candidate(request, fit_, fig), fig) for total, fit_, fig, _ in misses if total < math.inf]
-    figures = {}  # crank-normalised, by id (the candidates' own are in the user's units)
-    for c, fig in near:
-        figures.setdefault(c.id, fig)
-    pool = [c for c in _distinct([c for c, _ in near]) if c.id not in taken][:MISSES]
+    """The nearest distinct misses (:func:`miss_pool`, not one of the ``taken`` ids),
+    ``MISSES`` of them, refined toward ``request``: (those that now meet it, how many were
+    tried, how many came out refined)."""
+    pool, figures = miss_pool(request, misses, taken, MISSES)
     if not pool:
         return [], 0, 0
-    tried, better = _refined(request, pool, [figures[c.id] for c in pool], reach=True)
+    tried, better = _refined(request, pool, figures, reach=True)
     return [c for c in tried if c.refined_from is not None], len(pool), better
+
+
+def miss_pool(request: Request, misses: list[tuple[float, Fitted, SixBarFigures, dict]], taken: set[str],
+              n: int) -> tuple[list[Candidate], list[SixBarFigures]]:
+    """The ``n`` nearest distinct ``misses`` (:func:`_misses`' order; one per segment and
+    output type, one of a mirror pair; none that does not assemble, none of the ``taken``
+    ids) as candidates, with their figures crank-normalised (the candidates' own are in the
+    user's units)."""
+    near = [(_candidate(request, fit_, fig), fig) for total, fit_, fig, _ in misses if total < math.inf]
+    figures: dict[str, SixBarFigures] = {}
+    for c, fig in near:
+        figures.setdefault(c.id, fig)
+    pool = [c for c in _distinct([c for c, _ in near]) if c.id not in taken][:n]
+    return pool, [figures[c.id] for c in pool]
 
 
 def rebuild(ids: Sequence[str], source: SegmentSource, request: Request) -> list[Candidate]:
