@@ -51,7 +51,9 @@ from synth.ball import ball_point
 from synth.double_ball import double_ball_points
 from synth.kinds import SegmentKind
 from synth.line_scan import line_scan
-from synth.minimum_zone import minimum_zone_fit, path_deviation, peak_deviation
+from synth.dwell_measure import measure_dwells
+from synth.minimum_zone import path_deviation
+from synth.osculating_runs import osculating_runs, osculating_scores
 from synth.pole import pole
 from synth.types import C128, F64
 
@@ -67,8 +69,6 @@ END_TOLERANCE = math.radians(1e-3)
 #: Path samples a minimum-zone fit uses, spread evenly over its interval (ends included).
 FIT_SAMPLES = 21
 _FIT_SPREAD = np.linspace(0.0, 1.0, FIT_SAMPLES)
-#: Further offsets (multiples of min_dwell/2) at which the local-best score looks at the path.
-_SCORE_OFFSETS = (2, 4)
 #: A fit is accepted when its sampled (and parabola-interpolated) band is this much inside
 #: ε, so that the band holds between samples too.
 _BAND_MARGIN = 1e-3
@@ -188,18 +188,6 @@ class _Candidates:
     osc_end: F64
 
 
-def _run_lengths(inside: NDArray[np.bool_], centre: int) -> tuple[I64, I64]:
-    """Samples inside the band contiguous with ``centre`` on the left and right (last axis;
-    −1 on both sides when ``centre`` itself is outside)."""
-
-    def leading(x: NDArray[np.bool_]) -> I64:
-        first_out = np.argmax(~x, axis=-1)  # 0 also when every sample is inside
-        all_in = np.take_along_axis(x, first_out[..., None], axis=-1)[..., 0]
-        return np.where(all_in, x.shape[-1], first_out)
-
-    return leading(inside[..., centre::-1]) - 1, leading(inside[..., centre:]) - 1
-
-
 def _local_best(score: F64, cyclic_axes: tuple[int, ...], reach: int = 1) -> NDArray[np.bool_]:
     """Cells ≥ every neighbour within ``reach`` cells along each of the last axes (ties go to
     the first cell in index order). ``score`` = −inf marks pruned cells, never kept."""
@@ -238,7 +226,6 @@ def _grid_candidates(b: F64, c: F64, d: F64, br: I64, search: SegmentSearch, ski
     half = max(1, int(math.floor(math.radians(search.min_dwell_deg) / 2 / step)))
     # stage 2 looks up to half a turn each way (a dwell longer than that is not a dwell)
     reach = m // 2
-    offsets = np.arange(-reach, reach + 1)
     min_extent = math.radians(search.min_dwell_deg) / step - 2.0  # samples (sampling slack)
     fine = search.fine_per_step
     out: list[tuple] = []
@@ -266,44 +253,24 @@ def _grid_candidates(b: F64, c: F64, d: F64, br: I64, search: SegmentSearch, ski
         ]
         for kind, uv, point, direction, radius, ok, ray in kinds:
             shape = uv.shape  # (n, m) or (n, m, K)
-            extra = (None,) * (len(shape) - 2)
-            rows = np.arange(n)[(slice(None), None) + extra]
-            j = np.arange(m)[(None, slice(None)) + extra]
-
-            def deviation(offset: NDArray[np.int64]) -> F64:
-                idx = (j + offset) % m
-                z = A[rows, idx] + E[rows, idx] * uv
-                return path_deviation(z, kind, point, direction, radius)
-
-            near_minus, near_plus = np.abs(deviation(-half)), np.abs(deviation(half))
-            alive = ok & ((near_minus <= band) | (near_plus <= band))
+            grid = [np.asarray(x).reshape(n, m, -1) for x in (uv, point, direction, radius, ok)]
+            alive, score = osculating_scores(A, E, *grid, kind, half, band)
+            alive, score = alive.reshape(shape), score.reshape(shape)
             skipped["candidate pruned: cannot reach the minimum dwell"] += int(np.count_nonzero(ok & ~alive))
-            # Score for the local-best choice: how closely the path follows its osculating
-            # line/circle at ±min_dwell/2 · (1, 2, 4), each offset weighted by 1/k⁴ (a Δφ⁴
-            # stretch deviates k⁴ times more at k times the offset). Ten path points per
-            # candidate instead of a whole run.
-            score = near_minus + near_plus
-            for k in _SCORE_OFFSETS:
-                score = score + (np.abs(deviation(-k * half)) + np.abs(deviation(k * half))) / k**4
-            score = np.where(alive, -score, -np.inf)
             best = _local_best(score, cyclic_axes=(1, 2), reach=search.merge_reach)
             skipped["candidate merged: a neighbour is better"] += int(np.count_nonzero(alive & ~best))
             # the local bests' osculating runs within the pruning band: the minimum-dwell check
-            # and the window the measurement needs
+            # and the window the measurement needs; within the widest band: a first guess of the
+            # interval, good enough to tell near-duplicates apart before measuring them
             cell = np.flatnonzero(best)
             ci = np.unravel_index(cell, shape)
-            idx = (ci[1][:, None] + offsets) % m
-            z = A[ci[0][:, None], idx] + E[ci[0][:, None], idx] * uv[ci][:, None]
-            dev = path_deviation(z, kind, point[ci][:, None], direction[ci][:, None], radius[ci][:, None])
-            left, right = _run_lengths(np.abs(dev) <= band, reach)
+            left, right, in_left, in_right = osculating_runs(A, E, ci[0], ci[1], uv[ci], point[ci], direction[ci],
+                                                             radius[ci], kind, reach, band, eps_max)
             whole = (left == reach) & (right == reach)
             long_enough = (left + right >= min_extent) & ~whole
             skipped["candidate skipped: path within tolerance over the whole turn"] += int(np.count_nonzero(whole))
             skipped["candidate pruned: cannot reach the minimum dwell"] += int(np.count_nonzero(~long_enough & ~whole))
             window = (np.maximum(left, right) + 2) * fine
-            # the osculating run within the widest band (crank grid): a first guess of the
-            # interval, good enough to tell near-duplicates apart before measuring them
-            in_left, in_right = _run_lengths(np.abs(dev) <= eps_max, reach)
             osc_start = (ci[1] - in_left) * step
             osc_end = (ci[1] + in_right) * step
             best.flat[cell[~long_enough]] = False
@@ -363,70 +330,18 @@ def _double_candidates(b: F64, c: F64, d: F64, br: I64, search: SegmentSearch, s
 # stage 3: dwell intervals on the exact path, measured with minimum-zone fits (synth.minimum_zone)
 
 
-def _window_path(A: C128, E: C128, cand: _Candidates, rows: I64, width: int) -> C128:
-    """Path samples of candidates ``rows`` at fine offsets −width..width about their centres."""
-    mf = A.shape[1]
-    offs = np.arange(-width, width + 1)
-    idx = (cand.center[rows, None] + offs) % mf
-    link = cand.linkage[rows, None]
-    return A[link, idx] + E[link, idx] * cand.uv[rows, None]
-
-
-def _runs(absdev: F64, band: float, centre: int) -> tuple[I64, I64]:
-    """[lo, hi] (samples) of the run of |deviation| ≤ ``band`` through ``centre`` (hi < lo: none)."""
-    left, right = _run_lengths(absdev <= band, centre)
-    inside = absdev[:, centre] <= band
-    return np.where(inside, centre - left, centre + 1), np.where(inside, centre + right, centre)
-
-
-def _measure(A: C128, E: C128, cand: _Candidates, rows: I64, width: int, search: SegmentSearch, levels: list[int]):
-    """Fit and measure candidates ``rows`` (all with half-window ≤ ``width``) at ``levels``.
-
-    The first level starts from the candidate's osculating line/circle, each further level
-    from the previous level's fit. Returns per (candidate, level of ``levels``): run bounds
-    [lo, hi] in window samples (hi < lo: no dwell), truncated (the run reached the window's
-    edge), and the fitted geometry."""
-    z = _window_path(A, E, cand, rows, width)
-    n, size = z.shape
-    centre = width
-    kind = int(cand.kind[rows[0]])
-    assert np.all(cand.kind[rows] == kind), "one kind per measurement batch"
-    point, direction, radius = cand.point[rows].copy(), cand.direction[rows].copy(), cand.radius[rows].copy()
-    k = len(levels)
-    lo_out = np.zeros((n, k), np.int64)
-    hi_out = np.zeros((n, k), np.int64)
-    geom = (np.zeros((n, k), complex), np.zeros((n, k), complex), np.zeros((n, k)))
-    col = np.arange(size)
-    for out, level in enumerate(levels):
-        eps = search.tolerances[level]
-        lo, hi = _runs(np.abs(path_deviation(z, kind, point[:, None], direction[:, None], radius[:, None])), eps, centre)
-        ext = np.maximum((hi - lo + 1) // 4, 1)
-        for _ in range(search.window_tries):
-            t_lo = np.clip(lo - ext, 0, size - 1)
-            t_hi = np.clip(hi + ext, 0, size - 1)
-            mask = (col >= t_lo[:, None]) & (col <= t_hi[:, None])
-            # fit on FIT_SAMPLES spread over the target (the check below uses every sample)
-            pos = t_lo[:, None] + np.rint(_FIT_SPREAD * (t_hi - t_lo)[:, None]).astype(np.int64)
-            zs = np.take_along_axis(z, pos, axis=1)
-            p2, d2, r2 = minimum_zone_fit(zs, kind, point, direction, radius, search.lawson_iterations)
-            dev = np.abs(path_deviation(z, kind, p2[:, None], d2[:, None], r2[:, None]))
-            h = peak_deviation(dev, mask)
-            ok = (h <= eps * (1 - _BAND_MARGIN)) & (hi >= lo)
-            point, direction, radius = np.where(ok, p2, point), np.where(ok, d2, direction), np.where(ok, r2, radius)
-            nlo, nhi = _runs(dev, eps, centre)  # where ok, dev is the new geometry's
-            lo, hi = np.where(ok, nlo, lo), np.where(ok, nhi, hi)
-            # next target from the band's growth law: a minimum-zone band over a stretch of
-            # length L grows like L⁴ (four-point contact), so L·(ε/h)^¼ just fits
-            target = (t_hi - t_lo + 1) * (eps / np.maximum(h, 1e-300)) ** 0.25 * _GROWTH_SAFETY
-            ext = np.maximum(np.floor((target - (hi - lo + 1)) / 2), 0).astype(np.int64)
-            ext = np.where(ok, np.maximum(ext, 1), ext)
-            ext = np.where(hi >= lo, ext, 0)
-            if not np.any(ext > 0):
-                break
-        lo_out[:, out], hi_out[:, out] = lo, hi
-        geom[0][:, out], geom[1][:, out], geom[2][:, out] = point, direction, radius
-    truncated = (lo_out == 0) | (hi_out == size - 1)
-    return lo_out, hi_out, truncated, geom
+def _measure(A: C128, E: C128, cand: _Candidates, rows: I64, width: I64, search: SegmentSearch, levels: list[int]):
+    """Fit and measure candidates ``rows`` with half-windows ``width`` (fine samples) at
+    ``levels`` (:func:`synth.dwell_measure.measure_dwells`: the first level starts from the
+    candidate's osculating line/circle, each further level from the previous level's fit).
+    Returns per (candidate, level of ``levels``): run bounds [lo, hi] in window samples (hi <
+    lo: no dwell), truncated (the run reached the window's edge), and the fitted geometry."""
+    lo, hi, truncated, p, dr, r = measure_dwells(
+        np.ascontiguousarray(A[0]), np.ascontiguousarray(E), cand.linkage[rows], cand.center[rows], cand.uv[rows],
+        cand.kind[rows], np.asarray(width, np.int64), cand.point[rows], cand.direction[rows], cand.radius[rows],
+        np.array([search.tolerances[level] for level in levels]), search.window_tries, search.lawson_iterations,
+        _FIT_SPREAD, _BAND_MARGIN, _GROWTH_SAFETY)
+    return lo, hi, truncated, (p, dr, r)
 
 
 def _bisect_ends(b, c, d, br, cand: _Candidates, rows: I64, phi_in: F64, phi_out: F64, geom, band: F64) -> F64:
@@ -542,28 +457,23 @@ def _measure_rows(m: _Measured, A: C128, E: C128, cand: _Candidates, rows: I64, 
     """Measure candidates ``rows`` at ``levels`` into ``m``, each in the narrowest window class
     that holds its ``window``; a run cut short by its window is measured again in the widest."""
     mf = A.shape[1]
-    widest = mf // 2 - 1
+    classes = np.asarray(_window_classes(mf))
+    widest = int(classes[-1])
     cols = np.asarray(levels)
 
-    def run(sel: I64, width: int) -> None:
+    def run(sel: I64, width: I64) -> None:
         lo, hi, truncated, (p, dr, r) = _measure(A, E, cand, sel, width, search, levels)
-        m.lo[sel[:, None], cols], m.hi[sel[:, None], cols] = lo - width, hi - width  # offsets from the centre
+        m.lo[sel[:, None], cols], m.hi[sel[:, None], cols] = lo - width[:, None], hi - width[:, None]  # offsets from the centre
         m.truncated[sel[:, None], cols] = truncated
         m.has[sel[:, None], cols] = hi >= lo
         m.point[sel[:, None], cols], m.direction[sel[:, None], cols], m.radius[sel[:, None], cols] = p, dr, r
         m.width[sel] = width
 
-    done = np.zeros(rows.size, bool)
-    for width, kind in itertools.product(_window_classes(mf), (SegmentKind.LINE.code, SegmentKind.ARC.code)):
-        pick = (window <= width) & ~done & (cand.kind[rows] == kind)
-        if np.any(pick):
-            done |= pick
-            run(rows[pick], width)
+    if rows.size:
+        run(rows, classes[np.minimum(np.searchsorted(classes, window), classes.size - 1)])
     cut = rows[(m.truncated[rows[:, None], cols] & m.has[rows[:, None], cols]).any(axis=1) & (m.width[rows] < widest)]
-    for kind in (SegmentKind.LINE.code, SegmentKind.ARC.code):
-        sel = cut[cand.kind[cut] == kind]
-        if sel.size:
-            run(sel, widest)
+    if cut.size:
+        run(cut, np.full(cut.size, widest, np.int64))
 
 
 def _refine_ends(m: _Measured, b, c, d, br, cand: _Candidates, rows: I64, level: int, search: SegmentSearch) -> None:
