@@ -10,9 +10,15 @@ extend each cut end geometrically towards the asymptote until it leaves the sear
 sample geometrically finer around the rocker dead-centres (γ′ = 0, where the track passes
 through B and a true crossing can sit next to the false one) and towards the ends of a
 limited crank range (where the track speeds up before a toggle), find
-the polyline's self-crossings with a shapely ``STRtree``, refine each (φ₁, φ₂) by Newton's
-method on p_B(φ₁) − p_B(φ₂) = 0 with the analytic derivative p_B′ (which needs θ⁗, derived
-here), reject false crossings and deduplicate.
+the polyline's self-crossings (segment pairs with overlapping closed bounding boxes, found for
+the whole batch at once by a sort-and-sweep, then an exact intersection test), refine each
+(φ₁, φ₂) by Newton's method on p_B(φ₁) − p_B(φ₂) = 0 with the analytic derivative p_B′ (which
+needs θ⁗, derived here), reject false crossings and deduplicate.
+
+The crossing search takes the whole batch at once: a sort-and-sweep over each linkage's
+segment boxes (:mod:`synth.double_ball_kernel`, compiled, imported on first use) finds the
+same candidate pairs a shapely ``STRtree`` per linkage did (closed boxes that touch or
+overlap), and the exact test runs on all pairs together.
 """
 
 from __future__ import annotations
@@ -128,7 +134,47 @@ def theta4(motion: FourBarMotion) -> F64:
 
 def _track(a, b, c, d, branch, phi) -> tuple[C128, C128, F64, NDArray[np.bool_]]:
     """Ball point p_B in the coupler frame, its φ-derivative, θ′, and whether it is usable."""
-    m = fourbar_motion(a, b, c, d, phi, branch, order=3)
+    return _track_of(fourbar_motion(a, b, c, d, phi, branch, order=3))
+
+
+@dataclass(frozen=True, slots=True)
+class _Motion(FourBarMotion):
+    """A :class:`FourBarMotion` that keeps A, e^{iγ} and sin(θ − γ) once evaluated (the plain
+    properties evaluate them at every use: per track :func:`theta4` and
+    :func:`synth.pole.loop_condition` evaluate A five times, e^{iγ} three times).
+
+    Each is evaluated by FourBarMotion's own property, on the ones kept before it: the same
+    float operations on the same arrays, so the same bits (where A used to be a temporary it
+    is added to, and an addition rounds the same in place or not)."""
+
+    pin: C128 | None = None
+    rocker: C128 | None = None
+    sin_tg: F64 | None = None
+
+    @property
+    def A(self) -> C128:
+        if self.pin is None:
+            object.__setattr__(self, "pin", FourBarMotion.A.fget(self))  # a cache, not a change
+        return self.pin
+
+    @property
+    def e_gamma(self) -> C128:
+        if self.rocker is None:
+            object.__setattr__(self, "rocker", FourBarMotion.e_gamma.fget(self))
+        return self.rocker
+
+    @property
+    def sin_theta_gamma(self) -> F64:
+        if self.sin_tg is None:
+            object.__setattr__(self, "sin_tg", FourBarMotion.sin_theta_gamma.fget(self))
+        return self.sin_tg
+
+
+def _track_of(m: FourBarMotion) -> tuple[C128, C128, F64, NDArray[np.bool_]]:
+    """:func:`_track` from a motion already solved with ``order=3`` (the bits of a fresh solve
+    of the same arrays)."""
+    m = _Motion(m.a, m.b, m.c, m.d, m.phi, m.branch, m.e_theta, m.dtheta, m.dgamma, m.status)
+    a, b, c, d = m.a, m.b, m.c, m.d
     t1, t2, t3 = m.dtheta
     w, dw = ball_point_offset_rate(t1, t2, t3, theta4(m))
     rot = np.conj(m.e_theta) * m.A  # a·e^{i(φ−θ)}
@@ -205,47 +251,37 @@ def double_ball_points(
 
     phi = np.linspace(0.0, TWO_PI, samples, endpoint=False)
     col = lambda x: x[:, None]  # noqa: E731
-    p, _, t1, moving = _track(col(a), col(b), col(c), col(d), col(br), phi)
+    # one solve for the track and the rocker rates: order 1 and order 3 give the same θ′, γ′
+    # and status bits (the same operations; the higher orders only come after them)
+    grid = fourbar_motion(col(a), col(b), col(c), col(d), phi, col(br), order=3)
+    p, _, t1, moving = _track_of(grid)
     ok = moving & (np.abs(p) <= col(radius))
-    rates = fourbar_motion(col(a), col(b), col(c), col(d), phi, col(br), order=1)
-    never = rates.status.all(axis=1)
+    never = grid.status.all(axis=1)
     status = np.where(never, np.uint16(Status.NOT_ASSEMBLABLE), np.uint16(0)).astype(np.uint16)
     if mode == "raise" and never.any():
         k = int(np.flatnonzero(never)[0])
         raise AssemblyError(f"four-bar a={a[k]:g} b={b[k]:g} c={c[k]:g} d={d[k]:g} cannot assemble at any crank angle")
-    g1 = rates.dgamma[0]
+    g1 = grid.dgamma[0]
     every = np.ones_like(moving)
 
-    def rate_sign(which):
-        def at(link, angles):
-            m = fourbar_motion(a[link], b[link], c[link], d[link], angles, br[link], order=1)
-            return np.sign((m.dtheta, m.dgamma)[which][0])
-        return at
+    def rate_signs(link, angles, kind):  # kind 0: sign of θ′, 1: of γ′, from one solve
+        m = fourbar_motion(a[link], b[link], c[link], d[link], angles, br[link], order=1)
+        return np.sign(np.where(kind == 1, m.dgamma[0], m.dtheta[0]))
 
-    def usable_at(link, angles):
+    def usable_at(link, angles, kind):
         return _track(a[link], b[link], c[link], d[link], br[link], angles)[3]
 
+    rates = [(np.sign(t1), moving, _SAMPLE_DEPTH["theta"]), (np.sign(g1), moving, _SAMPLE_DEPTH["gamma"])]
     parts = [
-        _event_samples(phi, np.sign(t1), moving, rate_sign(0), _SAMPLE_DEPTH["theta"]),
-        _event_samples(phi, np.sign(g1), moving, rate_sign(1), _SAMPLE_DEPTH["gamma"]),
-        _event_samples(phi, moving, every, usable_at, _SAMPLE_DEPTH["edge"]),
+        _event_samples(phi, rates, rate_signs),
+        _event_samples(phi, [(moving, every, _SAMPLE_DEPTH["edge"])], usable_at),
     ]
     ext_link, ext_phi = (np.concatenate(x) for x in zip(*parts))
     ep, _, et1, eok = _track(a[ext_link], b[ext_link], c[ext_link], d[ext_link], br[ext_link], ext_phi)
     eok &= np.abs(ep) <= radius[ext_link]
 
-    seeds_link, seeds_phi1, seeds_phi2 = [], [], []
-    for k in range(n_link):
-        sel = ext_link == k
-        ph = np.concatenate([phi, ext_phi[sel]])
-        order = np.argsort(ph, kind="stable")
-        s1, s2 = _crossings(ph[order], np.concatenate([p[k], ep[sel]])[order],
-                            np.concatenate([t1[k], et1[sel]])[order], np.concatenate([ok[k], eok[sel]])[order])
-        seeds_link.append(np.full(s1.size, k))
-        seeds_phi1.append(s1)
-        seeds_phi2.append(s2)
-    link = np.concatenate(seeds_link).astype(np.int64)
-    phi1, phi2 = np.concatenate(seeds_phi1), np.concatenate(seeds_phi2)
+    rings = _rings(phi, p, t1, ok, ext_link, ext_phi, ep, et1, eok)
+    link, phi1, phi2 = _crossings(rings)
     two_passes = np.abs(np.angle(np.exp(1j * (phi1 - phi2)))) > _SAME_PASS
     link, phi1, phi2 = link[two_passes], phi1[two_passes], phi2[two_passes]
 
@@ -267,78 +303,171 @@ def double_ball_points(
     return DoubleBallPoints(link, pb, lo, hi, z1, z2, t1_dir, t2_dir, false_crossings, unconverged, status)
 
 
-def _event_samples(phi, values, usable, value_at, depth: int) -> tuple[I64, F64]:
-    """Extra crank angles approaching, geometrically from both sides, every place where
-    ``values`` changes between neighbouring samples of the grid ``phi``.
+def _event_samples(phi, events, value_at) -> tuple[I64, F64]:
+    """Extra crank angles approaching, geometrically from both sides, every place where the
+    values of one kind of event change between neighbouring samples of the grid ``phi``.
 
-    ``values`` is (linkages, samples); ``value_at(link, angles)`` evaluates it anywhere. The
-    change is located by bisection, then samples at distances Δ/2, Δ/4, … Δ/2^depth are added
-    on both sides (Δ the grid step). Used at three kinds of place (see ``_SAMPLE_DEPTH``).
+    ``events`` gives per kind (values, usable, depth), ``values`` and ``usable`` (linkages,
+    samples); ``value_at(link, angles, kind)`` evaluates the values of each element's kind
+    anywhere. The changes of all kinds are located together by bisection (one evaluation per
+    step: for θ′ and γ′ one four-bar solve), then samples at distances Δ/2, Δ/4, … Δ/2^depth
+    are added on both sides (Δ the grid step), kind after kind. Used at three kinds of place
+    (see ``_SAMPLE_DEPTH``).
     """
     nxt = np.roll(np.arange(phi.size), -1)
-    change = usable & usable[:, nxt] & (values != values[:, nxt])
-    link, k = np.nonzero(change)
-    if link.size == 0:
-        return np.zeros(0, np.int64), np.zeros(0)
+    found = []
+    for kind, (values, usable, _) in enumerate(events):
+        change = usable & usable[:, nxt] & (values != values[:, nxt])
+        link, k = np.nonzero(change)
+        found.append((link, k, values[link, k], np.full(link.size, kind)))
+    link, k, at_lo, kind = (np.concatenate(x) for x in zip(*found))
     lo = phi[k]
     hi = np.where(k + 1 < phi.size, phi[np.minimum(k + 1, phi.size - 1)], TWO_PI)
-    at_lo = values[link, k]
-    for _ in range(48):
+    for _ in range(48 if link.size else 0):
         mid = 0.5 * (lo + hi)
-        same = value_at(link, mid) == at_lo
+        same = value_at(link, mid, kind) == at_lo
         lo, hi = np.where(same, mid, lo), np.where(same, hi, mid)
-    step = (phi[1] - phi[0]) * 0.5 ** np.arange(1, depth + 1)
-    offsets = np.concatenate([-step, step])
-    ext = (0.5 * (lo + hi))[:, None] + offsets
-    return np.repeat(link, offsets.size).astype(np.int64), np.mod(ext.ravel(), TWO_PI)
+    at = 0.5 * (lo + hi)
+    out_link, out_phi = [], []
+    for q, (_, _, depth) in enumerate(events):
+        step = (phi[1] - phi[0]) * 0.5 ** np.arange(1, depth + 1)
+        offsets = np.concatenate([-step, step])
+        out_link.append(np.repeat(link[kind == q], offsets.size).astype(np.int64))
+        out_phi.append(np.mod((at[kind == q][:, None] + offsets).ravel(), TWO_PI))
+    return np.concatenate(out_link), np.concatenate(out_phi)
 
 
-def _crossings(phi: F64, p: C128, t1: F64, ok: NDArray[np.bool_]) -> tuple[F64, F64]:
-    """Self-crossings of one linkage's sampled track (φ sorted over one turn) as φ seeds."""
-    import shapely
+@dataclass(frozen=True, slots=True)
+class _Rings:
+    """Every linkage's track samples, grid and extra ones merged in crank-angle order, as one
+    flat array of closed rings: linkage k holds positions ``start[k]:start[k + 1]`` and ``nxt``
+    steps to the next sample of the same ring (from its last sample to its first)."""
 
-    n = phi.size
-    nxt = np.roll(np.arange(n), -1)
-    seg_ok = ok & ok[nxt] & (np.sign(t1) == np.sign(t1[nxt]))
-    idx = np.flatnonzero(seg_ok)
-    if idx.size < 2:
-        return np.zeros(0), np.zeros(0)
-    # Degenerate tracks would make every box overlap every other one (n² candidate pairs,
-    # tens of GB): a track that stands still (change-point linkages: the kite a = b, c = d
-    # parks it on one point for much of the turn) has segments of rounding-noise length, which
-    # cross nothing; a track folded onto a straight line (the rhombus a = b = c = d) runs over
-    # itself along its whole length and crosses itself nowhere.
-    extent = np.abs(p[idx] - p[idx].mean()).max()
-    idx = idx[np.abs(p[nxt[idx]] - p[idx]) > 1e-15 * extent]
-    if idx.size < 2:
-        return np.zeros(0), np.zeros(0)
-    p0, p1 = p[idx], p[nxt[idx]]
-    z = np.concatenate([p0, p1])
-    z = z - z.mean()
-    axis = np.exp(0.5j * np.angle(np.sum(z * z)))  # principal axis of the points: arg(Σ z²)/2
-    if np.abs((z * np.conj(axis)).imag).max() <= 1e-9 * np.abs(z).max():
-        return np.zeros(0), np.zeros(0)
-    coords = np.stack([np.c_[p0.real, p0.imag], np.c_[p1.real, p1.imag]], axis=1)
-    # the tree gives the pairs whose bounding boxes overlap; the exact test is vectorized below
-    # (3x faster than a GEOS "intersects" predicate per pair, most pairs being neighbours)
-    segments = shapely.linestrings(coords)
-    i, j = shapely.STRtree(segments).query(segments)
-    keep = i < j
-    i, j = i[keep], j[keep]
-    si, sj = idx[i], idx[j]
-    adjacent = (nxt[si] == sj) | (nxt[sj] == si)
-    i, j = i[~adjacent], j[~adjacent]
-    r, s = p1[i] - p0[i], p1[j] - p0[j]
+    start: I64
+    link: I64
+    phi: F64
+    p: C128
+    t1: F64
+    ok: NDArray[np.bool_]
+    nxt: I64
+
+
+def _rings(phi, p, t1, ok, ext_link, ext_phi, ep, et1, eok) -> _Rings:
+    """Merge the grid samples (linkages × ``phi``) with the extra samples (flat, ``ext_link``).
+
+    Each ring is in the order a stable sort by φ gives the linkage's grid followed by its extra
+    samples: on equal φ the grid sample first, then the extra ones in their given order.
+    """
+    n_link, m = p.shape
+    extra = np.lexsort((ext_phi, ext_link))  # stable: ties keep the given order
+    el = ext_link[extra]
+    count = np.bincount(el, minlength=n_link)
+    start = np.zeros(n_link + 1, np.int64)
+    np.cumsum(m + count, out=start[1:])
+    rank = np.arange(el.size) - (np.cumsum(count) - count)[el]
+    # grid samples at or before an extra one's φ come first (side="right")
+    at_ext = start[el] + rank + np.searchsorted(phi, ext_phi[extra], side="right")
+    is_ext = np.zeros(start[-1], bool)
+    is_ext[at_ext] = True
+    at_grid = np.flatnonzero(~is_ext)  # ascending: linkage-major, then φ, as the grid is
+
+    def merged(grid_values, ext_values):
+        out = np.empty(start[-1], grid_values.dtype)
+        out[at_grid] = np.broadcast_to(grid_values, (n_link, m)).ravel()
+        out[at_ext] = ext_values[extra]
+        return out
+
+    nxt = np.arange(1, start[-1] + 1)
+    nxt[start[1:] - 1] = start[:-1]
+    link = np.repeat(np.arange(n_link), np.diff(start))
+    return _Rings(start, link, merged(phi, ext_phi), merged(p, ep), merged(t1, et1), merged(ok, eok), nxt)
+
+
+def _groups(link: I64) -> tuple[I64, I64, I64]:
+    """For positions grouped by linkage (``link`` non-decreasing): each group's first position,
+    its size, and each position's group number."""
+    first = np.flatnonzero(np.r_[True, link[1:] != link[:-1]]) if link.size else np.zeros(0, np.int64)
+    size = np.diff(np.r_[first, link.size])
+    return first, size, np.repeat(np.arange(first.size), size)
+
+
+def _two_or_more(seg: I64, link: I64) -> I64:
+    """``seg`` without the linkages that have fewer than two of them (nothing to cross)."""
+    count = np.bincount(link[seg], minlength=1)
+    return seg[count[link[seg]] >= 2]
+
+
+def _segments(r: _Rings) -> I64:
+    """Positions (into ``r``) of the first samples of the track segments searched for crossings,
+    ascending (so grouped by linkage): both ends usable, θ′ of one sign along it, and at least
+    two per linkage — none of a degenerate track.
+
+    Degenerate tracks would make every box overlap every other one (n² candidate pairs, tens of
+    GB): a track that stands still (change-point linkages: the kite a = b, c = d parks it on
+    one point for much of the turn) has segments of rounding-noise length (not above 1e-15 of
+    the track's extent about its mean), which cross nothing; a track folded onto a straight
+    line (the rhombus a = b = c = d: every end point within 1e-9 of its extent of its principal
+    axis arg(Σ z²)/2) runs over itself along its whole length and crosses itself nowhere.
+    """
+    seg = r.ok & r.ok[r.nxt] & (np.sign(r.t1) == np.sign(r.t1[r.nxt]))
+    seg = _two_or_more(np.flatnonzero(seg), r.link)
+    if seg.size == 0:
+        return seg
+    first, size, group = _groups(r.link[seg])
+    p0 = r.p[seg]
+    extent = np.maximum.reduceat(np.abs(p0 - (np.add.reduceat(p0, first) / size)[group]), first)
+    seg = _two_or_more(seg[np.abs(r.p[r.nxt[seg]] - p0) > 1e-15 * extent[group]], r.link)
+    if seg.size == 0:
+        return seg
+    first, size, group = _groups(r.link[seg])
+    p0, p1 = r.p[seg], r.p[r.nxt[seg]]
+    z0, z1 = (x - ((np.add.reduceat(p0, first) + np.add.reduceat(p1, first)) / (2 * size))[group] for x in (p0, p1))
+    axis = np.exp(0.5j * np.angle(np.add.reduceat(z0 * z0 + z1 * z1, first)))[group]
+    off = np.maximum.reduceat(np.maximum(np.abs((z0 * np.conj(axis)).imag), np.abs((z1 * np.conj(axis)).imag)), first)
+    reach = np.maximum.reduceat(np.maximum(np.abs(z0), np.abs(z1)), first)
+    return seg[~(off <= 1e-9 * reach)[group]]
+
+
+def _crossings(r: _Rings) -> tuple[I64, F64, F64]:
+    """Self-crossings of every linkage's sampled track as seeds (linkage, φ₁, φ₂).
+
+    Seeds come grouped by linkage (ascending); within one, by the segment of φ₁ along the track
+    (φ₁'s segment before φ₂'s), then by φ₂'s. Candidates are the pairs of segments, not neighbours along the track,
+    whose closed bounding boxes meet (:func:`_box_pairs`); the exact test is vectorized below.
+    """
+    seg = _segments(r)
+    link = r.link[seg]
+    p0, p1 = r.p[seg], r.p[r.nxt[seg]]
+    i, j = _box_pairs(p0, p1, seg, r.nxt[seg], link)
+    u, v = p1[i] - p0[i], p1[j] - p0[j]
     qp = p0[j] - p0[i]
-    cross = lambda u, v: (np.conj(u) * v).imag  # noqa: E731
-    den = cross(r, s)
+    # the temporary stays the left factor: numpy reuses a large (≥ 256 KiB) temporary right
+    # factor of a complex product as its output, which rounds differently, and the bits would
+    # then depend on the batch size
+    cross = lambda x, y: (np.conj(x) * y).imag  # noqa: E731
+    den = cross(u, v)
     with np.errstate(divide="ignore", invalid="ignore"):
-        ti = cross(qp, s) / den
-        tj = cross(qp, r) / den
+        ti = cross(qp, v) / den
+        tj = cross(qp, u) / den
     hit = (den != 0) & (ti >= 0) & (ti <= 1) & (tj >= 0) & (tj <= 1)
     i, j, ti, tj = i[hit], j[hit], ti[hit], tj[hit]
-    span = np.mod(phi[nxt] - phi, TWO_PI)
-    return phi[idx[i]] + ti * span[idx[i]], phi[idx[j]] + tj * span[idx[j]]
+    order = np.lexsort((j, i))
+    i, j, ti, tj = i[order], j[order], ti[order], tj[order]
+    si, sj = seg[i], seg[j]
+    span_i = np.mod(r.phi[r.nxt[si]] - r.phi[si], TWO_PI)
+    span_j = np.mod(r.phi[r.nxt[sj]] - r.phi[sj], TWO_PI)
+    return link[i].astype(np.int64), r.phi[si] + ti * span_i, r.phi[sj] + tj * span_j
+
+
+def _box_pairs(p0: C128, p1: C128, start: I64, end: I64, link: I64) -> tuple[I64, I64]:
+    """Pairs (i, j), i < j, of segments p0→p1 of one linkage (``link`` non-decreasing) whose
+    closed bounding boxes meet (touching counts, as in a GEOS ``STRtree`` query) and that are
+    not neighbours along the track (``end`` of one is the ``start`` sample of the other);
+    grouped by linkage, in no particular order within one."""
+    from synth.double_ball_kernel import box_sweep  # numba: imported on first use
+
+    first, size, _ = _groups(link)
+    return box_sweep(p0, p1, start, end, first, size)
 
 
 def _refine(a, b, c, d, br, phi1, phi2, max_step) -> tuple[F64, F64, NDArray[np.bool_], C128]:
