@@ -31,12 +31,17 @@ from numpy.typing import ArrayLike, NDArray
 __all__ = ["arc_dwell_key", "arc_key_target", "predicted_rrr_dwell"]
 
 
-def arc_dwell_key(dwell: ArrayLike, excursion: ArrayLike, tolerance: float) -> NDArray[np.float64]:
+def arc_dwell_key(dwell: ArrayLike, excursion: ArrayLike, tolerance: ArrayLike) -> NDArray[np.float64]:
     """The dwell key Δ·E^¼ of arc rows with stored dwell ``dwell`` (rad) and ``excursion``
     (crank lengths) at path ``tolerance``. The excursion is taken as at least the tolerance:
     the path leaves the band where the dwell ends, so a smaller one is only the fine grid's
-    sampling (and a key must stay positive)."""
-    return np.asarray(dwell, float) * np.maximum(np.asarray(excursion, float), tolerance) ** 0.25
+    sampling (and a key must stay positive). ``tolerance`` may be an array (one per row).
+
+    The fourth root as two square roots: IEEE square roots are correctly rounded on every path,
+    so a row's key is the same float whether it is computed alone or in an array (numpy's
+    ``** 0.25`` on an array may take a vector ``pow`` whose last bit differs from a scalar's):
+    the stored keys and the content digest do not depend on how rows are batched."""
+    return np.asarray(dwell, float) * np.sqrt(np.sqrt(np.maximum(np.asarray(excursion, float), tolerance)))
 
 
 def arc_key_target(dwell: float, swing: float, band: float, tolerance: float) -> float:

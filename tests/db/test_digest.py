@@ -13,9 +13,10 @@ from sqlalchemy import insert, select, update
 from atlas.build import build_atlas
 from atlas.sweep import PRESETS
 from db import SCHEMA_VERSION, Build, Dwell, Linkage, Segment, Shard, open_atlas
-from db.digest import content_digest, format_value, shard_digest, shard_digests, stored_digest
+from db.digest import DIGEST_EXCLUDED, content_digest, format_value, shard_digest, shard_digests, stored_digest
 from db.summary import atlas_summary
 from db.writes import finish_build, write_shard
+from synth.kinds import SegmentKind
 
 
 def make(target, shards, *, spec_json='{"name": "demo"}', extra_builds=0):
@@ -117,6 +118,40 @@ def test_format_value_rules():
     assert format_value(b, None) == "~"
     assert format_value(Linkage.__table__.c.id, 2**40) == str(2**40)
     assert format_value(Segment.__table__.c.kind, "arc") == '"arc"'
+
+
+def _text(model, rows) -> str:
+    """The canonical text of ``rows`` (dicts) written out value by value with ``format_value``."""
+    cols = [c for c in model.__table__.columns if c.name not in DIGEST_EXCLUDED[model.__tablename__]]
+    key = [c.name for c in model.__table__.primary_key.columns]
+    lines = ["#" + model.__tablename__ + "\t" + "\t".join(c.name for c in cols)]
+    lines += ["\t".join(format_value(c, row[c.name]) for c in cols) for row in sorted(rows, key=lambda r: [r[n] for n in key])]
+    return "\n".join(lines) + "\n"
+
+
+def test_shard_digest_writes_what_format_value_writes():
+    """``shard_digest`` writes a row at a time with one format string; its text is
+    ``format_value``'s value by value: −0.0 (and only it) as 0, NULL as ~, 12 significant
+    digits, a kind (a ``StrEnum`` member too) as JSON, rows in key order whatever their order
+    here, NULLs in different columns row by row, and a NULL where the schema has none."""
+    base = shard_rows(0)
+    lk = dict(base.linkages[0], b=-0.0, c=1 / 3, d=-2.5e-300, transmission_min=-1e-300, transmission_max=float(2**60))
+    sg = [dict(base.segments[0], phi_gen=-0.0, u=-0.5, v=1e21),
+          dict(base.segments[0], id=base.segments[0]["id"] + 1, kind=SegmentKind.DOUBLE_LINE, phi_gen2=-0.0, v=-0.0)]
+    arc = dict(base.dwells[0], x=-0.0, y=-1e-300, phi_start=0.0)
+    line = dict(base.dwells[0], kind=0, level=2, dwell_angle=None, x=-0.0, y=None, radius=None, direction=-0.0)
+    double = dict(line, kind=2, segment_id=sg[1]["id"], dwell_angle2=1 / 3, phi_start2=-0.0, x2=-0.0, direction2=2.5)
+    dw = [double, line, arc]  # not in key order
+    text = _text(Linkage, [lk]) + _text(Segment, sg) + _text(Dwell, dw)
+    assert "1\t0\t0\t0\t0.333333333333\t-2.5e-300\t1\t1\t-1e-300\t1.15292150461e+18\n" in text
+    assert f'{sg[1]["id"]}\t1\t"double_line"\t1\t0\t1.2\t0\n' in text
+    fields = text.replace("\n", "\t").split("\t")
+    assert "-0" not in fields and "-1e-300" in fields and "-0.5" in fields
+    assert shard_digest([lk], sg, dw) == hashlib.sha256(text.encode()).hexdigest()
+    # a NULL in a column the schema keeps NOT NULL is written ~ too (a digest of what was given)
+    odd = [dict(line, phi_start=None, transmission_min_cdeg=None)]
+    assert shard_digest([lk], sg, odd) == hashlib.sha256((text.split("#dwell")[0] + _text(Dwell, odd)).encode()).hexdigest()
+    assert shard_digest([], [], []) == hashlib.sha256((_text(Linkage, []) + _text(Segment, []) + _text(Dwell, [])).encode()).hexdigest()
 
 
 def _facts(target: str, *, recompute: bool = True) -> tuple[str | None, str | None, dict]:

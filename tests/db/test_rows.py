@@ -1,0 +1,116 @@
+"""The atlas's rows (``db.rows.segment_rows``): worked out for a whole shard at once, they are
+the rows spelled out one at a time from their definitions — the same dicts, keys in the same
+order, the same Python floats and ints to the last bit — on a real shard of every kind."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+import atlas.shard
+from atlas.sweep import PRESETS
+from db.rows import SEGMENTS_PER_LINKAGE, length_ceil_milli, line_offset, segment_rows, transmission_floor_cdeg
+from synth.dwell_key import arc_dwell_key
+from synth.kinds import SEGMENT_KINDS, SegmentKind
+from synth.segments import SegmentSearch, find_segments
+
+
+@pytest.fixture(scope="module")
+def shard():
+    """(found segments, linkage rows, the shard's result) of a small demo shard, as
+    ``atlas.shard.compute_shard`` passes them to :func:`segment_rows`."""
+    seen = {}
+
+    def capture(found, links):
+        seen["found"], seen["links"] = found, links
+        return segment_rows(found, links)
+
+    mp = pytest.MonkeyPatch()
+    mp.setattr(atlas.shard, "segment_rows", capture)
+    try:
+        result = atlas.shard.compute_shard(PRESETS["demo"].replace(shard_size=16), 0)
+    finally:
+        mp.undo()
+    return seen["found"], seen["links"], result
+
+
+def _stretch(found, i, level, part, *, arc):
+    """A stretch's dwell columns, one value at a time from the definitions."""
+    p = found.fit_point[i, level, part]
+    start, end = float(found.phi_start[i, level, part]), float(found.phi_end[i, level, part])
+    if arc:
+        key = float(arc_dwell_key(end - start, found.excursion[i, level], found.tolerances[level]))
+        return {"dwell_key": key, "dwell_angle": end - start, "phi_start": start, "x": float(p.real),
+                "y": float(p.imag), "direction": None, "radius": float(found.fit_radius[i, level, part])}
+    direction = float(np.angle(found.fit_direction[i, level, part]))
+    return {"dwell_key": end - start, "dwell_angle": None, "phi_start": start, "x": line_offset(complex(p), direction),
+            "y": None, "direction": direction, "radius": None}
+
+
+def _reference(found, linkages):
+    """The rows as the module docstrings define them, a segment and a level at a time."""
+    segments, dwells = [], []
+    ordinal = {}
+    for i in range(len(found)):
+        kind = SEGMENT_KINDS[int(found.kind[i])]
+        link = linkages[int(found.linkage[i])]
+        ordinal[link["id"]] = n = ordinal.get(link["id"], -1) + 1
+        sid = link["id"] * SEGMENTS_PER_LINKAGE + n
+        double = kind is SegmentKind.DOUBLE_LINE
+        segments.append({"id": sid, "linkage_id": link["id"], "kind": kind.value, "phi_gen": float(found.phi_gen[i]),
+                         "phi_gen2": float(found.phi_gen2[i]) if double else None, "u": float(found.uv[i].real),
+                         "v": float(found.uv[i].imag)})
+        copies = {"transmission_min_cdeg": transmission_floor_cdeg(link["transmission_min"]),
+                  "longest_link_milli": length_ceil_milli(max(link["b"], link["c"], link["d"]))}
+        for level in range(len(found.tolerances)):
+            if not found.has_dwell[i, level, 0] or (double and not found.has_dwell[i, level, 1]):
+                continue
+            row = {"kind": kind.code, "level": level, "segment_id": sid, **copies,
+                   **_stretch(found, i, level, 0, arc=kind is SegmentKind.ARC)}
+            second = _stretch(found, i, level, 1, arc=False) if double else dict.fromkeys(("dwell_key", "phi_start", "x", "direction"))
+            row.update(dwell_angle2=second["dwell_key"], phi_start2=second["phi_start"], x2=second["x"],
+                       direction2=second["direction"])
+            dwells.append(row)
+    return segments, dwells
+
+
+def _same(rows, expected):
+    assert len(rows) == len(expected)
+    for row, want in zip(rows, expected):
+        assert list(row) == list(want)  # keys, in order
+        assert row == want
+        # bit for bit, and plain Python: a float stays a float (no numpy scalar), an int an int
+        assert [type(v) for v in row.values()] == [type(v) for v in want.values()]
+        assert all(math.copysign(1, v) == math.copysign(1, w) for v, w in zip(row.values(), want.values())
+                   if type(v) is float)
+
+
+def test_segment_rows_are_the_rows_spelled_out_one_at_a_time(shard):
+    found, links, result = shard
+    segments, dwells = _reference(found, links)
+    assert {d["kind"] for d in dwells} == {k.code for k in SegmentKind}  # every kind
+    assert any(d["level"] > 0 for d in dwells)
+    _same(result.segments, segments)
+    _same(result.dwells, dwells)
+    assert all(type(v) in (int, float, str, type(None)) for row in result.dwells + result.segments for v in row.values())
+
+
+def test_a_double_line_needs_both_stretches_at_a_level(shard):
+    found, links, _ = shard
+    double = np.flatnonzero(found.kind == SegmentKind.DOUBLE_LINE.code)
+    assert double.size
+    has = found.has_dwell.copy()
+    has[double, :, 1] = False  # the second stretch nowhere: no dwell row for a double line
+    lone = replace(found, has_dwell=has)
+    segments, dwells = segment_rows(lone, links)
+    assert len(segments) == len(found)
+    assert not any(d["kind"] == SegmentKind.DOUBLE_LINE.code for d in dwells)
+    _same(dwells, _reference(lone, links)[1])
+
+
+def test_no_segments_no_rows():
+    found = find_segments(np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0, int), SegmentSearch())
+    assert segment_rows(found, []) == ([], [])
