@@ -53,6 +53,7 @@ from synth.kinds import SegmentKind
 from synth.line_scan import line_scan
 from synth.dwell_measure import measure_dwells
 from synth.minimum_zone import path_deviation
+from synth.near_duplicates import duplicates
 from synth.osculating_runs import osculating_runs, osculating_scores
 from synth.pole import pole
 from synth.types import C128, F64
@@ -515,28 +516,7 @@ def _near_duplicates(cand: _Candidates, dwell: F64, start: F64, end: F64, keep: 
     order = idx[np.lexsort((-dwell[idx], cand.kind[idx], cand.linkage[idx]))]
     group = cand.linkage[order] * 2 + cand.kind[order]
     bounds = np.r_[0, np.flatnonzero(np.diff(group)) + 1, order.size]
-    for g0, g1 in zip(bounds[:-1], bounds[1:]):
-        if g1 - g0 < 2:
-            continue
-        members = order[g0:g1]  # longest first
-        uv = cand.uv[members]
-        close = np.abs(uv[:, None] - uv[None, :]) < 50 * eps
-        lo = np.maximum(start[members][:, None], start[members][None, :])
-        hi = np.minimum(end[members][:, None], end[members][None, :])
-        # intervals may be expressed a turn apart
-        for shift in (-2 * np.pi, 2 * np.pi):
-            lo2 = np.maximum(start[members][:, None], start[members][None, :] + shift)
-            hi2 = np.minimum(end[members][:, None], end[members][None, :] + shift)
-            better = (hi2 - lo2) > (hi - lo)
-            lo, hi = np.where(better, lo2, lo), np.where(better, hi2, hi)
-        shorter = np.minimum(dwell[members][:, None], dwell[members][None, :])
-        dup = close & ((hi - lo) > 0.5 * shorter)
-        np.fill_diagonal(dup, False)
-        dead = np.zeros(members.size, bool)
-        for i in range(members.size):  # greedy: a kept segment removes its duplicates
-            if not dead[i]:
-                dead[i + 1 :] |= dup[i, i + 1 :]
-        drop[members[dead]] = True
+    drop[order[duplicates(cand.uv[order], start[order], end[order], dwell[order], bounds, 50 * eps)]] = True
     return drop
 
 
