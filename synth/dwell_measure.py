@@ -7,9 +7,9 @@ z = A(φ) + e^{iθ(φ)}·uv (docs/curvature.md §3). At each tolerance level ε 
 band, crank lengths), the widest first, each level starting from the previous level's fit:
 
 1. the **run**: the window samples within ε of the current geometry contiguous with the centre;
-2. up to ``tries`` times: fit the minimum-zone geometry (:func:`synth.minimum_zone.fit_row`)
+2. up to ``tries`` times: fit the minimum-zone geometry (:func:`synth.minimum_zone_kernel.fit_row`)
    to ``spread`` samples over the run widened by ``ext`` on each side (the target); accept it
-   when its peak deviation over the target (:func:`synth.minimum_zone.window_peak`) is inside
+   when its peak deviation over the target (:func:`synth.minimum_zone_kernel.window_peak`) is inside
    the band by ``margin``, and take its run; then widen by what the band's growth law predicts
    — a minimum-zone band over a stretch of length L grows like L⁴ (four-point contact), so
    L·(ε/h)^¼ just fits (times ``safety``).
@@ -26,7 +26,7 @@ import math
 import numba
 import numpy as np
 
-from synth.minimum_zone import deviation_at, fit_row, window_peak
+from synth.minimum_zone_kernel import deviation_at, fit_row, window_peak
 
 __all__ = ["measure_dwells"]
 

@@ -4,7 +4,7 @@ follows its osculating line or circle (:mod:`synth.segments`, stages 1–2).
 For a candidate at crank step j of a linkage (coupler point ``uv``; osculating line through
 ``point`` along ``direction``, or circle about ``point`` of ``radius``) the path is sampled on
 the search's crank grid, z_k = A_k + e^{iθ_k}·uv (docs/curvature.md §3), and measured with
-:func:`synth.minimum_zone.deviation_at`:
+:func:`synth.minimum_zone_kernel.deviation_at`:
 
 * :func:`osculating_scores`: the deviation at the offsets ±h, ±2h, ±4h (h = half the minimum
   dwell): a candidate whose path leaves ``band`` at both ±h cannot hold the minimum dwell
@@ -20,7 +20,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from synth.minimum_zone import deviation_at
+from synth.minimum_zone_kernel import deviation_at
 
 __all__ = ["osculating_runs", "osculating_scores"]
 

@@ -51,10 +51,7 @@ from synth.ball import ball_point
 from synth.double_ball import double_ball_points
 from synth.kinds import SegmentKind
 from synth.line_scan import line_scan
-from synth.dwell_measure import measure_dwells
 from synth.minimum_zone import path_deviation
-from synth.near_duplicates import duplicates
-from synth.osculating_runs import osculating_runs, osculating_scores
 from synth.pole import pole
 from synth.types import C128, F64
 
@@ -230,6 +227,7 @@ def _grid_candidates(b: F64, c: F64, d: F64, br: I64, search: SegmentSearch, ski
     min_extent = math.radians(search.min_dwell_deg) / step - 2.0  # samples (sampling slack)
     fine = search.fine_per_step
     out: list[tuple] = []
+    from synth.osculating_runs import osculating_runs, osculating_scores  # numba: imported on first use
 
     for lo in range(0, b.size, _BLOCK):
         s = slice(lo, lo + _BLOCK)
@@ -337,6 +335,8 @@ def _measure(A: C128, E: C128, cand: _Candidates, rows: I64, width: I64, search:
     candidate's osculating line/circle, each further level from the previous level's fit).
     Returns per (candidate, level of ``levels``): run bounds [lo, hi] in window samples (hi <
     lo: no dwell), truncated (the run reached the window's edge), and the fitted geometry."""
+    from synth.dwell_measure import measure_dwells  # numba: imported on first use
+
     lo, hi, truncated, p, dr, r = measure_dwells(
         np.ascontiguousarray(A[0]), np.ascontiguousarray(E), cand.linkage[rows], cand.center[rows], cand.uv[rows],
         cand.kind[rows], np.asarray(width, np.int64), cand.point[rows], cand.direction[rows], cand.radius[rows],
@@ -513,6 +513,8 @@ def _near_duplicates(cand: _Candidates, dwell: F64, start: F64, end: F64, keep: 
     idx = np.flatnonzero(single)
     if idx.size < 2:
         return drop
+    from synth.near_duplicates import duplicates  # numba: imported on first use
+
     order = idx[np.lexsort((-dwell[idx], cand.kind[idx], cand.linkage[idx]))]
     group = cand.linkage[order] * 2 + cand.kind[order]
     bounds = np.r_[0, np.flatnonzero(np.diff(group)) + 1, order.size]
