@@ -45,7 +45,7 @@ def osculating_scores(A, E, uv, point, direction, radius, ok, kind, half, band):
     alive = np.zeros((n, m, K), np.bool_)
     score = np.full((n, m, K), -np.inf)
     steps = np.array([-half, half] + [s * f * half for f in SCORE_OFFSETS for s in (-1, 1)])
-    weight = np.array([1.0, 1.0] + [1.0 / f**4 for f in SCORE_OFFSETS for _ in (-1, 1)])
+    power = np.array([1.0, 1.0] + [float(f**4) for f in SCORE_OFFSETS for _ in (-1, 1)])  # k⁴ per offset
     pin = np.empty(steps.size, np.complex128)
     turn = np.empty(steps.size, np.complex128)
     for i in range(n):
@@ -64,7 +64,7 @@ def osculating_scores(A, E, uv, point, direction, radius, ok, kind, half, band):
                 s = minus + plus
                 for t in range(2, steps.size, 2):
                     s += (abs(deviation_at(pin[t] + turn[t] * u, kind, p, d, r))
-                          + abs(deviation_at(pin[t + 1] + turn[t + 1] * u, kind, p, d, r))) * weight[t]
+                          + abs(deviation_at(pin[t + 1] + turn[t + 1] * u, kind, p, d, r))) / power[t]
                 alive[i, j, q] = True
                 score[i, j, q] = -s
     return alive, score

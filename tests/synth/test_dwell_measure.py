@@ -11,7 +11,6 @@ batch it is measured in.
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from synth.dwell_measure import measure_dwells
 from synth.kinds import SegmentKind
