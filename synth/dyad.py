@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kinematics.loop import circle_intersection, line_intersection, sampled_extreme
+from kinematics.loop import line_intersection, sampled_extreme
 from kinematics.status import Status
 from synth.output_range import grid_step
 from synth.sixbar import OutputDyad
@@ -670,35 +670,24 @@ class _RrrTerms:
 
 
 def _solve_rrr(w, rho, alpha, branch, u_lo, u_hi, u_est, target, active):
-    """Solve S(u) = target for RRR dyads in the rows × candidates (R, J) at directions α."""
+    """Solve S(u) = target for RRR dyads in the rows × candidates (R, J) at directions α: the
+    dyad loop P + ρ·e^{iχ} = D + L·e^{iψ} (P relative to C₀, D = L·e^{iα}) on the samples, S
+    the rocker's swing and ∂S/∂u from its two extremes (compiled:
+    :func:`synth.dyad_kernel.rrr_swing`)."""
+    from synth.dyad_kernel import rrr_swing  # numba: imported on first use
+
     R, J = alpha.shape
     row_of = np.repeat(np.arange(R), J)
     e_f = np.exp(1j * alpha).ravel()
+    ex, ey = np.ascontiguousarray(e_f.real), np.ascontiguousarray(e_f.imag)
     br_f = branch.ravel().astype(float)
     rho_f = rho[row_of]
 
     def make_F(wk):
+        wx, wy = np.ascontiguousarray(wk.real), np.ascontiguousarray(wk.imag)
+
         def F(sel, u):
-            e = e_f[sel][:, None]
-            L = 1.0 / u[:, None]
-            rho_ = rho_f[sel][:, None]
-            # the loop P + ρ·e^{iχ} = D + L·e^{iψ} (P relative to C₀, D = L·e^{iα})
-            loop = circle_intersection(L * e - wk[row_of[sel]], rho_, L, br_f[sel][:, None])
-            e_psi = loop.e2
-            eta = np.angle(e_psi * -np.conj(e))  # ψ − (α + π): the rocker's turn from rest, D → C₀
-            hi_, lo_, khi, klo = _extremes(eta)
-            singular = loop.status != 0
-            scale = L * u[:, None] ** 2
-
-            def g(k):  # ∂ψ/∂u at the samples k alone (the two extremes): −∂ψ/∂L / u², with
-                # ∂ψ/∂L = −Re((e + e^{iψ}) e^{−iχ}) / (L sin(χ − ψ))
-                at = lambda x: np.take_along_axis(x, k[:, None], -1)  # noqa: E731
-                e_chi_k = at(loop.cos1) + 1j * at(loop.sin1)
-                inv_s = 1.0 / np.where(at(singular), np.inf, -at(loop.height) / L)
-                return (((e + at(e_psi)) * np.conj(e_chi_k)).real * inv_s / scale)[:, 0]
-
-            invalid = np.any(singular, axis=-1) | _jumps(eta)
-            return hi_ - lo_, g(khi) - g(klo), invalid
+            return rrr_swing(wx, wy, row_of[sel], ex[sel], ey[sel], br_f[sel], rho_f[sel], np.asarray(u, float))
 
         return F
 
