@@ -11,10 +11,23 @@ radians.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Iterator, Sequence
 from typing import Any
 
-from sqlalchemy import Engine, and_, bindparam, func, or_, select
+from sqlalchemy import (
+    CompoundSelect,
+    Engine,
+    Float,
+    Integer,
+    and_,
+    bindparam,
+    func,
+    literal_column,
+    or_,
+    select,
+    union_all,
+)
 from sqlalchemy.orm import Session
 
 from db.engine import atlas_name, damaged
@@ -26,6 +39,9 @@ from synth.query import DwellWindow, SegmentRow
 
 #: Segment ids bound in one statement of :func:`select_segments`.
 IN_CHUNK = 5000
+#: Walks in one statement of :func:`select_segments` (two parts of a UNION ALL each: SQLite
+#: allows 500).
+WALKS_CHUNK = 32
 
 __all__ = ["AtlasSource", "DwellWindow", "SegmentRow", "count_segments", "nearest_dwell_angles", "scan_segments",
            "select_segments", "tolerance_levels"]
@@ -39,38 +55,49 @@ def select_segments(
     min_transmission: float = 0.0,
     max_length: float = 1e300,
     min_radius_ratio: float = 0.0,
+    levels: Sequence[tuple[int, float]] | None = None,
 ) -> list[SegmentRow]:
     """Segments of ``kinds`` whose dwell key (part 0) lies in one of ``windows``: window by window,
     each window's closest first (then id, for a stable order); a segment is returned once, at
     the level of its first match. Only linkages whose transmission angle stays ≥
     ``min_transmission`` (rad) over the turn and whose links are all ≤ ``max_length`` (cranks)
     are considered; an arc's radius (the RRR rod) must lie in [longest four-bar link ·
-    ``min_radius_ratio``, ``max_length``].
+    ``min_radius_ratio``, ``max_length``]. ``levels``: the atlas's :func:`tolerance_levels`
+    if the caller has them (:class:`AtlasSource` reads them once), else they are read here.
 
-    Each (kind, level, window) is read as two walks of the dwell table's key outwards from the
+    Each (window, kind, level) is read as two walks of the dwell table's key outwards from the
     target — key ≥ target upwards, key < target downwards, each stopping after ``limit``
     rows that pass or at the window's edge. The rows hold every filtered column, so a walked
-    row costs one b-tree entry, not a join; one statement is compiled for all the walks."""
-    tolerance = dict(tolerance_levels(engine))
-    base = select(*_DWELL_COLUMNS).where(
-        Dwell.kind == bindparam("kind"), Dwell.level == bindparam("level"),
-        *_filters(min_transmission, max_length, min_radius_ratio))
-    up = (base.where(Dwell.dwell_key >= bindparam("target"), Dwell.dwell_key <= bindparam("high"))
-          .order_by(Dwell.dwell_key, Dwell.segment_id).limit(bindparam("n")))
-    down = (base.where(Dwell.dwell_key < bindparam("target"), Dwell.dwell_key >= bindparam("low"))
-            .order_by(Dwell.dwell_key.desc(), Dwell.segment_id).limit(bindparam("n")))
-    hits: list[Any] = []
-    seen: set[int] = set()
+    row costs one b-tree entry, not a join. The walks go to the server together, as one
+    statement (:func:`_walks`, built once per shape) for up to :data:`WALKS_CHUNK` of them: a
+    query's dozens of walks cost one round trip, not one each."""
+    levels = tolerance_levels(engine) if levels is None else levels
+    tolerance = dict(levels)
+    length, ratio, limits = _limits(min_transmission, max_length, min_radius_ratio)
+    # (window, kind, level) in the order the walks' rows are taken on a tie
+    walks = [(i, SegmentKind(kind).code, lv) for i, w in enumerate(windows) for kind in kinds
+             for lv in (tolerance if w.level is None else [w.level])]
+    # per window: (distance from its target, segment id, level, walk number, dwell row)
+    found: list[list[tuple]] = [[] for _ in windows]
     with engine.connect() as conn:
-        for w in windows:
-            found = []
-            for kind in kinds:
-                for lv in tolerance if w.level is None else [w.level]:
-                    args = {"kind": SegmentKind(kind).code, "level": lv, "target": w.target, "low": w.low,
-                            "high": w.high, "n": w.limit}
-                    found += conn.execute(up, args).all() + conn.execute(down, args).all()
-            found.sort(key=lambda h: (abs(h.dwell_key - w.target), h.segment_id, h.level))
-            for h in found[: w.limit]:
+        for start in range(0, len(walks), WALKS_CHUNK):
+            chunk = walks[start : start + WALKS_CHUNK]
+            args = dict(limits)
+            for k, (i, code, lv) in enumerate(chunk):
+                w = windows[i]
+                args |= {f"kind_{k}": code, f"level_{k}": lv, f"target_{k}": w.target, f"low_{k}": w.low,
+                         f"high_{k}": w.high, f"n_{k}": w.limit}
+            for h in conn.execute(_walks(len(chunk), length, ratio), args).all():
+                sid, level, key, *_, walk = h  # unpacked: a row's attributes cost ~0.3 µs each
+                i = chunk[walk // 2][0]
+                found[i].append((abs(key - windows[i].target), sid, level, 2 * start + walk, h))
+        hits: list[Any] = []
+        seen: set[int] = set()
+        for w, rows in zip(windows, found):
+            # the walk's number breaks ties as the order of the walks did; it never ties itself
+            # (a walk holds a segment once), so the rows themselves are never compared
+            rows.sort()
+            for *_, h in rows[: w.limit]:
                 if h.segment_id not in seen:
                     seen.add(h.segment_id)
                     hits.append(h)
@@ -90,9 +117,9 @@ def scan_segments(
     """Every segment of ``kind`` with a dwell at ``level``, filtered as in
     :func:`select_segments`, in batches of up to ``batch`` (in dwell-key order: a keyset walk
     of the dwell table's key, so each batch costs its own rows, not an offset)."""
+    length, ratio, limits = _limits(min_transmission, max_length, min_radius_ratio)
     page = (select(*_DWELL_COLUMNS)
-            .where(Dwell.kind == SegmentKind(kind).code, Dwell.level == level,
-                   *_filters(min_transmission, max_length, min_radius_ratio),
+            .where(Dwell.kind == SegmentKind(kind).code, Dwell.level == level, *_filters(length, ratio),
                    or_(Dwell.dwell_key > bindparam("key"),
                        and_(Dwell.dwell_key == bindparam("key"), Dwell.segment_id > bindparam("sid"))))
             .order_by(Dwell.dwell_key, Dwell.segment_id).limit(batch))
@@ -100,7 +127,7 @@ def scan_segments(
     key, sid = -1.0, -1
     while True:
         with engine.connect() as conn:
-            hits = conn.execute(page, {"key": key, "sid": sid}).all()
+            hits = conn.execute(page, {**limits, "key": key, "sid": sid}).all()
             if not hits:
                 return
             rows = _segment_rows(engine, conn, hits, tolerance)
@@ -111,10 +138,10 @@ def scan_segments(
 def count_segments(engine: Engine, kind: str, level: int, *, min_transmission: float = 0.0,
                    max_length: float = 1e300, min_radius_ratio: float = 0.0) -> int:
     """How many segments :func:`scan_segments` walks (one count over the index)."""
+    length, ratio, limits = _limits(min_transmission, max_length, min_radius_ratio)
     with engine.connect() as conn:
         return int(conn.execute(select(func.count()).select_from(Dwell).where(
-            Dwell.kind == SegmentKind(kind).code, Dwell.level == level,
-            *_filters(min_transmission, max_length, min_radius_ratio))).scalar_one())
+            Dwell.kind == SegmentKind(kind).code, Dwell.level == level, *_filters(length, ratio)), limits).scalar_one())
 
 
 #: What the walks read of a dwell row: the key, then the stretch(es) it describes.
@@ -124,35 +151,78 @@ _DWELL_COLUMNS = (Dwell.segment_id, Dwell.level, Dwell.dwell_key, stored_dwell_a
 #: What a query reads of a segment: its own columns and its linkage's (one join by primary key).
 _SEGMENTS = (select(Segment.id, Segment.kind, Segment.u, Segment.v, Segment.phi_gen, Linkage.b, Linkage.c, Linkage.d,
                     Linkage.branch, Linkage.transmission_min).join(Linkage, Segment.linkage_id == Linkage.id))
+#: :data:`_SEGMENTS` of the segment ids bound as ``ids`` (one statement object, so that its
+#: compiled form and result columns are reused, not rebuilt, at every query).
+_SEGMENTS_BY_ID = _SEGMENTS.where(Segment.id.in_(bindparam("ids", expanding=True)))
 #: Beyond this a length limit (cranks) filters nothing and would overflow a 64-bit integer.
 _NO_LENGTH_LIMIT = 1e12
 
 
-def _filters(min_transmission: float, max_length: float, min_radius_ratio: float) -> list:
+def _limits(min_transmission: float, max_length: float, min_radius_ratio: float) -> tuple[bool, bool, dict]:
+    """The request's limits for :func:`_filters`: whether a length limit and a radius ratio
+    apply (a statement has their conditions only then), and the values of the bound
+    parameters, rounded as the dwell rows store the linkage's figures (see :func:`_filters`)."""
+    length, ratio = max_length < _NO_LENGTH_LIMIT, min_radius_ratio > 0
+    values: dict[str, Any] = {"min_cdeg": transmission_floor_cdeg(min_transmission)}
+    if length:
+        values |= {"max_milli": length_ceil_milli(max_length), "max_length": max_length}
+    if ratio:
+        values["min_radius_ratio"] = min_radius_ratio
+    return length, ratio, values
+
+
+def _filters(length: bool, ratio: bool) -> list:
     """The linkage's and arc's limits on a dwell row, on its own columns: a walk never leaves
-    the table's b-tree. The linkage's figures are stored floored (transmission, 0.01°) and
+    the table's b-tree; with ``length`` a length limit, with ``ratio`` a radius ratio. The
+    limits are bound parameters (their values: :func:`_limits`), so that a statement is built
+    once for all requests. The linkage's figures are stored floored (transmission, 0.01°) and
     ceiled (longest link, 0.001 crank); comparing them with the limit rounded the same way
     keeps every linkage that meets the limit (rounding is monotone) and lets through a few
     within 0.01° or 0.001 crank of it, which the exact figures then reject."""
-    out = [Dwell.transmission_min_cdeg >= transmission_floor_cdeg(min_transmission)]
-    if max_length < _NO_LENGTH_LIMIT:
-        out += [Dwell.longest_link_milli <= length_ceil_milli(max_length),
-                or_(Dwell.radius.is_(None), Dwell.radius <= max_length)]  # an arc's radius is the rod
-    if min_radius_ratio > 0:
+    out = [Dwell.transmission_min_cdeg >= bindparam("min_cdeg")]
+    if length:
+        out += [Dwell.longest_link_milli <= bindparam("max_milli"),
+                or_(Dwell.radius.is_(None), Dwell.radius <= bindparam("max_length"))]  # an arc's radius is the rod
+    if ratio:
+        min_ratio = bindparam("min_radius_ratio", type_=Float)
         out.append(or_(Dwell.radius.is_(None), and_(
             # (milli − 2)/1000 is below the longest link whatever the rounding of its copy
-            Dwell.radius >= min_radius_ratio, Dwell.radius * 1000 >= min_radius_ratio * (Dwell.longest_link_milli - 2))))
+            Dwell.radius >= min_ratio, Dwell.radius * 1000 >= min_ratio * (Dwell.longest_link_milli - 2))))
     return out
 
 
+@functools.cache
+def _walks(n: int, length: bool, ratio: bool) -> CompoundSelect:
+    """One statement for ``n`` (window, kind, level) walks of :func:`select_segments`, the
+    limits as :func:`_filters` (``length``, ``ratio``): walk ``k`` reads ``kind_k``,
+    ``level_k`` from ``target_k`` up to ``high_k`` and down to ``low_k``, ``n_k`` rows each
+    way. A row's ``walk`` is 2k upwards, 2k + 1 downwards. Each walk is a subquery: its
+    ORDER BY and LIMIT then hold inside the UNION ALL (SQLite allows them nowhere else)."""
+    parts = []
+    for k in range(n):
+        base = select(*_DWELL_COLUMNS).where(Dwell.kind == bindparam(f"kind_{k}"),
+                                             Dwell.level == bindparam(f"level_{k}"),
+                                             *_filters(length, ratio))
+        target, limit = bindparam(f"target_{k}"), bindparam(f"n_{k}")
+        up = (base.where(Dwell.dwell_key >= target, Dwell.dwell_key <= bindparam(f"high_{k}"))
+              .order_by(Dwell.dwell_key, Dwell.segment_id).limit(limit))
+        down = (base.where(Dwell.dwell_key < target, Dwell.dwell_key >= bindparam(f"low_{k}"))
+                .order_by(Dwell.dwell_key.desc(), Dwell.segment_id).limit(limit))
+        parts += [walk.subquery().select().add_columns(literal_column(str(2 * k + way), Integer).label("walk"))
+                  for way, walk in enumerate((up, down))]
+    return union_all(*parts)
+
+
 def _parts(dw) -> tuple[tuple, ...]:
-    """A walked dwell row as :attr:`SegmentRow.parts`: per stretch (phi_start, phi_end, x, y,
-    direction or None, radius or None); a line's point is its foot from A0."""
-    if dw.radius is not None:
-        return ((dw.phi_start, dw.phi_start + dw.dwell_angle, dw.x, dw.y, None, dw.radius),)
-    parts = [_line_part(dw.phi_start, dw.dwell_angle, dw.x, dw.direction)]
-    if dw.dwell_angle2 is not None:
-        parts.append(_line_part(dw.phi_start2, dw.dwell_angle2, dw.x2, dw.direction2))
+    """A walked dwell row (:data:`_DWELL_COLUMNS`, then anything) as :attr:`SegmentRow.parts`:
+    per stretch (phi_start, phi_end, x, y, direction or None, radius or None); a line's point
+    is its foot from A0."""
+    _, _, _, angle, phi_start, x, y, direction, radius, angle2, phi_start2, x2, direction2, *_ = dw
+    if radius is not None:
+        return ((phi_start, phi_start + angle, x, y, None, radius),)
+    parts = [_line_part(phi_start, angle, x, direction)]
+    if angle2 is not None:
+        parts.append(_line_part(phi_start2, angle2, x2, direction2))
     return tuple(parts)
 
 
@@ -172,7 +242,7 @@ def _segment_rows(engine: Engine, conn, hits: Sequence, tolerance: dict[int, flo
     # the ids go to the server as bound parameters: a few thousand per statement (SQLite
     # takes at most 32 766 in one, PostgreSQL 65 535)
     for k in range(0, len(ids), IN_CHUNK):
-        segs.update((r.id, r) for r in conn.execute(_SEGMENTS.where(Segment.id.in_(ids[k : k + IN_CHUNK]))))
+        segs.update((r[0], r) for r in conn.execute(_SEGMENTS_BY_ID, {"ids": ids[k : k + IN_CHUNK]}).all())
     lost = [h.segment_id for h in hits if h.segment_id not in segs]
     if lost:  # dwell rows whose segment (or its linkage) was deleted: only a damaged atlas
         raise damaged(atlas_name(engine), f"dwell rows name segment {lost[0]}, which does not exist")
@@ -182,10 +252,10 @@ def _segment_rows(engine: Engine, conn, hits: Sequence, tolerance: dict[int, flo
 def _segment_row(seg, level: int, tolerance: float, dw) -> SegmentRow:
     """A segment (:data:`_SEGMENTS` row) at ``level`` with its dwell row ``dw`` (None: no
     dwell there, ``parts`` empty)."""
+    segment_id, kind, u, v, phi_gen, b, c, d, branch, transmission_min = seg
     return SegmentRow(
-        segment_id=seg.id, kind=seg.kind, level=level, tolerance=tolerance, b=seg.b, c=seg.c, d=seg.d,
-        branch=seg.branch, u=seg.u, v=seg.v, phi_gen=seg.phi_gen, parts=() if dw is None else _parts(dw),
-        fourbar_transmission_min=seg.transmission_min,
+        segment_id=segment_id, kind=kind, level=level, tolerance=tolerance, b=b, c=c, d=d, branch=branch, u=u, v=v,
+        phi_gen=phi_gen, parts=() if dw is None else _parts(dw), fourbar_transmission_min=transmission_min,
     )
 
 
@@ -242,7 +312,8 @@ class AtlasSource:
 
     def select_segments(self, kinds, windows, *, min_transmission, max_length, min_radius_ratio):
         return select_segments(self.engine, kinds, windows, min_transmission=min_transmission,
-                               max_length=max_length, min_radius_ratio=min_radius_ratio)
+                               max_length=max_length, min_radius_ratio=min_radius_ratio,
+                               levels=self.tolerance_levels())
 
     def segment(self, segment_id: int, level: int) -> SegmentRow | None:
         return segment_row(self.engine, segment_id, level)
