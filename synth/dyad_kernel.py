@@ -4,10 +4,13 @@ the path samples instead of a dozen ``(rows, directions, samples)`` temporaries)
 S(u) with its derivative that the swing solve iterates on (:func:`rrr_swing`: the dyad loop,
 the rocker's extremes and ∂S/∂u in one pass per dyad instead of ~20 array passes).
 
-The same operations in the same order as the numpy expressions they replace (no fused
-multiply-adds, reductions by max and min, which round nothing), so the fits are the same bit
-for bit (``tests/synth/test_dyad.py`` compares them); the transcendental parts (the
-direction's cosine and sine, the branch, the final arccos) stay in numpy around it.
+The ranking runs the same operations in the same order as the numpy expressions it replaced
+(no fused multiply-adds, reductions by max and min, which round nothing), so its numbers are
+the same bit for bit (``tests/synth/test_dyad.py`` compares them); the transcendental parts
+(the direction's cosine and sine, the branch, the final arccos) stay in numpy around it. The
+swing is not bit for bit its numpy evaluation: numpy's ``arctan2`` and complex products may
+run on other instructions (SVML, fused multiply-adds on AVX-512); the test holds the two to
+1e-12 and the derivative to central differences.
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ import math
 import numba
 import numpy as np
 
-from kinematics.loop import COINCIDENT_EPS, HERON_SAFE, TOGGLE_EPS
+from synth.sixbar_kernel import closing_point
 
 __all__ = ["direction_estimates", "rrr_swing"]
 
@@ -85,58 +88,20 @@ def _vertex_value(y, k, sign):
 def _rrr_swing(wx, wy, rows, ex, ey, br, rho, u, S, dS, invalid):
     M = wx.shape[1]
     eta = np.empty(M)
-    c1a, s1a, c2a, s2a, ha = np.empty(M), np.empty(M), np.empty(M), np.empty(M), np.empty(M)
-    sing = np.empty(M, np.bool_)
+    c1a, s1a, c2a, s2a, k2a = np.empty(M), np.empty(M), np.empty(M), np.empty(M), np.empty(M)
     for i in range(rows.shape[0]):
         r = rows[i]
         L = 1.0 / u[i]
-        l1, l2 = rho[i], L
         lx, ly = L * ex[i], L * ey[i]
-        d21, s12 = l2 - l1, l1 + l2
-        scaled = (s12 > HERON_SAFE) or (s12 < 1.0 / HERON_SAFE)
         any_sing = False
         for k in range(M):
-            # kinematics.loop.circle_intersection_xy of R = D − P (D = L·e, P relative to C₀),
-            # l1 = ρ, l2 = L, element by element
-            rx, ry = lx - wx[r, k], ly - wy[r, k]
-            r2 = rx * rx + ry * ry
-            rr = math.sqrt(r2)
-            if scaled:
-                heron = ((rr + d21) / s12) * ((s12 - rr) / s12) * ((rr - d21) / s12) * ((rr + s12) / s12)
-                root = math.sqrt(max(heron, 0.0)) * (s12 * s12)
-            else:
-                heron = (rr + d21) * (s12 - rr) * (rr - d21) * (rr + s12)
-                root = math.sqrt(max(heron, 0.0))
-            coincident = rr <= COINCIDENT_EPS * s12
-            bad = (heron < 0) or coincident
-            if coincident:
-                rr = 1.0
-            inv_2r = 0.5 / (l1 * rr)
-            cb = (r2 - d21 * s12) * inv_2r
-            sb = root * (br[i] * inv_2r)
-            if bad:
-                cb = min(max(cb, -1.0), 1.0)
-                if coincident:
-                    rx, ry = 1.0, 0.0
-            inv_r = 1.0 / rr
-            c1 = (rx * cb - ry * sb) * inv_r
-            s1 = (rx * sb + ry * cb) * inv_r
-            height = rr * sb
-            toggle = abs(height) < TOGGLE_EPS * l2
-            inv_l2 = 1.0 / l2
-            c2 = (l1 * c1 - rx) * inv_l2
-            s2 = (l1 * s1 - ry) * inv_l2
-            if bad:
-                mag = math.hypot(c2, s2)
-                if mag == 0:
-                    c2 = 1.0
-                else:
-                    c2, s2 = c2 / mag, s2 / mag
+            # the loop closed at R = D − P (D = L·e, P relative to C₀), l1 = ρ, l2 = L; k2 is
+            # 1/height, 0 where the loop does not close or toggles
+            c1, s1, c2, s2, status, _, k2 = closing_point(lx - wx[r, k], ly - wy[r, k], rho[i], L, br[i])
             # η = arg(e^{iψ}·(−ē)): the rocker's turn from rest
             eta[k] = math.atan2(c2 * ey[i] + s2 * (-ex[i]), c2 * (-ex[i]) - s2 * ey[i])
-            c1a[k], s1a[k], c2a[k], s2a[k], ha[k] = c1, s1, c2, s2, height
-            sing[k] = bad or toggle
-            any_sing = any_sing or sing[k]
+            c1a[k], s1a[k], c2a[k], s2a[k], k2a[k] = c1, s1, c2, s2, k2
+            any_sing = any_sing or status != 0
         khi = np.argmax(eta)
         klo = np.argmin(eta)
         S[i] = _vertex_value(eta, khi, 1) - _vertex_value(eta, klo, -1)
@@ -150,10 +115,10 @@ def _rrr_swing(wx, wy, rows, ex, ey, br, rho, u, S, dS, invalid):
         g = np.empty(2)
         for j in range(2):
             k = khi if j == 0 else klo
-            # ∂ψ/∂u = −∂ψ/∂L / u², ∂ψ/∂L = −Re((e + e^{iψ}) e^{−iχ}) / (L sin(χ − ψ))
-            inv_s = 0.0 if sing[k] else 1.0 / (-ha[k] / L)
+            # ∂ψ/∂u = −∂ψ/∂L / u², ∂ψ/∂L = −Re((e + e^{iψ}) e^{−iχ}) / (L sin(χ − ψ)),
+            # L sin(χ − ψ) = −height (0 at a flagged sample)
             re = (ex[i] + c2a[k]) * c1a[k] - (ey[i] + s2a[k]) * (-s1a[k])
-            g[j] = re * inv_s / scale
+            g[j] = re * (-L * k2a[k]) / scale
         dS[i] = g[0] - g[1]
 
 
@@ -164,9 +129,9 @@ def rrr_swing(wx, wy, rows, ex, ey, branch, rho, u):
     at D = L·(ex + i·ey)[i] from C₀, rod ``rho[i]``, loop ``branch[i]`` (±1). Returns (S,
     dS/du, invalid), each ``(len(rows),)``; invalid: the loop does not close or toggles at a
     sample, or the rocker's angle jumps by more than π between samples (it revolves). The
-    same operations in the same order as the numpy evaluation it replaces (the rocker's
-    extremes by :func:`kinematics.loop.sampled_extreme`, the loop by
-    :func:`kinematics.loop.circle_intersection`)."""
+    loop is the six-bar kernel's scalar circle intersection
+    (:func:`synth.sixbar_kernel.closing_point`), the extremes as
+    :func:`kinematics.loop.sampled_extreme` finds them."""
     n = rows.shape[0]
     S, dS, invalid = np.empty(n), np.empty(n), np.empty(n, np.bool_)
     _rrr_swing(wx, wy, rows, ex, ey, branch, rho, u, S, dS, invalid)

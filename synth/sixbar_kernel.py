@@ -29,14 +29,14 @@ import numpy as np
 from kinematics.loop import COINCIDENT_EPS, HERON_SAFE, TOGGLE_EPS
 from kinematics.status import Status
 
-__all__ = ["output_angles", "sixbar_positions"]
+__all__ = ["closing_point", "output_angles", "sixbar_positions"]
 
 _NA = int(Status.NOT_ASSEMBLABLE)
 _TOGGLE = int(Status.TOGGLE)
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
-def _closing_point(rx, ry, l1, l2, branch):
+def closing_point(rx, ry, l1, l2, branch):
     """Scalar :func:`kinematics.loop.circle_intersection_xy`: (cos1, sin1, cos2, sin2, status,
     k1, k2), e2 put back on the unit circle where the loop does not close, k1 and k2 the Cramer
     factors of the rates (0 where flagged) — the same operations."""
@@ -137,7 +137,7 @@ def _positions(params, rpr, phi, pin_eps, order, full, points, angles, derivs, s
             else:
                 cphi, sphi = math.cos(phi[row, j]), math.sin(phi[row, j])
             # four-bar: circles about A (radius b) and B0 (radius c), R = B0 − A
-            ct, st, cg, sg, fb, fk1, fk2 = _closing_point(di - ai * cphi, -(ai * sphi), bi, ci, bri)
+            ct, st, cg, sg, fb, fk1, fk2 = closing_point(di - ai * cphi, -(ai * sphi), bi, ci, bri)
             status_fourbar[i, j] = fb
             ax, ay = ai * cphi, ai * sphi
             wx, wy = ct * ui - st * vi, ct * vi + st * ui  # e^{iθ}(u + iv)
@@ -192,7 +192,7 @@ def _positions(params, rpr, phi, pin_eps, order, full, points, angles, derivs, s
                     mu_output[i, j] = half_pi
             else:
                 # circles about P (radius ρ) and D (radius L), R = D − P
-                cx, cy, ex, ey, st_dyad, dk1, dk2 = _closing_point(dxi - zx, dyi - zy, rhoi, li, dbri)
+                cx, cy, ex, ey, st_dyad, dk1, dk2 = closing_point(dxi - zx, dyi - zy, rhoi, li, dbri)
                 if full:
                     moving_pivot[i, j] = complex(dxi + li * ex, dyi + li * ey)
                     mu_output[i, j] = 0.0 if st_dyad & _NA else _fold(cx * ex + cy * ey)
