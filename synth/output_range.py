@@ -12,9 +12,9 @@ exact simulation (:func:`~synth.sixbar.simulate`). Angles in radians; a crank in
 [start, end] has start in [φ₀, φ₀ + 2π) and end = start + angle, so it may pass 2π.
 
 On the grid, the longest window within the band from every start comes from one compiled pass
-per row (:func:`synth.band_windows.longest_windows`, O(M)), other window ranges from sparse
-tables of block maxima/minima (O(M log M), vectorised over rows and starts); the refinement
-on the exact path is described in :func:`dwell_intervals` and :func:`output_deviation`
+per row (:func:`synth.band_windows.longest_windows`, O(M)), the extremes over other ranges of
+samples from one compiled read of each range (:func:`synth.sample_ranges.range_extremes`); the
+refinement on the exact path is described in :func:`dwell_intervals` and :func:`output_deviation`
 (checked against brute-force fine grids in ``tests/synth/test_sixbar.py`` and
 ``tests/synth/test_query_stage.py``).
 """
@@ -54,8 +54,6 @@ PsiAt = Callable[[F64], F64]
 REFINE_STEP = math.radians(0.008)
 #: Most subdivisions of one grid step in a refinement (bounds the work on coarse grids).
 MAX_FINE = 128
-#: Elements of the (start, end) pair table of the dwell refinement evaluated at once.
-_PAIR_BUDGET = 1 << 21
 #: Exact points per grid step in the dwell's (start, end) pair search.
 DWELL_FINE = 16
 #: Grid windows refined per dwell (those that may hold the longest exact interval).
@@ -295,7 +293,6 @@ def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: i
     # the parabola through it and its neighbours: a peak between samples (h²|ψ″|/8) inside a
     # dwell must not be missed once the ends are pushed to the band's edge.
     upper, lower = _vertex_bounds(E) if psi_at is not None else (E, E)
-    tab_max, tab_min = _sparse_tables(upper, m, lower)
     length, w_max, w_min = longest_windows(upper, lower, band_r, m)
 
     rows = np.arange(R)
@@ -316,7 +313,7 @@ def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: i
     s = np.stack(starts, axis=1)  # (R, C)
     n = np.maximum(np.stack(lens, axis=1), 1)
     fnd = np.stack(found, axis=1)
-    hi_in, lo_in = _range_query(tab_max, tab_min, s, n)
+    hi_in, lo_in = _range_extremes(upper, lower, s, n)
 
     whole = n >= m
     start = phi0 + s * h
@@ -331,7 +328,7 @@ def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: i
         cand = np.stack([_near_longest(sc, nn, reach) for sc, nn in zip(scores, lens)], axis=1)  # (R, C, W)
         cs, ok = cand[..., 0, :], cand[..., 1, :].astype(bool)
         nn = np.broadcast_to(n[..., None], cs.shape)
-        c_start, c_end, *c_rest, c_reach = _refine_dwell(E, cs, nn, band_r, phi0, h, psi_at, lead, tab_max, tab_min)
+        c_start, c_end, *c_rest, c_reach = _refine_dwell(E, cs, nn, band_r, phi0, h, psi_at, lead, upper, lower)
         best = np.argmax(np.where(ok, c_reach - c_start, -np.inf), axis=-1)[..., None]
         pick = lambda x: np.take_along_axis(x, best, -1)[..., 0]
         start, end, low, high = map(pick, (c_start, c_end, *c_rest[:2]))
@@ -339,7 +336,7 @@ def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: i
         # may slide, one end gaining more than the other loses, to where another constraint binds
         step = h / DWELL_FINE
         for _ in range(2):
-            inner_hi, inner_lo = _samples_between(tab_max, tab_min, start + step, end - step, phi0, h)
+            inner_hi, inner_lo = _samples_between(upper, lower, start + step, end - step, phi0, h)
             start2, end2, low2, high2, _, _, _ = _refine_pair(
                 start, end, 0.5 * (low + high), inner_hi, inner_lo, band_r, step, psi_at, lead)
             better = end2 - start2 > end - start
@@ -474,43 +471,11 @@ def _vertex_bounds(E: F64) -> tuple[F64, F64]:
     return upper, lower
 
 
-def _sparse_tables(E: F64, max_len: int, E_min: F64 | None = None) -> tuple[list[F64], list[F64]]:
-    """Level j holds the max of E (min of ``E_min``, default E) over blocks [i, i + 2^j), for
-    2^j ≤ ``max_len``; the tail where a block would run past the end is +inf/−inf, so such a
-    block is never within a band."""
-    tab_max, tab_min = [E], [E if E_min is None else E_min]
-    j = 1
-    T = E.shape[1]
-    while (1 << j) <= max_len:
-        half = 1 << (j - 1)
-        pm, pn = tab_max[-1], tab_min[-1]
-        nm = np.empty_like(pm)
-        nn = np.empty_like(pn)
-        np.maximum(pm[:, : T - half], pm[:, half:], out=nm[:, : T - half])
-        np.minimum(pn[:, : T - half], pn[:, half:], out=nn[:, : T - half])
-        nm[:, T - half:] = np.inf
-        nn[:, T - half:] = -np.inf
-        tab_max.append(nm)
-        tab_min.append(nn)
-        j += 1
-    return tab_max, tab_min
+def _range_extremes(upper: F64, lower: F64, start, count) -> tuple[F64, F64]:
+    """:func:`synth.sample_ranges.range_extremes` (numba: imported on first use)."""
+    from synth.sample_ranges import range_extremes
 
-
-def _range_query(tab_max, tab_min, s, n):
-    """max/min of E over [s, s + n) for index arrays s, n of shape (R, C) (n ≥ 1): the two
-    overlapping blocks of size 2^k, k = ⌊log₂ n⌋."""
-    s, n = np.broadcast_arrays(np.asarray(s, np.int64), np.asarray(n, np.int64))
-    k = np.minimum(np.floor(np.log2(n)).astype(np.int64), len(tab_max) - 1)
-    r = np.broadcast_to(np.arange(s.shape[0]).reshape((-1,) + (1,) * (s.ndim - 1)), s.shape)
-    hi = np.empty(s.shape)
-    lo = np.empty(s.shape)
-    for level in np.unique(k):
-        sel = k == level
-        rs, ss = r[sel], s[sel]
-        p2 = ss + n[sel] - (1 << int(level))
-        hi[sel] = np.maximum(tab_max[level][rs, ss], tab_max[level][rs, p2])
-        lo[sel] = np.minimum(tab_min[level][rs, ss], tab_min[level][rs, p2])
-    return hi, lo
+    return range_extremes(upper, lower, start, count)
 
 
 def _eval_rewrapped(psi_at: PsiAt, at: F64, ref: F64, lead: tuple[int, ...]) -> F64:
@@ -548,62 +513,28 @@ def _pair_search(left_at, lv, right_at, rv, hi_in, lo_in, band):
     interior's extremes (``hi_in``, ``lo_in``: everything strictly between the two point sets)
     stay within ``band``. Shapes ``(R, ...)`` plus the points axis. Returns start, end, low,
     high, the extremes of what lies strictly inside (start, end) less one point at each end
-    (for a finer stage), and the end's linear estimate beyond the last point (ranks pairs)."""
-    R = lv.shape[0]
-    sl_max = np.maximum.accumulate(lv[..., ::-1], axis=-1)[..., ::-1]
-    sl_min = np.minimum.accumulate(lv[..., ::-1], axis=-1)[..., ::-1]
-    pr_max = np.maximum.accumulate(rv, axis=-1)
-    pr_min = np.minimum.accumulate(rv, axis=-1)
-    Hl = np.maximum(hi_in[..., None], sl_max)
-    Ll = np.minimum(lo_in[..., None], sl_min)
-    b = np.broadcast_to(band.reshape((R,) + (1,) * (hi_in.ndim - 1)), hi_in.shape)[..., None]
-    ok_l = (Hl - Ll) <= b
-    ok_r = (pr_max - pr_min) <= b
+    (for a finer stage), and the end's linear estimate beyond the last point (ranks pairs).
+
+    For each start the feasible ends are a prefix (the range only grows): its last end, and
+    the share of the next step the band still holds, ψ linear there, rank the pairs — the
+    lengths of pairs that the points alone would tie (a slowly drifting output gives many)
+    differ. Compiled, one query at a time (:func:`synth.pair_search.longest_pairs`)."""
+    from synth.pair_search import longest_pairs  # numba: imported on first use
+
+    shape = np.shape(hi_in)
+    R = shape[0]
     nl, nr = lv.shape[-1], rv.shape[-1]
-    jl = np.empty(hi_in.shape, np.int64)
-    jr = np.empty(hi_in.shape, np.int64)
-    share = np.empty(hi_in.shape)
-    W = int(np.prod(hi_in.shape[1:]))
-    along = lambda x, j: np.take_along_axis(x, j[..., None], -1)[..., 0]
-    # (jl, jr) pairs in row chunks, so that many candidates stay within memory.
-    chunk = max(1, _PAIR_BUDGET // (nl * nr * W))
-    for r0 in range(0, R, chunk):
-        q = slice(r0, r0 + chunk)
-        bq = b[q][..., None]
-        top = np.maximum(Hl[q][..., :, None], pr_max[q][..., None, :])
-        bottom = np.minimum(Ll[q][..., :, None], pr_min[q][..., None, :])
-        feasible = ok_l[q][..., :, None] & ok_r[q][..., None, :] & ((top - bottom) <= bq)
-        # for each start the feasible ends are a prefix (the range only grows): its last end,
-        # and the share of the next step the band still holds, ψ linear there — the lengths of
-        # pairs that the points alone would tie (a slowly drifting output gives many) differ
-        cnt = feasible.sum(axis=-1)
-        last = np.maximum(cnt - 1, 0)
-        has_next = cnt < nr
-        rq = np.broadcast_to(rv[q][..., None, :], feasible.shape)
-        u = along(rq, last)
-        v = along(rq, np.minimum(last + 1, nr - 1))
-        up, down = along(bottom, last) + b[q], along(top, last) - b[q]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            f = np.where(v > up, (up - u) / (v - u), np.where(v < down, (u - down) / (u - v), 0.0))
-        f = np.where(has_next & np.isfinite(f), np.clip(f, 0.0, 1.0), 0.0)
-        score = np.where(cnt > 0, last + f - np.arange(nl), -np.inf)
-        jl[q] = np.argmax(score, axis=-1)
-        jr[q] = along(last, jl[q])
-        share[q] = along(f, jl[q])
-    take = lambda x, jj: np.take_along_axis(x, jj[..., None], -1)[..., 0]
-    start, end = take(left_at, jl), take(right_at, jr)
-    high = np.maximum(take(Hl, jl), take(pr_max, jr))
-    low = np.minimum(take(Ll, jl), take(pr_min, jr))
-    # what lies strictly inside (start + one point, end − one point): a finer stage's interior
-    inner_hi = np.maximum(np.maximum(hi_in, np.where(jl + 1 < nl, take(sl_max, np.minimum(jl + 1, nl - 1)), -np.inf)),
-                          np.where(jr >= 1, take(pr_max, np.maximum(jr - 1, 0)), -np.inf))
-    inner_lo = np.minimum(np.minimum(lo_in, np.where(jl + 1 < nl, take(sl_min, np.minimum(jl + 1, nl - 1)), np.inf)),
-                          np.where(jr >= 1, take(pr_min, np.maximum(jr - 1, 0)), np.inf))
-    reach = end + share * (right_at[..., 1] - right_at[..., 0])  # the end, ψ linear beyond the last point
-    return start, end, low, high, inner_hi, inner_lo, reach
+
+    def flat(x, n):
+        return np.ascontiguousarray(np.broadcast_to(x, shape + (n,)).reshape(-1, n), dtype=float)
+
+    b = np.broadcast_to(np.asarray(band, float).reshape((R,) + (1,) * (len(shape) - 1)), shape)
+    per_query = (np.ascontiguousarray(np.broadcast_to(x, shape).ravel(), dtype=float) for x in (hi_in, lo_in, b))
+    out = longest_pairs(flat(left_at, nl), flat(lv, nl), flat(right_at, nr), flat(rv, nr), *per_query)
+    return tuple(x.reshape(shape) for x in out)
 
 
-def _refine_dwell(E, s, n, band, phi0, h, psi_at, lead, tab_max, tab_min):
+def _refine_dwell(E, s, n, band, phi0, h, psi_at, lead, upper, lower):
     """Each candidate grid window refined on the exact path (see :func:`dwell_intervals`):
     start in [φ_{s−1}, φ_s], end in [φ_{e₀}, φ_{e₀+2}] with e₀ = s + n − 2, on ``DWELL_FINE``
     points per grid step, the pair of points that maximises the length within the band.
@@ -615,7 +546,7 @@ def _refine_dwell(E, s, n, band, phi0, h, psi_at, lead, tab_max, tab_min):
     n_in = e0 - s - 1
     has_in = n_in >= 1
     flat = lambda x: x.reshape(R, -1)
-    hi_in, lo_in = _range_query(tab_max, tab_min, flat(s + 1), flat(np.maximum(n_in, 1)))
+    hi_in, lo_in = _range_extremes(upper, lower, flat(s + 1), flat(np.maximum(n_in, 1)))
     hi_in = np.where(has_in, hi_in.reshape(s.shape), -np.inf)
     lo_in = np.where(has_in, lo_in.reshape(s.shape), np.inf)
     left_at, lv = _fine_path(E, s - 1, 1, K, phi0, h, psi_at, lead)
@@ -624,16 +555,16 @@ def _refine_dwell(E, s, n, band, phi0, h, psi_at, lead, tab_max, tab_min):
     return _pair_search(left_at, lv, right_at, rv, hi_in, lo_in, band)
 
 
-def _samples_between(tab_max, tab_min, a, b, phi0, h):
+def _samples_between(upper, lower, a, b, phi0, h):
     """max/min of the (vertex-bounded) samples strictly inside (a, b), ∓inf if there are none;
     a, b of shape (R, C) within the two turns of the tables."""
     R = a.shape[0]
     i0 = np.floor((a - phi0) / h).astype(np.int64) + 1
     i1 = np.ceil((b - phi0) / h).astype(np.int64) - 1
-    T = tab_max[0].shape[1]
+    T = upper.shape[1]
     i0 = np.clip(i0, 0, T - 1)
     count = np.minimum(i1, T - 1) - i0 + 1
-    hi, lo = _range_query(tab_max, tab_min, i0.reshape(R, -1), np.maximum(count, 1).reshape(R, -1))
+    hi, lo = _range_extremes(upper, lower, i0.reshape(R, -1), np.maximum(count, 1).reshape(R, -1))
     return (np.where(count >= 1, hi.reshape(a.shape), -np.inf), np.where(count >= 1, lo.reshape(a.shape), np.inf))
 
 
@@ -742,22 +673,21 @@ def output_deviation(phi: ArrayLike, psi: ArrayLike, center: ArrayLike, length: 
     W = J + int(nL.max()) + 4
     g = (i_lo - 1)[:, None] + np.arange(W)[None, :]
     slab = P[rows[:, None], np.mod(g, m)] + np.floor_divide(g, m) * net[:, None]
-    tab_max, tab_min = _sparse_tables(slab, int(nL.max()) + 1)
     off = np.broadcast_to(np.arange(1, J + 1)[None, :], (R, J))  # slab offset of start i_lo + j
-    hi, lo = _range_query(tab_max, tab_min, off, np.broadcast_to(nL[:, None] + 1, off.shape))
+    hi, lo = _range_extremes(slab, slab, off, np.broadcast_to(nL[:, None] + 1, off.shape))
     valid = np.arange(J)[None, :] < span[:, None]
     grid_range = np.where(valid, hi - lo, np.inf)
     jbest = np.argmin(grid_range, axis=1)
     dev = grid_range[rows, jbest]
     s_best = phi0 + (i_lo + jbest) * h
     if psi_at is not None:
-        dev, s_best = _refine_window(slab, i_lo, jbest + 1, nL, L, c, dev, s_best, phi0, h, tab_max, tab_min,
+        dev, s_best = _refine_window(slab, i_lo, jbest + 1, nL, L, c, dev, s_best, phi0, h,
                                      psi_at, lead)
     s_best = phi0 + np.mod(s_best - phi0, _TWO_PI)
     return dev.reshape(lead), s_best.reshape(lead)
 
 
-def _refine_window(slab, i_lo, k, nL, L, c, dev, s_best, phi0, h, tab_max, tab_min, psi_at, lead):
+def _refine_window(slab, i_lo, k, nL, L, c, dev, s_best, phi0, h, psi_at, lead):
     """Window placement refined on the exact path around the best grid start, which sits at
     slab offset ``k`` (slab offset 0 is sample i_lo − 1)."""
     R = slab.shape[0]
@@ -782,7 +712,7 @@ def _refine_window(slab, i_lo, k, nL, L, c, dev, s_best, phi0, h, tab_max, tab_m
     # [φ_{i−1} + L, φ_{i+1} + L]: i+2 .. i−1+nL, i.e. slab offsets k+2 .. k−1+nL.
     n_in = nL - 2
     has_in = n_in >= 1
-    hi_in, lo_in = _range_query(tab_max, tab_min, (k + 2)[:, None], np.maximum(n_in, 1)[:, None])
+    hi_in, lo_in = _range_extremes(slab, slab, (k + 2)[:, None], np.maximum(n_in, 1)[:, None])
     hi_in = np.where(has_in, hi_in[:, 0], -np.inf)
     lo_in = np.where(has_in, lo_in[:, 0], np.inf)
     sf_max = np.maximum.accumulate(fv[:, ::-1], axis=1)[:, ::-1]
@@ -814,7 +744,7 @@ def _refine_window(slab, i_lo, k, nL, L, c, dev, s_best, phi0, h, tab_max, tab_m
     b_off = (f_best - d + L - phi0) / h - (i_lo - 1)
     i0 = np.floor(a_off).astype(np.int64) + 1
     cnt = np.ceil(b_off).astype(np.int64) - 1 - i0 + 1
-    shi, slo = _range_query(tab_max, tab_min, i0[:, None], np.maximum(cnt, 1)[:, None])
+    shi, slo = _range_extremes(slab, slab, i0[:, None], np.maximum(cnt, 1)[:, None])
     mid_hi = np.where(cnt >= 1, shi[:, 0], -np.inf)
     mid_lo = np.where(cnt >= 1, slo[:, 0], np.inf)
     nxt, prv = np.minimum(j + 1, K2), np.maximum(j - 1, 0)

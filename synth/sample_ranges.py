@@ -1,0 +1,54 @@
+"""The largest and smallest sample over ranges of samples, compiled: what the dwell and
+deviation searches of :mod:`synth.output_range` ask of ψ's samples between the points they
+evaluate exactly.
+
+Each query reads its own range, one pass (a few hundred samples at most: a dwell or a
+window of the 0.5° grid). It replaced sparse tables (binary lifting), which cost more to
+build for every row and level than all of a search's queries. Max and min round nothing, so
+the answers are those of any exhaustive reading, bit for bit
+(``tests/synth/test_sample_ranges.py``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from numpy.typing import ArrayLike
+
+from synth.types import F64
+
+__all__ = ["range_extremes"]
+
+
+@numba.njit(cache=True, nogil=True)
+def _extremes(upper, lower, start, count, hi, lo):
+    R, K = start.shape
+    T = upper.shape[1]
+    for r in range(R):
+        for k in range(K):
+            s, n = start[r, k], count[r, k]
+            if s < 0 or n < 1 or s + n > T:  # a range off the samples is never within a band
+                hi[r, k], lo[r, k] = math.inf, -math.inf
+                continue
+            a, b = upper[r, s], lower[r, s]
+            for i in range(s + 1, s + n):
+                a = max(a, upper[r, i])
+                b = min(b, lower[r, i])
+            hi[r, k], lo[r, k] = a, b
+
+
+def range_extremes(upper: F64, lower: F64, start: ArrayLike, count: ArrayLike) -> tuple[F64, F64]:
+    """(max of ``upper``, min of ``lower``) over the samples [start, start + count) of each
+    row: ``upper``, ``lower`` ``(R, T)`` (the same array for a plain max and min), ``start``
+    and ``count`` integer arrays broadcast to ``(R, ...)``, row r's queries in ``[r]``;
+    +inf and −inf for a range that is empty or runs off the samples. Shape: the broadcast."""
+    s, n = np.broadcast_arrays(np.asarray(start, np.int64), np.asarray(count, np.int64))
+    R = upper.shape[0]
+    if s.shape[:1] != (R,):
+        raise ValueError(f"the queries' first axis must be the {R} rows")
+    s2, n2 = np.ascontiguousarray(s.reshape(R, -1)), np.ascontiguousarray(n.reshape(R, -1))
+    hi, lo = np.empty(s2.shape), np.empty(s2.shape)
+    _extremes(np.ascontiguousarray(upper, dtype=float), np.ascontiguousarray(lower, dtype=float), s2, n2, hi, lo)
+    return hi.reshape(s.shape), lo.reshape(s.shape)

@@ -1,0 +1,49 @@
+"""The compiled range extremes (:mod:`synth.sample_ranges`) against numpy's max and min of
+each range read on its own: the same floats, ranges off the samples ±inf, any query shape."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from synth.sample_ranges import range_extremes
+
+
+def _reference(upper, lower, start, count):
+    hi, lo = np.empty(start.shape), np.empty(start.shape)
+    for index in np.ndindex(start.shape):
+        s, n = int(start[index]), int(count[index])
+        inside = 0 <= s and n >= 1 and s + n <= upper.shape[1]
+        hi[index] = upper[index[0], s : s + n].max() if inside else math.inf
+        lo[index] = lower[index[0], s : s + n].min() if inside else -math.inf
+    return hi, lo
+
+
+@settings(max_examples=60, deadline=None)
+@given(rows=st.integers(1, 5), samples=st.integers(1, 40), queries=st.integers(1, 6), seed=st.integers(0, 2**32 - 1))
+def test_range_extremes_are_the_ranges_own_max_and_min(rows, samples, queries, seed):
+    rng = np.random.default_rng(seed)
+    upper = rng.normal(size=(rows, samples))
+    lower = upper - rng.uniform(0, 1, (rows, samples)) * (rng.random((rows, samples)) < 0.3)
+    start = rng.integers(-2, samples + 2, (rows, queries, 2))
+    count = rng.integers(-1, samples + 3, (rows, queries, 2))
+    got = range_extremes(upper, lower, start, count)
+    want = _reference(upper, lower, start, count)
+    for g, w in zip(got, want):
+        assert g.shape == start.shape
+        np.testing.assert_array_equal(g, w)
+    inside = (start >= 0) & (count >= 1) & (start + count <= samples)
+    assert np.all(got[0][inside] >= got[1][inside])  # a range's max is never below its min
+
+
+def test_range_extremes_broadcast_and_refuse_a_foreign_first_axis():
+    upper = np.arange(12.0).reshape(2, 6)
+    hi, lo = range_extremes(upper, upper, np.array([[0], [2]]), 3)
+    np.testing.assert_array_equal(hi, [[2.0], [10.0]])
+    np.testing.assert_array_equal(lo, [[0.0], [8.0]])
+    with pytest.raises(ValueError, match="first axis"):
+        range_extremes(upper, upper, np.zeros((3, 1), int), 1)
