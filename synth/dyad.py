@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kinematics.loop import line_intersection, sampled_extreme
+from kinematics.loop import line_intersection
 from kinematics.status import Status
 from synth.output_range import grid_step
 from synth.sixbar import OutputDyad
@@ -87,20 +87,6 @@ def _dwell_mask(phi0: float, h: float, m: int, start: np.ndarray, end: np.ndarra
     mid = np.mod(np.rint((0.5 * (start + end) - phi0) / h).astype(np.int64), m)
     mask[np.arange(mask.shape[0]), mid] = True  # an interval shorter than a step keeps one sample
     return mask, mid
-
-
-def _extremes(psi: F64) -> tuple[F64, F64, np.ndarray, np.ndarray]:
-    """(max, min, argmax, argmin) along the last (cyclic) axis, the values refined by the
-    parabola through the extreme sample and its two neighbours."""
-    hi, khi = sampled_extreme(psi, +1)
-    lo, klo = sampled_extreme(psi, -1)
-    return hi, lo, khi, klo
-
-
-def _jumps(x: F64) -> NDArray[np.bool_]:
-    """A step of more than π between cyclic neighbours: the angle crossed its cut (the output
-    revolves, or passes behind its pivot)."""
-    return np.any(np.abs(np.diff(x, axis=-1, append=x[..., :1])) > math.pi, axis=-1)
 
 
 def _solve_swing(F, lo: F64, hi: F64, u0: F64, target: F64, active: NDArray[np.bool_], *, check_far: bool = True):
@@ -263,22 +249,12 @@ def fit_rpr(line_point: ArrayLike, line_direction: ArrayLike, phi: ArrayLike, pa
     t_end_f = t_end.ravel()
 
     def make_F(path_tn):
-        t_s, n_s = path_tn.real, path_tn.imag
+        from synth.dyad_kernel import rpr_swing  # numba: imported on first use
 
-        def F(sel, u):
-            sg = side[sel][:, None]
-            tD = t_end_f[sel] + side[sel] / u
-            dt = t_s[row_of[sel]] - tD[:, None]
-            nn = n_s[row_of[sel]]
-            # The cut of the angle runs along the line from D away from the stretch.
-            psi = np.arctan2(-sg * nn, -sg * dt)
-            hi_, lo_, khi, klo = _extremes(psi)
+        t_s, n_s = np.ascontiguousarray(path_tn.real), np.ascontiguousarray(path_tn.imag)
 
-            def g(k):  # ∂ψ/∂t_D = Im(−1/(P − D)) at the extreme samples only
-                a, b = (np.take_along_axis(x, k[:, None], -1)[:, 0] for x in (dt, nn))
-                return b / (a * a + b * b)
-
-            return hi_ - lo_, (g(khi) - g(klo)) * (-side[sel] / (u * u)), _jumps(psi)
+        def F(sel, u):  # the swing and ∂S/∂u, ∂ψ/∂t_D = Im(−1/(P − D)) at the extreme samples
+            return rpr_swing(t_s, n_s, row_of[sel], side[sel], t_end_f[sel], np.asarray(u, float))
 
         return F
 

@@ -1,16 +1,19 @@
-"""The RRR fit's compiled parts: the closed-form direction ranking
+"""The dyad fits' compiled parts: the RRR fit's closed-form direction ranking
 (:class:`synth.dyad._RrrTerms`'s ``estimate``: per row and rocker direction, two passes over
-the path samples instead of a dozen ``(rows, directions, samples)`` temporaries) and the swing
-S(u) with its derivative that the swing solve iterates on (:func:`rrr_swing`: the dyad loop,
-the rocker's extremes and ∂S/∂u in one pass per dyad instead of ~20 array passes).
+the path samples instead of a dozen ``(rows, directions, samples)`` temporaries), and the
+swing S(u) with its derivative that the RRR and RPR swing solves iterate on
+(:func:`rrr_swing`: the dyad loop, the rocker's extremes and ∂S/∂u; :func:`rpr_swing`: the
+slot's angle, its extremes and ∂S/∂u — one pass per dyad instead of ~10–20 array passes; the
+samples ordered by a pseudo-angle, the arctangent taken only where a value is read).
 
 The ranking runs the same operations in the same order as the numpy expressions it replaced
 (no fused multiply-adds, reductions by max and min, which round nothing), so its numbers are
 the same bit for bit (``tests/synth/test_dyad.py`` compares them); the transcendental parts
 (the direction's cosine and sine, the branch, the final arccos) stay in numpy around it. The
-swing is not bit for bit its numpy evaluation: numpy's ``arctan2`` and complex products may
-run on other instructions (SVML, fused multiply-adds on AVX-512); the test holds the two to
-1e-12 and the derivative to central differences.
+swings are not bit for bit their numpy evaluations: numpy's ``arctan2`` and complex products
+may run on other instructions (SVML, fused multiply-adds on AVX-512), and two samples whose
+angles tie to rounding may be ordered the other way; the tests hold the two to 1e-12 and
+the derivatives to central differences.
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ import numpy as np
 
 from synth.sixbar_kernel import closing_point
 
-__all__ = ["direction_estimates", "rrr_swing"]
+__all__ = ["direction_estimates", "rpr_swing", "rrr_swing"]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -85,9 +88,18 @@ def _vertex_value(y, k, sign):
 
 
 @numba.njit(cache=True, nogil=True)
+def _pseudo_angle(y, x):
+    """A number in [−2, 2] that orders directions (x, y) as atan2(y, x) does (its cut and signed
+    zeros included), at the cost of one division: 1 − x/(|x| + |y|), negated below the axis."""
+    p = 1.0 - x / (abs(x) + abs(y))
+    return -p if math.copysign(1.0, y) < 0 else p
+
+
+@numba.njit(cache=True, nogil=True)
 def _rrr_swing(wx, wy, rows, ex, ey, br, rho, u, S, dS, invalid):
     M = wx.shape[1]
-    eta = np.empty(M)
+    eta, order = np.empty(M), np.empty(M)
+    xa, ya = np.empty(M), np.empty(M)
     c1a, s1a, c2a, s2a, k2a = np.empty(M), np.empty(M), np.empty(M), np.empty(M), np.empty(M)
     for i in range(rows.shape[0]):
         r = rows[i]
@@ -98,16 +110,24 @@ def _rrr_swing(wx, wy, rows, ex, ey, br, rho, u, S, dS, invalid):
             # the loop closed at R = D − P (D = L·e, P relative to C₀), l1 = ρ, l2 = L; k2 is
             # 1/height, 0 where the loop does not close or toggles
             c1, s1, c2, s2, status, _, k2 = closing_point(lx - wx[r, k], ly - wy[r, k], rho[i], L, br[i])
-            # η = arg(e^{iψ}·(−ē)): the rocker's turn from rest
-            eta[k] = math.atan2(c2 * ey[i] + s2 * (-ex[i]), c2 * (-ex[i]) - s2 * ey[i])
+            # η = arg(e^{iψ}·(−ē)), the rocker's turn from rest: ordered by its pseudo-angle,
+            # its arctangent taken only where a value is read (extremes, the cut's crossings)
+            xa[k], ya[k] = c2 * (-ex[i]) - s2 * ey[i], c2 * ey[i] + s2 * (-ex[i])
+            order[k] = _pseudo_angle(ya[k], xa[k])
             c1a[k], s1a[k], c2a[k], s2a[k], k2a[k] = c1, s1, c2, s2, k2
             any_sing = any_sing or status != 0
-        khi = np.argmax(eta)
-        klo = np.argmin(eta)
+        khi = np.argmax(order)
+        klo = np.argmin(order)
+        for k in (khi - 1, khi, khi + 1, klo - 1, klo, klo + 1):
+            k %= M
+            eta[k] = math.atan2(ya[k], xa[k])
         S[i] = _vertex_value(eta, khi, 1) - _vertex_value(eta, klo, -1)
+        # a step of more than π between neighbours needs η to change sides of the axis
         jump = False
         for k in range(M):
-            if abs(eta[(k + 1) % M] - eta[k]) > math.pi:
+            j = (k + 1) % M
+            if (math.copysign(1.0, ya[k]) != math.copysign(1.0, ya[j])
+                    and abs(math.atan2(ya[j], xa[j]) - math.atan2(ya[k], xa[k])) > math.pi):
                 jump = True
                 break
         invalid[i] = any_sing or jump
@@ -135,4 +155,53 @@ def rrr_swing(wx, wy, rows, ex, ey, branch, rho, u):
     n = rows.shape[0]
     S, dS, invalid = np.empty(n), np.empty(n), np.empty(n, np.bool_)
     _rrr_swing(wx, wy, rows, ex, ey, branch, rho, u, S, dS, invalid)
+    return S, dS, invalid
+
+
+@numba.njit(cache=True, nogil=True)
+def _rpr_swing(t_s, n_s, rows, side, t_end, u, S, dS, invalid):
+    M = t_s.shape[1]
+    psi, order = np.empty(M), np.empty(M)
+    xa, ya = np.empty(M), np.empty(M)
+    for i in range(rows.shape[0]):
+        r, sg = rows[i], side[i]
+        tD = t_end[i] + sg / u[i]
+        for k in range(M):
+            # ψ = arg(−σ·(P − D)) in the line's frame: the angle's cut runs along the line from
+            # D away from the stretch
+            xa[k], ya[k] = -sg * (t_s[r, k] - tD), -sg * n_s[r, k]
+            order[k] = _pseudo_angle(ya[k], xa[k])
+        khi = np.argmax(order)
+        klo = np.argmin(order)
+        for k in (khi - 1, khi, khi + 1, klo - 1, klo, klo + 1):
+            k %= M
+            psi[k] = math.atan2(ya[k], xa[k])
+        S[i] = _vertex_value(psi, khi, 1) - _vertex_value(psi, klo, -1)
+        jump = False
+        for k in range(M):
+            j = (k + 1) % M
+            if (math.copysign(1.0, ya[k]) != math.copysign(1.0, ya[j])
+                    and abs(math.atan2(ya[j], xa[j]) - math.atan2(ya[k], xa[k])) > math.pi):
+                jump = True
+                break
+        invalid[i] = jump
+        g = np.empty(2)
+        for j in range(2):
+            k = khi if j == 0 else klo
+            a, b = t_s[r, k] - tD, n_s[r, k]
+            g[j] = b / (a * a + b * b)  # ∂ψ/∂t_D = Im(−1/(P − D))
+        dS[i] = (g[0] - g[1]) * (-sg / (u[i] * u[i]))
+
+
+def rpr_swing(t_s, n_s, rows, side, t_end, u):
+    """The RPR dyad's output swing S(u) on sampled paths and ∂S/∂u, for the swing solve of
+    :func:`synth.dyad.fit_rpr`: dyad i moves the path ``(t_s, n_s)[rows[i]]`` (in its line's
+    frame, C-contiguous ``(R, M)`` float64) with its slot pivot on the line at
+    t_D = ``t_end[i]`` + ``side[i]``/u (side ±1: behind the stretch or beyond it). Returns (S,
+    dS/du, invalid), each ``(len(rows),)``; invalid: the slot's angle jumps by more than π
+    between samples (the path crosses the cut beyond D: the output would revolve). The
+    extremes as :func:`kinematics.loop.sampled_extreme` finds them."""
+    n = rows.shape[0]
+    S, dS, invalid = np.empty(n), np.empty(n), np.empty(n, np.bool_)
+    _rpr_swing(t_s, n_s, rows, side, t_end, u, S, dS, invalid)
     return S, dS, invalid

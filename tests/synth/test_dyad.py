@@ -389,3 +389,82 @@ def test_compiled_rrr_swing_is_the_numpy_loop_and_its_derivative(seed):
     error = np.abs(dS[smooth] / fd[smooth] - 1)
     assert np.max(error) < 0.03 and np.median(error) < 1e-3
     assert np.max(error) > 1e-9  # not the same formula twice
+
+
+def _numpy_rpr_swing(t_s, n_s, side, t_end, u):
+    """The RPR swing S(u) and ∂S/∂u as numpy expressions over (dyads, samples): the slot's
+    angle by ``arctan2``, its extremes by :func:`sampled_extreme` — the reference of the
+    compiled :func:`synth.dyad_kernel.rpr_swing`."""
+    from kinematics.loop import sampled_extreme
+
+    sg = side[:, None]
+    tD = t_end + side / u
+    dt, nn = t_s - tD[:, None], n_s
+    psi = np.arctan2(-sg * nn, -sg * dt)
+    hi, khi = sampled_extreme(psi, +1)
+    lo, klo = sampled_extreme(psi, -1)
+
+    def g(k):
+        a, b = (np.take_along_axis(x, k[:, None], -1)[:, 0] for x in (dt, nn))
+        return b / (a * a + b * b)
+
+    jumps = np.any(np.abs(np.diff(psi, axis=-1, append=psi[:, :1])) > math.pi, axis=-1)
+    return hi - lo, (g(khi) - g(klo)) * (-side / (u * u)), jumps
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_compiled_rpr_swing_is_the_numpy_angle_and_its_derivative(seed):
+    """As for the RRR: the compiled RPR swing equals the numpy evaluation to rounding, slots
+    whose path crosses the angle's cut beyond D are invalid in both, and ∂S/∂u matches
+    central differences."""
+    from synth.dyad_kernel import rpr_swing
+
+    rng = np.random.default_rng(seed)
+    N, M = 80, 1440
+    t = np.linspace(0, 2 * np.pi, M, endpoint=False)
+    # closed paths in a line's frame: a stretch along the axis, excursions across it
+    centre = rng.uniform(-1, 1, N)[:, None]
+    t_s = np.ascontiguousarray(centre + rng.uniform(0.5, 2, (N, 1)) * np.cos(t + rng.uniform(0, 6, (N, 1))))
+    n_s = np.ascontiguousarray(rng.uniform(0.05, 1.5, (N, 1)) * (1 - np.cos(t + rng.uniform(0, 6, (N, 1)))) ** 2
+                               * rng.choice([-1.0, 1.0], (N, 1)) + rng.uniform(-0.3, 0.3, (N, 1)))
+    side = rng.choice([-1.0, 1.0], N)
+    t_end = np.where(side > 0, t_s.max(axis=1), t_s.min(axis=1)) + side * 0.1
+    inside = rng.random(N) < 0.25  # pivots within the path's extent: the cut beyond D may cross it
+    t_end = np.where(inside, t_s.mean(axis=1), t_end)
+    u = rng.uniform(0.05, 4.0, N) * np.where(inside, 30.0, 1.0)
+    rows = np.arange(N)
+    S, dS, invalid = rpr_swing(t_s, n_s, rows, side, t_end, u)
+    S_ref, dS_ref, invalid_ref = _numpy_rpr_swing(t_s, n_s, side, t_end, u)
+    np.testing.assert_array_equal(invalid, invalid_ref)
+    ok = ~invalid
+    assert 10 < np.count_nonzero(ok) < N  # both kinds are exercised
+    np.testing.assert_allclose(S[ok], S_ref[ok], rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(dS[ok], dS_ref[ok], rtol=1e-9, atol=1e-12)
+    h = 1e-6 * u
+    up, down = rpr_swing(t_s, n_s, rows, side, t_end, u + h), rpr_swing(t_s, n_s, rows, side, t_end, u - h)
+    fd = (up[0] - down[0]) / (2 * h)
+    smooth = ok & ~up[2] & ~down[2]
+    error = np.abs(dS[smooth] / fd[smooth] - 1)
+    assert np.max(error) < 0.03 and np.median(error) < 1e-3
+    assert np.max(error) > 1e-9
+
+
+def test_pseudo_angle_orders_directions_as_atan2_signed_zeros_and_cut_included():
+    from synth.dyad_kernel import _pseudo_angle
+
+    rng = np.random.default_rng(5)
+    angles = np.concatenate([rng.uniform(-np.pi, np.pi, 400), np.linspace(-np.pi, np.pi, 17)])
+    xy = [(math.sin(a), math.cos(a)) for a in angles] + [(0.0, 1.0), (-0.0, 1.0), (0.0, -1.0), (-0.0, -1.0),
+                                                         (1.0, 0.0), (-1.0, -0.0), (1e-300, -1.0), (-1e-300, -1.0)]
+    exact = np.array([math.atan2(y, x) for y, x in xy])
+    pseudo = np.array([_pseudo_angle(y, x) for y, x in xy])
+    assert np.all(np.abs(pseudo) <= 2.0)
+    i, j = np.triu_indices(len(xy), 1)
+    apart = np.abs(exact[i] - exact[j]) > 1e-12
+    np.testing.assert_array_equal(np.sign(pseudo[i] - pseudo[j])[apart], np.sign(exact[i] - exact[j])[apart])
+    # the cut (−x axis): on it or just above it the largest direction, below it the smallest,
+    # as atan2 has them (+π, −π) — signed zeros included
+    assert _pseudo_angle(0.0, -1.0) == _pseudo_angle(1e-300, -1.0) == 2.0
+    assert _pseudo_angle(-0.0, -1.0) == _pseudo_angle(-1e-300, -1.0) == -2.0
+    # the extremes agree up to a tie within rounding (what the kernels' docstring allows)
+    assert exact[np.argmax(pseudo)] >= exact.max() - 1e-12 and exact[np.argmin(pseudo)] <= exact.min() + 1e-12
