@@ -458,17 +458,11 @@ def _near_longest(length: NDArray[np.int64], longest: NDArray[np.int64], reach: 
 
 def _vertex_bounds(E: F64) -> tuple[F64, F64]:
     """(upper, lower): the samples, raised (lowered) at each local maximum (minimum) to the
-    vertex of the parabola through it and its two neighbours."""
-    ym, y0, yp = E[:, :-2], E[:, 1:-1], E[:, 2:]
-    vertex = parabola_vertex(ym, y0, yp)
-    den = vertex.curvature
-    lift = np.abs(vertex.rise)  # capped at |den| below: a vertex far outside its step is no peak
-    peak = (den < 0) & (y0 >= ym) & (y0 >= yp)
-    dip = (den > 0) & (y0 <= ym) & (y0 <= yp)
-    upper, lower = E.copy(), E.copy()
-    upper[:, 1:-1] += np.where(peak, np.minimum(lift, np.abs(den)), 0.0)
-    lower[:, 1:-1] -= np.where(dip, np.minimum(lift, np.abs(den)), 0.0)
-    return upper, lower
+    vertex of the parabola through it and its two neighbours
+    (:func:`synth.sample_ranges.vertex_bounds`; numba: imported on first use)."""
+    from synth.sample_ranges import vertex_bounds
+
+    return vertex_bounds(E)
 
 
 def _range_extremes(upper: F64, lower: F64, start, count) -> tuple[F64, F64]:

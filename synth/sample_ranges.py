@@ -1,11 +1,14 @@
-"""The largest and smallest sample over ranges of samples, compiled: what the dwell and
-deviation searches of :mod:`synth.output_range` ask of ψ's samples between the points they
-evaluate exactly.
+"""Extremes of ψ's samples, compiled: what the dwell and deviation searches of
+:mod:`synth.output_range` ask of the samples before and between the points they evaluate
+exactly — each local extreme raised (lowered) to its parabola's vertex
+(:func:`vertex_bounds`), and the largest and smallest sample over ranges of samples
+(:func:`range_extremes`).
 
-Each query reads its own range, one pass (a few hundred samples at most: a dwell or a
+Each range query reads its own range, one pass (a few hundred samples at most: a dwell or a
 window of the 0.5° grid). It replaced sparse tables (binary lifting), which cost more to
 build for every row and level than all of a search's queries. Max and min round nothing, so
-the answers are those of any exhaustive reading, bit for bit
+the answers are those of any exhaustive reading; the vertices are the same operations as
+:func:`kinematics.loop.parabola_vertex`'s: both bit for bit
 (``tests/synth/test_sample_ranges.py``).
 """
 
@@ -19,7 +22,7 @@ from numpy.typing import ArrayLike
 
 from synth.types import F64
 
-__all__ = ["range_extremes"]
+__all__ = ["range_extremes", "vertex_bounds"]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -52,3 +55,33 @@ def range_extremes(upper: F64, lower: F64, start: ArrayLike, count: ArrayLike) -
     hi, lo = np.empty(s2.shape), np.empty(s2.shape)
     _extremes(np.ascontiguousarray(upper, dtype=float), np.ascontiguousarray(lower, dtype=float), s2, n2, hi, lo)
     return hi.reshape(s.shape), lo.reshape(s.shape)
+
+
+@numba.njit(cache=True, nogil=True)
+def _vertex_bounds(E, upper, lower):
+    R, T = E.shape
+    for r in range(R):
+        upper[r, 0], lower[r, 0] = E[r, 0], E[r, 0]
+        upper[r, T - 1], lower[r, T - 1] = E[r, T - 1], E[r, T - 1]
+        for i in range(1, T - 1):
+            ym, y0, yp = E[r, i - 1], E[r, i], E[r, i + 1]
+            den = ym - 2 * y0 + yp
+            lift = 0.0
+            if den != 0:
+                diff = ym - yp
+                lift = abs(-(diff ** 2 / (8 * den)))
+            step = min(lift, abs(den))  # a vertex far outside its step is no peak
+            # + 0.0 where nothing is lifted, as the array expression adds it (−0.0 → 0.0)
+            upper[r, i] = y0 + (step if (den < 0 and y0 >= ym and y0 >= yp) else 0.0)
+            lower[r, i] = y0 - (step if (den > 0 and y0 <= ym and y0 <= yp) else 0.0)
+
+
+def vertex_bounds(E: F64) -> tuple[F64, F64]:
+    """(upper, lower) of samples ``E`` ``(R, T)``: each interior sample that is a local maximum
+    (minimum) raised (lowered) to the vertex of the parabola through it and its two
+    neighbours (:func:`kinematics.loop.parabola_vertex`), by at most the second difference
+    (a vertex far outside its step is no peak); the end samples and the others as they are."""
+    E = np.ascontiguousarray(E, dtype=float)
+    upper, lower = np.empty_like(E), np.empty_like(E)
+    _vertex_bounds(E, upper, lower)
+    return upper, lower

@@ -47,3 +47,37 @@ def test_range_extremes_broadcast_and_refuse_a_foreign_first_axis():
     np.testing.assert_array_equal(lo, [[0.0], [8.0]])
     with pytest.raises(ValueError, match="first axis"):
         range_extremes(upper, upper, np.zeros((3, 1), int), 1)
+
+
+def _numpy_vertex_bounds(E):
+    """The vertex bounds as the numpy expressions they replaced (the reference)."""
+    from kinematics.loop import parabola_vertex
+
+    ym, y0, yp = E[:, :-2], E[:, 1:-1], E[:, 2:]
+    vertex = parabola_vertex(ym, y0, yp)
+    den = vertex.curvature
+    lift = np.abs(vertex.rise)
+    peak = (den < 0) & (y0 >= ym) & (y0 >= yp)
+    dip = (den > 0) & (y0 <= ym) & (y0 <= yp)
+    upper, lower = E.copy(), E.copy()
+    upper[:, 1:-1] += np.where(peak, np.minimum(lift, np.abs(den)), 0.0)
+    lower[:, 1:-1] -= np.where(dip, np.minimum(lift, np.abs(den)), 0.0)
+    return upper, lower
+
+
+@settings(max_examples=40, deadline=None)
+@given(rows=st.integers(1, 4), samples=st.integers(3, 60), seed=st.integers(0, 2**32 - 1))
+def test_vertex_bounds_are_the_numpy_expressions_bit_for_bit(rows, samples, seed):
+    from synth.sample_ranges import vertex_bounds
+
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0, 4 * np.pi, samples)
+    # smooth rows with peaks between samples, flat and tied stretches, signed zeros
+    E = np.sin(t * rng.uniform(0.5, 3, (rows, 1)) + rng.uniform(0, 6, (rows, 1))) * rng.uniform(0, 2, (rows, 1))
+    E[:, rng.random(samples) < 0.2] = rng.choice([0.0, -0.0, 0.5])
+    upper, lower = vertex_bounds(E)
+    want_upper, want_lower = _numpy_vertex_bounds(E)
+    for got, want in ((upper, want_upper), (lower, want_lower)):
+        np.testing.assert_array_equal(got, want)
+        np.testing.assert_array_equal(np.signbit(got), np.signbit(want))
+    assert np.all(upper >= E) and np.all(lower <= E)
