@@ -80,14 +80,6 @@ def output_rates(dpsi2: np.ndarray) -> np.ndarray:
     return np.fft.irfft(spectrum, n=n, axis=-1)
 
 
-def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Distance from points ``p`` to segments a–b (complex, broadcast)."""
-    ab = b - a
-    length2 = np.abs(ab) ** 2
-    t = np.clip(((p - a) * np.conj(ab)).real / np.where(length2 > 0, length2, 1.0), 0.0, 1.0)
-    return np.abs(p - (a + t * ab))
-
-
 #: The pairs :func:`clearances` measures, in the order of its ``which`` index.
 CLEARANCE_PAIRS = ("joint A / B0", "joint A / D", "joint B / A0", "joint B / D", "joint P / A0", "joint P / B0",
                    "joint P / D", "joint Q / A0", "joint Q / B0", "rod P-Q / A0", "rod P-Q / B0", "rod P-Q / D",
@@ -110,49 +102,16 @@ def clearances(batch: SixBars, motion: SixBarMotion, every: int = 1) -> tuple[np
     rpr : (N,) bool
         Which rows are RPR (their arm is defined).
     """
+    from synth.clearance_kernel import pair_clearances  # numba: imported on first use
+
     n, m = motion.psi.shape
-    cols = slice(None, None, every)
-    A = np.broadcast_to(motion.fourbar.A, (n, m))[:, cols]
-    B = np.broadcast_to(motion.fourbar.B, (n, m))[:, cols]
-    P = np.broadcast_to(motion.z[0], (n, m))[:, cols]
-    Q = np.broadcast_to(motion.moving_pivot, (n, m))[:, cols]
-    psi = motion.psi[:, cols]
-    A0 = np.zeros((n, 1), complex)
-    B0 = batch.d[:, None].astype(complex)
-    D = batch.pivot[:, None]
-    rpr = batch.rpr
-    reach = np.abs(P - D)
-
-    # The pairs in the order of CLEARANCE_PAIRS: joints to pivots they are not pinned to,
-    # output links to pivots off them. Each as (its distances at the samples of the rows it
-    # applies to, those rows); a dyad kind's pairs are measured on its rows only.
-    def rows_of(mask):  # a kind's rows: a slice where it is every row (no copies), else their indices
-        return slice(None) if mask.all() else np.flatnonzero(mask)
-
-    rr, rp = rows_of(~rpr), rows_of(rpr)
-    every_row = slice(None)
-    Pr, Qr, Dr, A0r, B0r = P[rr], Q[rr], D[rr], A0[rr], B0[rr]
-    slot_end = None
-    if np.any(rpr):  # the slot's far end, along ψ
-        slot_end = D[rp] + reach[rp].max(axis=1, keepdims=True) * np.exp(1j * psi[rp])
-    pairs = [
-        (lambda: np.abs(A - B0), every_row), (lambda: np.abs(A - D), every_row),
-        (lambda: np.abs(B - A0), every_row), (lambda: np.abs(B - D), every_row),
-        (lambda: np.abs(P - A0), every_row), (lambda: np.abs(P - B0), every_row),
-        (lambda: reach[rr], rr),  # RPR: that is the torque arm
-        (lambda: np.abs(Qr - A0r), rr), (lambda: np.abs(Qr - B0r), rr),
-        (lambda: _segment_distance(A0r, Pr, Qr), rr), (lambda: _segment_distance(B0r, Pr, Qr), rr),
-        (lambda: _segment_distance(Dr, Pr, Qr), rr),
-        (lambda: _segment_distance(A0r, Dr, Qr), rr), (lambda: _segment_distance(B0r, Dr, Qr), rr),
-        (lambda: _segment_distance(A0[rp], D[rp], slot_end), rp),
-        (lambda: _segment_distance(B0[rp], D[rp], slot_end), rp),
-    ]
-    smallest = np.full((n, len(pairs)), np.inf)
-    for k, (distance, rows) in enumerate(pairs):
-        if isinstance(rows, slice) or rows.size:
-            smallest[rows, k] = distance().min(axis=1)
+    A, B, P, Q = (np.broadcast_to(x, (n, m)) for x in (motion.fourbar.A, motion.fourbar.B, motion.z[0],
+                                                        motion.moving_pivot))
+    # the pairs in the order of CLEARANCE_PAIRS: joints to pivots they are not pinned to,
+    # output links to pivots off them; a dyad kind's pairs on its rows only (inf elsewhere)
+    smallest, reach = pair_clearances(A, B, P, Q, motion.psi, batch.d, batch.pivot, batch.rpr, every)
     which = smallest.argmin(axis=1)
-    return reach, smallest[np.arange(n), which], which, rpr
+    return reach, smallest[np.arange(n), which], which, batch.rpr
 
 
 def buildability(batch: SixBars, motion: SixBarMotion) -> list[Buildability]:

@@ -44,26 +44,33 @@ def test_third_derivative_matches_central_differences_of_the_second(sixbars):
             assert d3[k, i] == pytest.approx(fd, rel=2e-3, abs=2e-3 * (1 + np.abs(d3[k]).max())), (k, i)
 
 
-def _brute_force(sb, samples=7200):
-    """min over the turn of every pair the module considers, written out one by one."""
-    phi = crank_grid(samples)
+def _pairs(sb, samples=7200, every=1):
+    """|P − D| and every pair the module considers (inf for those of the other dyad kind), over
+    every ``every``-th of ``samples`` crank angles, written out one by one in numpy."""
+    phi = crank_grid(samples)[::every]
     m = simulate(sb, phi, order=0)
-    A, B, P, Q = m.fourbar.A * np.ones(samples), m.fourbar.B, m.z[0], m.moving_pivot
+    A, B, P, Q = m.fourbar.A * np.ones(phi.size), m.fourbar.B, m.z[0], m.moving_pivot
     A0, B0, D = 0j, complex(sb.d), sb.dyad.pivot
 
     def seg(p, a, b):
         t = np.clip(((p - a) * np.conj(b - a)).real / np.abs(b - a) ** 2, 0, 1)
         return np.abs(p - (a + t * (b - a)))
 
-    arm = np.abs(P - D).min()
+    none = np.full(phi.size, np.inf)
     pairs = [np.abs(A - B0), np.abs(A - D), np.abs(B - A0), np.abs(B - D), np.abs(P - A0), np.abs(P - B0)]
     if sb.dyad.kind == "RRR":
         pairs += [np.abs(P - D), np.abs(Q - A0), np.abs(Q - B0), seg(A0, P, Q), seg(B0, P, Q), seg(D, P, Q),
-                  seg(A0, D, Q), seg(B0, D, Q)]
+                  seg(A0, D, Q), seg(B0, D, Q), none, none]
     else:
         end = D + np.abs(P - D).max() * np.exp(1j * m.psi)
-        pairs += [seg(A0, D, end), seg(B0, D, end)]
-    return arm, min(p.min() for p in pairs)
+        pairs += [none] * 8 + [seg(A0, D, end), seg(B0, D, end)]
+    return np.abs(P - D), np.array([p.min() for p in pairs])
+
+
+def _brute_force(sb, samples=7200):
+    """min over the turn of |P − D| (the arm) and of every pair the module considers."""
+    reach, pairs = _pairs(sb, samples)
+    return reach.min(), pairs.min()
 
 
 def test_arm_and_clearance_against_a_fine_brute_force(sixbars):
@@ -80,6 +87,33 @@ def test_arm_and_clearance_against_a_fine_brute_force(sixbars):
             assert b.slot[0] == b.arm and b.slot[1] > b.slot[0]
         else:
             assert b.arm is None and b.slot is None
+
+
+@pytest.mark.parametrize("every", [1, 4])
+def test_every_pair_on_the_samples_is_its_distance_written_out(sixbars, every):
+    """The compiled clearances (synth.clearance_kernel) against each pair's numpy distance on
+    the same samples: to rounding, and the pair they name sets the smallest of them."""
+    from synth.buildability import CLEARANCE_PAIRS, clearances
+    from synth.clearance_kernel import pair_clearances
+
+    phi = crank_grid(720)
+    batch = SixBars.from_sixbars(sixbars)
+    motion = simulate(batch, phi, order=2)
+    reach, clearance, which, rpr = clearances(batch, motion, every=every)
+    m = motion.psi.shape[1]
+    smallest, _ = pair_clearances(*(np.broadcast_to(x, motion.psi.shape) for x in (
+        motion.fourbar.A, motion.fourbar.B, motion.z[0], motion.moving_pivot)), motion.psi, batch.d, batch.pivot,
+        batch.rpr, every)
+    assert smallest.shape == (len(sixbars), len(CLEARANCE_PAIRS))
+    for k, sb in enumerate(sixbars):
+        want_reach, want = _pairs(sb, 720, every)
+        size = max(sb.a, sb.b, sb.c, sb.d, np.abs(want_reach).max())
+        np.testing.assert_allclose(reach[k], want_reach, rtol=0, atol=1e-13 * size)
+        np.testing.assert_array_equal(np.isinf(smallest[k]), np.isinf(want))
+        finite = np.isfinite(want)
+        np.testing.assert_allclose(smallest[k][finite], want[finite], rtol=0, atol=1e-12 * size)
+        assert clearance[k] == smallest[k].min() and want[which[k]] <= want.min() + 1e-12 * size
+        assert rpr[k] == (sb.dyad.kind == "RPR") and reach[k].size == len(range(0, m, every))
 
 
 def test_joint_a_to_b0_closed_form():
