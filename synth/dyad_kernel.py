@@ -96,6 +96,27 @@ def _pseudo_angle(y, x):
 
 
 @numba.njit(cache=True, nogil=True)
+def _angle_swing(xa, ya, order, angle):
+    """The swing of the angle arg(x + iy) over cyclic samples ``xa``, ``ya`` (``order``: their
+    pseudo-angles; ``angle``: scratch): (argmax, argmin, max − min refined to the parabolas'
+    vertices, whether it jumps by more than π between neighbours — it crossed its cut)."""
+    M = xa.shape[0]
+    khi = np.argmax(order)
+    klo = np.argmin(order)
+    for k in (khi - 1, khi, khi + 1, klo - 1, klo, klo + 1):
+        k %= M
+        angle[k] = math.atan2(ya[k], xa[k])
+    swing = _vertex_value(angle, khi, 1) - _vertex_value(angle, klo, -1)
+    # a step of more than π between neighbours needs the angle to change sides of the axis
+    for k in range(M):
+        j = (k + 1) % M
+        if (math.copysign(1.0, ya[k]) != math.copysign(1.0, ya[j])
+                and abs(math.atan2(ya[j], xa[j]) - math.atan2(ya[k], xa[k])) > math.pi):
+            return khi, klo, swing, True
+    return khi, klo, swing, False
+
+
+@numba.njit(cache=True, nogil=True)
 def _rrr_swing(wx, wy, rows, ex, ey, br, rho, u, S, dS, invalid):
     M = wx.shape[1]
     eta, order = np.empty(M), np.empty(M)
@@ -116,20 +137,7 @@ def _rrr_swing(wx, wy, rows, ex, ey, br, rho, u, S, dS, invalid):
             order[k] = _pseudo_angle(ya[k], xa[k])
             c1a[k], s1a[k], c2a[k], s2a[k], k2a[k] = c1, s1, c2, s2, k2
             any_sing = any_sing or status != 0
-        khi = np.argmax(order)
-        klo = np.argmin(order)
-        for k in (khi - 1, khi, khi + 1, klo - 1, klo, klo + 1):
-            k %= M
-            eta[k] = math.atan2(ya[k], xa[k])
-        S[i] = _vertex_value(eta, khi, 1) - _vertex_value(eta, klo, -1)
-        # a step of more than π between neighbours needs η to change sides of the axis
-        jump = False
-        for k in range(M):
-            j = (k + 1) % M
-            if (math.copysign(1.0, ya[k]) != math.copysign(1.0, ya[j])
-                    and abs(math.atan2(ya[j], xa[j]) - math.atan2(ya[k], xa[k])) > math.pi):
-                jump = True
-                break
+        khi, klo, S[i], jump = _angle_swing(xa, ya, order, eta)
         invalid[i] = any_sing or jump
         scale = L * u[i] ** 2
         g = np.empty(2)
@@ -171,20 +179,7 @@ def _rpr_swing(t_s, n_s, rows, side, t_end, u, S, dS, invalid):
             # D away from the stretch
             xa[k], ya[k] = -sg * (t_s[r, k] - tD), -sg * n_s[r, k]
             order[k] = _pseudo_angle(ya[k], xa[k])
-        khi = np.argmax(order)
-        klo = np.argmin(order)
-        for k in (khi - 1, khi, khi + 1, klo - 1, klo, klo + 1):
-            k %= M
-            psi[k] = math.atan2(ya[k], xa[k])
-        S[i] = _vertex_value(psi, khi, 1) - _vertex_value(psi, klo, -1)
-        jump = False
-        for k in range(M):
-            j = (k + 1) % M
-            if (math.copysign(1.0, ya[k]) != math.copysign(1.0, ya[j])
-                    and abs(math.atan2(ya[j], xa[j]) - math.atan2(ya[k], xa[k])) > math.pi):
-                jump = True
-                break
-        invalid[i] = jump
+        khi, klo, S[i], invalid[i] = _angle_swing(xa, ya, order, psi)
         g = np.empty(2)
         for j in range(2):
             k = khi if j == 0 else klo

@@ -326,6 +326,29 @@ def test_compiled_rrr_ranking_is_the_numpy_expressions_bit_for_bit(seed):
         assert np.count_nonzero(want[-1] > 0) > 10 and np.count_nonzero(want[-1] < 0) > 10
 
 
+def _check_swing(swing, reference, u):
+    """A compiled swing ``swing(u) -> (S, dS/du, invalid)`` against its numpy ``reference`` at
+    ``u``: the same invalid dyads (some of each kind), S and dS/du to rounding (numpy's
+    ``arctan2`` and complex products may run on other instructions), and dS/du against central
+    differences of S at a safe step — ∂ψ/∂u at the extremes (the envelope theorem), taken at
+    the extreme samples, not at the refined vertices: agreement to the sampling's order (0.25°
+    here; a Newton step needs no more), closer for most dyads."""
+    S, dS, invalid = swing(u)
+    S_ref, dS_ref, invalid_ref = reference
+    np.testing.assert_array_equal(invalid, invalid_ref)
+    ok = ~invalid
+    assert 10 < np.count_nonzero(ok) < ok.size  # both kinds are exercised
+    np.testing.assert_allclose(S[ok], S_ref[ok], rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(dS[ok], dS_ref[ok], rtol=1e-9, atol=1e-12)
+    h = 1e-6 * u
+    up, down = swing(u + h), swing(u - h)
+    fd = (up[0] - down[0]) / (2 * h)
+    smooth = ok & ~up[2] & ~down[2]
+    error = np.abs(dS[smooth] / fd[smooth] - 1)
+    assert np.max(error) < 0.03 and np.median(error) < 1e-3
+    assert np.max(error) > 1e-9  # not the same formula twice
+
+
 def _numpy_swing(w, e, rho, branch, u):
     """The RRR swing S(u) and ∂S/∂u as numpy expressions over (dyads, samples) — the loop by
     :func:`circle_intersection`, the extremes by :func:`sampled_extreme`: the reference of the
@@ -366,29 +389,9 @@ def test_compiled_rrr_swing_is_the_numpy_loop_and_its_derivative(seed):
     e = np.exp(1j * rng.uniform(0, 2 * np.pi, N))
     branch = rng.choice([-1.0, 1.0], N)
     u = 1.0 / rng.uniform(0.5, 20.0, N)
-    rows = np.arange(N)
-    S, dS, invalid = rrr_swing(np.ascontiguousarray(w.real), np.ascontiguousarray(w.imag), rows, e.real.copy(),
-                               e.imag.copy(), branch, rho, u)
-    S_ref, dS_ref, invalid_ref = _numpy_swing(w, e, rho, branch, u)
-    np.testing.assert_array_equal(invalid, invalid_ref)
-    ok = ~invalid
-    assert 10 < np.count_nonzero(ok) < N  # both kinds are exercised
-    np.testing.assert_allclose(S[ok], S_ref[ok], rtol=1e-12, atol=1e-14)
-    np.testing.assert_allclose(dS[ok], dS_ref[ok], rtol=1e-9, atol=1e-12)
-    # the derivative against a central difference of the swing, at a safe step
-    h = 1e-6 * u
-    up = rrr_swing(np.ascontiguousarray(w.real), np.ascontiguousarray(w.imag), rows, e.real.copy(), e.imag.copy(),
-                   branch, rho, u + h)
-    down = rrr_swing(np.ascontiguousarray(w.real), np.ascontiguousarray(w.imag), rows, e.real.copy(), e.imag.copy(),
-                     branch, rho, u - h)
-    # dS/du is ∂ψ/∂u at the extremes (the envelope theorem), taken at the extreme samples, not at
-    # the refined vertices: agreement to the sampling's order (0.25° here; a Newton step needs
-    # no more), closer for most dyads
-    fd = (up[0] - down[0]) / (2 * h)
-    smooth = ok & ~up[2] & ~down[2]
-    error = np.abs(dS[smooth] / fd[smooth] - 1)
-    assert np.max(error) < 0.03 and np.median(error) < 1e-3
-    assert np.max(error) > 1e-9  # not the same formula twice
+    wx, wy = np.ascontiguousarray(w.real), np.ascontiguousarray(w.imag)
+    _check_swing(lambda uu: rrr_swing(wx, wy, np.arange(N), e.real.copy(), e.imag.copy(), branch, rho, uu),
+                 _numpy_swing(w, e, rho, branch, u), u)
 
 
 def _numpy_rpr_swing(t_s, n_s, side, t_end, u):
@@ -432,22 +435,8 @@ def test_compiled_rpr_swing_is_the_numpy_angle_and_its_derivative(seed):
     inside = rng.random(N) < 0.25  # pivots within the path's extent: the cut beyond D may cross it
     t_end = np.where(inside, t_s.mean(axis=1), t_end)
     u = rng.uniform(0.05, 4.0, N) * np.where(inside, 30.0, 1.0)
-    rows = np.arange(N)
-    S, dS, invalid = rpr_swing(t_s, n_s, rows, side, t_end, u)
-    S_ref, dS_ref, invalid_ref = _numpy_rpr_swing(t_s, n_s, side, t_end, u)
-    np.testing.assert_array_equal(invalid, invalid_ref)
-    ok = ~invalid
-    assert 10 < np.count_nonzero(ok) < N  # both kinds are exercised
-    np.testing.assert_allclose(S[ok], S_ref[ok], rtol=1e-12, atol=1e-14)
-    np.testing.assert_allclose(dS[ok], dS_ref[ok], rtol=1e-9, atol=1e-12)
-    h = 1e-6 * u
-    up, down = rpr_swing(t_s, n_s, rows, side, t_end, u + h), rpr_swing(t_s, n_s, rows, side, t_end, u - h)
-    fd = (up[0] - down[0]) / (2 * h)
-    smooth = ok & ~up[2] & ~down[2]
-    error = np.abs(dS[smooth] / fd[smooth] - 1)
-    assert np.max(error) < 0.03 and np.median(error) < 1e-3
-    assert np.max(error) > 1e-9
-
+    _check_swing(lambda uu: rpr_swing(t_s, n_s, np.arange(N), side, t_end, uu),
+                 _numpy_rpr_swing(t_s, n_s, side, t_end, u), u)
 
 def test_pseudo_angle_orders_directions_as_atan2_signed_zeros_and_cut_included():
     from synth.dyad_kernel import _pseudo_angle
