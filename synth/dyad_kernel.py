@@ -140,14 +140,13 @@ def _rrr_swing(wx, wy, rows, ex, ey, br, rho, u, S, dS, invalid):
         khi, klo, S[i], jump = _angle_swing(xa, ya, order, eta)
         invalid[i] = any_sing or jump
         scale = L * u[i] ** 2
-        g = np.empty(2)
-        for j in range(2):
-            k = khi if j == 0 else klo
-            # ∂ψ/∂u = −∂ψ/∂L / u², ∂ψ/∂L = −Re((e + e^{iψ}) e^{−iχ}) / (L sin(χ − ψ)),
-            # L sin(χ − ψ) = −height (0 at a flagged sample)
+        # ∂ψ/∂u = −∂ψ/∂L / u², ∂ψ/∂L = −Re((e + e^{iψ}) e^{−iχ}) / (L sin(χ − ψ)), at the two
+        # extremes; L sin(χ − ψ) = −height (0 at a flagged sample)
+        rate = 0.0
+        for k, sign in ((khi, 1.0), (klo, -1.0)):
             re = (ex[i] + c2a[k]) * c1a[k] - (ey[i] + s2a[k]) * (-s1a[k])
-            g[j] = re * (-L * k2a[k]) / scale
-        dS[i] = g[0] - g[1]
+            rate += sign * (re * (-L * k2a[k]) / scale)
+        dS[i] = rate
 
 
 def rrr_swing(wx, wy, rows, ex, ey, branch, rho, u):
@@ -180,12 +179,10 @@ def _rpr_swing(t_s, n_s, rows, side, t_end, u, S, dS, invalid):
             xa[k], ya[k] = -sg * (t_s[r, k] - tD), -sg * n_s[r, k]
             order[k] = _pseudo_angle(ya[k], xa[k])
         khi, klo, S[i], invalid[i] = _angle_swing(xa, ya, order, psi)
-        g = np.empty(2)
-        for j in range(2):
-            k = khi if j == 0 else klo
-            a, b = t_s[r, k] - tD, n_s[r, k]
-            g[j] = b / (a * a + b * b)  # ∂ψ/∂t_D = Im(−1/(P − D))
-        dS[i] = (g[0] - g[1]) * (-sg / (u[i] * u[i]))
+        a_hi, b_hi = t_s[r, khi] - tD, n_s[r, khi]
+        a_lo, b_lo = t_s[r, klo] - tD, n_s[r, klo]
+        # ∂ψ/∂t_D = Im(−1/(P − D)) at the two extremes
+        dS[i] = (b_hi / (a_hi * a_hi + b_hi * b_hi) - b_lo / (a_lo * a_lo + b_lo * b_lo)) * (-sg / (u[i] * u[i]))
 
 
 def rpr_swing(t_s, n_s, rows, side, t_end, u):
