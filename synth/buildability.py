@@ -117,19 +117,15 @@ def clearances(batch: SixBars, motion: SixBarMotion, every: int = 1) -> tuple[np
 def buildability(batch: SixBars, motion: SixBarMotion) -> list[Buildability]:
     """The figures of every six-bar of ``batch`` from ``motion`` (an order-2 simulation on a
     uniform crank grid over the whole turn, shape (N, M))."""
-    n = motion.psi.shape[0]
     reach, clearance, which, rpr = clearances(batch, motion)
     names = CLEARANCE_PAIRS
 
     d1, d2 = motion.dpsi[0], motion.dpsi[1]
     d3 = output_rates(d2)
-    peaks = np.stack([np.abs(d1).max(axis=1), np.abs(d2).max(axis=1), np.abs(d3).max(axis=1)], axis=1)
-    out = []
-    for k in range(n):
-        out.append(Buildability(
-            arm=float(reach[k].min()) if rpr[k] else None,
-            slot=(float(reach[k].min()), float(reach[k].max())) if rpr[k] else None,
-            clearance=float(clearance[k]), clearance_between=names[which[k]],
-            peak_rates=(float(peaks[k, 0]), float(peaks[k, 1]), float(peaks[k, 2])),
-        ))
-    return out
+    peaks = np.stack([np.abs(d1).max(axis=1), np.abs(d2).max(axis=1), np.abs(d3).max(axis=1)], axis=1).tolist()
+    # reductions for the whole batch, then Python floats row by row (a per-row ``min`` costs more
+    # than the kernel for a batch of a hundred)
+    arm, far = reach.min(axis=1).tolist(), reach.max(axis=1).tolist()
+    return [Buildability(arm=arm[k] if slotted else None, slot=(arm[k], far[k]) if slotted else None,
+                         clearance=c, clearance_between=names[w], peak_rates=tuple(peaks[k]))
+            for k, (c, w, slotted) in enumerate(zip(clearance.tolist(), which.tolist(), rpr.tolist()))]

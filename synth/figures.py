@@ -187,18 +187,14 @@ def _figures_but_dwells(batch: SixBars, phi: F64, motion: SixBarMotion, psi_at, 
 
     ratio = link_ratios(batch, motion)
 
-    pts = _outline(batch, motion)
-    xmin, xmax = pts.real.min(axis=1), pts.real.max(axis=1)
-    ymin, ymax = pts.imag.min(axis=1), pts.imag.max(axis=1)
+    boxes = _bounding_boxes(batch, motion)
     area = _footprints(batch, motion) if footprint else np.zeros(N)
     build = buildability(batch, motion)
     return [SixBarFigures(
-        dwells=(), deviations=(), swing=float(swing[k]), turns=int(turns[k]),
-        transmission_fourbar=float(mu_fb[k]), transmission_output=float(mu_out[k]),
-        link_ratio=float(ratio[k]), footprint=float(area[k]),
-        bounds=(float(xmin[k]), float(ymin[k]), float(xmax[k]), float(ymax[k])),
-        status=int(status[k]), build=build[k],
-    ) for k in range(N)]
+        dwells=(), deviations=(), swing=sw, turns=tu, transmission_fourbar=m1, transmission_output=m2,
+        link_ratio=lr, footprint=ar, bounds=tuple(box), status=st, build=bu,
+    ) for sw, tu, m1, m2, lr, ar, box, st, bu in zip(swing.tolist(), turns.tolist(), mu_fb.tolist(), mu_out.tolist(),
+                                                     ratio.tolist(), area.tolist(), boxes, status.tolist(), build)]
 
 
 def link_ratios(batch: SixBars, motion: SixBarMotion) -> F64:
@@ -220,11 +216,25 @@ def footprints(sixbars: SixBars, samples: int = 720) -> F64:
 def _outline(batch: SixBars, motion: SixBarMotion, every: int = 1) -> C128:
     """Per row, the fixed pivots A0, B0, D and every ``every``-th sample of the paths of A, B,
     P and (RRR) Q: what the footprint and bounds are taken over."""
+    return np.concatenate(_outline_parts(batch, motion, every), axis=1)
+
+
+def _outline_parts(batch: SixBars, motion: SixBarMotion, every: int = 1) -> list[C128]:
+    """The parts of :func:`_outline`, each ``(N, k)``: the fixed pivots, then the four paths."""
     N = len(batch)
     fixed = np.stack([np.zeros(N, complex), batch.d.astype(complex), batch.pivot], axis=1)
-    paths = [motion.fourbar.A * np.ones_like(motion.psi), motion.fourbar.B, motion.z[0],
+    paths = [motion.fourbar.A, motion.fourbar.B, motion.z[0],
              np.where(batch.rpr[:, None], motion.z[0], motion.moving_pivot)]
-    return np.concatenate([fixed] + [np.broadcast_to(p, motion.psi.shape)[:, ::every] for p in paths], axis=1)
+    return [fixed] + [np.broadcast_to(p, motion.psi.shape)[:, ::every] for p in paths]
+
+
+def _bounding_boxes(batch: SixBars, motion: SixBarMotion) -> list[list[float]]:
+    """Per row, (xmin, ymin, xmax, ymax) of :func:`_outline`: the same extremes, part by part
+    (no concatenated copy of every path)."""
+    parts = _outline_parts(batch, motion)
+    lows = [np.minimum.reduce([p.real.min(axis=1) for p in parts]), np.minimum.reduce([p.imag.min(axis=1) for p in parts])]
+    highs = [np.maximum.reduce([p.real.max(axis=1) for p in parts]), np.maximum.reduce([p.imag.max(axis=1) for p in parts])]
+    return np.stack(lows + highs, axis=1).tolist()
 
 
 def _footprints(batch: SixBars, motion: SixBarMotion) -> F64:
