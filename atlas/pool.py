@@ -49,9 +49,12 @@ def _exit_with_driver(lifeline: Connection) -> None:
     os._exit(1)
 
 
-def _init_worker(lifeline: Connection, initializer: Callable[..., None] | None, initargs: tuple) -> None:
+def _init_worker(lifeline: Connection, initializer: Callable[..., None] | None, initargs: tuple, workers: int) -> None:
+    from synth.parallel_rows import set_threads, threads
+
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     threading.Thread(target=_exit_with_driver, args=(lifeline,), name="driver-watch", daemon=True).start()
+    set_threads(max(1, threads() // workers))  # the workers share the cores: no more threads than cores
     if initializer is not None:
         initializer(*initargs)
 
@@ -105,7 +108,7 @@ def pool_map(fn: Callable[[T], R], items: Iterable[T], workers: int, *,
     # only the driver ever holds the sending end: it closes when the driver dies, however
     lifeline_r, lifeline_w = ctx.Pipe(duplex=False)
     executor = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker,
-                                   initargs=(lifeline_r, initializer, initargs))
+                                   initargs=(lifeline_r, initializer, initargs, workers))
     pending: set[Future] = set()
     clean = False
     try:

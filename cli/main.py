@@ -32,6 +32,13 @@ def dwell() -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point: run ``dwell`` and map errors to exit statuses (never a traceback for input)."""
+    from synth.parallel_rows import threads
+
+    try:
+        threads()  # $DWELL_THREADS read (and checked) before any work
+    except ValueError as exc:
+        click.echo(f"dwell: error: {exc}", err=True)
+        return 2
     try:
         # without standalone mode click returns the code of ``ctx.exit(n)`` instead of raising
         rv = dwell.main(args=argv, prog_name="dwell", standalone_mode=False)

@@ -20,6 +20,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from synth.parallel_rows import over_rows
+
 __all__ = ["longest_windows"]
 
 
@@ -83,5 +85,6 @@ def longest_windows(upper: np.ndarray, lower: np.ndarray, band: np.ndarray, m: i
     length = np.empty((R, m), np.int64)
     w_max = np.empty((R, m))
     w_min = np.empty((R, m))
-    _windows(upper, lower, band, int(m), length, w_max, w_min)
+    over_rows(R, lambda lo, hi: _windows(upper[lo:hi], lower[lo:hi], band[lo:hi], int(m), length[lo:hi],
+                                         w_max[lo:hi], w_min[lo:hi]), R * upper.shape[1])
     return length, w_max, w_min

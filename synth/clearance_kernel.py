@@ -17,6 +17,8 @@ import math
 import numba
 import numpy as np
 
+from synth.parallel_rows import over_rows
+
 __all__ = ["pair_clearances"]
 
 #: Pairs (of CLEARANCE_PAIRS) an RRR has, and those an RPR has (its slot's two).
@@ -91,6 +93,7 @@ def pair_clearances(A, B, P, Q, psi, d, pivot, rpr, every: int):
     N, M = psi.shape
     reach = np.empty((N, len(range(0, M, every))))
     smallest = np.empty((N, 16))
-    _clearances(A, B, P, Q, psi, np.asarray(d, float), np.asarray(pivot, complex), np.asarray(rpr, np.bool_),
-                int(every), reach, smallest)
+    d, pivot, rpr = np.asarray(d, float), np.asarray(pivot, complex), np.asarray(rpr, np.bool_)
+    over_rows(N, lambda lo, hi: _clearances(A[lo:hi], B[lo:hi], P[lo:hi], Q[lo:hi], psi[lo:hi], d[lo:hi], pivot[lo:hi],
+                                            rpr[lo:hi], int(every), reach[lo:hi], smallest[lo:hi]), N * M)
     return smallest, reach

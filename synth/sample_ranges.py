@@ -20,6 +20,7 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
+from synth.parallel_rows import over_rows
 from synth.types import F64
 
 __all__ = ["range_extremes", "vertex_bounds"]
@@ -83,5 +84,5 @@ def vertex_bounds(E: F64) -> tuple[F64, F64]:
     (a vertex far outside its step is no peak); the end samples and the others as they are."""
     E = np.ascontiguousarray(E, dtype=float)
     upper, lower = np.empty_like(E), np.empty_like(E)
-    _vertex_bounds(E, upper, lower)
+    over_rows(E.shape[0], lambda lo, hi: _vertex_bounds(E[lo:hi], upper[lo:hi], lower[lo:hi]), E.size)
     return upper, lower

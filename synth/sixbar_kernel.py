@@ -28,6 +28,7 @@ import numpy as np
 
 from kinematics.loop import COINCIDENT_EPS, HERON_SAFE, TOGGLE_EPS
 from kinematics.status import Status
+from synth.parallel_rows import over_rows
 
 __all__ = ["closing_point", "output_angles", "sixbar_positions"]
 
@@ -232,9 +233,20 @@ def output_angles(params: np.ndarray, rpr: np.ndarray, phi: np.ndarray, pin_eps:
     it, without the points and transmission angles (the refinements' many small calls)."""
     n, m = params.shape[0], phi.shape[1]
     angles = np.empty((3, n, m))  # only ψ is written (the other two pages are never touched)
-    _positions(params, rpr, phi, pin_eps, 0, False, np.empty((3, 0, 0), np.complex128), angles,
-               np.empty((0, 0, 0)), np.empty((n, m), np.uint8), np.empty((n, m), np.uint16))
+    status_fourbar, status = np.empty((n, m), np.uint8), np.empty((n, m), np.uint16)
+    none_c, none_f = np.empty((3, 0, 0), np.complex128), np.empty((0, 0, 0))
+
+    def block(lo: int, hi: int) -> None:
+        _positions(params[lo:hi], rpr[lo:hi], _rows(phi, lo, hi), pin_eps, 0, False, none_c, angles[:, lo:hi],
+                   none_f, status_fourbar[lo:hi], status[lo:hi])
+
+    over_rows(n, block, n * m)
     return angles[0]
+
+
+def _rows(phi: np.ndarray, lo: int, hi: int) -> np.ndarray:
+    """The crank angles of rows lo..hi: all of a shared grid ``(1, M)``, else those rows."""
+    return phi if phi.shape[0] == 1 else phi[lo:hi]
 
 
 def sixbar_positions(params: np.ndarray, rpr: np.ndarray, phi: np.ndarray, pin_eps: float, order: int = 0):
@@ -256,5 +268,10 @@ def sixbar_positions(params: np.ndarray, rpr: np.ndarray, phi: np.ndarray, pin_e
     derivs = np.empty((3 * order, n, m))
     status_fourbar = np.empty((n, m), np.uint8)
     status = np.empty((n, m), np.uint16)
-    _positions(params, rpr, phi, pin_eps, order, True, points, angles, derivs, status_fourbar, status)
+
+    def block(lo: int, hi: int) -> None:
+        _positions(params[lo:hi], rpr[lo:hi], _rows(phi, lo, hi), pin_eps, order, True, points[:, lo:hi],
+                   angles[:, lo:hi], derivs[:, lo:hi], status_fourbar[lo:hi], status[lo:hi])
+
+    over_rows(n, block, n * m)
     return points, angles, derivs, status_fourbar, status

@@ -1,0 +1,110 @@
+"""Batches split over threads (:mod:`synth.parallel_rows`): every row once, errors raised after
+every block is done, and the compiled kernels' results bit for bit the same on one thread as on
+several — each row's work reads and writes only that row."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import threading
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from synth import parallel_rows
+from synth.sixbar import PIN_ON_PIVOT_EPS, _kernel_inputs, crank_grid, simulate
+
+from test_sixbar_kernel import _random_batch  # tests/synth: mixed RPR/RRR six-bars, some not assembling
+
+
+@pytest.fixture
+def threads():
+    """Set the thread count for a test; the default is put back after it."""
+    yield parallel_rows.set_threads
+    parallel_rows.set_threads(parallel_rows._default_threads())
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 40), st.integers(1, 5), st.sampled_from([0, parallel_rows.MIN_WORK - 1, parallel_rows.MIN_WORK]))
+def test_every_row_once_in_contiguous_blocks(rows, n, size):
+    parallel_rows.set_threads(n)
+    try:
+        seen, blocks, lock = np.zeros(rows, int), [], threading.Lock()
+
+        def work(lo, hi):
+            with lock:
+                blocks.append((lo, hi))
+                seen[lo:hi] += 1
+
+        parallel_rows.over_rows(rows, work, size)
+    finally:
+        parallel_rows.set_threads(parallel_rows._default_threads())
+    assert np.all(seen == 1)
+    assert all(lo < hi for lo, hi in blocks) or rows == 0
+    split = size >= parallel_rows.MIN_WORK and min(n, rows) > 1
+    assert len(blocks) == (min(n, rows) if split else 1)
+
+
+def test_an_error_in_a_block_is_raised_once_every_block_is_done(threads):
+    threads(4)
+    done, lock = [], threading.Lock()
+
+    def work(lo, hi):
+        if lo == 0:
+            raise ZeroDivisionError("first block")
+        threading.Event().wait(0.05)  # the others finish after the first failed
+        with lock:
+            done.append(lo)
+
+    with pytest.raises(ZeroDivisionError, match="first block"):
+        parallel_rows.over_rows(8, work, 10**6)
+    assert sorted(done) == [2, 4, 6]
+
+
+@pytest.mark.parametrize("order", [0, 2])
+def test_six_bar_motion_the_same_on_any_number_of_threads(threads, order):
+    from synth.sixbar_kernel import output_angles
+
+    batch = _random_batch(300, seed=3)
+    params, rpr = _kernel_inputs(batch)
+    rows_phi = np.random.default_rng(4).uniform(0, 2 * np.pi, (300, 40))
+    results = []
+    for n in (1, 2, 3):
+        threads(n)
+        motion = simulate(batch, crank_grid(360), order=order)
+        results.append([motion.psi, motion.z[0], motion.moving_pivot, motion.status, *motion.dpsi,
+                        motion.transmission_output, output_angles(params, rpr, rows_phi, PIN_ON_PIVOT_EPS)])
+    for other in results[1:]:
+        for a, b in zip(results[0], other):
+            np.testing.assert_array_equal(a, b)
+    assert np.any(results[0][3] != 0) and np.any(results[0][3] == 0)  # flagged positions among them
+
+
+def test_clearances_band_windows_and_vertex_bounds_the_same_on_any_number_of_threads(threads):
+    from synth.band_windows import longest_windows
+    from synth.buildability import clearances
+    from synth.sample_ranges import vertex_bounds
+
+    batch = _random_batch(200, seed=5)
+    motion = simulate(batch, crank_grid(720), order=0)
+    E = np.concatenate([motion.psi, motion.psi + (motion.psi[:, -1:] - motion.psi[:, :1])], axis=1)
+    band = np.full(200, np.radians(0.5))
+    results = []
+    for n in (1, 3):
+        threads(n)
+        upper, lower = vertex_bounds(E)
+        results.append([*clearances(batch, motion)[:3], upper, lower, *longest_windows(upper, lower, band, 720)])
+    for a, b in zip(*results):
+        np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("value", ["0", "two", "-1"])
+def test_a_bad_thread_count_is_one_line_and_exit_2(value):
+    env = {"DWELL_THREADS": value, "PATH": ""}
+    command = [sys.executable, "-c", "import sys; from cli.main import main; sys.exit(main())", "--version"]
+    proc = subprocess.run(command, capture_output=True, text=True,
+                          env=env, timeout=60, check=False)
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.count("\n") == 1 and "DWELL_THREADS" in proc.stderr and repr(value) in proc.stderr
