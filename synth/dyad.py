@@ -89,58 +89,26 @@ def _dwell_mask(phi0: float, h: float, m: int, start: np.ndarray, end: np.ndarra
     return mask, mid
 
 
-def _solve_swing(F, lo: F64, hi: F64, u0: F64, target: F64, active: NDArray[np.bool_], *, check_far: bool = True):
-    """Safeguarded Newton for S(u) = target on [lo, hi], vectorised over rows.
-
-    ``F(rows, u)`` evaluates the rows ``rows`` (flat indices) at ``u`` and returns
-    (S, dS/du, invalid); an invalid S (revolving, not assemblable) counts as too large. Only
-    rows still iterating are evaluated. Newton steps that leave the bracket are replaced by
-    bisection (Numerical Recipes' ``rtsafe``). With ``check_far`` the far end ``hi`` is
-    evaluated first: a row that falls short of the swing even there has no root (and bisection
-    would only crawl towards it). Returns (u, S, converged), S = 0 where not converged.
-    """
+def _solve_two_stage(solve, path, lo, hi, u0, target, active):
+    """S(u) = target solved by safeguarded Newton on [lo, hi] for every dyad (Numerical
+    Recipes' ``rtsafe``, compiled: :func:`synth.dyad_kernel.solve_rrr`, ``solve_rpr``), on
+    every STRIDE-th sample first (cheap iterations), then polished on the full path from there
+    (Newton needs one or two more steps). ``solve(path, lo, hi, u0, target, active,
+    check_far)`` runs it over the flat dyads; with ``check_far`` the far end ``hi`` is
+    evaluated first: a dyad that falls short of the swing even there has no root (and
+    bisection would only crawl towards it). Returns (u, S, converged) of ``u0``'s shape, S = 0
+    where not converged."""
     shape = np.shape(u0)
-    lo, hi, target = (np.broadcast_to(x, shape).astype(float).ravel() for x in (lo, hi, target))
-    active = np.broadcast_to(active, shape).ravel().copy()
-    u = np.clip(np.asarray(u0, float).ravel(), lo, hi)
-    if check_far:
-        sel = np.flatnonzero(active)
-        S_hi, _, inv_hi = F(sel, hi[sel])
-        active[sel] = inv_hi | (S_hi >= target[sel] - SWING_TOL)
-    S = np.zeros_like(u)
-    converged = np.zeros(u.shape, bool)
-    todo = np.flatnonzero(active)
-    for _ in range(_MAX_ITER):
-        if todo.size == 0:
-            break
-        ut, lt, ht = u[todo], lo[todo], hi[todo]
-        St, dS, invalid = F(todo, ut)
-        f = St - target[todo]
-        conv = ~invalid & (np.abs(f) <= SWING_TOL)
-        S[todo] = St
-        converged[todo] = conv
-        big = invalid | (f > 0)
-        ht = np.where(big, ut, ht)
-        lt = np.where(big, lt, ut)
-        ok_d = ~invalid & (dS > 0)
-        newton = ut - np.where(ok_d, f / np.where(ok_d, dS, 1.0), 0.0)
-        inside = ok_d & (newton > lt) & (newton < ht)
-        step = np.where(inside, newton, 0.5 * (lt + ht))
-        lo[todo], hi[todo] = lt, ht
-        go_on = ~conv & ((ht - lt) > 1e-15 * ht)
-        u[todo[go_on]] = step[go_on]
-        todo = todo[go_on]
-    return u.reshape(shape), np.where(converged, S, 0.0).reshape(shape), converged.reshape(shape)
 
+    def flat(x, dtype=float):
+        return np.ascontiguousarray(np.broadcast_to(x, shape), dtype=dtype).ravel()
 
-def _solve_two_stage(make_F, path, lo, hi, u0, target, active):
-    """S(u) = target solved on every STRIDE-th sample first (cheap iterations), then polished
-    on the full path from there (Newton needs one or two more steps)."""
+    lo, hi, target, u, active = flat(lo), flat(hi), flat(target), flat(u0), flat(active, np.bool_)
     stride = max(1, path.shape[-1] // _SOLVE_SAMPLES)
     if stride > 1:
-        u_c, _, conv_c = _solve_swing(make_F(path[:, ::stride]), lo, hi, u0, target, active)
-        return _solve_swing(make_F(path), lo, hi, u_c, target, conv_c, check_far=False)
-    return _solve_swing(make_F(path), lo, hi, u0, target, active)
+        u, _, active = solve(path[:, ::stride], lo, hi, u, target, active, True)
+    u, S, converged = solve(path, lo, hi, u, target, active, stride == 1)
+    return u.reshape(shape), S.reshape(shape), converged.reshape(shape)
 
 
 # --------------------------------------------------------------------------------------------
@@ -248,20 +216,17 @@ def fit_rpr(line_point: ArrayLike, line_direction: ArrayLike, phi: ArrayLike, pa
     side = np.tile(sigma, R)
     t_end_f = t_end.ravel()
 
-    def make_F(path_tn):
-        from synth.dyad_kernel import rpr_swing  # numba: imported on first use
+    def solve(path_tn, lo, hi, u0, target, active, check_far):
+        from synth.dyad_kernel import solve_rpr  # numba: imported on first use
 
+        # the swing and ∂S/∂u, ∂ψ/∂t_D = Im(−1/(P − D)) at the extreme samples
         t_s, n_s = np.ascontiguousarray(path_tn.real), np.ascontiguousarray(path_tn.imag)
-
-        def F(sel, u):  # the swing and ∂S/∂u, ∂ψ/∂t_D = Im(−1/(P − D)) at the extreme samples
-            return rpr_swing(t_s, n_s, row_of[sel], side[sel], t_end_f[sel], np.asarray(u, float))
-
-        return F
+        return solve_rpr(t_s, n_s, row_of, side, t_end_f, lo, hi, u0, target, active, check_far, SWING_TOL, _MAX_ITER)
 
     target2 = np.broadcast_to(target[:, None], (R, 2))
     u0 = target2 / np.maximum(width, 1e-12)[:, None]
     u_max = np.full((R, 2), 1.0 / clearance)
-    u, S, conv = _solve_two_stage(make_F, w, np.zeros((R, 2)), u_max, u0, target2, np.ones((R, 2), bool))
+    u, S, conv = _solve_two_stage(solve, w, np.zeros((R, 2)), u_max, u0, target2, np.ones((R, 2), bool))
     tD = t_end + sigma / u
     D = P0[:, None] + tD * e[:, None]
     dist = np.abs(z[:, None, :] - D[..., None]).min(axis=-1)
@@ -650,7 +615,7 @@ def _solve_rrr(w, rho, alpha, branch, u_lo, u_hi, u_est, target, active):
     dyad loop P + ρ·e^{iχ} = D + L·e^{iψ} (P relative to C₀, D = L·e^{iα}) on the samples, S
     the rocker's swing and ∂S/∂u from its two extremes (compiled:
     :func:`synth.dyad_kernel.rrr_swing`)."""
-    from synth.dyad_kernel import rrr_swing  # numba: imported on first use
+    from synth.dyad_kernel import solve_rrr  # numba: imported on first use
 
     R, J = alpha.shape
     row_of = np.repeat(np.arange(R), J)
@@ -659,17 +624,14 @@ def _solve_rrr(w, rho, alpha, branch, u_lo, u_hi, u_est, target, active):
     br_f = branch.ravel().astype(float)
     rho_f = rho[row_of]
 
-    def make_F(wk):
+    def solve(wk, lo, hi, u0, target, active, check_far):
         wx, wy = np.ascontiguousarray(wk.real), np.ascontiguousarray(wk.imag)
-
-        def F(sel, u):
-            return rrr_swing(wx, wy, row_of[sel], ex[sel], ey[sel], br_f[sel], rho_f[sel], np.asarray(u, float))
-
-        return F
+        return solve_rrr(wx, wy, row_of, ex, ey, br_f, rho_f, lo, hi, u0, target, active, check_far, SWING_TOL,
+                         _MAX_ITER)
 
     # Rows without a feasible u-interval get a harmless dummy bracket and stay inactive.
     act = active & (u_hi > 0) & (u_lo <= u_hi)
     lo = np.where(act, u_lo, 0.5)
     hi = np.where(act, u_hi, 1.0)
     u0 = np.where(act & (u_est > 0), u_est, 0.5 * (lo + hi))
-    return _solve_two_stage(make_F, w, lo, hi, u0, np.broadcast_to(target[:, None], (R, J)), act)
+    return _solve_two_stage(solve, w, lo, hi, u0, np.broadcast_to(target[:, None], (R, J)), act)

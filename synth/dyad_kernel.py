@@ -23,9 +23,10 @@ import math
 import numba
 import numpy as np
 
+from synth.parallel_rows import over_rows
 from synth.sixbar_kernel import closing_point
 
-__all__ = ["direction_estimates", "rpr_swing", "rrr_swing"]
+__all__ = ["direction_estimates", "rpr_swing", "rrr_swing", "solve_rpr", "solve_rrr"]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -69,7 +70,8 @@ def direction_estimates(wx, wy, A, inv_a_rho, half, rho, c, s, branch, target, r
     :meth:`synth.dyad._RrrTerms.estimate`'s quantities before its arccos."""
     R, J = c.shape
     out = [np.empty((R, J)) for _ in range(4)] + [np.empty((R, J), np.bool_)]
-    _estimates(wx, wy, A, inv_a_rho, half, rho, c, s, branch, target, ratio, *out)
+    over_rows(R, lambda lo, hi: _estimates(*(x[lo:hi] for x in (wx, wy, A, inv_a_rho, half, rho, c, s, branch, target,
+                                                               ratio, *out))), R * J * wx.shape[1])
     return tuple(out)
 
 
@@ -116,37 +118,82 @@ def _angle_swing(xa, ya, order, angle):
     return khi, klo, swing, False
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _rtsafe_step(u, lt, ht, St, dS, invalid, target, tol):
+    """One step of the safeguarded Newton on [lt, ht] (Numerical Recipes' ``rtsafe``) from the
+    swing St and dS/du at u: (S, converged, lt, ht, next u, go on). An invalid S (revolving,
+    not assemblable) counts as too large; a Newton step that leaves the bracket is replaced by
+    bisection."""
+    f = St - target
+    conv = (not invalid) and abs(f) <= tol
+    if invalid or f > 0:
+        ht = u
+    else:
+        lt = u
+    ok_d = (not invalid) and dS > 0
+    newton = u - (f / dS if ok_d else 0.0)
+    step = newton if (ok_d and newton > lt and newton < ht) else 0.5 * (lt + ht)
+    return St, conv, lt, ht, step, (not conv) and (ht - lt) > 1e-15 * ht
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _rrr_one(wx, wy, r, ex, ey, br, rho, u, scratch):
+    """(S, dS/du, invalid) of one RRR dyad (:func:`rrr_swing`'s row); ``scratch``: (8, M)."""
+    M = wx.shape[1]
+    eta, order, xa, ya = scratch[0], scratch[1], scratch[2], scratch[3]
+    c1a, s1a, c2a, s2a, k2a = scratch[4], scratch[5], scratch[6], scratch[7], scratch[8]
+    L = 1.0 / u
+    lx, ly = L * ex, L * ey
+    any_sing = False
+    for k in range(M):
+        # the loop closed at R = D − P (D = L·e, P relative to C₀), l1 = ρ, l2 = L; k2 is
+        # 1/height, 0 where the loop does not close or toggles
+        c1, s1, c2, s2, status, _, k2 = closing_point(lx - wx[r, k], ly - wy[r, k], rho, L, br)
+        # η = arg(e^{iψ}·(−ē)), the rocker's turn from rest: ordered by its pseudo-angle,
+        # its arctangent taken only where a value is read (extremes, the cut's crossings)
+        xa[k], ya[k] = c2 * (-ex) - s2 * ey, c2 * ey + s2 * (-ex)
+        order[k] = _pseudo_angle(ya[k], xa[k])
+        c1a[k], s1a[k], c2a[k], s2a[k], k2a[k] = c1, s1, c2, s2, k2
+        any_sing = any_sing or status != 0
+    khi, klo, S, jump = _angle_swing(xa, ya, order, eta)
+    scale = L * u ** 2
+    # ∂ψ/∂u = −∂ψ/∂L / u², ∂ψ/∂L = −Re((e + e^{iψ}) e^{−iχ}) / (L sin(χ − ψ)), at the two
+    # extremes; L sin(χ − ψ) = −height (0 at a flagged sample)
+    rate = 0.0
+    for k, sign in ((khi, 1.0), (klo, -1.0)):
+        re = (ex + c2a[k]) * c1a[k] - (ey + s2a[k]) * (-s1a[k])
+        rate += sign * (re * (-L * k2a[k]) / scale)
+    return S, rate, any_sing or jump
+
+
 @numba.njit(cache=True, nogil=True)
 def _rrr_swing(wx, wy, rows, ex, ey, br, rho, u, S, dS, invalid):
-    M = wx.shape[1]
-    eta, order = np.empty(M), np.empty(M)
-    xa, ya = np.empty(M), np.empty(M)
-    c1a, s1a, c2a, s2a, k2a = np.empty(M), np.empty(M), np.empty(M), np.empty(M), np.empty(M)
+    scratch = np.empty((9, wx.shape[1]))
     for i in range(rows.shape[0]):
-        r = rows[i]
-        L = 1.0 / u[i]
-        lx, ly = L * ex[i], L * ey[i]
-        any_sing = False
-        for k in range(M):
-            # the loop closed at R = D − P (D = L·e, P relative to C₀), l1 = ρ, l2 = L; k2 is
-            # 1/height, 0 where the loop does not close or toggles
-            c1, s1, c2, s2, status, _, k2 = closing_point(lx - wx[r, k], ly - wy[r, k], rho[i], L, br[i])
-            # η = arg(e^{iψ}·(−ē)), the rocker's turn from rest: ordered by its pseudo-angle,
-            # its arctangent taken only where a value is read (extremes, the cut's crossings)
-            xa[k], ya[k] = c2 * (-ex[i]) - s2 * ey[i], c2 * ey[i] + s2 * (-ex[i])
-            order[k] = _pseudo_angle(ya[k], xa[k])
-            c1a[k], s1a[k], c2a[k], s2a[k], k2a[k] = c1, s1, c2, s2, k2
-            any_sing = any_sing or status != 0
-        khi, klo, S[i], jump = _angle_swing(xa, ya, order, eta)
-        invalid[i] = any_sing or jump
-        scale = L * u[i] ** 2
-        # ∂ψ/∂u = −∂ψ/∂L / u², ∂ψ/∂L = −Re((e + e^{iψ}) e^{−iχ}) / (L sin(χ − ψ)), at the two
-        # extremes; L sin(χ − ψ) = −height (0 at a flagged sample)
-        rate = 0.0
-        for k, sign in ((khi, 1.0), (klo, -1.0)):
-            re = (ex[i] + c2a[k]) * c1a[k] - (ey[i] + s2a[k]) * (-s1a[k])
-            rate += sign * (re * (-L * k2a[k]) / scale)
-        dS[i] = rate
+        S[i], dS[i], invalid[i] = _rrr_one(wx, wy, rows[i], ex[i], ey[i], br[i], rho[i], u[i], scratch)
+
+
+@numba.njit(cache=True, nogil=True)
+def _solve_rrr(wx, wy, rows, ex, ey, br, rho, lo, hi, u0, target, active, check_far, tol, max_iter,
+               u_out, S_out, conv_out):
+    scratch = np.empty((9, wx.shape[1]))
+    for i in range(rows.shape[0]):
+        r, exi, eyi, bri, rhoi = rows[i], ex[i], ey[i], br[i], rho[i]
+        lt, ht, t = lo[i], hi[i], target[i]
+        u = min(max(u0[i], lt), ht) if u0[i] == u0[i] else u0[i]  # np.clip: NaN stays NaN
+        go = active[i]
+        if check_far and go:
+            S_hi, _, inv_hi = _rrr_one(wx, wy, r, exi, eyi, bri, rhoi, ht, scratch)
+            go = inv_hi or S_hi >= t - tol
+        S, conv = 0.0, False
+        if go:
+            for _ in range(max_iter):
+                St, dSt, inv = _rrr_one(wx, wy, r, exi, eyi, bri, rhoi, u, scratch)
+                S, conv, lt, ht, u_next, go = _rtsafe_step(u, lt, ht, St, dSt, inv, t, tol)
+                if not go:
+                    break
+                u = u_next
+        u_out[i], S_out[i], conv_out[i] = u, S if conv else 0.0, conv
 
 
 def rrr_swing(wx, wy, rows, ex, ey, branch, rho, u):
@@ -161,28 +208,72 @@ def rrr_swing(wx, wy, rows, ex, ey, branch, rho, u):
     :func:`kinematics.loop.sampled_extreme` finds them."""
     n = rows.shape[0]
     S, dS, invalid = np.empty(n), np.empty(n), np.empty(n, np.bool_)
-    _rrr_swing(wx, wy, rows, ex, ey, branch, rho, u, S, dS, invalid)
+    over_rows(n, lambda lo, hi: _rrr_swing(wx, wy, *(x[lo:hi] for x in (rows, ex, ey, branch, rho, u, S, dS, invalid))),
+              n * wx.shape[1])
+    return S, dS, invalid
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _rpr_one(t_s, n_s, r, sg, t_end, u, scratch):
+    """(S, dS/du, invalid) of one RPR dyad (:func:`rpr_swing`'s row); ``scratch``: (4, M)."""
+    M = t_s.shape[1]
+    psi, order, xa, ya = scratch[0], scratch[1], scratch[2], scratch[3]
+    tD = t_end + sg / u
+    for k in range(M):
+        # ψ = arg(−σ·(P − D)) in the line's frame: the angle's cut runs along the line from
+        # D away from the stretch
+        xa[k], ya[k] = -sg * (t_s[r, k] - tD), -sg * n_s[r, k]
+        order[k] = _pseudo_angle(ya[k], xa[k])
+    khi, klo, S, invalid = _angle_swing(xa, ya, order, psi)
+    a_hi, b_hi = t_s[r, khi] - tD, n_s[r, khi]
+    a_lo, b_lo = t_s[r, klo] - tD, n_s[r, klo]
+    # ∂ψ/∂t_D = Im(−1/(P − D)) at the two extremes
+    dS = (b_hi / (a_hi * a_hi + b_hi * b_hi) - b_lo / (a_lo * a_lo + b_lo * b_lo)) * (-sg / (u * u))
     return S, dS, invalid
 
 
 @numba.njit(cache=True, nogil=True)
 def _rpr_swing(t_s, n_s, rows, side, t_end, u, S, dS, invalid):
-    M = t_s.shape[1]
-    psi, order = np.empty(M), np.empty(M)
-    xa, ya = np.empty(M), np.empty(M)
+    scratch = np.empty((4, t_s.shape[1]))
     for i in range(rows.shape[0]):
-        r, sg = rows[i], side[i]
-        tD = t_end[i] + sg / u[i]
-        for k in range(M):
-            # ψ = arg(−σ·(P − D)) in the line's frame: the angle's cut runs along the line from
-            # D away from the stretch
-            xa[k], ya[k] = -sg * (t_s[r, k] - tD), -sg * n_s[r, k]
-            order[k] = _pseudo_angle(ya[k], xa[k])
-        khi, klo, S[i], invalid[i] = _angle_swing(xa, ya, order, psi)
-        a_hi, b_hi = t_s[r, khi] - tD, n_s[r, khi]
-        a_lo, b_lo = t_s[r, klo] - tD, n_s[r, klo]
-        # ∂ψ/∂t_D = Im(−1/(P − D)) at the two extremes
-        dS[i] = (b_hi / (a_hi * a_hi + b_hi * b_hi) - b_lo / (a_lo * a_lo + b_lo * b_lo)) * (-sg / (u[i] * u[i]))
+        S[i], dS[i], invalid[i] = _rpr_one(t_s, n_s, rows[i], side[i], t_end[i], u[i], scratch)
+
+
+@numba.njit(cache=True, nogil=True)
+def _solve_rpr(t_s, n_s, rows, side, t_end, lo, hi, u0, target, active, check_far, tol, max_iter,
+               u_out, S_out, conv_out):
+    scratch = np.empty((4, t_s.shape[1]))
+    for i in range(rows.shape[0]):
+        r, sg, te = rows[i], side[i], t_end[i]
+        lt, ht, t = lo[i], hi[i], target[i]
+        u = min(max(u0[i], lt), ht) if u0[i] == u0[i] else u0[i]  # np.clip: NaN stays NaN
+        go = active[i]
+        if check_far and go:
+            S_hi, _, inv_hi = _rpr_one(t_s, n_s, r, sg, te, ht, scratch)
+            go = inv_hi or S_hi >= t - tol
+        S, conv = 0.0, False
+        if go:
+            for _ in range(max_iter):
+                St, dSt, inv = _rpr_one(t_s, n_s, r, sg, te, u, scratch)
+                S, conv, lt, ht, u_next, go = _rtsafe_step(u, lt, ht, St, dSt, inv, t, tol)
+                if not go:
+                    break
+                u = u_next
+        u_out[i], S_out[i], conv_out[i] = u, S if conv else 0.0, conv
+
+
+def solve_rrr(wx, wy, rows, ex, ey, branch, rho, lo, hi, u0, target, active, check_far: bool, tol: float,
+              max_iter: int):
+    """S(u) = target solved for every RRR dyad of :func:`rrr_swing`'s arguments by safeguarded
+    Newton on [lo, hi] (:func:`_rtsafe_step`; with ``check_far`` a dyad that falls short of
+    the swing at ``hi`` is not iterated); only ``active`` dyads. Returns (u, S, converged),
+    each ``(len(rows),)``, S = 0 where not converged. The iteration of the numpy form in
+    ``tests/synth/test_dyad.py``, one dyad at a time."""
+    n = rows.shape[0]
+    u, S, conv = np.empty(n), np.empty(n), np.empty(n, np.bool_)
+    over_rows(n, lambda a, b: _solve_rrr(wx, wy, *(x[a:b] for x in (rows, ex, ey, branch, rho, lo, hi, u0, target, active)),
+                                         check_far, tol, max_iter, u[a:b], S[a:b], conv[a:b]), 4 * n * wx.shape[1])
+    return u, S, conv
 
 
 def rpr_swing(t_s, n_s, rows, side, t_end, u):
@@ -195,5 +286,15 @@ def rpr_swing(t_s, n_s, rows, side, t_end, u):
     extremes as :func:`kinematics.loop.sampled_extreme` finds them."""
     n = rows.shape[0]
     S, dS, invalid = np.empty(n), np.empty(n), np.empty(n, np.bool_)
-    _rpr_swing(t_s, n_s, rows, side, t_end, u, S, dS, invalid)
+    over_rows(n, lambda lo, hi: _rpr_swing(t_s, n_s, *(x[lo:hi] for x in (rows, side, t_end, u, S, dS, invalid))),
+              n * t_s.shape[1])
     return S, dS, invalid
+
+
+def solve_rpr(t_s, n_s, rows, side, t_end, lo, hi, u0, target, active, check_far: bool, tol: float, max_iter: int):
+    """:func:`solve_rrr` for the RPR dyads of :func:`rpr_swing`'s arguments."""
+    n = rows.shape[0]
+    u, S, conv = np.empty(n), np.empty(n), np.empty(n, np.bool_)
+    over_rows(n, lambda a, b: _solve_rpr(t_s, n_s, *(x[a:b] for x in (rows, side, t_end, lo, hi, u0, target, active)),
+                                         check_far, tol, max_iter, u[a:b], S[a:b], conv[a:b]), 4 * n * t_s.shape[1])
+    return u, S, conv

@@ -438,6 +438,94 @@ def test_compiled_rpr_swing_is_the_numpy_angle_and_its_derivative(seed):
     _check_swing(lambda uu: rpr_swing(t_s, n_s, np.arange(N), side, t_end, uu),
                  _numpy_rpr_swing(t_s, n_s, side, t_end, u), u)
 
+
+def _numpy_rtsafe(F, lo, hi, u0, target, active, check_far):
+    """The safeguarded Newton (Numerical Recipes' ``rtsafe``) vectorised over dyads with numpy,
+    ``F(rows, u) -> (S, dS/du, invalid)`` evaluating only the dyads still iterating: the
+    reference of the compiled :func:`synth.dyad_kernel.solve_rrr` and ``solve_rpr`` (the form
+    the fits used before, kept here)."""
+    from synth.dyad import _MAX_ITER
+
+    lo, hi, target = lo.astype(float).copy(), hi.astype(float).copy(), target.astype(float)
+    active = active.copy()
+    u = np.clip(u0.astype(float), lo, hi)
+    if check_far:
+        sel = np.flatnonzero(active)
+        S_hi, _, inv_hi = F(sel, hi[sel])
+        active[sel] = inv_hi | (S_hi >= target[sel] - SWING_TOL)
+    S, converged = np.zeros_like(u), np.zeros(u.shape, bool)
+    todo = np.flatnonzero(active)
+    for _ in range(_MAX_ITER):
+        if todo.size == 0:
+            break
+        ut, lt, ht = u[todo], lo[todo], hi[todo]
+        St, dS, invalid = F(todo, ut)
+        f = St - target[todo]
+        conv = ~invalid & (np.abs(f) <= SWING_TOL)
+        S[todo], converged[todo] = St, conv
+        big = invalid | (f > 0)
+        ht, lt = np.where(big, ut, ht), np.where(big, lt, ut)
+        ok_d = ~invalid & (dS > 0)
+        newton = ut - np.where(ok_d, f / np.where(ok_d, dS, 1.0), 0.0)
+        step = np.where(ok_d & (newton > lt) & (newton < ht), newton, 0.5 * (lt + ht))
+        lo[todo], hi[todo] = lt, ht
+        go_on = ~conv & ((ht - lt) > 1e-15 * ht)
+        u[todo[go_on]] = step[go_on]
+        todo = todo[go_on]
+    return u, np.where(converged, S, 0.0), converged
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+@pytest.mark.parametrize("kind", ["rrr", "rpr"])
+def test_compiled_newton_is_the_numpy_rtsafe_bit_for_bit(seed, kind):
+    """The compiled swing solves (one dyad at a time, split over threads) give the numpy
+    iteration's u, S and convergence flags bit for bit, for targets both reachable and not,
+    some dyads inactive, with and without the far-end check; and a root found has S(u) within
+    SWING_TOL of the target."""
+    from synth import parallel_rows
+    from synth.dyad import _MAX_ITER
+    from synth.dyad_kernel import rpr_swing, rrr_swing, solve_rpr, solve_rrr
+
+    rng = np.random.default_rng(seed)
+    N, M = 90, 360
+    t = np.linspace(0, 2 * np.pi, M, endpoint=False)
+    if kind == "rrr":
+        rho = rng.uniform(0.5, 4.0, N)
+        w = (rho[:, None] * (1 + rng.uniform(0, 0.4, (N, 1)) * np.sin(t * rng.integers(1, 4, (N, 1))))
+             * np.exp(1j * (0.3 * np.sin(t + rng.uniform(0, 6, (N, 1))))))
+        wx, wy = np.ascontiguousarray(w.real), np.ascontiguousarray(w.imag)
+        e = np.exp(1j * rng.uniform(0, 2 * np.pi, N))
+        ex, ey, branch, rows = e.real.copy(), e.imag.copy(), rng.choice([-1.0, 1.0], N), np.arange(N)
+        F = lambda sel, u: rrr_swing(wx, wy, rows[sel], ex[sel], ey[sel], branch[sel], rho[sel], u)  # noqa: E731
+        solve = lambda *a: solve_rrr(wx, wy, rows, ex, ey, branch, rho, *a, SWING_TOL, _MAX_ITER)  # noqa: E731
+        lo, hi = np.full(N, 0.05), np.full(N, 2.0)
+    else:
+        t_s = np.ascontiguousarray(rng.uniform(-1, 1, (N, 1)) + rng.uniform(0.5, 2, (N, 1)) * np.cos(t + rng.uniform(0, 6, (N, 1))))
+        n_s = np.ascontiguousarray(rng.uniform(0.05, 1.5, (N, 1)) * (1 - np.cos(t + rng.uniform(0, 6, (N, 1)))) ** 2)
+        side, rows = rng.choice([-1.0, 1.0], N), np.arange(N)
+        t_end = np.where(side > 0, t_s.max(axis=1), t_s.min(axis=1)) + side * 0.1
+        F = lambda sel, u: rpr_swing(t_s, n_s, rows[sel], side[sel], t_end[sel], u)  # noqa: E731
+        solve = lambda *a: solve_rpr(t_s, n_s, rows, side, t_end, *a, SWING_TOL, _MAX_ITER)  # noqa: E731
+        lo, hi = np.zeros(N), np.full(N, 10.0)
+    target = np.radians(rng.uniform(5, 120, N))
+    u0 = rng.uniform(0.01, 3.0, N)  # some outside the RRR bracket: clipped
+    active = rng.random(N) < 0.9
+    for check_far in (True, False):
+        want = _numpy_rtsafe(F, lo, hi, u0, target, active, check_far)
+        for threads in (1, 3):
+            parallel_rows.set_threads(threads)
+            try:
+                got = solve(lo, hi, u0, target, active, check_far)
+            finally:
+                parallel_rows.set_threads(parallel_rows._default_threads())
+            for a, b in zip(got, want):
+                np.testing.assert_array_equal(a, b)
+        u, S, ok = want
+        assert 10 < np.count_nonzero(ok) < np.count_nonzero(active)  # roots found and missed
+        assert np.all(np.abs(F(np.flatnonzero(ok), u[ok])[0] - target[ok]) <= SWING_TOL)
+        assert np.all(S[~ok] == 0)
+
+
 def test_pseudo_angle_orders_directions_as_atan2_signed_zeros_and_cut_included():
     from synth.dyad_kernel import _pseudo_angle
 
