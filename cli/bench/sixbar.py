@@ -7,6 +7,11 @@ positions, status flags, transmission angles, continuous ψ — the compiled ker
 :mod:`synth.sixbar_kernel`) at N = 10 000 × 360 should reach at least the plain closed form's
 rate (ratio ≥ 1), and at N = 1 twice pylinkage's. The numpy path it replaced at order 0 (still
 the reference, and the path of derivative orders 1–2) is timed beside it.
+
+The ratio is one core against one core (the kernel held to one thread,
+:func:`synth.parallel_rows.set_threads`); where the process may use more cores, the kernel's
+rate on all of them (its batches split over threads, as the product runs it) is reported
+beside it (``*_threads``).
 """
 
 from __future__ import annotations
@@ -21,6 +26,7 @@ import numpy as np
 from cli.options import SEED
 from cli.bench.kinematics import MIN_POSITIONS_PER_RUN, best_time, random_linkages, check_positions, sizes_option
 from cli.bench.plain import sixbar_rrr_positions
+from synth import parallel_rows
 from synth.sixbar import SixBars, _simulate_numpy, simulate
 
 #: Peak memory of simulate(order=0) per position (bytes; 229 measured with tracemalloc).
@@ -61,8 +67,10 @@ def _plain(s: SixBars, phi):
 @click.option("--repeat", default=3, show_default=True, type=click.IntRange(1, 100), help="Timed runs per size (best is kept).")
 @click.option("--seed", type=SEED, default=0, show_default=True, help="Seed of the random six-bars.")
 def sixbar(sizes: str, angles: int, repeat: int, seed: int) -> None:
-    """Six-bar positions per second (one core), as a ratio to plain numpy in the same run."""
+    """Six-bar positions per second (one core, and all the cores the product uses), as a ratio to
+    plain numpy in the same run."""
     ns = sizes_option(sizes, 100_000)
+    cores = parallel_rows.threads()
     phi = np.linspace(0, 2 * np.pi, angles, endpoint=False)
     check_positions(ns, angles, repeat, SIXBAR_BYTES_PER_POSITION, 2 * repeat, "six-bars")
     results = []
@@ -75,10 +83,13 @@ def sixbar(sizes: str, angles: int, repeat: int, seed: int) -> None:
         one = six[0] if n == 1 else None
         positions = n * angles
         loops = max(1, MIN_POSITIONS_PER_RUN // positions)
-        if one is not None:  # the single-mechanism call a user makes
-            t_ours = best_time(lambda: simulate(one, phi, order=0), repeat, loops)
-        else:
-            t_ours = best_time(lambda: simulate(six, phi, order=0), repeat, loops)
+        run = (lambda: simulate(one, phi, order=0)) if one is not None else (lambda: simulate(six, phi, order=0))
+        try:  # one core against one core; then the product's own split over the cores
+            parallel_rows.set_threads(1)
+            t_ours = best_time(run, repeat, loops)
+        finally:
+            parallel_rows.set_threads(cores)
+        t_threads = best_time(run, repeat, loops) if cores > 1 else t_ours
         t_plain = best_time(lambda: _plain(six, phi), repeat, loops)
         single = one is not None
         t_numpy = best_time(lambda: _simulate_numpy(SixBars.from_sixbars([one]) if single else six, single, phi, 0,
@@ -93,10 +104,13 @@ def sixbar(sizes: str, angles: int, repeat: int, seed: int) -> None:
             "ratio_to_plain_numpy": t_plain / t_ours,
             "numpy_path_positions_per_s": positions / t_numpy,
             "numpy_path_ratio_to_plain_numpy": t_plain / t_numpy,
+            "ours_threads_positions_per_s": positions / t_threads,
+            "ratio_to_plain_numpy_threads": t_plain / t_threads,
         })
         click.echo(f"n={n}: {positions / t_ours / 1e6:.2f} M positions/s, plain numpy "
                    f"{positions / t_plain / 1e6:.2f} M (ratio {t_plain / t_ours:.2f}; the numpy path "
-                   f"{t_plain / t_numpy:.2f}); |Δψ| ≤ {agree:.1e}", err=True)
+                   f"{t_plain / t_numpy:.2f}; on {cores} threads {t_plain / t_threads:.2f}); |Δψ| ≤ {agree:.1e}",
+                   err=True)
     doc = {
         "benchmark": "sixbar",
         "what": "four-bar + RRR dyad positions: synth.sixbar.simulate(order=0) (compiled kernel; status flags, "
@@ -104,6 +118,7 @@ def sixbar(sizes: str, angles: int, repeat: int, seed: int) -> None:
                 "(cli/bench/plain.py); numpy_path_*: the same simulation on the numpy reference path",
         "angles_per_sixbar": angles,
         "cores_used": 1,
+        "threads": cores,
         "floor_ratio_to_plain_numpy_at_10000": 1.0,
         "results": results,
         "platform": {"python": platform.python_version(), "numpy": np.__version__,

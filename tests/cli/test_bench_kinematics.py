@@ -47,6 +47,10 @@ def test_bench_sixbar_json(capsys):
         # the numpy path, timed beside the kernel, on the same terms
         quotient = r["numpy_path_positions_per_s"] / r["plain_numpy_positions_per_s"]
         assert abs(r["numpy_path_ratio_to_plain_numpy"] - quotient) < 1e-9 * quotient
+        # and the kernel on the process's threads (one core against one core above)
+        quotient = r["ours_threads_positions_per_s"] / r["plain_numpy_positions_per_s"]
+        assert abs(r["ratio_to_plain_numpy_threads"] - quotient) < 1e-9 * quotient
+    assert doc["cores_used"] == 1 and doc["threads"] >= 1
 
 
 def test_bench_atlas_build_reports_bytes_per_linkage():
