@@ -4,8 +4,10 @@ per thread.
 Every row kernel of :mod:`synth` (the six-bar's motion, the clearances, the band windows, the
 dyad fits' swing solves) works row by row — a row reads and writes its own entries only — and
 releases the GIL (``nogil=True``), so blocks of rows run at once on plain threads and give the
-same numbers bit for bit, whatever the number of threads or the split. A hand-off costs tens of
-microseconds: batches of fewer than ``MIN_WORK`` elements run in the caller's thread.
+same numbers bit for bit, whatever the number of threads or the split. A hand-off to a thread
+costs ~0.1 ms here (measured: 104 µs median on the 2-core machine): a batch whose estimated
+work is under ``MIN_WORK_NS`` runs in the caller's thread. Each caller estimates its work from
+its kernel's measured cost per element (3–85 ns on that machine).
 
 The thread count is the CPUs this process may use, or ``DWELL_THREADS`` from the environment;
 :func:`set_threads` changes it (the atlas and search workers set 1: their processes already fill
@@ -20,11 +22,11 @@ import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 
-__all__ = ["MIN_WORK", "over_rows", "set_threads", "threads"]
+__all__ = ["MIN_WORK_NS", "over_rows", "set_threads", "threads"]
 
-#: Elements (rows × samples, or another unit of about 50 ns of work) below which a batch runs in
-#: the caller's thread: a thread hand-off costs ~30–60 µs.
-MIN_WORK = 5_000
+#: Estimated work (ns) below which a batch runs in the caller's thread: split, it would save
+#: less than the ~0.1 ms a hand-off costs.
+MIN_WORK_NS = 300_000
 
 
 def _default_threads() -> int:
@@ -81,13 +83,14 @@ def _executor(n: int) -> ThreadPoolExecutor:
         return _pool
 
 
-def over_rows(rows: int, work: Callable[[int, int], None], size: int) -> None:
+def over_rows(rows: int, work: Callable[[int, int], None], cost_ns: float) -> None:
     """Call ``work(lo, hi)`` on contiguous blocks of ``range(rows)`` that cover it once: on
-    :func:`threads` threads at once if the batch has ``size`` ≥ :data:`MIN_WORK` elements and
-    more than one row, else as one block in this thread. ``work`` must touch only its rows'
-    entries (the results are then the same for any split); its exceptions propagate."""
+    :func:`threads` threads at once if the whole batch is estimated at ``cost_ns`` ≥
+    :data:`MIN_WORK_NS` nanoseconds and has more than one row, else as one block in this
+    thread. ``work`` must touch only its rows' entries (the results are then the same for any
+    split); its exceptions propagate once every block is done."""
     n = min(threads(), rows)
-    if n <= 1 or size < MIN_WORK:
+    if n <= 1 or cost_ns < MIN_WORK_NS:
         work(0, rows)
         return
     edges = [rows * k // n for k in range(n + 1)]

@@ -84,5 +84,5 @@ def vertex_bounds(E: F64) -> tuple[F64, F64]:
     (a vertex far outside its step is no peak); the end samples and the others as they are."""
     E = np.ascontiguousarray(E, dtype=float)
     upper, lower = np.empty_like(E), np.empty_like(E)
-    over_rows(E.shape[0], lambda lo, hi: _vertex_bounds(E[lo:hi], upper[lo:hi], lower[lo:hi]), E.size)
+    over_rows(E.shape[0], lambda lo, hi: _vertex_bounds(E[lo:hi], upper[lo:hi], lower[lo:hi]), 3 * E.size)  # ~3 ns a sample
     return upper, lower

@@ -240,7 +240,7 @@ def output_angles(params: np.ndarray, rpr: np.ndarray, phi: np.ndarray, pin_eps:
         _positions(params[lo:hi], rpr[lo:hi], _rows(phi, lo, hi), pin_eps, 0, False, none_c, angles[:, lo:hi],
                    none_f, status_fourbar[lo:hi], status[lo:hi])
 
-    over_rows(n, block, n * m)
+    over_rows(n, block, 85 * n * m)  # ~85 ns a point (its crank angle's sine and cosine included)
     return angles[0]
 
 
@@ -273,5 +273,5 @@ def sixbar_positions(params: np.ndarray, rpr: np.ndarray, phi: np.ndarray, pin_e
         _positions(params[lo:hi], rpr[lo:hi], _rows(phi, lo, hi), pin_eps, order, True, points[:, lo:hi],
                    angles[:, lo:hi], derivs[:, lo:hi], status_fourbar[lo:hi], status[lo:hi])
 
-    over_rows(n, block, n * m)
+    over_rows(n, block, 75 * n * m)  # ~75 ns a position (order 2)
     return points, angles, derivs, status_fourbar, status

@@ -27,7 +27,7 @@ def threads():
 
 
 @settings(max_examples=60, deadline=None)
-@given(st.integers(0, 40), st.integers(1, 5), st.sampled_from([0, parallel_rows.MIN_WORK - 1, parallel_rows.MIN_WORK]))
+@given(st.integers(0, 40), st.integers(1, 5), st.sampled_from([0, parallel_rows.MIN_WORK_NS - 1, parallel_rows.MIN_WORK_NS]))
 def test_every_row_once_in_contiguous_blocks(rows, n, size):
     parallel_rows.set_threads(n)
     try:
@@ -43,7 +43,7 @@ def test_every_row_once_in_contiguous_blocks(rows, n, size):
         parallel_rows.set_threads(parallel_rows._default_threads())
     assert np.all(seen == 1)
     assert all(lo < hi for lo, hi in blocks) or rows == 0
-    split = size >= parallel_rows.MIN_WORK and min(n, rows) > 1
+    split = size >= parallel_rows.MIN_WORK_NS and min(n, rows) > 1
     assert len(blocks) == (min(n, rows) if split else 1)
 
 
@@ -59,7 +59,7 @@ def test_an_error_in_a_block_is_raised_once_every_block_is_done(threads):
             done.append(lo)
 
     with pytest.raises(ZeroDivisionError, match="first block"):
-        parallel_rows.over_rows(8, work, 10**6)
+        parallel_rows.over_rows(8, work, 10**9)
     assert sorted(done) == [2, 4, 6]
 
 
