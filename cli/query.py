@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import gc
 import json
 import math
 from pathlib import Path
@@ -46,7 +47,25 @@ def answer(engine, request: Request, *, progress: bool | None = False, workers: 
     # and zero-filled afresh by every call (atlas.malloc)
     raise_malloc_thresholds()
     with SearchBar(progress) as bar:
-        return answer_(request, AtlasSource(engine), on_progress=bar, map_batches=batch_map(workers))
+        result = answer_(request, AtlasSource(engine), on_progress=bar, map_batches=batch_map(workers))
+    _settle_heap()
+    return result
+
+
+_heap_settled = False
+
+
+def _settle_heap() -> None:
+    """Once per process, after its first answer: the objects alive then — modules, compiled
+    kernels, the engine's metadata, ~180 000 of them once a query has run — are moved out of
+    the cyclic garbage collector's reach (:func:`gc.freeze`). A full collection walks every
+    tracked object (113 ms with them against 2.7 ms without, measured over 64 answers of the
+    query bench) and lands inside whichever later query triggers it; the queries' own garbage
+    is collected as before."""
+    global _heap_settled
+    if not _heap_settled:
+        gc.freeze()
+        _heap_settled = True
 
 
 def batch_map(workers: int):
