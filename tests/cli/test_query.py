@@ -500,3 +500,28 @@ def test_no_refine_gives_the_retrieved_six_bars(capsys, atlas_path):
     assert doc["sixbars_improved"] == sum(c["refinement"] is not None for c in refined)
     code, out, err = run(capsys, "query", "--db", atlas_path, "--dwell", "45", "--swing", "40", "--output", "rpr")
     assert code == 0 and f"{doc['sixbars_improved']} of {len(plain)} refined (" in out.splitlines()[0] and "→" in out
+
+
+def test_the_first_answer_freezes_the_long_lived_objects_once(atlas_path, monkeypatch):
+    """After a process's first answer its objects are out of the cyclic collector's reach
+    (``gc.freeze``: a full collection then skips them), and only then: later answers freeze
+    nothing more (their garbage stays collectable)."""
+    import gc
+
+    import cli.query as cq
+    from db.engine import open_atlas
+    from synth.candidates import Request
+
+    monkeypatch.setattr(cq, "_heap_settled", False)
+    gc.unfreeze()
+    engine = open_atlas(atlas_path, readonly=True)
+    try:
+        request = Request(dwell=math.radians(60), swing=math.radians(30), output="rpr", refine=False)
+        assert gc.get_freeze_count() == 0
+        cq.answer(engine, request)
+        frozen = gc.get_freeze_count()
+        assert frozen > 1000 and cq._heap_settled
+        cq.answer(engine, request)
+        assert gc.get_freeze_count() <= frozen  # none added (a frozen object freed leaves the count)
+    finally:
+        engine.dispose()
