@@ -613,8 +613,8 @@ class _RrrTerms:
 def _solve_rrr(w, rho, alpha, branch, u_lo, u_hi, u_est, target, active):
     """Solve S(u) = target for RRR dyads in the rows × candidates (R, J) at directions α: the
     dyad loop P + ρ·e^{iχ} = D + L·e^{iψ} (P relative to C₀, D = L·e^{iα}) on the samples, S
-    the rocker's swing and ∂S/∂u from its two extremes (compiled:
-    :func:`synth.dyad_kernel.rrr_swing`)."""
+    the rocker's swing and ∂S/∂u from its two extremes (compiled, the whole safeguarded Newton:
+    :func:`synth.dyad_kernel.solve_rrr`)."""
     from synth.dyad_kernel import solve_rrr  # numba: imported on first use
 
     R, J = alpha.shape

@@ -70,8 +70,9 @@ def direction_estimates(wx, wy, A, inv_a_rho, half, rho, c, s, branch, target, r
     :meth:`synth.dyad._RrrTerms.estimate`'s quantities before its arccos."""
     R, J = c.shape
     out = [np.empty((R, J)) for _ in range(4)] + [np.empty((R, J), np.bool_)]
+    # ~4 ns a sample and direction
     over_rows(R, lambda lo, hi: _estimates(*(x[lo:hi] for x in (wx, wy, A, inv_a_rho, half, rho, c, s, branch, target,
-                                                               ratio, *out))), 4 * R * J * wx.shape[1])  # ~4 ns a sample and direction
+                                                               ratio, *out))), 4 * R * J * wx.shape[1])
     return tuple(out)
 
 
@@ -138,37 +139,36 @@ def _rtsafe_step(u, lt, ht, St, dS, invalid, target, tol):
 
 @numba.njit(cache=True, nogil=True, inline="always")
 def _rrr_one(wx, wy, r, ex, ey, br, rho, u, scratch):
-    """(S, dS/du, invalid) of one RRR dyad (:func:`rrr_swing`'s row); ``scratch``: (8, M)."""
+    """(S, dS/du, invalid) of one RRR dyad (:func:`rrr_swing`'s row); ``scratch``: (4, M)."""
     M = wx.shape[1]
     eta, order, xa, ya = scratch[0], scratch[1], scratch[2], scratch[3]
-    c1a, s1a, c2a, s2a, k2a = scratch[4], scratch[5], scratch[6], scratch[7], scratch[8]
     L = 1.0 / u
     lx, ly = L * ex, L * ey
     any_sing = False
     for k in range(M):
-        # the loop closed at R = D − P (D = L·e, P relative to C₀), l1 = ρ, l2 = L; k2 is
-        # 1/height, 0 where the loop does not close or toggles
-        c1, s1, c2, s2, status, _, k2 = closing_point(lx - wx[r, k], ly - wy[r, k], rho, L, br)
+        # the loop closed at R = D − P (D = L·e, P relative to C₀), l1 = ρ, l2 = L
+        _, _, c2, s2, status, _, _ = closing_point(lx - wx[r, k], ly - wy[r, k], rho, L, br)
         # η = arg(e^{iψ}·(−ē)), the rocker's turn from rest: ordered by its pseudo-angle,
         # its arctangent taken only where a value is read (extremes, the cut's crossings)
         xa[k], ya[k] = c2 * (-ex) - s2 * ey, c2 * ey + s2 * (-ex)
         order[k] = _pseudo_angle(ya[k], xa[k])
-        c1a[k], s1a[k], c2a[k], s2a[k], k2a[k] = c1, s1, c2, s2, k2
         any_sing = any_sing or status != 0
     khi, klo, S, jump = _angle_swing(xa, ya, order, eta)
     scale = L * u ** 2
     # ∂ψ/∂u = −∂ψ/∂L / u², ∂ψ/∂L = −Re((e + e^{iψ}) e^{−iχ}) / (L sin(χ − ψ)), at the two
-    # extremes; L sin(χ − ψ) = −height (0 at a flagged sample)
+    # extremes (the loop closed there again: the same numbers as in the pass, not stored for
+    # every sample); k2 is 1/height, L sin(χ − ψ) = −height, 0 at a flagged sample
     rate = 0.0
     for k, sign in ((khi, 1.0), (klo, -1.0)):
-        re = (ex + c2a[k]) * c1a[k] - (ey + s2a[k]) * (-s1a[k])
-        rate += sign * (re * (-L * k2a[k]) / scale)
+        c1, s1, c2, s2, _, _, k2 = closing_point(lx - wx[r, k], ly - wy[r, k], rho, L, br)
+        re = (ex + c2) * c1 - (ey + s2) * (-s1)
+        rate += sign * (re * (-L * k2) / scale)
     return S, rate, any_sing or jump
 
 
 @numba.njit(cache=True, nogil=True)
 def _rrr_swing(wx, wy, rows, ex, ey, br, rho, u, S, dS, invalid):
-    scratch = np.empty((9, wx.shape[1]))
+    scratch = np.empty((4, wx.shape[1]))
     for i in range(rows.shape[0]):
         S[i], dS[i], invalid[i] = _rrr_one(wx, wy, rows[i], ex[i], ey[i], br[i], rho[i], u[i], scratch)
 
@@ -176,7 +176,7 @@ def _rrr_swing(wx, wy, rows, ex, ey, br, rho, u, S, dS, invalid):
 @numba.njit(cache=True, nogil=True)
 def _solve_rrr(wx, wy, rows, ex, ey, br, rho, lo, hi, u0, target, active, check_far, tol, max_iter,
                u_out, S_out, conv_out):
-    scratch = np.empty((9, wx.shape[1]))
+    scratch = np.empty((4, wx.shape[1]))
     for i in range(rows.shape[0]):
         r, exi, eyi, bri, rhoi = rows[i], ex[i], ey[i], br[i], rho[i]
         lt, ht, t = lo[i], hi[i], target[i]
@@ -271,8 +271,10 @@ def solve_rrr(wx, wy, rows, ex, ey, branch, rho, lo, hi, u0, target, active, che
     ``tests/synth/test_dyad.py``, one dyad at a time."""
     n = rows.shape[0]
     u, S, conv = np.empty(n), np.empty(n), np.empty(n, np.bool_)
-    over_rows(n, lambda a, b: _solve_rrr(wx, wy, *(x[a:b] for x in (rows, ex, ey, branch, rho, lo, hi, u0, target, active)),
-                                         check_far, tol, max_iter, u[a:b], S[a:b], conv[a:b]), 56 * n * wx.shape[1])  # ~56 ns a sample, iterations included
+    dyads = (rows, ex, ey, branch, rho, lo, hi, u0, target, active)
+    # ~56 ns a sample, the iterations included
+    over_rows(n, lambda a, b: _solve_rrr(wx, wy, *(x[a:b] for x in dyads), check_far, tol, max_iter, u[a:b], S[a:b],
+                                         conv[a:b]), 56 * n * wx.shape[1])
     return u, S, conv
 
 
@@ -295,6 +297,8 @@ def solve_rpr(t_s, n_s, rows, side, t_end, lo, hi, u0, target, active, check_far
     """:func:`solve_rrr` for the RPR dyads of :func:`rpr_swing`'s arguments."""
     n = rows.shape[0]
     u, S, conv = np.empty(n), np.empty(n), np.empty(n, np.bool_)
-    over_rows(n, lambda a, b: _solve_rpr(t_s, n_s, *(x[a:b] for x in (rows, side, t_end, lo, hi, u0, target, active)),
-                                         check_far, tol, max_iter, u[a:b], S[a:b], conv[a:b]), 17 * n * t_s.shape[1])  # ~17 ns a sample, iterations included
+    dyads = (rows, side, t_end, lo, hi, u0, target, active)
+    # ~17 ns a sample, the iterations included
+    over_rows(n, lambda a, b: _solve_rpr(t_s, n_s, *(x[a:b] for x in dyads), check_far, tol, max_iter, u[a:b], S[a:b],
+                                         conv[a:b]), 17 * n * t_s.shape[1])
     return u, S, conv

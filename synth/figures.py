@@ -232,9 +232,9 @@ def _bounding_boxes(batch: SixBars, motion: SixBarMotion) -> list[list[float]]:
     """Per row, (xmin, ymin, xmax, ymax) of :func:`_outline`: the same extremes, part by part
     (no concatenated copy of every path)."""
     parts = _outline_parts(batch, motion)
-    lows = [np.minimum.reduce([p.real.min(axis=1) for p in parts]), np.minimum.reduce([p.imag.min(axis=1) for p in parts])]
-    highs = [np.maximum.reduce([p.real.max(axis=1) for p in parts]), np.maximum.reduce([p.imag.max(axis=1) for p in parts])]
-    return np.stack(lows + highs, axis=1).tolist()
+    low = [np.minimum.reduce([getattr(p, axis).min(axis=1) for p in parts]) for axis in ("real", "imag")]
+    high = [np.maximum.reduce([getattr(p, axis).max(axis=1) for p in parts]) for axis in ("real", "imag")]
+    return np.stack(low + high, axis=1).tolist()
 
 
 def _footprints(batch: SixBars, motion: SixBarMotion) -> F64:

@@ -10,8 +10,8 @@ work is under ``MIN_WORK_NS`` runs in the caller's thread. Each caller estimates
 its kernel's measured cost per element (3–85 ns on that machine).
 
 The thread count is the CPUs this process may use, or ``DWELL_THREADS`` from the environment;
-:func:`set_threads` changes it (the atlas and search workers set 1: their processes already fill
-the cores). The pool is made on first use and made again in a forked child (threads do not
+:func:`set_threads` changes it (the atlas and search worker processes share the cores among
+them: each takes its count over the number of workers). The pool is made on first use and made again in a forked child (threads do not
 survive a fork).
 """
 

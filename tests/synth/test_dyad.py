@@ -500,7 +500,8 @@ def test_compiled_newton_is_the_numpy_rtsafe_bit_for_bit(seed, kind):
         solve = lambda *a: solve_rrr(wx, wy, rows, ex, ey, branch, rho, *a, SWING_TOL, _MAX_ITER)  # noqa: E731
         lo, hi = np.full(N, 0.05), np.full(N, 2.0)
     else:
-        t_s = np.ascontiguousarray(rng.uniform(-1, 1, (N, 1)) + rng.uniform(0.5, 2, (N, 1)) * np.cos(t + rng.uniform(0, 6, (N, 1))))
+        phase = lambda: t + rng.uniform(0, 6, (N, 1))  # noqa: E731
+        t_s = np.ascontiguousarray(rng.uniform(-1, 1, (N, 1)) + rng.uniform(0.5, 2, (N, 1)) * np.cos(phase()))
         n_s = np.ascontiguousarray(rng.uniform(0.05, 1.5, (N, 1)) * (1 - np.cos(t + rng.uniform(0, 6, (N, 1)))) ** 2)
         side, rows = rng.choice([-1.0, 1.0], N), np.arange(N)
         t_end = np.where(side > 0, t_s.max(axis=1), t_s.min(axis=1)) + side * 0.1

@@ -27,7 +27,8 @@ def threads():
 
 
 @settings(max_examples=60, deadline=None)
-@given(st.integers(0, 40), st.integers(1, 5), st.sampled_from([0, parallel_rows.MIN_WORK_NS - 1, parallel_rows.MIN_WORK_NS]))
+@given(st.integers(0, 40), st.integers(1, 5),
+       st.sampled_from([0, parallel_rows.MIN_WORK_NS - 1, parallel_rows.MIN_WORK_NS]))
 def test_every_row_once_in_contiguous_blocks(rows, n, size):
     parallel_rows.set_threads(n)
     try:
