@@ -67,7 +67,9 @@ def test_killed_twice_at_random_moments_resumes_to_the_same_content(tmp_path, re
     killed = proc.poll() is None
     alive, err = kill_group(proc)
     assert alive == [], f"processes outlived the second kill ({why})"
-    assert proc.returncode == (-9 if killed else 0), f"{why}: {err}"
+    # polled alive, it may already have been in its exit (past SIGKILL: the kernel tears down its
+    # memory first) and end with 0 — seen once on a clean-clone CI run, seed 0, trial 2
+    assert proc.returncode in ((-9, 0) if killed else (0,)), f"{why}: {err}"
     second = shard_rows(target)
     _assert_kept(first, second, why)
 
