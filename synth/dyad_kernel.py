@@ -24,6 +24,7 @@ import numba
 import numpy as np
 
 from synth.parallel_rows import over_rows
+from synth.sample_ranges import parabola_rise
 from synth.sixbar_kernel import closing_point
 
 __all__ = ["direction_estimates", "rpr_swing", "rrr_swing", "solve_rpr", "solve_rrr"]
@@ -81,13 +82,9 @@ def _vertex_value(y, k, sign):
     """:func:`kinematics.loop.sampled_extreme`'s value at its extreme sample ``k``: the vertex
     of the parabola through it and its cyclic neighbours where it bends the right way."""
     m = y.shape[0]
-    ym, y0, yp = y[(k - 1) % m], y[k], y[(k + 1) % m]
-    den = ym - 2 * y0 + yp
-    rise = 0.0
-    if den != 0 and sign * den < 0:
-        diff = ym - yp
-        rise = -(diff ** 2 / (8 * den))
-    return y0 + rise
+    y0 = y[k]
+    den, rise = parabola_rise(y[(k - 1) % m], y0, y[(k + 1) % m])
+    return y0 + (rise if sign * den < 0 else 0.0)
 
 
 @numba.njit(cache=True, nogil=True)
