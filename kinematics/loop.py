@@ -48,8 +48,11 @@ TOGGLE_EPS = 1e-12
 #: direction of the loop is undetermined (counted as not assemblable). The centres are known to
 #: ~1e-16 of the link lengths, so below 1e-12 the direction would carry errors above 1e-4 rad.
 COINCIDENT_EPS = 1e-12
-#: Outside [1/HERON_SAFE, HERON_SAFE] (l1 + l2) Heron's product is formed on lengths over l1 + l2:
-#: the product of four lengths over/underflows float64 beyond about 1e±77.
+#: Where l1 + l2 lies outside [1/HERON_SAFE, HERON_SAFE], or the centres' distance r beyond
+#: HERON_SAFE, Heron's product is formed on lengths over max(l1 + l2, r): the product of four
+#: lengths over/underflows float64 beyond about 1e±77. (r > l1 + l2 only where the loop cannot
+#: close; a far centre with short links overflowed the unscaled product to −inf: flagged all the
+#: same, but numpy's overflow warning reached the user's terminal.)
 HERON_SAFE = 1e60
 #: |sin| of the angle between two (unit) line directions below which they count as parallel.
 #: The intersection's position error grows like (rounding of the directions)/sin ≈ 1e-16/sin of
@@ -211,14 +214,16 @@ def circle_intersection_xy(rx: ArrayLike, ry: ArrayLike, l1: ArrayLike, l2: Arra
     r2 = rx * rx + ry * ry
     r = np.sqrt(r2)
     d21, s12 = l2 - l1, l1 + l2  # r + (l1 − l2) is r − (l2 − l1) exactly
-    extreme = (s12 > HERON_SAFE) | (s12 < 1.0 / HERON_SAFE)
+    span = np.maximum(s12, r)  # s12 wherever the loop can close
+    extreme = (span > HERON_SAFE) | (s12 < 1.0 / HERON_SAFE)
     if not np.any(extreme):
         heron = (r + d21) * (s12 - r) * (r - d21) * (r + s12)
         root = np.sqrt(np.maximum(heron, 0.0))
     else:
         # Heron's product of four lengths over/underflows beyond ~1e±77: there, the four
-        # factors over s12 and the root scaled back by s12² (elsewhere the bits are unchanged)
-        u = np.where(extreme, s12, 1.0)
+        # factors over the span and the root scaled back by its square (elsewhere the bits are
+        # unchanged)
+        u = np.where(extreme, span, 1.0)
         heron = ((r + d21) / u) * ((s12 - r) / u) * ((r - d21) / u) * ((r + s12) / u)
         root = np.sqrt(np.maximum(heron, 0.0)) * (u * u)
     coincident = r <= COINCIDENT_EPS * s12

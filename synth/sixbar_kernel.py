@@ -45,8 +45,8 @@ def closing_point(rx, ry, l1, l2, branch):
     r = math.sqrt(r2)
     d21 = l2 - l1
     s12 = l1 + l2
-    if s12 > HERON_SAFE or s12 < 1.0 / HERON_SAFE:
-        s = s12
+    if max(s12, r) > HERON_SAFE or s12 < 1.0 / HERON_SAFE:
+        s = max(s12, r)
         heron = ((r + d21) / s) * ((s12 - r) / s) * ((r - d21) / s) * ((r + s12) / s)
         root = math.sqrt(max(heron, 0.0)) * (s * s)
     else:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 
 import pytest
 
@@ -74,6 +75,17 @@ def test_bad_input_is_one_line_exit_2(capsys, tmp_path, monkeypatch, args, messa
     assert out == ""
     assert len(err.strip().splitlines()) == 1 and message in err
     assert list(tmp_path.iterdir()) == []  # nothing written
+
+
+def test_a_far_ground_pivot_is_one_line_and_no_warning(capsys, tmp_path, monkeypatch):
+    """|A−B0| = 1e100 with unit links: Heron's product overflowed, and numpy's overflow warning
+    reached the terminal above the error line (the loop was flagged all the same)."""
+    monkeypatch.chdir(tmp_path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # pytest would otherwise collect the warning, not print it
+        code, out, err = run(capsys, "analyze", "fourbar", "--a", "1", "--b", "1", "--c", "1", "--d", "1e100")
+    assert code == 2 and out == ""
+    assert len(err.strip().splitlines()) == 1 and "cannot assemble" in err
 
 
 def test_non_grashof_range_inside_reach_works(capsys):

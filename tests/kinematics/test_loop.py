@@ -2,8 +2,12 @@
 
 import math
 
+import warnings
+
 import numpy as np
 import pytest
+from hypothesis import assume, example, given, settings
+from hypothesis import strategies as st
 
 from kinematics.loop import (
     circle_intersection,
@@ -47,6 +51,41 @@ def test_circle_intersection_does_not_depend_on_the_unit(scale):
         assert np.all(np.isfinite(a))
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-14)
     np.testing.assert_allclose(big.height, unit.height * scale, rtol=1e-13)
+
+
+#: a length the command line accepts, spread over its whole range (1e-150 … 1e150)
+_lengths = st.floats(-150.0, 150.0).map(lambda e: 10.0 ** e)
+
+
+@settings(max_examples=300, deadline=None)
+@given(r=_lengths, l1=_lengths, l2=_lengths)
+@example(r=1e100, l1=1.0, l2=1.0)  # `dwell analyze fourbar --d 1e100`: numpy's overflow warning on the terminal
+@example(r=1e150, l1=1e-150, l2=1e-150)
+@example(r=1e61, l1=1.0, l2=1.0)
+@example(r=1e-150, l1=1e150, l2=1e150)
+def test_circle_intersection_is_quiet_and_finite_at_every_scale(r, l1, l2):
+    """At any distance the command line accepts, and radii within 1e100 of each other at any
+    scale, the closing point is computed without a floating-point warning (they reach the
+    user's terminal), every value is finite, a loop that clearly cannot close is flagged and
+    one that clearly can is not; the compiled scalar form
+    (``synth.sixbar_kernel.closing_point``) flags the same. (Radii further apart still
+    overflow the cosine of a loop that cannot close: flagged, but with numpy's warning.)"""
+    from synth.sixbar_kernel import closing_point
+
+    assume(max(l1, l2) <= 1e100 * min(l1, l2))
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        loop = circle_intersection(np.array([r + 0j]), l1, l2, 1.0)
+    values = [loop.cos1, loop.sin1, loop.cos2, loop.sin2, loop.height, loop.k1, loop.k2]
+    assert all(np.all(np.isfinite(v)) for v in values)
+    low, high = abs(l1 - l2), l1 + l2
+    status = int(loop.status[0])
+    if r > high * (1 + 1e-9) or r < low * (1 - 1e-9):
+        assert status == Status.NOT_ASSEMBLABLE
+    elif low * (1 + 1e-6) < r < high * (1 - 1e-6) and r > 1e-9 * high:
+        assert status == 0
+    assert closing_point(r, 0.0, l1, l2, 1.0)[4] == status
 
 
 def test_rates_match_a_finite_difference():
