@@ -18,8 +18,8 @@ shard commit or the final digest); a kill timed after the run already ended coun
 "missed". Then a second builder is started against an atlas whose builder is stopped
 (SIGSTOP) half-way: it must be refused (exit 2, one line naming the other process), and the
 first build, continued (SIGCONT), must still complete with the reference digest. If the stop
-finds the first build already finished (no lock held: on a loaded machine the bench can be
-descheduled between seeing the first shard and the stop), there is nothing to refuse: that
+finds the first build already finished (no lock held: the bench can be descheduled between
+seeing the builder's lock and the stop), there is nothing to refuse: that
 attempt is repeated on a fresh atlas (``attempts`` in the record), up to 5 times.
 
 JSON on stdout, one progress line per trial and a summary line on stderr; exit status 1 when
@@ -277,10 +277,11 @@ def _trial(sweep: _Sweep, atlas: _Atlas, rng: random.Random, max_kills: int, win
     }
 
 
-def _wait_for_shard(atlas: _Atlas, proc: subprocess.Popen, timeout: float) -> bool:
+def _wait_for_lock(atlas: _Atlas, proc: subprocess.Popen, timeout: float) -> bool:
+    """Whether the builder ``proc`` came to hold its lock on ``atlas`` while it ran (polled)."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline and proc.poll() is None:
-        if atlas.shard_indices():
+        if atlas.builder_holds_lock():
             return True
         time.sleep(0.02)
     return False
@@ -302,18 +303,20 @@ _STOP_ATTEMPTS = 5
 def _concurrent_builder(sweep: _Sweep, atlases: _Atlases, reference: str) -> dict:
     """A second builder against an atlas being built: refused; the first one unharmed.
 
-    The first builder is stopped (SIGSTOP) once it stored a shard; it may have stored the
-    rest and released its lock in the instant between that poll and the stop (the small
-    sweep's last shards come quickly on a fast machine). Then there is no build in progress
-    to refuse and the check would fail for the wrong reason: such an attempt is let finish
-    and repeated on a fresh atlas (up to ``_STOP_ATTEMPTS`` times, counted in the record)."""
+    The first builder is stopped (SIGSTOP) once it holds its lock — taken before it computes
+    a shard, so the stop lands while its first shard is computed, whatever the sweep's size.
+    (It waited for a stored shard before: a sweep of one shard, `--samples 3`, was then
+    complete and unlocked before the stop five times out of five, and the check failed for
+    the wrong reason; found by a random-seed run.) It may still release the lock in the
+    instant between that poll and the stop: such an attempt is let finish and repeated on a
+    fresh atlas (up to ``_STOP_ATTEMPTS`` times, counted in the record)."""
     for attempt in range(1, _STOP_ATTEMPTS + 1):
         atlas = atlases.new(f"concurrent{attempt}")
         first = sweep.start(atlas.target)
-        if not _wait_for_shard(atlas, first, RUN_TIMEOUT):
+        if not _wait_for_lock(atlas, first, RUN_TIMEOUT):
             rc, _, err = _finish(first)
             return {"checked": False, "passed": False, "attempts": attempt,
-                    "problems": [f"the first build wrote no shard while running (exit {rc}: {_last_line(err)})"]}
+                    "problems": [f"the first build never held its lock while running (exit {rc}: {_last_line(err)})"]}
         if _signal_group(first, signal.SIGSTOP) and atlas.builder_holds_lock():
             break  # held half-way, lock taken, whatever the machine's speed
         _signal_group(first, signal.SIGCONT)  # too late: the build finished before the stop

@@ -61,11 +61,11 @@ def test_bad_postgres_options_are_refused(capsys, monkeypatch, args, message):
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc (Linux)")
 def test_a_stop_that_lands_after_the_build_finished_is_retried_not_failed(tmp_path, monkeypatch):
     """The flaky "second builder NOT refused cleanly": on a loaded machine the bench may be
-    descheduled between seeing the first shard and SIGSTOP, and the small build finishes in
+    descheduled between seeing the builder's lock and SIGSTOP, and the small build finishes in
     between; the old check then ran the second builder against a complete atlas (exit 0). Here
     that delay is forced on the first attempt: the check sees no lock held and tries again."""
     waits = []
-    real_wait = faults._wait_for_shard
+    real_wait = faults._wait_for_lock
 
     def late_on_first(atlas, proc, timeout):
         seen = real_wait(atlas, proc, timeout)
@@ -74,7 +74,7 @@ def test_a_stop_that_lands_after_the_build_finished_is_retried_not_failed(tmp_pa
             proc.wait()  # the build completes before the stop lands
         return seen
 
-    monkeypatch.setattr(faults, "_wait_for_shard", late_on_first)
+    monkeypatch.setattr(faults, "_wait_for_lock", late_on_first)
     env = {k: v for k, v in __import__("os").environ.items() if k != "DWELL_ATLAS"}
     sweep = faults._Sweep(16, 2, 1, tmp_path, env)
     atlases = faults._Atlases("sqlite", tmp_path, None)
@@ -84,4 +84,22 @@ def test_a_stop_that_lands_after_the_build_finished_is_retried_not_failed(tmp_pa
     assert doc is not None, error
     record = faults._concurrent_builder(sweep, atlases, doc["content_digest"])
     assert record["passed"] and record["attempts"] == 2 and record["problems"] == [], record
+    assert record["second_exit"] == 2 and "is being built by another process" in record["second_message"]
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc (Linux)")
+def test_a_one_shard_build_is_stopped_while_it_holds_its_lock(tmp_path):
+    """`dwell bench faults --samples 3` (one shard) exited 1 on a random-seed run: the check
+    waited for a stored shard, and with one shard the build was then complete and unlocked
+    before the stop, five times out of five. It stops the builder once its lock is held."""
+    env = {k: v for k, v in __import__("os").environ.items() if k != "DWELL_ATLAS"}
+    sweep = faults._Sweep(3, 4, 1, tmp_path, env)
+    atlases = faults._Atlases("sqlite", tmp_path, None)
+    reference = atlases.new("reference")
+    assert faults._finish(sweep.start(reference.target))[0] == 0
+    doc, error = sweep.info(reference.target)
+    assert doc is not None, error
+    assert doc["build"]["n_shards"] == 1
+    record = faults._concurrent_builder(sweep, atlases, doc["content_digest"])
+    assert record["passed"] and record["problems"] == [], record
     assert record["second_exit"] == 2 and "is being built by another process" in record["second_message"]
