@@ -14,6 +14,7 @@ its inputs and never returns NaN/inf: degenerate geometry carries a
 
 from __future__ import annotations
 
+from contextlib import nullcontext
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -48,11 +49,9 @@ TOGGLE_EPS = 1e-12
 #: direction of the loop is undetermined (counted as not assemblable). The centres are known to
 #: ~1e-16 of the link lengths, so below 1e-12 the direction would carry errors above 1e-4 rad.
 COINCIDENT_EPS = 1e-12
-#: Where l1 + l2 lies outside [1/HERON_SAFE, HERON_SAFE], or the centres' distance r beyond
-#: HERON_SAFE, Heron's product is formed on lengths over max(l1 + l2, r): the product of four
-#: lengths over/underflows float64 beyond about 1e±77. (r > l1 + l2 only where the loop cannot
-#: close; a far centre with short links overflowed the unscaled product to −inf: flagged all the
-#: same, but numpy's overflow warning reached the user's terminal.)
+#: Where l1 + l2 lies outside [1/HERON_SAFE, HERON_SAFE], or the centres' distance r beyond it,
+#: the loop is solved in units of max(l1 + l2, r): Heron's product of four lengths
+#: over/underflows float64 beyond about 1e±77. (r > l1 + l2 only where the loop cannot close.)
 HERON_SAFE = 1e60
 #: |sin| of the angle between two (unit) line directions below which they count as parallel.
 #: The intersection's position error grows like (rounding of the directions)/sin ≈ 1e-16/sin of
@@ -210,32 +209,43 @@ def circle_intersection_xy(rx: ArrayLike, ry: ArrayLike, l1: ArrayLike, l2: Arra
                            rates: bool = True) -> CircleIntersection:
     """:func:`circle_intersection` with R given as its real and imaginary parts (float64, or
     longdouble for a reference computation: the precision of the inputs is kept)."""
-    rx, ry, l1, l2, branch = (_real(x) for x in (rx, ry, l1, l2, branch))
+    rx, ry, l1_in, l2_in, branch = (_real(x) for x in (rx, ry, l1, l2, branch))
+    l1, l2 = l1_in, l2_in
     r2 = rx * rx + ry * ry
     r = np.sqrt(r2)
-    d21, s12 = l2 - l1, l1 + l2  # r + (l1 − l2) is r − (l2 − l1) exactly
+    s12 = l1 + l2
     span = np.maximum(s12, r)  # s12 wherever the loop can close
-    extreme = (span > HERON_SAFE) | (s12 < 1.0 / HERON_SAFE)
-    if not np.any(extreme):
-        heron = (r + d21) * (s12 - r) * (r - d21) * (r + s12)
-        root = np.sqrt(np.maximum(heron, 0.0))
-    else:
-        # Heron's product of four lengths over/underflows beyond ~1e±77: there, the four
-        # factors over the span and the root scaled back by its square (elsewhere the bits are
-        # unchanged)
-        u = np.where(extreme, span, 1.0)
-        heron = ((r + d21) / u) * ((s12 - r) / u) * ((r - d21) / u) * ((r + s12) / u)
-        root = np.sqrt(np.maximum(heron, 0.0)) * (u * u)
+    scaled = (span > HERON_SAFE) | (s12 < 1.0 / HERON_SAFE)
+    u = None
+    if np.any(scaled):
+        # lengths in units of the span there: the same angles and status as at unit scale, the
+        # height and rate factors scaled back at the end (elsewhere the bits are unchanged).
+        # Heron's product of four lengths over/underflows beyond ~1e±77 (a far centre with
+        # short links overflowed it), and 1/(2·l1·r) of a loop 1e-150 long whose centres are
+        # 1e-9 of it apart overflowed (NaN at status OK).
+        u = np.where(scaled, span, 1.0)
+        rx, ry, l1, l2 = rx / u, ry / u, l1 / u, l2 / u
+        r2 = rx * rx + ry * ry
+        r = np.sqrt(r2)
+        s12 = l1 + l2
+    d21 = l2 - l1  # r + (l1 − l2) is r − (l2 − l1) exactly
+    heron = (r + d21) * (s12 - r) * (r - d21) * (r + s12)
+    root = np.sqrt(np.maximum(heron, 0.0))
     coincident = r <= COINCIDENT_EPS * s12
     bad = (heron < 0) | coincident
     any_bad = bool(bad.any())
     r = np.where(coincident, 1.0, r)
-    inv_2r = 0.5 / (l1 * r)
-    cb = (r2 - d21 * s12) * inv_2r  # l1² − l2² = −(l2 − l1)(l1 + l2), without cancellation
-    sb = root * (branch * inv_2r)
+    # finite wherever the loop closes; where it cannot and its links are ~1e100 apart or more,
+    # cos β overflows (clipped below) and sin β = 0·∞ (0 below)
+    with np.errstate(over="ignore", invalid="ignore") if any_bad else nullcontext():
+        inv_2r = 0.5 / (l1 * r)
+        cb = (r2 - d21 * s12) * inv_2r  # l1² − l2² = −(l2 − l1)(l1 + l2), without cancellation
+        sb = root * (branch * inv_2r)
     if any_bad:
         # placeholders: the stretched or folded configuration, along +x where the centres meet
         cb = np.where(bad, np.clip(cb, -1.0, 1.0), cb)
+        if not np.isfinite(sb).all():  # only where the loop cannot close (above)
+            sb = np.where(np.isfinite(sb), sb, 0.0)
         rx, ry = np.where(coincident, 1.0, rx), np.where(coincident, 0.0, ry)
     inv_r = 1.0 / r
     c1 = (rx * cb - ry * sb) * inv_r
@@ -244,7 +254,7 @@ def circle_intersection_xy(rx: ArrayLike, ry: ArrayLike, l1: ArrayLike, l2: Arra
     toggle = np.abs(height) < TOGGLE_EPS * l2
     status = assembly_status(bad, toggle)
     if not rates:
-        return CircleIntersection(c1, s1, None, None, l1, l2, height, status)
+        return CircleIntersection(c1, s1, None, None, l1_in, l2_in, height if u is None else height * u, status)
     inv_l2 = 1.0 / l2
     c2 = (l1 * c1 - rx) * inv_l2
     s2 = (l1 * s1 - ry) * inv_l2
@@ -256,7 +266,9 @@ def circle_intersection_xy(rx: ArrayLike, ry: ArrayLike, l1: ArrayLike, l2: Arra
         c2, s2 = np.where(zero, 1.0, c2 / mag), s2 / mag
     k2 = 1.0 / np.where(status != 0, np.inf, height)  # height = −l2·sin(θ − γ)
     k1 = (l2 / l1) * k2
-    return CircleIntersection(c1, s1, c2, s2, l1, l2, height, status, k1, k2)
+    if u is not None:
+        height, k1, k2 = height * u, k1 / u, k2 / u
+    return CircleIntersection(c1, s1, c2, s2, l1_in, l2_in, height, status, k1, k2)
 
 
 class LineIntersection(NamedTuple):

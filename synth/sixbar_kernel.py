@@ -5,9 +5,9 @@ The query, the figures, the refinement and the reports simulate six-bars by the 
 numpy path spends most of its time in temporaries (a dozen full-size arrays per call) and in
 per-call overhead at small sizes. This kernel runs the same closed forms, in the same
 floating-point order, one position at a time: the four-bar's closing triangle and its rates
-(:func:`kinematics.loop.circle_intersection_xy` and ``rates_xy``: Heron's height, its scaled
-form beyond ``HERON_SAFE``, the same thresholds and placeholders; the derivative system of
-:func:`kinematics.fourbar.solve_block`), the coupler point and its derivatives
+(:func:`kinematics.loop.circle_intersection_xy` and ``rates_xy``: Heron's height, the loop solved
+in units of its span beyond ``HERON_SAFE``, the same thresholds and placeholders; the derivative
+system of :func:`kinematics.fourbar.solve_block`), the coupler point and its derivatives
 (:meth:`kinematics.fourbar.FourBarMotion.coupler_point`), the RPR or RRR dyad
 (:func:`synth.sixbar._rpr`, :func:`synth.sixbar._rrr`), the folded transmission angles
 (:func:`kinematics.loop.transmission_fold`) and the continuous output angle
@@ -43,15 +43,17 @@ def closing_point(rx, ry, l1, l2, branch):
     factors of the rates (0 where flagged) — the same operations."""
     r2 = rx * rx + ry * ry
     r = math.sqrt(r2)
-    d21 = l2 - l1
     s12 = l1 + l2
-    if max(s12, r) > HERON_SAFE or s12 < 1.0 / HERON_SAFE:
-        s = max(s12, r)
-        heron = ((r + d21) / s) * ((s12 - r) / s) * ((r - d21) / s) * ((r + s12) / s)
-        root = math.sqrt(max(heron, 0.0)) * (s * s)
-    else:
-        heron = (r + d21) * (s12 - r) * (r - d21) * (r + s12)
-        root = math.sqrt(max(heron, 0.0))
+    u = 1.0
+    if max(s12, r) > HERON_SAFE or s12 < 1.0 / HERON_SAFE:  # in units of the span there
+        u = max(s12, r)
+        rx, ry, l1, l2 = rx / u, ry / u, l1 / u, l2 / u
+        r2 = rx * rx + ry * ry
+        r = math.sqrt(r2)
+        s12 = l1 + l2
+    d21 = l2 - l1
+    heron = (r + d21) * (s12 - r) * (r - d21) * (r + s12)
+    root = math.sqrt(max(heron, 0.0))
     coincident = r <= COINCIDENT_EPS * s12
     bad = heron < 0 or coincident
     if coincident:
@@ -61,6 +63,8 @@ def closing_point(rx, ry, l1, l2, branch):
     sb = root * (branch * inv_2r)
     if bad:
         cb = min(max(cb, -1.0), 1.0)
+        if not math.isfinite(sb):  # 0·∞: a loop that cannot close, its links ~1e100 apart or more
+            sb = 0.0
         if coincident:
             rx, ry = 1.0, 0.0
     inv_r = 1.0 / r
@@ -83,7 +87,7 @@ def closing_point(rx, ry, l1, l2, branch):
         status = 0
     # Cramer factors of the rates (CircleIntersection.rates): 0 where flagged
     k2 = 0.0 if status else 1.0 / height
-    return c1, s1, c2, s2, status, (l2 / l1) * k2, k2
+    return c1, s1, c2, s2, status, (l2 / l1) * k2 / u, k2 / u
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")

@@ -88,6 +88,26 @@ def test_a_far_ground_pivot_is_one_line_and_no_warning(capsys, tmp_path, monkeyp
     assert len(err.strip().splitlines()) == 1 and "cannot assemble" in err
 
 
+def test_a_linkage_at_1e_minus_150_reads_as_at_unit_scale(capsys, tmp_path, monkeypatch):
+    """A rhombus at 1e-150 a hair past its fold (|A−B0| = 1e-9 of the links): the loop's
+    1/(2·l1·r) overflowed, and the angles came out null with numpy's warnings on the terminal.
+    Every angle and rate is the unit-scale linkage's; positions scale with the links."""
+    monkeypatch.chdir(tmp_path)
+    docs = []
+    for scale in ("1e-150", "1"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            code, out, err = run(capsys, "analyze", "fourbar", "--a", scale, "--b", scale, "--c", scale, "--d", scale,
+                                 "--phi", "5.7e-8", "--json")
+        assert code == 0 and err == "", err
+        docs.append(json.loads(out)["positions"][0])
+    tiny, unit = docs
+    for key in ("theta_deg", "gamma_deg", "omega_coupler_rad_s", "omega_rocker_rad_s", "alpha_coupler_rad_s2",
+                "transmission_deg"):
+        assert tiny[key] is not None and tiny[key] == pytest.approx(unit[key], rel=1e-6, abs=1e-12), key
+    assert tiny["Bx_mm"] == pytest.approx(unit["Bx_mm"] * 1e-150, rel=1e-9)
+
+
 def test_non_grashof_range_inside_reach_works(capsys):
     # triple rocker: reachable crank angles only; inside them the analysis runs
     code, out, err = run(capsys, "analyze", "fourbar", "--a", "2", "--b", "3", "--c", "3.5", "--d", "5",
