@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import pytest
@@ -75,16 +76,23 @@ def test_a_stop_that_lands_after_the_build_finished_is_retried_not_failed(tmp_pa
         return seen
 
     monkeypatch.setattr(faults, "_wait_for_lock", late_on_first)
-    env = {k: v for k, v in __import__("os").environ.items() if k != "DWELL_ATLAS"}
-    sweep = faults._Sweep(16, 2, 1, tmp_path, env)
+    record = _concurrent_check(tmp_path, samples=16, shard_size=2)
+    assert record["passed"] and record["attempts"] == 2 and record["problems"] == [], record
+    assert record["second_exit"] == 2 and "is being built by another process" in record["second_message"]
+
+
+def _concurrent_check(tmp_path: Path, *, samples: int, shard_size: int, shards: int | None = None) -> dict:
+    """The bench's second-builder check on a fresh SQLite sweep (one worker), after a
+    reference build (of ``shards`` shards, if given)."""
+    env = {k: v for k, v in os.environ.items() if k != "DWELL_ATLAS"}
+    sweep = faults._Sweep(samples, shard_size, 1, tmp_path, env)
     atlases = faults._Atlases("sqlite", tmp_path, None)
     reference = atlases.new("reference")
     assert faults._finish(sweep.start(reference.target))[0] == 0
     doc, error = sweep.info(reference.target)
     assert doc is not None, error
-    record = faults._concurrent_builder(sweep, atlases, doc["content_digest"])
-    assert record["passed"] and record["attempts"] == 2 and record["problems"] == [], record
-    assert record["second_exit"] == 2 and "is being built by another process" in record["second_message"]
+    assert shards is None or doc["build"]["n_shards"] == shards
+    return faults._concurrent_builder(sweep, atlases, doc["content_digest"])
 
 
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc (Linux)")
@@ -92,14 +100,6 @@ def test_a_one_shard_build_is_stopped_while_it_holds_its_lock(tmp_path):
     """`dwell bench faults --samples 3` (one shard) exited 1 on a random-seed run: the check
     waited for a stored shard, and with one shard the build was then complete and unlocked
     before the stop, five times out of five. It stops the builder once its lock is held."""
-    env = {k: v for k, v in __import__("os").environ.items() if k != "DWELL_ATLAS"}
-    sweep = faults._Sweep(3, 4, 1, tmp_path, env)
-    atlases = faults._Atlases("sqlite", tmp_path, None)
-    reference = atlases.new("reference")
-    assert faults._finish(sweep.start(reference.target))[0] == 0
-    doc, error = sweep.info(reference.target)
-    assert doc is not None, error
-    assert doc["build"]["n_shards"] == 1
-    record = faults._concurrent_builder(sweep, atlases, doc["content_digest"])
+    record = _concurrent_check(tmp_path, samples=3, shard_size=4, shards=1)
     assert record["passed"] and record["problems"] == [], record
     assert record["second_exit"] == 2 and "is being built by another process" in record["second_message"]
