@@ -16,7 +16,7 @@ Kill moments are drawn from ``--seed`` (the same seed gives the same schedule), 
 over the reference build's wall time (a kill may land during start-up, schema creation, a
 shard commit or the final digest); a kill timed after the run already ended counts as
 "missed". Then a second builder is started against an atlas whose builder is stopped
-(SIGSTOP) half-way: it must be refused (exit 2, one line naming the other process), and the
+(SIGSTOP) while it holds its lock: it must be refused (exit 2, one line naming the other process), and the
 first build, continued (SIGCONT), must still complete with the reference digest. If the stop
 finds the first build already finished (no lock held: the bench can be descheduled between
 seeing the builder's lock and the stop), there is nothing to refuse: that
