@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kinematics.loop import circle_intersection_xy
+from kinematics.loop import COINCIDENT_EPS, circle_intersection_xy
 from kinematics.status import (
     AssemblyError,
     Branch,
@@ -301,6 +301,11 @@ def _raise_first_violation(motion: FourBarMotion, order: int) -> None:
     where = f"four-bar a={a:g} b={b:g} c={c:g} d={d:g} at crank angle {np.degrees(phi):g} deg"
     if motion.status[i] & Status.NOT_ASSEMBLABLE:
         r = abs(d - a * np.exp(1j * phi))
+        if r <= COINCIDENT_EPS * (b + c):  # within [|b-c|, b+c], yet the loop has no direction
+            raise AssemblyError(
+                f"{where} cannot be solved: |A-B0| = {r:.6g} is under {COINCIDENT_EPS:g} of b+c = {b + c:g}, "
+                f"so the directions of coupler and rocker are undetermined ({count} position(s) affected)"
+            )
         ranges = crank_range(a, b, c, d)
         reach = ", ".join(f"[{np.degrees(lo):.4g}, {np.degrees(hi):.4g}]" for lo, hi in ranges) or "none"
         raise AssemblyError(

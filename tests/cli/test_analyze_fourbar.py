@@ -57,6 +57,8 @@ def test_table_plot_and_drawing(tmp_path, capsys):
     [
         (["--a", "-1", "--b", "3", "--c", "2.5", "--d", "3"], "--a"),
         (["--a", "1", "--b", "1", "--c", "1", "--d", "5"], "cannot assemble"),
+        # within [|b-c|, b+c] but 1e-100 of the links: was "outside [|b-c|, b+c] = [0, 2e+100]"
+        (["--a", "1", "--b", "1e100", "--c", "1e100", "--d", "1", "--phi", "30"], "is under 1e-12 of b+c"),
         (["--a", "1", "--b", "3", "--c", "2.5", "--d", "3", "--branch", "2"], "--branch"),
         (["--a", "1", "--b", "3", "--c", "2.5", "--d", "3", "--bogus"], "No such option"),
         (["--a", "1", "--b", "3", "--c", "2.5", "--d", "3", "--phi", "5", "--step", "3"], "either --phi"),
