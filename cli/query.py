@@ -377,6 +377,14 @@ def query(target, dwell, dwell_tol, swing, step, swing_tol, output, dwells, dwel
         result = answer(engine, request, progress=None, workers=workers or default_workers())
     finally:
         engine.dispose()
+    if report_dir is not None:
+        from kinematics.assur import LinkageFileError
+        from report.linkage_toml import readable_linkages
+
+        try:  # before anything is shown: the report would be refused after the table
+            readable_linkages(result.candidates, units)
+        except LinkageFileError as exc:
+            raise InputError(f"--crank {crank:g}: {exc}; use a smaller --crank (or no --report)") from None
     if as_json:
         doc = {"request": request_json(request, units),
                "candidates": [candidate_json(c, request.rpm, units) for c in result.candidates],

@@ -33,8 +33,10 @@ def report(target, ids, out_dir, dwell, dwell_tolerance, crank, min_transmission
     from cli.query import rebuild, request_from_options
     from db.engine import damaged, open_atlas
     from db.summary import quick_check
+    from kinematics.assur import LinkageFileError
     from report.export import write_report
     from report.folder import ReportFolderError, check_report_folder
+    from report.linkage_toml import readable_linkages
 
     names = [t for item in (*ids, *more_ids) for t in item.replace(",", " ").split()]
     if not names:
@@ -63,6 +65,10 @@ def report(target, ids, out_dir, dwell, dwell_tolerance, crank, min_transmission
         candidates = rebuild(engine, names, request)
     finally:
         engine.dispose()
+    try:  # every file is written or none: the linkage files are checked first
+        readable_linkages(candidates, units)
+    except LinkageFileError as exc:
+        raise InputError(f"--crank {crank:g}: {exc}; use a smaller --crank") from None
     written = write_report(candidates, request, out, option="--out", units=units)  # all files or none (report/folder.py)
     for c in candidates:
         dw = " and ".join(f"{math.degrees(d.angle):.2f}°" for d in c.figures.dwells)

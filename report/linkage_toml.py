@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -22,7 +23,7 @@ from synth.candidates import Candidate
 from synth.kinds import OutputKind
 from synth.sixbar import simulate
 
-__all__ = ["linkage_configuration", "linkage_toml"]
+__all__ = ["linkage_configuration", "linkage_toml", "readable_linkages"]
 
 
 def _num(x: float) -> str:
@@ -119,6 +120,20 @@ def linkage_configuration(candidate: Candidate, text: str) -> int:
         raise ValueError(f"no configuration of the linkage file matches candidate {candidate.id!r} "
                          f"(closest misses by {best_miss:.3g})")
     return best
+
+
+def readable_linkages(candidates: Sequence[Candidate], units: str = "") -> None:
+    """Raise :class:`kinematics.assur.LinkageFileError` (one line, naming the candidate) if
+    ``dwell analyze linkage`` could not read back the linkage file of one of ``candidates``
+    at its scale: a number beyond the ±1e150 a file holds (``--crank 1e150`` wrote ground
+    pivots at 3e150). The reports call it before they write anything."""
+    from kinematics.assur import LinkageFileError, linkage_from_text
+
+    for c in candidates:
+        try:
+            linkage_from_text("\n".join(_body(c, units)) + "\n")
+        except LinkageFileError as exc:
+            raise LinkageFileError(f"candidate {c.id}'s linkage file could not be read back ({exc})") from None
 
 
 def linkage_toml(candidate: Candidate, units: str = "") -> str:

@@ -143,6 +143,28 @@ def test_report_crank_out_of_range_is_one_line(capsys, tmp_path, crank):
     assert not (tmp_path / "r").exists()
 
 
+def test_report_whose_linkage_file_could_not_be_read_back_is_refused(capsys, tmp_path, small_atlas):
+    """`--crank 1e150` is in range, but the six-bar's other links are longer: the report wrote
+    a linkage file (coordinates ~3e150) that `dwell analyze linkage` refuses. Now the report is
+    refused in one line and writes nothing; a crank that fits writes a file that reads back."""
+    path, ids = small_atlas
+    code = main(["report", "--db", path, "--candidates", ids[0], "--crank", "1e150", "--out", str(tmp_path / "r")])
+    out, err = capsys.readouterr()
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "--crank" in err and "1e+150" in err, err
+    assert not (tmp_path / "r").exists()
+    assert main(["report", "--db", path, "--candidates", ids[0], "--crank", "1e140", "--out", str(tmp_path / "s")]) == 0
+    capsys.readouterr()
+    (toml,) = (tmp_path / "s").glob("*.toml")
+    assert main(["analyze", "linkage", str(toml), "--json"]) == 0, capsys.readouterr().err
+    capsys.readouterr()
+    # `dwell query --report` likewise, before it shows anything
+    code = main(["query", "--db", path, "--dwell", "45", "--swing", "40", "--output", "rpr", "--top", "2",
+                 "--no-refine", "--crank", "1e150", "--report", str(tmp_path / "q")])
+    out, err = capsys.readouterr()
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1 and "--crank" in err, err
+    assert not (tmp_path / "q").exists()
+
+
 def test_report_into_a_folder_with_other_files_is_refused(capsys, tmp_path, small_atlas):
     path, ids = small_atlas
     out = tmp_path / "mine"
