@@ -214,10 +214,12 @@ def circle_intersection_xy(rx: ArrayLike, ry: ArrayLike, l1: ArrayLike, l2: Arra
     r2 = rx * rx + ry * ry
     r = np.sqrt(r2)
     s12 = l1 + l2
-    span = np.maximum(s12, r)  # s12 wherever the loop can close
-    scaled = (span > HERON_SAFE) | (s12 < 1.0 / HERON_SAFE)
     u = None
-    if np.any(scaled):
+    # (the lengths' test on their own shape, the distance's as one reduction: the common case
+    # adds no full-size pass)
+    if np.any((s12 > HERON_SAFE) | (s12 < 1.0 / HERON_SAFE)) or np.max(r, initial=0.0) > HERON_SAFE:
+        span = np.maximum(s12, r)  # s12 wherever the loop can close
+        scaled = (span > HERON_SAFE) | (s12 < 1.0 / HERON_SAFE)
         # lengths in units of the span there: the same angles and status as at unit scale, the
         # height and rate factors scaled back at the end (elsewhere the bits are unchanged).
         # Heron's product of four lengths over/underflows beyond ~1e±77 (a far centre with
@@ -244,7 +246,7 @@ def circle_intersection_xy(rx: ArrayLike, ry: ArrayLike, l1: ArrayLike, l2: Arra
     if any_bad:
         # placeholders: the stretched or folded configuration, along +x where the centres meet
         cb = np.where(bad, np.clip(cb, -1.0, 1.0), cb)
-        if not np.isfinite(sb).all():  # only where the loop cannot close (above)
+        if not np.isfinite(np.sum(sb)):  # only where the loop cannot close (above); one pass
             sb = np.where(np.isfinite(sb), sb, 0.0)
         rx, ry = np.where(coincident, 1.0, rx), np.where(coincident, 0.0, ry)
     inv_r = 1.0 / r

@@ -1,7 +1,6 @@
 """kinematics.loop: closed-form values of the shared loop kernels."""
 
 import math
-
 import warnings
 
 import numpy as np
