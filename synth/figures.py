@@ -25,7 +25,7 @@ from kinematics.loop import sampled_extreme
 from kinematics.status import Status
 from synth.buildability import Buildability, buildability
 from synth.output_range import Dwell, dwell_angle_bounds, dwell_intervals, output_deviation, output_swing
-from synth.sixbar import SixBar, SixBarMotion, SixBars, as_batch, crank_grid, output_angle, simulate
+from synth.sixbar import ExactOutput, SixBar, SixBarMotion, SixBars, as_batch, crank_grid, simulate
 from synth.types import C128, F64
 
 __all__ = ["SixBarFigures", "figures_with_dwell_bounds", "footprints", "sixbar_figures"]
@@ -170,10 +170,7 @@ def _simulated(sixbar: SixBar | SixBars, samples: int, motion: SixBarMotion | No
     if motion.psi.shape != (N, samples) or len(motion.dpsi) < 2:
         raise ValueError("motion must be an order-2 simulation of these six-bars on crank_grid(samples)")
 
-    def psi_at(at):
-        return output_angle(batch, at)
-
-    return batch, single, phi, motion, psi_at
+    return batch, single, phi, motion, ExactOutput(batch)
 
 
 def _figures_but_dwells(batch: SixBars, phi: F64, motion: SixBarMotion, psi_at, footprint: bool) -> list[SixBarFigures]:

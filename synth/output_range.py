@@ -327,22 +327,14 @@ def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: i
         reach = _linear_reach(E, length, w_max, w_min, band_r, wanted & (length > 0))
         cand = np.stack([_near_longest(sc, nn, reach) for sc, nn in zip(scores, lens)], axis=1)  # (R, C, W)
         cs, ok = cand[..., 0, :], cand[..., 1, :].astype(bool)
-        nn = np.broadcast_to(n[..., None], cs.shape)
-        c_start, c_end, *c_rest, c_reach = _refine_dwell(E, cs, nn, band_r, phi0, h, psi_at, lead, upper, lower)
-        best = np.argmax(np.where(ok, c_reach - c_start, -np.inf), axis=-1)[..., None]
-        pick = lambda x: np.take_along_axis(x, best, -1)[..., 0]
-        start, end, low, high = map(pick, (c_start, c_end, *c_rest[:2]))
-        # the best pair again, at 2/DWELL_FINE of its spacing, twice (re-centred): the interval
-        # may slide, one end gaining more than the other loses, to where another constraint binds
-        step = h / DWELL_FINE
-        for _ in range(2):
-            inner_hi, inner_lo = _samples_between(upper, lower, start + step, end - step, phi0, h)
-            start2, end2, low2, high2, _, _, _ = _refine_pair(
-                start, end, 0.5 * (low + high), inner_hi, inner_lo, band_r, step, psi_at, lead)
-            better = end2 - start2 > end - start
-            start, end = np.where(better, start2, start), np.where(better, end2, end)
-            low, high = np.where(better, low2, low), np.where(better, high2, high)
-        start, end, low, high = _extend_ends(start, end, low, high, band_r, 2 * step / DWELL_FINE, psi_at, lead)
+        compiled = _compiled_rows(psi_at, R)
+        if compiled is not None:  # the same stages in one compiled pass (synth.dwell_ends_kernel)
+            from synth.dwell_ends_kernel import refine_windows  # numba: imported on first use
+
+            start, end, low, high = refine_windows(psi_at.params, psi_at.rpr, compiled, E, upper, lower, band_r,
+                                                   phi0, h, cs, ok, n, psi_at.pin_eps, DWELL_FINE, EXTEND_POINTS)
+        else:
+            start, end, low, high = _refine_candidates(E, cs, ok, n, band_r, phi0, h, psi_at, lead, upper, lower)
         start, end = np.where(whole, phi0 + s * h, start), np.where(whole, end, end)
         low, high = np.where(whole, lo_in, low), np.where(whole, hi_in, high)
     # A window covering the turn is the whole turn (no ends to refine).
@@ -361,6 +353,41 @@ def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: i
     shape = lead + (count,)
     return DwellIntervals(zero(start_n).reshape(shape), zero(end).reshape(shape), zero(angle).reshape(shape),
                           zero(low).reshape(shape), zero(high).reshape(shape), fnd.reshape(shape))
+
+
+def _refine_candidates(E, cs, ok, n, band, phi0, h, psi_at, lead, upper, lower):
+    """The refinement on the exact path (see :func:`dwell_intervals`' Notes): every candidate
+    window ``cs`` (``ok``: real ones) of each dwell, the best pair again twice, then both ends
+    pushed out. Returns (start, end, low, high), each ``(R, C)``."""
+    nn = np.broadcast_to(n[..., None], cs.shape)
+    c_start, c_end, *c_rest, c_reach = _refine_dwell(E, cs, nn, band, phi0, h, psi_at, lead, upper, lower)
+    best = np.argmax(np.where(ok, c_reach - c_start, -np.inf), axis=-1)[..., None]
+    pick = lambda x: np.take_along_axis(x, best, -1)[..., 0]
+    start, end, low, high = map(pick, (c_start, c_end, *c_rest[:2]))
+    # the best pair again, at 2/DWELL_FINE of its spacing, twice (re-centred): the interval
+    # may slide, one end gaining more than the other loses, to where another constraint binds
+    step = h / DWELL_FINE
+    for _ in range(2):
+        inner_hi, inner_lo = _samples_between(upper, lower, start + step, end - step, phi0, h)
+        start2, end2, low2, high2, _, _, _ = _refine_pair(
+            start, end, 0.5 * (low + high), inner_hi, inner_lo, band, step, psi_at, lead)
+        better = end2 - start2 > end - start
+        start, end = np.where(better, start2, start), np.where(better, end2, end)
+        low, high = np.where(better, low2, low), np.where(better, high2, high)
+    return _extend_ends(start, end, low, high, band, 2 * step / DWELL_FINE, psi_at, lead)
+
+
+def _compiled_rows(psi_at, R: int) -> NDArray[np.int64] | None:
+    """For an evaluator the compiled refinement can run pointwise (one with the kernel's
+    ``params``, ``rpr`` and ``pin_eps``, :class:`synth.sixbar.ExactOutput`) whose batch the R
+    rows repeat in order (each six-bar's rows together), the six-bar of each row; else None."""
+    params = getattr(psi_at, "params", None)
+    if params is None or getattr(psi_at, "rpr", None) is None or not hasattr(psi_at, "pin_eps"):
+        return None
+    N = params.shape[0]
+    if N == 0 or R % N:
+        return None
+    return np.arange(R, dtype=np.int64) // (R // N)
 
 
 def _two_turns(phi, psi, band, dpsi1):

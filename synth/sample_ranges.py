@@ -23,7 +23,7 @@ from numpy.typing import ArrayLike
 from synth.parallel_rows import over_rows
 from synth.types import F64
 
-__all__ = ["parabola_rise", "range_extremes", "vertex_bounds"]
+__all__ = ["parabola_rise", "range_extremes", "range_max_min", "vertex_bounds"]
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -37,21 +37,25 @@ def parabola_rise(ym, y0, yp):
     return den, -(diff ** 2 / (8 * den))
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def range_max_min(upper, lower, r, s, n):
+    """(max of ``upper``, min of ``lower``) over samples [s, s + n) of row ``r``; (+inf, −inf)
+    for a range that is empty or runs off the samples (never within a band)."""
+    if s < 0 or n < 1 or s + n > upper.shape[1]:
+        return math.inf, -math.inf
+    a, b = upper[r, s], lower[r, s]
+    for i in range(s + 1, s + n):
+        a = max(a, upper[r, i])
+        b = min(b, lower[r, i])
+    return a, b
+
+
 @numba.njit(cache=True, nogil=True)
 def _extremes(upper, lower, start, count, hi, lo):
     R, K = start.shape
-    T = upper.shape[1]
     for r in range(R):
         for k in range(K):
-            s, n = start[r, k], count[r, k]
-            if s < 0 or n < 1 or s + n > T:  # a range off the samples is never within a band
-                hi[r, k], lo[r, k] = math.inf, -math.inf
-                continue
-            a, b = upper[r, s], lower[r, s]
-            for i in range(s + 1, s + n):
-                a = max(a, upper[r, i])
-                b = min(b, lower[r, i])
-            hi[r, k], lo[r, k] = a, b
+            hi[r, k], lo[r, k] = range_max_min(upper, lower, r, start[r, k], count[r, k])
 
 
 def range_extremes(upper: F64, lower: F64, start: ArrayLike, count: ArrayLike) -> tuple[F64, F64]:

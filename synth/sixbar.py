@@ -51,6 +51,7 @@ __all__ = [
     "SixBars",
     "as_batch",
     "crank_grid",
+    "ExactOutput",
     "output_angle",
     "simulate",
 ]
@@ -395,13 +396,33 @@ def output_angle(sixbars: SixBars, phi: ArrayLike) -> F64:
     """ψ alone (rad, continuous along the last axis) of ``sixbars`` at crank angles ``phi``
     (``(M,)``, or ``(N, M)``): ``simulate(sixbars, phi, order=0).psi``, without the points and
     transmission angles — what a refinement on the exact path evaluates, many times."""
-    from synth.sixbar_kernel import output_angles  # numba: imported on first use
+    return ExactOutput(sixbars)(phi)
 
-    phi = np.asarray(phi, dtype=float)
-    phi_rows = _kernel_phi(phi, len(sixbars), False)
-    if phi_rows is None or not np.all(np.isfinite(phi)):
-        return simulate(sixbars, phi, order=0).psi
-    return output_angles(*_kernel_inputs(sixbars), phi_rows, PIN_ON_PIVOT_EPS)
+
+class ExactOutput:
+    """:func:`output_angle` of one batch as a :data:`~synth.output_range.PsiAt` evaluator,
+    holding the compiled kernel's rows (``params``, ``rpr``: :func:`_kernel_inputs`; the pin
+    tolerance :data:`PIN_ON_PIVOT_EPS`): the dwell refinement then evaluates ψ pointwise inside
+    its own compiled pass (:mod:`synth.dwell_ends_kernel`) instead of calling back."""
+
+    __slots__ = ("sixbars", "params", "rpr")
+    pin_eps = PIN_ON_PIVOT_EPS
+
+    def __init__(self, sixbars: SixBars):
+        self.sixbars = sixbars
+        self.params, self.rpr = _kernel_inputs(sixbars)
+
+    def __len__(self) -> int:
+        return len(self.sixbars)
+
+    def __call__(self, phi: ArrayLike) -> F64:
+        from synth.sixbar_kernel import output_angles  # numba: imported on first use
+
+        phi = np.asarray(phi, dtype=float)
+        phi_rows = _kernel_phi(phi, len(self.sixbars), False)
+        if phi_rows is None or not np.all(np.isfinite(phi)):
+            return simulate(self.sixbars, phi, order=0).psi
+        return output_angles(self.params, self.rpr, phi_rows, PIN_ON_PIVOT_EPS)
 
 
 def _kernel_inputs(sixbar: SixBar | SixBars) -> tuple[F64, NDArray[np.bool_]]:

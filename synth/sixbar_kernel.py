@@ -30,7 +30,7 @@ from kinematics.loop import COINCIDENT_EPS, HERON_SAFE, TOGGLE_EPS
 from kinematics.status import Status
 from synth.parallel_rows import over_rows
 
-__all__ = ["closing_point", "output_angles", "sixbar_positions"]
+__all__ = ["closing_point", "output_angles", "output_phasor", "sixbar_positions"]
 
 _NA = int(Status.NOT_ASSEMBLABLE)
 _TOGGLE = int(Status.TOGGLE)
@@ -109,6 +109,54 @@ def _fold(cos_mu):
     return min(mu, math.pi - mu)
 
 
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _size(a, b, c, d, dx, dy):
+    """The six-bar's size for the pin test: its longest four-bar link or |D|."""
+    return max(max(max(a, b), max(c, d)), math.hypot(dx, dy))
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _coupler_point(a, b, c, d, branch, u, v, cphi, sphi):
+    """The four-bar at crank angle φ (cos φ, sin φ): circles about A (radius b) and B0 (radius
+    c), R = B0 − A. Returns :func:`closing_point`'s seven values (e^{iθ}, e^{iγ}, status, rate
+    factors), A = (ax, ay), w = e^{iθ}(u + iv) and the coupler point P = A + w."""
+    ct, st, cg, sg, fb, fk1, fk2 = closing_point(d - a * cphi, -(a * sphi), b, c, branch)
+    ax, ay = a * cphi, a * sphi
+    wx, wy = ct * u - st * v, ct * v + st * u
+    return ct, st, cg, sg, fb, fk1, fk2, ax, ay, wx, wy, ax + wx, ay + wy
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _slot_phasor(zx, zy, dx, dy, pin_eps, size):
+    """The RPR slot's direction e^{iψ} = W/|W|, W = P − D, as numpy's complex ÷ real computes
+    it ((W + 0i)·(1/|W|), zeros' signs included), its status (NOT_ASSEMBLABLE and a +x
+    placeholder where P is within ``pin_eps`` of the size of D) and W."""
+    rx, ry = zx - dx, zy - dy
+    r = math.hypot(rx, ry)
+    if r <= pin_eps * size:
+        scale = 1.0 / size
+        return (size + 0.0 * 0.0) * scale, (0.0 - size * 0.0) * scale, _NA, rx, ry
+    scale = 1.0 / r
+    return (rx + ry * 0.0) * scale, (ry - rx * 0.0) * scale, 0, rx, ry
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def output_phasor(params, rpr, i, phi, pin_eps):
+    """Six-bar ``i``'s output direction e^{iψ} = (cos ψ, sin ψ) at one crank angle ``phi``
+    (rad) and its :class:`~kinematics.status.Status` flags: :func:`_positions`' order-0 path
+    for one position (the refinements' pointwise ψ, taken as atan2 of it)."""
+    ai, bi, ci, di, bri, ui, vi = (params[i, 0], params[i, 1], params[i, 2], params[i, 3], params[i, 4],
+                                   params[i, 5], params[i, 6])
+    dxi, dyi, li, rhoi, dbri = params[i, 7], params[i, 8], params[i, 9], params[i, 10], params[i, 11]
+    out = _coupler_point(ai, bi, ci, di, bri, ui, vi, math.cos(phi), math.sin(phi))
+    fb, zx, zy = out[4], out[11], out[12]
+    if rpr[i]:
+        ex, ey, st_dyad, _, _ = _slot_phasor(zx, zy, dxi, dyi, pin_eps, _size(ai, bi, ci, di, dxi, dyi))
+    else:
+        _, _, ex, ey, st_dyad, _, _ = closing_point(dxi - zx, dyi - zy, rhoi, li, dbri)
+    return ex, ey, fb | st_dyad
+
+
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def _positions(params, rpr, phi, pin_eps, order, full, points, angles, derivs, status_fourbar, status):
     """Fill ``points`` (e^{iθ}, P, Q, then P′, P″ up to ``order``), ``angles`` (ψ, μ four-bar,
@@ -130,8 +178,7 @@ def _positions(params, rpr, phi, pin_eps, order, full, points, angles, derivs, s
         ai, bi, ci, di, bri, ui, vi = (params[i, 0], params[i, 1], params[i, 2], params[i, 3], params[i, 4],
                                        params[i, 5], params[i, 6])
         dxi, dyi, li, rhoi, dbri = params[i, 7], params[i, 8], params[i, 9], params[i, 10], params[i, 11]
-        size = max(max(ai, bi), max(ci, di))
-        size = max(size, math.hypot(dxi, dyi))
+        size = _size(ai, bi, ci, di, dxi, dyi)
         base0 = 0.0
         acc = 0.0
         px, py, prev_p1 = 1.0, 0.0, 0.0  # e^{iψ} and ψ′ at the previous sample
@@ -141,14 +188,10 @@ def _positions(params, rpr, phi, pin_eps, order, full, points, angles, derivs, s
                 cphi, sphi = cos_phi[j], sin_phi[j]
             else:
                 cphi, sphi = math.cos(phi[row, j]), math.sin(phi[row, j])
-            # four-bar: circles about A (radius b) and B0 (radius c), R = B0 − A
-            ct, st, cg, sg, fb, fk1, fk2 = closing_point(di - ai * cphi, -(ai * sphi), bi, ci, bri)
+            ct, st, cg, sg, fb, fk1, fk2, ax, ay, wx, wy, zx, zy = _coupler_point(ai, bi, ci, di, bri, ui, vi,
+                                                                                 cphi, sphi)
             status_fourbar[i, j] = fb
-            ax, ay = ai * cphi, ai * sphi
-            wx, wy = ct * ui - st * vi, ct * vi + st * ui  # e^{iθ}(u + iv)
-            # coupler point P = A + e^{iθ}(u + iv) and, up to ``order``, P′ and P″
-            # (docs/curvature.md §1: P′ = iA + iθ′w, P″ = −A + (iθ″ − θ′²)w)
-            zx, zy = ax + wx, ay + wy
+            # up to ``order``, P′ and P″ (docs/curvature.md §1: P′ = iA + iθ′w, P″ = −A + (iθ″ − θ′²)w)
             if full:
                 e_theta[i, j] = complex(ct, st)
                 z[i, j] = complex(zx, zy)
@@ -176,17 +219,8 @@ def _positions(params, rpr, phi, pin_eps, order, full, points, angles, derivs, s
                     points[4, i, j] = complex(z2x, z2y)
             p1 = p2 = 0.0
             if rpr[i]:
-                rx, ry = zx - dxi, zy - dyi
-                r = math.hypot(rx, ry)
-                # numpy's complex ÷ real: (w + 0i)·(1/r), zeros' signs included
-                if r <= pin_eps * size:
-                    st_dyad = _NA
-                    scale = 1.0 / size
-                    ex, ey = (size + 0.0 * 0.0) * scale, (0.0 - size * 0.0) * scale  # placeholder +x
-                else:
-                    st_dyad = 0
-                    scale = 1.0 / r
-                    ex, ey = (rx + ry * 0.0) * scale, (ry - rx * 0.0) * scale
+                ex, ey, st_dyad, rx, ry = _slot_phasor(zx, zy, dxi, dyi, pin_eps, size)
+                if not st_dyad:
                     if order >= 1:  # ψ′ = Im(P′/W), ψ″ = Im(P″/W − (P′/W)²), W = P − D
                         f1x, f1y = _divide(z1x, z1y, rx, ry)
                         p1 = f1y
