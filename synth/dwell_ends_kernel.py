@@ -1,6 +1,7 @@
-"""The dwell's ends refined on a six-bar's exact path, compiled: what
-:func:`synth.output_range.dwell_intervals` does after its grid search, one pass per (row,
-dwell) with ψ evaluated pointwise inside the pass.
+"""The ends of a six-bar's dwells and of its deviation windows refined on its exact path,
+compiled: what :func:`synth.output_range.dwell_intervals` and
+:func:`synth.output_range.output_deviation` do after their grid searches, one pass per row
+(and dwell) with ψ evaluated pointwise inside the pass.
 
 The numpy form of the refinement builds ``(rows, dwells, windows, points)`` arrays at every
 stage and calls the exact ψ a dozen times per batch; at the query's batch sizes (a hundred
@@ -9,7 +10,8 @@ candidate window's (start, end) pair search, the two finer searches of the best 
 final push of both ends run in one loop per row and dwell, with ψ(φ) = atan2 of the output's
 direction (:func:`synth.sixbar_kernel.output_phasor`) taken on the 2π branch of a reference,
 as :func:`synth.output_range._rewrap` takes it. The stages, their points and the order of their
-operations are those of :mod:`synth.output_range` (see ``dwell_intervals``' Notes); two
+operations are those of :mod:`synth.output_range` (see ``dwell_intervals``' Notes and
+``_refine_window``); two
 things differ: ψ at a point is atan2 of that point's direction (the batch evaluator sums the
 steps between the points of one call, which rounds differently in the last bits), and a
 point of the first stage's lattice that two candidate windows share is evaluated once.
@@ -29,7 +31,7 @@ from synth.sample_ranges import range_max_min
 from synth.sixbar_kernel import output_phasor
 from synth.types import F64
 
-__all__ = ["refine_windows"]
+__all__ = ["refine_deviation_windows", "refine_windows"]
 
 _TWO_PI = 2.0 * math.pi
 #: Slots of the per-(row, dwell) memo of the first stage's lattice points (power of two; a
@@ -178,3 +180,119 @@ def refine_windows(params: F64, rpr: np.ndarray, six: np.ndarray, E: F64, upper:
     # ~500 exact points a dwell at ~80 ns each
     over_rows(R, block, 40_000 * R * C)
     return out[..., 0], out[..., 1], out[..., 2], out[..., 3]
+
+
+@numba.njit(cache=True, nogil=True, inline="always", error_model="numpy")
+def _slab_ref(slab, r, i_lo, x, phi0, h):
+    """ψ linear between the slab's samples at crank angle x (slab offset 0 is sample
+    i_lo − 1): the 2π branch to evaluate on."""
+    idx = (x - phi0) / h - (i_lo - 1)
+    j = min(max(math.floor(idx), 0), slab.shape[1] - 2)
+    w = idx - j
+    return (1 - w) * slab[r, j] + w * slab[r, j + 1]
+
+
+@numba.njit(cache=True, nogil=True, inline="always", error_model="numpy")
+def _best_split(params, rpr, i, pin_eps, slab, r, i_lo, f, L, c, phi0, h, mid_hi, mid_lo,
+                fv, gv, sf_max, sf_min, pg_max, pg_min):
+    """ψ at the window starts ``f`` and ends f + L, the suffix extremes of the starts' values
+    and prefix extremes of the ends', and the allowed start (within [c − L, c]) whose window
+    has the least range with ``mid_hi``/``mid_lo`` between them: (index, range), (−1, inf) if
+    none is allowed."""
+    n = f.shape[0]
+    for j in range(n):
+        g = f[j] + L
+        fv[j] = _psi(params, rpr, i, f[j], pin_eps, _slab_ref(slab, r, i_lo, f[j], phi0, h))
+        gv[j] = _psi(params, rpr, i, g, pin_eps, _slab_ref(slab, r, i_lo, g, phi0, h))
+    sf_max[n - 1], sf_min[n - 1] = fv[n - 1], fv[n - 1]
+    for j in range(n - 2, -1, -1):
+        sf_max[j], sf_min[j] = max(fv[j], sf_max[j + 1]), min(fv[j], sf_min[j + 1])
+    pg_max[0], pg_min[0] = gv[0], gv[0]
+    for j in range(1, n):
+        pg_max[j], pg_min[j] = max(pg_max[j - 1], gv[j]), min(pg_min[j - 1], gv[j])
+    best, best_range = -1, np.inf
+    for j in range(n):
+        if f[j] >= (c - L) - 1e-12 and f[j] <= c + 1e-12:
+            top = max(max(sf_max[j], pg_max[j]), mid_hi)
+            bot = min(min(sf_min[j], pg_min[j]), mid_lo)
+            if top - bot < best_range:
+                best, best_range = j, top - bot
+    return best, best_range
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _windows(params, rpr, six, slab, i_lo, k, nL, L, c, dev, s_best, phi0, h, pin_eps, K2, fine, out_dev,
+             out_start):
+    R = slab.shape[0]
+    n1, n3 = K2 + 1, fine + 1
+    f, f3 = np.empty(n1), np.empty(n3)
+    fv, gv, sf_max, sf_min, pg_max, pg_min = (np.empty(n1), np.empty(n1), np.empty(n1), np.empty(n1),
+                                              np.empty(n1), np.empty(n1))
+    fv3, gv3, sf3_max, sf3_min, pg3_max, pg3_min = (np.empty(n3), np.empty(n3), np.empty(n3), np.empty(n3),
+                                                    np.empty(n3), np.empty(n3))
+    t3 = np.empty(n3)  # np.linspace(-1, 1, fine + 1)
+    for j in range(n3):
+        t3[j] = -1.0 + j * (2.0 / fine)
+    t3[fine] = 1.0
+    for r in range(R):
+        i = six[r]
+        out_dev[r], out_start[r] = dev[r], s_best[r]
+        if nL[r] < 2:  # start and end regions overlap: the grid placement is kept
+            continue
+        # starts over the two steps around the best grid start, ends L later
+        s_lo = phi0 + (i_lo[r] - 2 + k[r]) * h
+        for j in range(n1):
+            f[j] = s_lo + 2 * h * (j / K2)
+        n_in = nL[r] - 2
+        hi_in, lo_in = -np.inf, np.inf
+        if n_in >= 1:
+            hi_in, lo_in = range_max_min(slab, slab, r, k[r] + 2, n_in)
+        j, fine_range = _best_split(params, rpr, i, pin_eps, slab, r, i_lo[r], f, L[r], c[r], phi0, h,
+                                    hi_in, lo_in, fv, gv, sf_max, sf_min, pg_max, pg_min)
+        if j < 0:
+            continue
+        f_best = f[j]
+        # again around the best fine start, ±one fine step on ``fine`` + 1 points
+        d = 2 * h / K2
+        for q in range(n3):
+            f3[q] = f_best + d * t3[q]
+        a_off = (f_best + d - phi0) / h - (i_lo[r] - 1)
+        b_off = (f_best - d + L[r] - phi0) / h - (i_lo[r] - 1)
+        i0 = math.floor(a_off) + 1
+        cnt = math.ceil(b_off) - 1 - i0 + 1
+        mid_hi, mid_lo = -np.inf, np.inf
+        if cnt >= 1:
+            mid_hi, mid_lo = range_max_min(slab, slab, r, i0, cnt)
+        if j + 1 <= K2:
+            mid_hi, mid_lo = max(mid_hi, sf_max[j + 1]), min(mid_lo, sf_min[j + 1])
+        if j >= 1:
+            mid_hi, mid_lo = max(mid_hi, pg_max[j - 1]), min(mid_lo, pg_min[j - 1])
+        j3, fine3 = _best_split(params, rpr, i, pin_eps, slab, r, i_lo[r], f3, L[r], c[r], phi0, h,
+                                mid_hi, mid_lo, fv3, gv3, sf3_max, sf3_min, pg3_max, pg3_min)
+        if j3 >= 0 and fine3 < fine_range and nL[r] >= 4:
+            out_dev[r], out_start[r] = fine3, f3[j3]
+        else:
+            out_dev[r], out_start[r] = fine_range, f_best
+
+
+def refine_deviation_windows(params: F64, rpr: np.ndarray, six: np.ndarray, slab: F64, i_lo, k, nL, L, c, dev, s_best,
+                             phi0: float, h: float, pin_eps: float, steps: int, fine: int) -> tuple[F64, F64]:
+    """The refinement of :func:`synth.output_range.output_deviation`'s best grid window
+    (``_refine_window``) for rows whose exact ψ is six-bar ``six[r]``'s: ``slab`` ``(R, W)``
+    the samples from i_lo − 1 on, the best grid start at slab offset ``k``, ``nL`` samples per
+    window, window length ``L`` and the angle ``c`` it must contain, the grid's ``dev`` and
+    start ``s_best`` (kept where nothing refines), ``steps`` (K2) points over the first
+    stage's two grid steps and ``fine`` + 1 points in the second. Returns (deviation, start),
+    each ``(R,)``."""
+    R = slab.shape[0]
+    out_dev, out_start = np.empty(R), np.empty(R)
+    ints = [np.ascontiguousarray(x, np.int64) for x in (six, i_lo, k, nL)]
+    floats = [np.ascontiguousarray(x, float) for x in (slab, L, c, dev, s_best)]
+
+    def block(lo: int, hi: int) -> None:
+        _windows(params, rpr, *(x[lo:hi] for x in ints[:1]), floats[0][lo:hi], *(x[lo:hi] for x in ints[1:]),
+                 *(x[lo:hi] for x in floats[1:]), phi0, h, pin_eps, steps, fine, out_dev[lo:hi], out_start[lo:hi])
+
+    # ~2·(steps + fine + 2) exact points a row at ~80 ns each
+    over_rows(R, block, 160 * (steps + fine + 2) * R)
+    return out_dev, out_start

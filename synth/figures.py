@@ -135,7 +135,7 @@ def sixbar_figures(sixbar: SixBar | SixBars, *, band: float, dwell_length: float
     if dwell_length is not None:
         centre = 0.5 * (found.start + found.end)  # (N, C)
         dev, _ = output_deviation(phi, np.repeat(psi[:, None, :], dwells, axis=1), centre, dwell_length,
-                                  psi_at=lambda at: psi_at(at.reshape(N, -1)).reshape(at.shape),
+                                  psi_at=psi_at,
                                   dpsi1=np.repeat(dpsi[0][:, None, :], dwells, axis=1))
     else:
         dev = np.zeros((N, 0))

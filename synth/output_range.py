@@ -701,7 +701,14 @@ def output_deviation(phi: ArrayLike, psi: ArrayLike, center: ArrayLike, length: 
     jbest = np.argmin(grid_range, axis=1)
     dev = grid_range[rows, jbest]
     s_best = phi0 + (i_lo + jbest) * h
-    if psi_at is not None:
+    compiled = _compiled_rows(psi_at, R)
+    if compiled is not None:  # the same stages in one compiled pass (synth.dwell_ends_kernel)
+        from synth.dwell_ends_kernel import refine_deviation_windows  # numba: imported on first use
+
+        dev, s_best = refine_deviation_windows(psi_at.params, psi_at.rpr, compiled, slab, i_lo, jbest + 1, nL, L, c,
+                                               dev, s_best, phi0, h, psi_at.pin_eps,
+                                               2 * min(_fine_count(h), DWELL_FINE), DWELL_FINE)
+    elif psi_at is not None:
         dev, s_best = _refine_window(slab, i_lo, jbest + 1, nL, L, c, dev, s_best, phi0, h,
                                      psi_at, lead)
     s_best = phi0 + np.mod(s_best - phi0, _TWO_PI)
@@ -712,7 +719,7 @@ def _refine_window(slab, i_lo, k, nL, L, c, dev, s_best, phi0, h, psi_at, lead):
     """Window placement refined on the exact path around the best grid start, which sits at
     slab offset ``k`` (slab offset 0 is sample i_lo − 1)."""
     R = slab.shape[0]
-    K2 = 2 * min(_fine_count(h), DWELL_FINE)
+    K2 = 2 * min(_fine_count(h), DWELL_FINE)  # as synth.dwell_ends_kernel is given it
     t = np.arange(K2 + 1) / K2
     r = np.arange(R)[:, None]
     s_lo = phi0 + (i_lo - 2 + k) * h  # one step before the best grid start

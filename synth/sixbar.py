@@ -416,9 +416,12 @@ class ExactOutput:
         return len(self.sixbars)
 
     def __call__(self, phi: ArrayLike) -> F64:
+        """ψ at crank angles ``(M,)`` (shared), ``(N, M)``, or ``(N, ...)`` (row n: six-bar n's)."""
         from synth.sixbar_kernel import output_angles  # numba: imported on first use
 
         phi = np.asarray(phi, dtype=float)
+        if phi.ndim > 2 and phi.shape[0] == len(self.sixbars):
+            return self(phi.reshape(phi.shape[0], -1)).reshape(phi.shape)
         phi_rows = _kernel_phi(phi, len(self.sixbars), False)
         if phi_rows is None or not np.all(np.isfinite(phi)):
             return simulate(self.sixbars, phi, order=0).psi

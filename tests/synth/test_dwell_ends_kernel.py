@@ -1,7 +1,8 @@
-"""The compiled dwell refinement (:mod:`synth.dwell_ends_kernel`) against the numpy stages it
-replaces (:func:`synth.output_range._refine_candidates`, run when ψ comes from a plain
-callable): the same dwell ends on random six-bars and on six-bars with real dwells, and the
-rows of a repeated batch mapped to their six-bars."""
+"""The compiled refinements on the exact path (:mod:`synth.dwell_ends_kernel`) against the numpy
+stages they replace (:func:`synth.output_range._refine_candidates` and ``_refine_window``, run
+when ψ comes from a plain callable): the same dwell ends and deviation windows on random
+six-bars and on six-bars with real dwells, and the rows of a repeated batch mapped to their
+six-bars."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ import numpy as np
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from synth.output_range import dwell_intervals, output_swing
+from synth.output_range import dwell_intervals, output_deviation, output_swing
 from synth.sixbar import ExactOutput, OutputDyad, SixBar, SixBars, crank_grid, simulate
 from test_sixbar import sixbar_strategy  # tests/synth: any six-bar
 
@@ -92,3 +93,41 @@ def test_rows_that_repeat_a_six_bar_are_refined_on_its_path():
     for k in range(2):
         np.testing.assert_array_equal(twice.start[:, k], once.start)
         np.testing.assert_array_equal(twice.end[:, k], once.end)
+
+
+def _deviations(batch: SixBars, samples: int, centre, length: float):
+    """output_deviation refined by the compiled pass and by the numpy stages, ψ of shape
+    (N, 2, M) as the figures give it (each six-bar's twice, one window per dwell)."""
+    phi = crank_grid(samples)
+    motion = simulate(batch, phi, order=2)
+    exact = ExactOutput(batch)
+    psi = np.repeat(motion.psi[:, None], 2, axis=1)
+    d1 = np.repeat(motion.dpsi[0][:, None], 2, axis=1)
+    compiled = output_deviation(phi, psi, centre, length, psi_at=exact, dpsi1=d1)
+    numpy_ = output_deviation(phi, psi, centre, length, psi_at=lambda at: exact(at), dpsi1=d1)
+    _, turns = output_swing(phi, motion.psi, dpsi=motion.dpsi)
+    return compiled, numpy_, np.all(motion.status == 0, axis=1) & (turns == 0)
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(sixbar_strategy(), min_size=1, max_size=4), st.sampled_from([72, 180, 720]),
+       st.floats(0.0, 2 * math.pi), st.floats(0.0, 3.5))
+def test_the_compiled_window_refinement_gives_the_numpy_deviation(sbs, samples, centre, extra):
+    batch = SixBars.from_sixbars(sbs)
+    length = 2 * (2 * math.pi / samples) + extra  # a dwell of two grid steps at least, as a request asks
+    centres = centre + np.array([[0.0, 1.0]] * len(batch))
+    (dev, start), (dev_np, start_np), acceptable = _deviations(batch, samples, centres, length)
+    assert np.all(np.isfinite(dev)) and np.all(np.isfinite(start))
+    np.testing.assert_array_equal(start[acceptable], start_np[acceptable])
+    np.testing.assert_allclose(dev[acceptable], dev_np[acceptable], rtol=0, atol=1e-12)
+
+
+def test_the_same_deviation_windows_around_real_rests():
+    batch = _dwelling_sixbars()
+    found = _both(batch, 720, 0.1 * DEG, 2)[0]
+    for length in (10 * DEG, 30 * DEG, 60 * DEG):
+        (dev, start), (dev_np, start_np), acceptable = _deviations(batch, 720, 0.5 * (found.start + found.end),
+                                                                   length)
+        assert np.median(dev[acceptable]) < 2 * DEG  # windows around rests, not across the swing
+        np.testing.assert_array_equal(start[acceptable], start_np[acceptable])
+        np.testing.assert_allclose(dev[acceptable], dev_np[acceptable], rtol=0, atol=1e-12)
