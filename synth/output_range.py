@@ -499,6 +499,13 @@ def _range_extremes(upper: F64, lower: F64, start, count) -> tuple[F64, F64]:
     return range_extremes(upper, lower, start, count)
 
 
+def _sliding_extremes(values: F64, first: int, count: int, width) -> tuple[F64, F64]:
+    """:func:`synth.sample_ranges.sliding_extremes` (numba: imported on first use)."""
+    from synth.sample_ranges import sliding_extremes
+
+    return sliding_extremes(values, first, count, width)
+
+
 def _eval_rewrapped(psi_at: PsiAt, at: F64, ref: F64, lead: tuple[int, ...]) -> F64:
     """Exact ψ at crank angles ``at`` (R, ...) on the branch of ``ref``; psi_at is called with
     the caller's leading shape."""
@@ -694,8 +701,8 @@ def output_deviation(phi: ArrayLike, psi: ArrayLike, center: ArrayLike, length: 
     W = J + int(nL.max()) + 4
     g = (i_lo - 1)[:, None] + np.arange(W)[None, :]
     slab = P[rows[:, None], np.mod(g, m)] + np.floor_divide(g, m) * net[:, None]
-    off = np.broadcast_to(np.arange(1, J + 1)[None, :], (R, J))  # slab offset of start i_lo + j
-    hi, lo = _range_extremes(slab, slab, off, np.broadcast_to(nL[:, None] + 1, off.shape))
+    # the window from start i_lo + j (slab offset 1 + j) holds nL + 1 samples
+    hi, lo = _sliding_extremes(slab, 1, J, nL + 1)
     valid = np.arange(J)[None, :] < span[:, None]
     grid_range = np.where(valid, hi - lo, np.inf)
     jbest = np.argmin(grid_range, axis=1)

@@ -2,7 +2,8 @@
 :mod:`synth.output_range` ask of the samples before and between the points they evaluate
 exactly — each local extreme raised (lowered) to its parabola's vertex
 (:func:`vertex_bounds`), and the largest and smallest sample over ranges of samples
-(:func:`range_extremes`).
+(:func:`range_extremes`), and over windows of one width sliding by one sample
+(:func:`sliding_extremes`).
 
 Each range query reads its own range, one pass (a few hundred samples at most: a dwell or a
 window of the 0.5° grid). It replaced sparse tables (binary lifting), which cost more to
@@ -23,7 +24,7 @@ from numpy.typing import ArrayLike
 from synth.parallel_rows import over_rows
 from synth.types import F64
 
-__all__ = ["parabola_rise", "range_extremes", "range_max_min", "vertex_bounds"]
+__all__ = ["parabola_rise", "range_extremes", "range_max_min", "sliding_extremes", "vertex_bounds"]
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -56,6 +57,49 @@ def _extremes(upper, lower, start, count, hi, lo):
     for r in range(R):
         for k in range(K):
             hi[r, k], lo[r, k] = range_max_min(upper, lower, r, start[r, k], count[r, k])
+
+
+@numba.njit(cache=True, nogil=True)
+def _sliding(values, first, count, width, hi, lo):
+    R, T = values.shape
+    top, bottom = np.empty(T, np.int64), np.empty(T, np.int64)  # indices, values monotone
+    for r in range(R):
+        w = width[r]
+        if w < 1 or first < 0 or first + count - 1 + w > T:  # some window off the samples: read each
+            for j in range(count):
+                hi[r, j], lo[r, j] = range_max_min(values, values, r, first + j, w)
+            continue
+        t0 = t1 = b0 = b1 = 0  # deque [t0, t1) of maxima, [b0, b1) of minima
+        for i in range(first, first + count - 1 + w):
+            x = values[r, i]
+            while t1 > t0 and values[r, top[t1 - 1]] <= x:
+                t1 -= 1
+            top[t1] = i
+            t1 += 1
+            while b1 > b0 and values[r, bottom[b1 - 1]] >= x:
+                b1 -= 1
+            bottom[b1] = i
+            b1 += 1
+            j = i - w + 1 - first  # the window [first + j, i] is complete
+            if j >= 0:
+                while top[t0] < first + j:
+                    t0 += 1
+                while bottom[b0] < first + j:
+                    b0 += 1
+                hi[r, j], lo[r, j] = values[r, top[t0]], values[r, bottom[b0]]
+
+
+def sliding_extremes(values: F64, first: int, count: int, width: ArrayLike) -> tuple[F64, F64]:
+    """(max, min) of ``values`` ``(R, T)`` over the windows [first + j, first + j + width[r])
+    of each row, j < ``count``: :func:`range_extremes` of those windows, the same numbers, in
+    one pass per row (two monotone queues, O(count + width) instead of O(count · width)).
+    Shape ``(R, count)``."""
+    values = np.ascontiguousarray(values, dtype=float)
+    R = values.shape[0]
+    w = np.ascontiguousarray(np.broadcast_to(np.asarray(width, np.int64), (R,)))
+    hi, lo = np.empty((R, count)), np.empty((R, count))
+    _sliding(values, int(first), int(count), w, hi, lo)
+    return hi, lo
 
 
 def range_extremes(upper: F64, lower: F64, start: ArrayLike, count: ArrayLike) -> tuple[F64, F64]:

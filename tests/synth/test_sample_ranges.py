@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from synth.sample_ranges import range_extremes
+from synth.sample_ranges import range_extremes, sliding_extremes
 
 
 def _reference(upper, lower, start, count):
@@ -38,6 +38,23 @@ def test_range_extremes_are_the_ranges_own_max_and_min(rows, samples, queries, s
         np.testing.assert_array_equal(g, w)
     inside = (start >= 0) & (count >= 1) & (start + count <= samples)
     assert np.all(got[0][inside] >= got[1][inside])  # a range's max is never below its min
+
+
+@settings(max_examples=80, deadline=None)
+@given(rows=st.integers(1, 4), samples=st.integers(1, 60), first=st.integers(-2, 10), count=st.integers(0, 50),
+       seed=st.integers(0, 2**32 - 1), ties=st.booleans())
+def test_sliding_extremes_are_each_windows_own_max_and_min(rows, samples, first, count, seed, ties):
+    rng = np.random.default_rng(seed)
+    values = rng.normal(size=(rows, samples))
+    if ties:  # plateaus: equal values leave and enter the queues
+        values = np.round(values)
+    width = rng.integers(-1, samples + 3, rows)
+    got = sliding_extremes(values, first, count, width)
+    start = np.broadcast_to(first + np.arange(count)[None, :], (rows, count))
+    want = _reference(values, values, start, np.broadcast_to(width[:, None], (rows, count)))
+    for g, w in zip(got, want):
+        assert g.shape == (rows, count)
+        np.testing.assert_array_equal(g, w)
 
 
 def test_range_extremes_broadcast_and_refuse_a_foreign_first_axis():
