@@ -185,18 +185,26 @@ def output_may_meet(request: Request, psi: np.ndarray) -> np.ndarray:
     dwell − tol holds ⌊(dwell − tol)/h⌋ grid samples, so some run of one fewer of them lies
     within the band; and no ⌈(dwell + tol)/h⌉ + 2 consecutive samples lie within the band
     narrowed by 2m (that would be a longer dwell than allowed)."""
-    h = 2 * math.pi / psi.shape[1]
     ok = np.ones(psi.shape[0], bool)
     if request.swing is not None:
         swing = psi.max(axis=1) - psi.min(axis=1)
         ok &= (swing <= request.swing + request.swing_tol) & (swing + 2 * _stray(psi) >= request.swing - request.swing_tol)
-    shortest = math.floor((request.dwell - request.dwell_tol) / h) - 1
+    shortest, longest = dwell_runs(request, psi.shape[1])
     if shortest >= 2:
         ok &= within_band(psi, shortest, request.band)
-    longest = math.ceil((request.dwell + request.dwell_tol) / h) + 2
     if longest < psi.shape[1]:
         ok &= ~within_band(psi, longest, request.band - 2 * _stray(psi))
     return ok
+
+
+def dwell_runs(request: Request, samples: int) -> tuple[int, int]:
+    """The run lengths :func:`output_may_meet` tests on a grid of ``samples`` over the turn
+    (h = 2π/samples): ⌊(dwell − tol)/h⌋ − 1 samples that some run within the band must hold
+    (tested from 2 on), and ⌈(dwell + tol)/h⌉ + 2 that none within the narrowed band may
+    (tested below ``samples``)."""
+    h = 2 * math.pi / samples
+    return (math.floor((request.dwell - request.dwell_tol) / h) - 1,
+            math.ceil((request.dwell + request.dwell_tol) / h) + 2)
 
 
 #: Separates a refined candidate's id from the id of the six-bar it was refined from.

@@ -47,7 +47,7 @@ from synth.candidates import (
     Request,
     candidate_dimensions,
     candidate_id,
-    output_may_meet,
+    dwell_runs,
     parse_candidate_id,
     rank,
     round_dimensions,
@@ -419,20 +419,15 @@ def _rrr_links(fitted: Sequence[Fitted]) -> tuple[np.ndarray, np.ndarray, np.nda
 
 def _output_screen(request: Request, P: np.ndarray, D: np.ndarray, rest: np.ndarray,
                    rrr: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> np.ndarray:
-    """:func:`prescreen`'s tests for coupler points ``P`` (..., M) on the fit's crank grid,
-    output pivots ``D`` and references ``rest`` (broadcasting, last axis 1): a slot's angle
-    (``rrr`` None) or, with ``rrr`` = (rod, rocker, branch), the rocker's, Q from the loop's
-    circle intersection, which must assemble at every sample. Shape: the broadcast without
-    the last axis."""
-    if rrr is None:
-        return _slot_screen(request, P, D, rest)
-    from kinematics.loop import circle_intersection
-    from kinematics.status import Status
+    """:func:`prescreen`'s tests for coupler points ``P`` (n, M) on the fit's crank grid,
+    output pivots ``D`` and references ``rest`` (n, 1): a slot's angle (``rrr`` None) or, with
+    ``rrr`` = (rod, rocker, branch), the rocker's, Q from the loop's circle intersection, which
+    must assemble at every sample; then :func:`synth.candidates.output_may_meet`'s tests.
+    Compiled, one pass per dyad (:mod:`synth.prescreen_kernel`). Shape (n,)."""
+    from synth.prescreen_kernel import screen_outputs  # numba: imported on first use
 
-    rho, L, br = rrr
-    loop = circle_intersection(D - P, rho, L, br, rates=False)
-    assembles = ~np.any((loop.status & np.uint8(Status.NOT_ASSEMBLABLE)) != 0, axis=-1)
-    return assembles & _slot_screen(request, P + rho * loop.e1, D, rest)  # Q: the rocker's direction is Q − D
+    shortest, longest = dwell_runs(request, P.shape[-1])
+    return screen_outputs(P, D, rest, rrr, request.swing, request.swing_tol, request.band, shortest, longest)
 
 
 def reseat(request: Request, fitted: Sequence[Fitted]) -> list[Fitted]:
@@ -484,19 +479,6 @@ def reseat(request: Request, fitted: Sequence[Fitted]) -> list[Fitted]:
 #: screen's sample step (every 4th of the fit's 1° grid).
 _BLOCK = 8192
 _COARSE = 4
-
-
-def _slot_screen(request: Request, point: np.ndarray, pivot: np.ndarray, rest: np.ndarray) -> np.ndarray:
-    """:func:`prescreen`'s test of the output angle, the angle of ``point − pivot`` (the slot's
-    direction; an RRR's rocker with ``point`` = Q) measured from the direction of ``rest``
-    and unwrapped along the last axis (the crank grid): arrays broadcast, the result has
-    their shape without that axis."""
-    w = (point - pivot) * np.conj(rest - pivot)
-    # unwrapped as the sum of the turns between samples (each < π on a path): np.unwrap's
-    # result, in fewer passes
-    psi = np.angle(w[..., :1]) + np.concatenate(
-        [np.zeros(w.shape[:-1] + (1,)), np.cumsum(np.angle(w[..., 1:] * np.conj(w[..., :-1])), axis=-1)], axis=-1)
-    return output_may_meet(request, psi.reshape(-1, psi.shape[-1])).reshape(psi.shape[:-1])
 
 
 def _with_origins(request: Request, found: list[Candidate], fitted: Sequence[Fitted],
