@@ -448,6 +448,7 @@ def reseat(request: Request, fitted: Sequence[Fitted]) -> list[Fitted]:
                       np.mean([abs(f.dyad.pivot - complex(p[2], p[3])) for p in f.row.parts]) for f in fitted])
     pivots = pivots_around(np.array([f.dyad.pivot for f in fitted]), reach)  # (n, K)
     rrr = np.array([f.dyad.kind == "RRR" for f in fitted])
+    links = _rrr_links(fitted)  # every fit's (an RPR's are unused), read once
 
     def screen(i: np.ndarray, k: np.ndarray, every: int) -> np.ndarray:
         """The screen of the pivots (i, k) on every ``every``-th sample of the grid (a
@@ -458,7 +459,7 @@ def reseat(request: Request, fitted: Sequence[Fitted]) -> list[Fitted]:
             for b in (of_kind[s : s + _BLOCK] for s in range(0, of_kind.size, _BLOCK)):
                 fits = i[b]
                 ok[b] = _output_screen(request, paths[fits, ::every], pivots[fits, k[b]][:, None], rest[fits, None],
-                                       _rrr_links([fitted[j] for j in fits]) if kind else None)
+                                       tuple(x[fits] for x in links) if kind else None)
         return ok
 
     # first on a 4° grid, then the survivors on the fit's 1° grid
