@@ -175,14 +175,23 @@ def _text(doc: dict) -> str:
     """The JSON document as a short human-readable summary."""
     f = lambda v: "-" if v is None else (f"({v[0]:.6g}, {v[1]:.6g})" if isinstance(v, list) else f"{v:.6g}")  # noqa: E731
     link = doc["linkage"]
+    skipped = [f"  {s['what']}: {s['reason']}" for s in doc["skipped"]]
     lines = [
         f"Four-bar a={link['a']:g} b={link['b']:g} c={link['c']:g} d={link['d']:g} branch {link['branch']:+d}"
         f" ({doc['grashof']}) at phi = {doc['phi_deg']:g} deg",
-        f"pole               {f(doc['pole'])}   tangent {f(doc['pole_tangent_deg'])} deg, normal {f(doc['pole_normal_deg'])} deg",
-        f"inflection circle  centre {f(doc['inflection_circle']['center'])}, diameter {f(doc['inflection_circle']['diameter'])}",
-        f"Ball's point       xy {f(doc['ball_point']['xy'])}  uv {f(doc['ball_point']['uv'])}",
     ]
-    if doc["conjugate_pairs"]:
+    if doc["pole"] is None:
+        # nothing at this instant is defined (a toggle, a pole at infinity): the reason first,
+        # not a page of dashes; the double Ball points belong to the whole turn and follow
+        lines += ["no pole at this instant, so no inflection circle, Ball's point or circle points:"] + skipped
+        skipped = []
+    else:
+        lines += [
+            f"pole               {f(doc['pole'])}   tangent {f(doc['pole_tangent_deg'])} deg, normal {f(doc['pole_normal_deg'])} deg",
+            f"inflection circle  centre {f(doc['inflection_circle']['center'])}, diameter {f(doc['inflection_circle']['diameter'])}",
+            f"Ball's point       xy {f(doc['ball_point']['xy'])}  uv {f(doc['ball_point']['uv'])}",
+        ]
+    if doc["conjugate_pairs"] and doc["pole"] is not None:
         lines += ["", f"{'ray[deg]':>9s}  {'circle point xy':>26s}  {'circle point uv':>26s}  {'centre point xy':>26s}  {'radius':>10s}"]
         for p in doc["conjugate_pairs"]:
             cp = p["circle_point"] or {"xy": None, "uv": None}
@@ -191,6 +200,6 @@ def _text(doc: dict) -> str:
         lines += ["", f"double Ball points: {len(doc['double_ball_points'])}"]
         for p in doc["double_ball_points"]:
             lines.append(f"  uv {f(p['uv'])} at phi = {p['phi_deg'][0]:.6f} and {p['phi_deg'][1]:.6f} deg")
-    if doc["skipped"]:
-        lines += ["", "skipped:"] + [f"  {s['what']}: {s['reason']}" for s in doc["skipped"]]
+    if skipped:
+        lines += ["", "skipped:"] + skipped
     return "\n".join(lines)

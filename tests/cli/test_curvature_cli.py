@@ -158,3 +158,12 @@ def test_bench_stability_json(capsys):
     assert set(doc["flagged"]) == {"pole", "inflection_circle", "ball_point", "line_scan", "euler_savary"}
     code, out, err = run(capsys, "bench", "stability", "--n", "0")
     assert code == 2 and "--n" in err
+
+
+def test_text_at_a_toggle_says_why_before_anything_else(capsys):
+    # the rhombus at phi = 180 deg: coupler and rocker aligned, no pole, nothing to tabulate
+    code, out, err = run(capsys, "curvature", "--a", "1", "--b", "1", "--c", "1", "--d", "1", "--phi", "180")
+    assert code == 0, err
+    lines = out.splitlines()
+    assert lines[1].startswith("no pole at this instant") and "toggle position" in lines[2]
+    assert "ray[deg]" not in out and " - " not in out and "skipped:" not in out
