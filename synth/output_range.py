@@ -378,13 +378,14 @@ def _refine_candidates(E, cs, ok, n, band, phi0, h, psi_at, lead, upper, lower):
 
 
 def _compiled_rows(psi_at, R: int) -> NDArray[np.int64] | None:
-    """For an evaluator the compiled refinement can run pointwise (one with the kernel's
-    ``params``, ``rpr`` and ``pin_eps``, :class:`synth.sixbar.ExactOutput`) whose batch the R
-    rows repeat in order (each six-bar's rows together), the six-bar of each row; else None."""
-    params = getattr(psi_at, "params", None)
-    if params is None or getattr(psi_at, "rpr", None) is None or not hasattr(psi_at, "pin_eps"):
+    """For six-bars' exact ψ (:class:`synth.sixbar.ExactOutput`, which the compiled refinement
+    evaluates pointwise) whose batch the R rows repeat in order (each six-bar's rows
+    together), the six-bar of each row; else None (the numpy stages call ``psi_at``)."""
+    from synth.sixbar import ExactOutput  # the mechanism's module imports this one
+
+    if not isinstance(psi_at, ExactOutput):
         return None
-    N = params.shape[0]
+    N = psi_at.params.shape[0]
     if N == 0 or R % N:
         return None
     return np.arange(R, dtype=np.int64) // (R // N)

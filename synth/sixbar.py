@@ -45,13 +45,13 @@ from synth.output_range import wrap_angle
 from synth.types import C128, F64
 
 __all__ = [
+    "ExactOutput",
     "OutputDyad",
     "SixBar",
     "SixBarMotion",
     "SixBars",
     "as_batch",
     "crank_grid",
-    "ExactOutput",
     "output_angle",
     "simulate",
 ]
@@ -411,9 +411,6 @@ class ExactOutput:
     def __init__(self, sixbars: SixBars):
         self.sixbars = sixbars
         self.params, self.rpr = _kernel_inputs(sixbars)
-
-    def __len__(self) -> int:
-        return len(self.sixbars)
 
     def __call__(self, phi: ArrayLike) -> F64:
         """ψ at crank angles ``(M,)`` (shared), ``(N, M)``, or ``(N, ...)`` (row n: six-bar n's)."""
