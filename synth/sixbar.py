@@ -105,7 +105,8 @@ class OutputDyad:
 
     def __post_init__(self) -> None:
         try:
-            kind = OutputKind(str(self.kind).upper())
+            # a member as it is (the fits make dyads by the hundred thousand); text by name
+            kind = self.kind if isinstance(self.kind, OutputKind) else OutputKind(str(self.kind).upper())
         except ValueError:
             raise ValueError(f"dyad kind must be one of {', '.join(repr(k.value) for k in OutputKind)}, "
                              f"not {self.kind!r}") from None
