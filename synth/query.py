@@ -87,10 +87,15 @@ PER_LEVEL = 10
 #: With refinement on, a sparse answer (fewer than FILL six-bars) samples again, this many
 #: times wider (the no-refinement query keeps PER_LEVEL).
 WIDER = 3
-#: Last, if still sparse after the moved pivots, this many times PER_LEVEL arcs per level
-#: (RRR): their dwell key ranks them (``synth.dwell_key``), and the longest rests (150° at
-#: swings of 20°–30° on ``standard``) lie a few hundred rows deep.
+#: Last, if still sparse after the moved pivots, this many times PER_LEVEL segments per level
+#: of the kinds in DEEPER_KINDS: arcs (RRR), whose dwell key ranks them (``synth.dwell_key``)
+#: — the longest rests (150° at swings of 20°–30° on ``standard``) lie a few hundred rows
+#: deep —, and double lines, whose rests the stored dwell predicts less well (two rests of 90°
+#: on ``standard``: 1 six-bar from the narrower samples, 3 with this read). Single lines are
+#: not read deeper: their sparse answers (150° at a 90° swing) are filled from refined near
+#: misses, which a deeper read would stop at 3 (FILL) where they reach 10.
 DEEPER = 10
+DEEPER_KINDS = ("arc", "double_line")
 #: Output link lengths (crank lengths) tried in the band conversion of ``_select``.
 REACHES = (0.8, 1.5, 3.0)
 #: Nearest misses refined toward a request that fewer than FILL six-bars met.
@@ -992,7 +997,7 @@ def answer(request: Request, source: SegmentSource, *,
         candidates = meeting(sampled())
         # a sparse answer (fewer than FILL) samples wider, is filled towards --top with the
         # fits' pivots moved (short rests), and if still sparse reads deeper along the arcs'
-        # keys (long rests)
+        # keys (long rests) and the double lines' dwells
         sparse = request.refine and len(_distinct(candidates)) < min(FILL, request.top)
         if sparse:
             candidates += meeting(sampled(WIDER * PER_LEVEL))
@@ -1000,8 +1005,9 @@ def answer(request: Request, source: SegmentSource, *,
             found = moved_pivots(candidates)
             moved_ids = {c.id.split(REFINED_MARK)[0] for c in found} - {c.id for c in candidates}
             candidates += found
-        if sparse and "arc" in kinds and len(_distinct(candidates)) < min(FILL, request.top):
-            candidates += meeting(sampled(DEEPER * PER_LEVEL, ("arc",)))
+        deep = tuple(k for k in kinds if k in DEEPER_KINDS)
+        if sparse and deep and len(_distinct(candidates)) < min(FILL, request.top):
+            candidates += meeting(sampled(DEEPER * PER_LEVEL, deep))
         considered = len({r.segment_id for r in rows})
     t3 = time.perf_counter()
     top = [dataclasses.replace(c, rank=i + 1) for i, c in enumerate(_distinct(rank(request, candidates))[: request.top])]
