@@ -345,47 +345,72 @@ def fit(request: Request, rows: Sequence[SegmentRow], kind: str) -> list[Fitted]
 def _fit(request: Request, rows: Sequence[SegmentRow], kind: str) -> tuple[list[Fitted], np.ndarray, np.ndarray]:
     """:func:`fit`, with the coupler-point paths of ``rows`` on the fit's crank grid
     (``(len(rows), FIT_SAMPLES)``) and the row of each fitted dyad."""
+    found, paths = _fit_arrays(request, rows, kind)
+    return _fitted(rows, found), paths, found.index
+
+
+@dataclass(frozen=True, slots=True)
+class _FitArrays:
+    """The dyads :func:`_fit` finds, one entry per dyad in row and slot order, before any
+    object is made (most of a complete search's fits fail the prescreen): the id's output tag,
+    each dyad's row (index into the rows fitted) and slot, its pivot and (RRR) rocker, rod,
+    branch and where Q rests (the arc's centre)."""
+
+    output: str
+    index: np.ndarray
+    slot: np.ndarray
+    pivot: np.ndarray
+    rocker: np.ndarray | None = None
+    rod: np.ndarray | None = None
+    branch: np.ndarray | None = None
+    rest: np.ndarray | None = None
+
+
+def _fit_arrays(request: Request, rows: Sequence[SegmentRow], kind: str) -> tuple[_FitArrays, np.ndarray]:
+    """The dyads found for ``rows`` (all of kind ``kind``) and the rows' coupler-point paths on
+    the fit's crank grid."""
     from synth.dyad import fit_rpr, fit_rrr, rpr_double
 
     phi = crank_grid(FIT_SAMPLES)
+    none = np.zeros(0, np.int64)
     if not rows:
-        return [], np.zeros((0, FIT_SAMPLES), complex), np.zeros(0, np.int64)
+        return _FitArrays(_OUTPUT_OF[kind], none, none, np.zeros(0, complex)), np.zeros((0, FIT_SAMPLES), complex)
     paths = _paths(rows, phi)
-    out = []
     if kind == "double_line":
         line1 = (np.array([complex(r.parts[0][2], r.parts[0][3]) for r in rows]), np.array([r.parts[0][4] for r in rows]))
         line2 = (np.array([complex(r.parts[1][2], r.parts[1][3]) for r in rows]), np.array([r.parts[1][4] for r in rows]))
         found = rpr_double(line1, line2)
-        for i, r in enumerate(rows):
-            dyad = found.dyad((i,))
-            if dyad is not None:
-                out.append(Fitted(r, "dbl", 0, dyad))
-        return out, paths, _row_index(rows, out)
+        (index,) = np.nonzero(found.found)
+        return _FitArrays("dbl", index, np.zeros_like(index), found.pivot[index]), paths
     start = np.array([r.parts[0][0] for r in rows])
     end = np.array([r.parts[0][1] for r in rows])
     point = np.array([complex(r.parts[0][2], r.parts[0][3]) for r in rows])
     if kind == "line":
         direction = np.array([r.parts[0][4] for r in rows])
         found = fit_rpr(point, direction, phi, paths, (start, end), request.swing)
-        for i, r in enumerate(rows):
-            for slot in range(found.found.shape[-1]):
-                if found.found[i, slot]:
-                    out.append(Fitted(r, "rpr", slot, OutputDyad.rpr(complex(found.pivot[i, slot]))))
-    else:
-        radius = np.array([r.parts[0][5] for r in rows])
-        found = fit_rrr(point, radius, phi, paths, (start, end), request.swing, request.min_transmission, keep=2)
-        for i, r in enumerate(rows):
-            for slot in range(found.found.shape[-1]):
-                if found.found[i, slot]:
-                    dyad = OutputDyad.rrr(complex(found.pivot[i, slot]), float(found.rocker[i, slot]),
-                                          float(found.rod[i, slot]), int(found.branch[i, slot]))
-                    out.append(Fitted(r, "rrr", slot, dyad, complex(point[i])))
-    return out, paths, _row_index(rows, out)
+        index, slot = np.nonzero(found.found)  # row-major: row, then slot order
+        return _FitArrays("rpr", index, slot, found.pivot[index, slot]), paths
+    radius = np.array([r.parts[0][5] for r in rows])
+    found = fit_rrr(point, radius, phi, paths, (start, end), request.swing, request.min_transmission, keep=2)
+    index, slot = np.nonzero(found.found)
+    return _FitArrays("rrr", index, slot, found.pivot[index, slot], found.rocker[index, slot], found.rod[index, slot],
+                      found.branch[index, slot], point[index]), paths
 
 
-def _row_index(rows: Sequence[SegmentRow], fitted: Sequence[Fitted]) -> np.ndarray:
-    where = {id(r): i for i, r in enumerate(rows)}
-    return np.array([where[id(f.row)] for f in fitted], np.int64)
+_OUTPUT_OF = {"line": "rpr", "arc": "rrr", "double_line": "dbl"}
+
+
+def _fitted(rows: Sequence[SegmentRow], found: _FitArrays, keep: np.ndarray | None = None) -> list[Fitted]:
+    """The :class:`Fitted` of ``found`` (of those ``keep`` marks)."""
+    if not found.index.size:
+        return []
+    pick = slice(None) if keep is None else np.flatnonzero(keep)
+    index, slot, pivot = (x[pick].tolist() for x in (found.index, found.slot, found.pivot))
+    if found.output != "rrr":
+        return [Fitted(rows[i], found.output, k, OutputDyad.rpr(D)) for i, k, D in zip(index, slot, pivot)]
+    rocker, rod, branch, rest = (x[pick].tolist() for x in (found.rocker, found.rod, found.branch, found.rest))
+    return [Fitted(rows[i], "rrr", k, OutputDyad.rrr(D, L, rho, int(br)), Q)
+            for i, k, D, L, rho, br, Q in zip(index, slot, pivot, rocker, rod, branch, rest)]
 
 
 def prescreen(request: Request, fitted: Sequence[Fitted], paths: np.ndarray, index: np.ndarray) -> np.ndarray:
@@ -410,6 +435,17 @@ def prescreen(request: Request, fitted: Sequence[Fitted], paths: np.ndarray, ind
     if rrr.any():
         ok[rrr] = _output_screen(request, P[rrr], D[rrr], rest[rrr], _rrr_links([f for f, r in zip(fitted, rrr) if r]))
     return ok
+
+
+def _prescreen_found(request: Request, rows: Sequence[SegmentRow], found: _FitArrays, paths: np.ndarray) -> np.ndarray:
+    """:func:`prescreen` of the dyads ``found`` in :func:`_fit_arrays`' terms (no object per
+    dyad): the same tests on the same arrays."""
+    if not found.index.size:
+        return np.zeros(0, bool)
+    point = np.array([complex(r.parts[0][2], r.parts[0][3]) for r in rows])  # the stretch's line point
+    rest = (found.rest if found.rest is not None else point[found.index])[:, None]
+    links = None if found.output != "rrr" else tuple(x[:, None] for x in (found.rod, found.rocker, found.branch))
+    return _output_screen(request, paths[found.index], found.pivot[:, None], rest, links)
 
 
 def _reference(f: Fitted) -> complex:
@@ -849,14 +885,13 @@ def search_batch(job: tuple[Sequence[Request], str, Sequence[SegmentRow]]
     six-bars. The dyads are fitted once for all the requests (they share :func:`fit_key`).
     Module-level, so that it runs on worker processes."""
     requests, kind, rows = job
-    fitted, paths, index = _fit(requests[0], rows, kind)
+    fits, paths = _fit_arrays(requests[0], rows, kind)
     met, simulated = [], []
     for request in requests:
-        keep = prescreen(request, fitted, paths, index)
-        found, n = simulate(request, [f for f, k in zip(fitted, keep) if k])
+        found, n = simulate(request, _fitted(rows, fits, _prescreen_found(request, rows, fits, paths)))
         met.append(found)
         simulated.append(n)
-    return met, len(rows), len(fitted), simulated
+    return met, len(rows), fits.index.size, simulated
 
 
 def search(request: Request, source: SegmentSource, *,
