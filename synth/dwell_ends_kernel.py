@@ -9,12 +9,12 @@ six-bars) its per-call overhead cost more than the ψ evaluations themselves. He
 candidate window's (start, end) pair search, the two finer searches of the best pair and the
 final push of both ends run in one loop per row and dwell, with ψ(φ) = atan2 of the output's
 direction (:func:`synth.sixbar_kernel.output_phasor`) taken on the 2π branch of a reference,
-as :func:`synth.output_range._rewrap` takes it. The stages, their points and the order of their
-operations are those of :mod:`synth.output_range` (see ``dwell_intervals``' Notes and
-``_refine_window``); two
-things differ: ψ at a point is atan2 of that point's direction (the batch evaluator sums the
-steps between the points of one call, which rounds differently in the last bits), and a
-point of the first stage's lattice that two candidate windows share is evaluated once.
+as :func:`synth.output_range._rewrap` takes it. The stages, their points and the order of
+their operations are those of :mod:`synth.output_range` (see ``dwell_intervals``' Notes and
+``_refine_window``); two things differ: ψ at a point is atan2 of that point's direction (the
+batch evaluator sums the steps between the points of one call, which rounds differently in
+the last bits), and a point of the first stage's lattice that two candidate windows share is
+evaluated once.
 ``tests/synth/test_dwell_ends_kernel.py`` holds the two forms to the same dwells.
 """
 
@@ -167,6 +167,8 @@ def refine_windows(params: F64, rpr: np.ndarray, six: np.ndarray, E: F64, upper:
     ``(R, C)``, ``fine`` points per grid step (``DWELL_FINE``) and ``extend_points``. Returns
     (start, end, low, high), each ``(R, C)``."""
     R, C = nn.shape
+    if cs.shape[-1] * (3 * fine + 1) > _MEMO // 2:  # the memo's open addressing needs room to spare
+        raise ValueError(f"{cs.shape[-1]} windows of {fine} points a step overflow the memo of {_MEMO} points")
     out = np.empty((R, C, 4))
     args = [np.ascontiguousarray(x) for x in (E, upper, lower)]
     cs, ok, nn = np.ascontiguousarray(cs, np.int64), np.ascontiguousarray(ok, np.bool_), np.ascontiguousarray(nn, np.int64)
