@@ -339,14 +339,7 @@ def _paths(rows: Sequence[SegmentRow], phi: np.ndarray) -> np.ndarray:
 
 def fit(request: Request, rows: Sequence[SegmentRow], kind: str) -> list[Fitted]:
     """Every dyad found for ``rows`` (all of segment kind ``kind``), in row and slot order."""
-    return _fit(request, rows, kind)[0]
-
-
-def _fit(request: Request, rows: Sequence[SegmentRow], kind: str) -> tuple[list[Fitted], np.ndarray, np.ndarray]:
-    """:func:`fit`, with the coupler-point paths of ``rows`` on the fit's crank grid
-    (``(len(rows), FIT_SAMPLES)``) and the row of each fitted dyad."""
-    found, paths = _fit_arrays(request, rows, kind)
-    return _fitted(rows, found), paths, found.index
+    return _fitted(rows, _fit_arrays(request, rows, kind)[0])
 
 
 @dataclass(frozen=True, slots=True)
@@ -413,33 +406,16 @@ def _fitted(rows: Sequence[SegmentRow], found: _FitArrays, keep: np.ndarray | No
             for i, k, D, L, rho, br, Q in zip(index, slot, pivot, rocker, rod, branch, rest)]
 
 
-def prescreen(request: Request, fitted: Sequence[Fitted], paths: np.ndarray, index: np.ndarray) -> np.ndarray:
-    """Which fitted six-bars may meet ``request``, from the paths their dyads were fitted to
-    (``paths[index[k]]``, exact coupler-point positions on the fit's crank grid), before any
-    simulation: the output angle on that grid in closed form (RPR: the slot's direction
-    P − D; RRR: the rocker's, Q from the loop's circle intersection), then tests no six-bar
-    meeting the request can fail: it assembles at every sample (RRR), and its sampled output
-    angle passes :func:`synth.candidates.output_may_meet` (swing, and the dwell in runs of
-    samples within the band). The angles are measured from the direction of the stretch's line
-    point (RPR) or arc centre (RRR) seen from D, and unwrapped along the turn."""
-    n = len(fitted)
-    if not n:
-        return np.zeros(0, bool)
-    P = paths[index]
-    D = np.array([f.dyad.pivot for f in fitted])[:, None]
-    rest = np.array([_reference(f) for f in fitted])[:, None]
-    ok = np.empty(n, bool)
-    rrr = np.array([f.dyad.kind == "RRR" for f in fitted])
-    if not rrr.all():
-        ok[~rrr] = _output_screen(request, P[~rrr], D[~rrr], rest[~rrr])
-    if rrr.any():
-        ok[rrr] = _output_screen(request, P[rrr], D[rrr], rest[rrr], _rrr_links([f for f, r in zip(fitted, rrr) if r]))
-    return ok
-
-
-def _prescreen_found(request: Request, rows: Sequence[SegmentRow], found: _FitArrays, paths: np.ndarray) -> np.ndarray:
-    """:func:`prescreen` of the dyads ``found`` in :func:`_fit_arrays`' terms (no object per
-    dyad): the same tests on the same arrays."""
+def prescreen(request: Request, rows: Sequence[SegmentRow], found: _FitArrays, paths: np.ndarray) -> np.ndarray:
+    """Which of the dyads ``found`` for ``rows`` (:func:`_fit_arrays`, in its order) may meet
+    ``request``, from the paths they were fitted to (``paths``, exact coupler-point positions on
+    the fit's crank grid), before any simulation and before any object is made for them: the
+    output angle on that grid in closed form (RPR: the slot's direction P − D; RRR: the
+    rocker's, Q from the loop's circle intersection), then tests no six-bar meeting the
+    request can fail: it assembles at every sample (RRR), and its sampled output angle passes
+    :func:`synth.candidates.output_may_meet` (swing, and the dwell in runs of samples within
+    the band). The angles are measured from the direction of the stretch's line point (RPR) or
+    arc centre (RRR) seen from D, and unwrapped along the turn."""
     if not found.index.size:
         return np.zeros(0, bool)
     point = np.array([complex(r.parts[0][2], r.parts[0][3]) for r in rows])  # the stretch's line point
@@ -888,7 +864,7 @@ def search_batch(job: tuple[Sequence[Request], str, Sequence[SegmentRow]]
     fits, paths = _fit_arrays(requests[0], rows, kind)
     met, simulated = [], []
     for request in requests:
-        found, n = simulate(request, _fitted(rows, fits, _prescreen_found(request, rows, fits, paths)))
+        found, n = simulate(request, _fitted(rows, fits, prescreen(request, rows, fits, paths)))
         met.append(found)
         simulated.append(n)
     return met, len(rows), fits.index.size, simulated
@@ -973,9 +949,11 @@ def answer(request: Request, source: SegmentSource, *,
         t = time.perf_counter()
         passed = []
         for kind in kinds:
-            fits, paths, index = _fit(request, [r for r in new if r.kind == kind], kind)
+            of_kind = [r for r in new if r.kind == kind]
+            found, paths = _fit_arrays(request, of_kind, kind)
+            fits = _fitted(of_kind, found)  # every fit: a no-match is diagnosed and refined from them
             fitted.extend(fits)
-            passed += [f for f, k in zip(fits, prescreen(request, fits, paths, index)) if k]
+            passed += [f for f, k in zip(fits, prescreen(request, of_kind, found, paths)) if k]
         clock["fit"] = clock.get("fit", 0.0) + time.perf_counter() - t
         return passed
 
