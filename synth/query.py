@@ -344,7 +344,7 @@ def fit(request: Request, rows: Sequence[SegmentRow], kind: str) -> list[Fitted]
 
 @dataclass(frozen=True, slots=True)
 class _FitArrays:
-    """The dyads :func:`_fit` finds, one entry per dyad in row and slot order, before any
+    """The dyads :func:`fit` finds, one entry per dyad in row and slot order, before any
     object is made (most of a complete search's fits fail the prescreen): the id's output tag,
     each dyad's row (index into the rows fitted) and slot, its pivot and (RRR) rocker, rod,
     branch and where Q rests (the arc's centre)."""
