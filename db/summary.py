@@ -108,6 +108,14 @@ def _histogram_rows(engine: Engine) -> dict[tuple[str, int], tuple[list[int], fl
     return out
 
 
+def _holds_other_builds(engine: Engine, build_id: int) -> bool:
+    """Whether the atlas holds linkages (and so segments and dwell rows) of another build than
+    ``build_id`` — never after a build started (an atlas holds one build), but the counts do
+    not rely on it."""
+    with engine.connect() as conn:
+        return conn.execute(select(Linkage.id).where(Linkage.build_id != build_id).limit(1)).first() is not None
+
+
 def row_counts(engine: Engine, build_id: int | None = None) -> tuple[int, dict[str, int], int]:
     """(linkages, segments per kind — all kinds present —, dwells) of one build or all."""
     links = select(Linkage.id)
@@ -117,6 +125,8 @@ def row_counts(engine: Engine, build_id: int | None = None) -> tuple[int, dict[s
     rows = _dwell_rows()
     dwell_q = select(func.count()).select_from(rows)
     link_q = select(func.count()).select_from(Linkage)
+    if build_id is not None and not _holds_other_builds(engine, build_id):
+        build_id = None  # every row is the build's: the plain counts (the filtered ones read every dwell row twice)
     if build_id is not None:
         link_q = link_q.where(Linkage.build_id == build_id)
         seg_q = seg_q.where(Segment.linkage_id.in_(links))

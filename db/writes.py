@@ -40,6 +40,8 @@ import os
 import socket
 import time
 import uuid
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from operator import itemgetter
@@ -474,7 +476,7 @@ def finish_build(engine: Engine, build_id: int, token: str) -> bool:
     shard is written. Returns True when it was complete; otherwise only the heartbeat is
     refreshed. The digest combines the shard digests stored with the shards, in the same
     transaction (each was stored in the transaction that wrote its shard's rows)."""
-    with engine.begin() as conn:
+    with engine.connect() as conn, _moving_staged_rows(conn), conn.begin():
         _assert_lock(conn, build_id, token)
         n_shards = conn.execute(select(Build.n_shards).where(Build.id == build_id)).scalar_one()
         done = conn.execute(select(func.count()).select_from(Shard).where(Shard.build_id == build_id)).scalar_one()
@@ -494,6 +496,37 @@ def finish_build(engine: Engine, build_id: int, token: str) -> bool:
                     lock_token=None, lock_pid=None, lock_host=None, lock_heartbeat=None)
         )
     return True
+
+
+@contextmanager
+def _moving_staged_rows(conn: Connection) -> Iterator[None]:
+    """SQLite settings for the move of the staged dwell rows, on ``conn`` outside any
+    transaction (SQLite ignores these pragmas inside one), restored afterwards.
+
+    * ``foreign_keys=OFF``: every staged row's segment was checked when the row was appended,
+      and nothing deletes a segment in the move's transaction, so checking each moved row's
+      segment again (and the row-by-row delete that a foreign key forces on emptying the
+      staging table) only costs time: ``standard``'s move and delete 9.5 → 5 s.
+    * ``threads=2``: the sort of the ``ORDER BY`` may use a helper thread (the workers are done
+      by then, a core is free); the sorted rows are the same.
+
+    A connection whose settings cannot be restored is invalidated (closed, never reused)."""
+    if conn.dialect.name != "sqlite":
+        yield
+        return
+    conn.exec_driver_sql("PRAGMA foreign_keys=OFF")
+    conn.exec_driver_sql("PRAGMA threads=2")
+    conn.commit()  # SQLAlchemy's own begin around the pragmas (pysqlite sent no BEGIN for them)
+    try:
+        yield
+    finally:
+        try:
+            conn.exec_driver_sql("PRAGMA foreign_keys=ON")
+            conn.exec_driver_sql("PRAGMA threads=0")
+            conn.commit()
+        except Exception:  # noqa: BLE001 - a broken connection must not go back to the pool as it is
+            conn.invalidate()
+            raise
 
 
 def release_lock(engine: Engine, build_id: int, token: str) -> None:

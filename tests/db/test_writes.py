@@ -16,6 +16,7 @@ from dataclasses import replace
 import pytest
 from shards import shard_rows
 from sqlalchemy import delete, func, insert, inspect, select, text, update
+from sqlalchemy.exc import IntegrityError
 
 import db.writes
 from db import SCHEMA_VERSION, AtlasError, Build, Dwell, Linkage, Segment, Shard, open_atlas
@@ -269,6 +270,22 @@ def _complete(engine, n_shards=2):
         write_shard(engine, h.build_id, shard_rows(i), lock_token=lock.token)
     assert finish_build(engine, h.build_id, lock.token)
     return h
+
+
+def test_the_move_at_the_end_keeps_every_foreign_key_and_gives_them_back(engine):
+    """finish_build moves the staged rows with SQLite's foreign keys off (each was checked
+    when it was staged): the moved rows still meet them, and the connection that moved them
+    goes back to the pool with foreign keys on (a dwell row of no segment is refused)."""
+    _complete(engine)
+    with engine.connect() as conn:
+        if engine.dialect.name == "sqlite":
+            assert conn.exec_driver_sql("PRAGMA foreign_key_check").all() == []
+            assert conn.exec_driver_sql("PRAGMA foreign_keys").scalar() == 1
+        assert conn.execute(select(func.count()).select_from(dwell_staging)).scalar_one() == 0
+        moved = conn.execute(select(Dwell.__table__)).mappings().first()
+    assert moved is not None
+    with pytest.raises(IntegrityError), engine.begin() as conn:
+        conn.execute(insert(Dwell), [{**moved, "segment_id": -7}])
 
 
 def test_verify_passes_a_whole_atlas_and_names_a_changed_value_and_orphans(engine):
