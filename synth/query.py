@@ -20,7 +20,8 @@ With ``request.complete`` it runs instead on every stored segment at every level
 (:func:`search`), pruned only by conditions no meeting six-bar can fail, the prescreen (:func:`prescreen`) among them: the complete answer.
 
 When fewer than ``FILL`` six-bars meet the request (and refinement is on), the nearest misses
-(``MISSES`` of them, by the sum of their excesses over the limits) are refined toward it
+(``MISSES`` at a time, by the sum of their excesses over the limits, for at most
+``MISS_ROUNDS`` rounds while fewer than ``FILL`` meet) are refined toward it
 (the refinement's reach: a CMA-ES in a wider trust region), and those that then meet it join
 the answer; if nothing meets it even so, the result carries a
 :class:`NoMatch`: how many fitted six-bars each constraint
@@ -98,8 +99,10 @@ DEEPER = 10
 DEEPER_KINDS = ("arc", "double_line")
 #: Output link lengths (crank lengths) tried in the band conversion of ``_select``.
 REACHES = (0.8, 1.5, 3.0)
-#: Nearest misses refined toward a request that fewer than FILL six-bars met.
+#: Nearest misses refined toward a request that fewer than FILL six-bars met, this many at a
+#: time (nearest first), for at most MISS_ROUNDS rounds while the answer still holds fewer.
 MISSES = 16
+MISS_ROUNDS = 2
 #: An answer with fewer candidates than this (or than ``--top``) is topped up from the
 #: nearest misses, refined to meet the request (with refinement on).
 FILL = 3
@@ -1046,7 +1049,8 @@ def answer(request: Request, source: SegmentSource, *,
         # the diagnosis simulates the fits the screen dropped: simulation time of this answer
         clock["simulate"] = clock.get("simulate", 0.0) + time.perf_counter() - t4
         t5 = time.perf_counter()
-        found, tried, better = _refined_misses(request, misses, {c.id.split("~")[0] for c in top})
+        found, tried, better = _refined_misses(request, misses, {c.id.split("~")[0] for c in top},
+                                               min(FILL, request.top) - len(top))
         if found:
             top = [dataclasses.replace(c, rank=i + 1)
                    for i, c in enumerate(_distinct(rank(request, [*top, *found]))[: request.top])]
@@ -1069,15 +1073,22 @@ def answer(request: Request, source: SegmentSource, *,
 
 
 def _refined_misses(request: Request, misses: list[tuple[float, Fitted, SixBarFigures, dict]],
-                    taken: set[str]) -> tuple[list[Candidate], int, int]:
-    """The nearest distinct misses (:func:`miss_pool`, not one of the ``taken`` ids),
-    ``MISSES`` of them, refined toward ``request``: (those that now meet it, how many were
-    tried, how many came out refined)."""
-    pool, figures = miss_pool(request, misses, taken, MISSES)
-    if not pool:
-        return [], 0, 0
-    tried, better = _refined(request, pool, figures, reach=True)
-    return [c for c in tried if c.refined_from is not None], len(pool), better
+                    taken: set[str], wanted: int) -> tuple[list[Candidate], int, int]:
+    """The nearest distinct misses (:func:`miss_pool`, not one of the ``taken`` ids) refined
+    toward ``request``, ``MISSES`` at a time, nearest first, until ``wanted`` distinct six-bars
+    meet it or ``MISS_ROUNDS`` rounds are done: (those that now meet it, how many were tried,
+    how many came out refined). The first round is what one round always was."""
+    pool, figures = miss_pool(request, misses, taken, MISSES * MISS_ROUNDS)
+    met: list[Candidate] = []
+    better = tried = 0
+    for start in range(0, len(pool), MISSES):
+        part = pool[start:start + MISSES]
+        refined, improved = _refined(request, part, figures[start:start + MISSES], reach=True)
+        met += [c for c in refined if c.refined_from is not None]
+        tried, better = tried + len(part), better + improved
+        if len(_distinct(met)) >= wanted:
+            break
+    return met, tried, better
 
 
 def miss_pool(request: Request, misses: list[tuple[float, Fitted, SixBarFigures, dict]], taken: set[str],

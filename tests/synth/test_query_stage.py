@@ -408,3 +408,34 @@ def test_a_sparse_answer_is_the_same_every_time(source):
                            None if c.refined_from is None else c.refined_from.dwells[0].angle)
                           for c in result.candidates))
     assert len(answers) == 1
+
+
+@pytest.mark.parametrize("met_per_round, wanted, rounds", [((2, 1), 3, 2), ((3, 0), 3, 1), ((0, 0), 1, 2)])
+def test_nearest_misses_are_refined_a_round_at_a_time_until_enough_meet(monkeypatch, met_per_round, wanted, rounds):
+    """The nearest misses go to refinement MISSES at a time, nearest first, and a second
+    round runs only while fewer than ``wanted`` distinct six-bars meet the request."""
+    import synth.query as Q
+
+    pool = [_fake_candidate(i) for i in range(2 * Q.MISSES + 5)]
+    monkeypatch.setattr(Q, "miss_pool", lambda request, misses, taken, n: (pool[:n], [None] * min(n, len(pool))))
+    calls = []
+
+    def refined(request, part, figures, *, reach):
+        calls.append([c.id for c in part])
+        k = met_per_round[len(calls) - 1]
+        return [dataclasses.replace(c, refined_from=() if j < k else None) for j, c in enumerate(part)], k
+
+    monkeypatch.setattr(Q, "_refined", refined)
+    met, tried, better = Q._refined_misses(Request(dwell=60 * DEG, swing=30 * DEG), [], set(), wanted)
+    assert len(calls) == rounds and tried == rounds * Q.MISSES and better == sum(met_per_round[:rounds])
+    assert calls == [[c.id for c in pool[r * Q.MISSES:(r + 1) * Q.MISSES]] for r in range(rounds)]  # nearest first
+    assert [c.id for c in met] == [c.id for r in range(rounds) for c in pool[r * Q.MISSES:r * Q.MISSES + met_per_round[r]]]
+
+
+def _fake_candidate(i: int):
+    """A candidate of its own segment and four-bar (no two are mirror twins)."""
+    from synth.query import Candidate
+    from synth.sixbar import OutputDyad, SixBar
+
+    sixbar = SixBar(1.0, 2.0 + 0.01 * i, 3.0, 3.5, 1, 0.8, -0.6, OutputDyad.rpr(2 - 3j))
+    return Candidate(id=f"{i}-rpr0.0@10", segment_id=i, sixbar=sixbar, figures=None, rank=0)
