@@ -32,6 +32,7 @@ import atlas.shard as _shard
 from atlas.malloc import raise_malloc_thresholds
 from atlas.pool import TICK_SECONDS, pool_map
 from atlas.shard import ShardResult
+from db.packed import PackedShard
 from atlas.sweep import SweepLinkages, SweepSpec, sweep_linkages
 
 # TICK_SECONDS: how often a runner calls its tick while waiting (the Dask engine reads it here)
@@ -79,7 +80,7 @@ class ShardRunner(Protocol):
         workers: int,
         *,
         tick: Callable[[], None] | None = None,
-    ) -> Iterator[ShardResult]:
+    ) -> Iterator[ShardResult | PackedShard]:
         """Yield the result of every shard in ``indices`` (any order). Call ``tick`` at least
         every few seconds while waiting. Closing the iterator must stop all work promptly."""
         ...
@@ -97,10 +98,10 @@ def _init_worker(spec: SweepSpec, sweep: SweepLinkages) -> None:
     _WORKER_STATE = (spec, sweep)
 
 
-def _compute_in_worker(index: int) -> ShardResult:
+def _compute_in_worker(index: int) -> ShardResult | PackedShard:
     assert _WORKER_STATE is not None, "worker not initialised"
     spec, sweep = _WORKER_STATE
-    return _shard.compute_shard(spec, index, sweep)
+    return _shard.handed_over(_shard.compute_shard(spec, index, sweep))
 
 
 def run_shards(
@@ -110,10 +111,11 @@ def run_shards(
     workers: int = 1,
     *,
     tick: Callable[[], None] | None = None,
-) -> Iterator[ShardResult]:
+) -> Iterator[ShardResult | PackedShard]:
     """The local engine: ``workers == 1`` computes in this process, in order; more runs a
     process pool (:func:`atlas.pool.pool_map`) with at most ``2 · workers`` shards in flight
-    (results are written as they come, so memory stays bounded whatever the sweep size)."""
+    (results are written as they come, so memory stays bounded whatever the sweep size), each
+    worker handing its shard over packed (:func:`atlas.shard.handed_over`)."""
     indices = list(indices)
     if workers <= 1 or len(indices) <= 1:
         raise_malloc_thresholds()
@@ -267,7 +269,7 @@ def build_atlas(
                 n = per_shard.pop(result.shard_index)
                 written += 1
                 computed += n
-                segments += len(result.segments)
+                segments += result.n_segments
                 report(ShardDone(result.shard_index, n, computed, total, segments, len(per_shard)))
         except KeyboardInterrupt:
             note(f"interrupted: {len(handle.done) + written} of {n_shards} shards are stored; "

@@ -2,8 +2,8 @@
 
 :class:`DaskRunner` is a :class:`~atlas.build.ShardRunner`: pass it to
 :func:`~atlas.build.build_atlas` as ``runner``. Workers only call
-:func:`atlas.shard.compute_shard` and return its picklable
-:class:`~atlas.shard.ShardResult`; the driver (this process) alone touches the database, so
+:func:`atlas.shard.compute_shard` and return its result packed (:func:`atlas.shard.handed_over`,
+picklable bytes); the driver (this process) alone touches the database, so
 the content is the local engine's, byte for byte, whatever the cluster does.
 
 How the cluster is used, and why:
@@ -46,6 +46,7 @@ import atlas.build as _build
 import atlas.shard as _shard
 from atlas.malloc import raise_malloc_thresholds
 from atlas.shard import ShardResult
+from db.packed import PackedShard
 from atlas.sweep import SweepLinkages, SweepSpec
 
 if TYPE_CHECKING:
@@ -86,7 +87,7 @@ def _installed_version() -> str:
     return code_version()
 
 
-def _compute_on_worker(spec: SweepSpec, index: int, sweep: SweepLinkages, version: str) -> ShardResult:
+def _compute_on_worker(spec: SweepSpec, index: int, sweep: SweepLinkages, version: str) -> ShardResult | PackedShard:
     """The task: shard ``index`` of ``spec``, after checking this worker runs the driver's
     dwell-atlas ``version`` (and undoing dask's malloc setting, see :mod:`atlas.malloc`)."""
     mine = _installed_version()
@@ -98,7 +99,7 @@ def _compute_on_worker(spec: SweepSpec, index: int, sweep: SweepLinkages, versio
             "install the same version on every node"
         )
     raise_malloc_thresholds()
-    return _shard.compute_shard(spec, index, sweep)
+    return _shard.handed_over(_shard.compute_shard(spec, index, sweep))
 
 
 class DaskRunner:
@@ -175,7 +176,7 @@ class DaskRunner:
         workers: int = 1,
         *,
         tick: Callable[[], None] | None = None,
-    ) -> Iterator[ShardResult]:
+    ) -> Iterator[ShardResult | PackedShard]:
         """Yield the result of every shard in ``indices`` in completion order (see the module
         notes). ``tick`` is called at least every :data:`atlas.build.TICK_SECONDS` while
         waiting, also while no worker has joined yet.
@@ -331,7 +332,7 @@ class _Capacity:
         return self._value
 
 
-def _result_of(future: Future) -> ShardResult:
+def _result_of(future: Future) -> ShardResult | PackedShard:
     """The shard's result; a shard's own exception propagates as is (a bug, like in the local
     engine), what the cluster did to it becomes a :class:`ClusterError`."""
     from distributed import CancelledError, KilledWorker

@@ -15,12 +15,13 @@ import numpy as np
 
 from atlas.sweep import SweepLinkages, SweepSpec, sweep_linkages
 from db.digest import shard_digest
+from db.packed import PACKING, PackedShard, pack
 from db.rows import linkage_rows, segment_rows
 from kinematics.fourbar import fourbar_motion
 from kinematics.loop import transmission_fold
 from synth.segments import SegmentSearch, find_segments
 
-__all__ = ["ShardResult", "compute_shard"]
+__all__ = ["ShardResult", "compute_shard", "handed_over"]
 
 #: Crank samples over the turn for a linkage's transmission-angle range.
 _TRANSMISSION_SAMPLES = 360
@@ -40,6 +41,17 @@ class ShardResult:
     skipped: dict[str, int] = field(default_factory=dict)
     seconds: float = 0.0
     digest: str | None = None
+
+    @property
+    def n_segments(self) -> int:
+        return len(self.segments)
+
+
+def handed_over(result: ShardResult) -> ShardResult | PackedShard:
+    """``result`` as a worker process hands it to the writer: packed (:mod:`db.packed`: its
+    rows checked and put in a small SQLite database, which the writer copies in C), or as it
+    is where this Python's sqlite3 cannot pack."""
+    return pack(result, result.digest) if PACKING else result
 
 
 def compute_shard(spec: SweepSpec, shard_index: int, linkages: SweepLinkages | None = None) -> ShardResult:

@@ -7,7 +7,9 @@ Invariants
   of this shard is here". Resume = compute the shards without a shard row. On PostgreSQL
   with psycopg the rows go in by ``COPY`` (in the same transaction, CHECKs enforced alike):
   ten times faster than an executemany of ``INSERT``, which would make the single writer
-  the bottleneck of a big build; on SQLite one raw ``executemany`` of tuples per table. A
+  the bottleneck of a big build; on SQLite a shard packed by its worker (:mod:`db.packed`) is
+  attached and copied with one ``INSERT … SELECT`` per table, plain rows go in by one raw
+  ``executemany`` of tuples per table. A
   shard's dwell rows are appended to ``dwell_staging``; :func:`finish_build` moves them into
   the clustered ``dwell`` table in its key order, in the transaction that completes the build
   (and stores its digest, combined from the shard digests of the shard rows).
@@ -33,7 +35,6 @@ Nothing here imports ``atlas``: a shard result is anything shaped like :class:`S
 
 from __future__ import annotations
 
-import itertools
 import json
 import math
 import os
@@ -44,14 +45,15 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from datetime import UTC, datetime
-from operator import itemgetter
-from typing import Any, Protocol
+from typing import Any
 
-from sqlalchemy import Connection, Engine, Float, Table, delete, func, insert, select, update
+from sqlalchemy import Connection, Engine, Table, delete, func, insert, select, update
 from sqlalchemy.exc import IntegrityError
 
 from db.digest import shard_digest, stored_digest
 from db.engine import AtlasError, atlas_name, damaged, display_target, start_writing
+from db.packed import TABLES, PackedShard, ShardRows, ShardWriteError, checked_rows, unpack
+from db.packed import columns as packed_columns
 from db.spec import spec_name
 from db.schema import SCHEMA_VERSION, Build, Dwell, Linkage, Segment, Shard, dwell_staging
 
@@ -79,26 +81,8 @@ STALE_SECONDS = 300.0
 PID_REUSE_SECONDS = 3600.0
 
 
-class ShardWriteError(RuntimeError):
-    """A shard's rows could not be stored (a bug upstream: NaN/inf, a duplicate id, …).
-
-    The whole shard was rolled back; nothing of it is in the database.
-    """
-
-
 class LockLostError(AtlasError):
     """Another builder took this build's lock over (ours was seen as dead)."""
-
-
-class ShardRows(Protocol):
-    """What :func:`write_shard` needs of a shard result (``atlas.shard.ShardResult``)."""
-
-    shard_index: int
-    linkages: list[dict[str, Any]]
-    segments: list[dict[str, Any]]
-    dwells: list[dict[str, Any]]
-    skipped: dict[str, int]
-    seconds: float
 
 
 @dataclass(frozen=True, slots=True)
@@ -345,31 +329,6 @@ def heartbeat(engine: Engine, build_id: int, token: str) -> None:
         _assert_lock(conn, build_id, token)
 
 
-def _first_nonfinite(rows: list[dict[str, Any]]) -> tuple[int, str, float] | None:
-    for i, row in enumerate(rows):
-        for key, value in row.items():
-            if isinstance(value, float) and not math.isfinite(value):
-                return i, key, value
-    return None
-
-
-def _all_finite(table: Table, names: list[str], tuples: list[tuple]) -> bool:
-    """Whether every float column of ``tuples`` (values in ``names`` order) is finite: one
-    ``fsum`` over all of them, in C (a NaN or ±inf anywhere makes it non-finite; the floats
-    are picked row by row, not transposed into columns, which cost several times the sum).
-    False also when the sum overflows or a value is not a number; :func:`_first_nonfinite`
-    then looks row by row."""
-    floats = {c.name for c in table.columns if isinstance(c.type, Float)}
-    at = [k for k, n in enumerate(names) if n in floats]
-    if not at or not tuples:
-        return True
-    values = map(itemgetter(*at), tuples) if len(at) > 1 else ((row[at[0]],) for row in tuples)
-    try:
-        return math.isfinite(math.fsum(filter(None, itertools.chain.from_iterable(values))))
-    except (OverflowError, TypeError):
-        return False
-
-
 def _uses_copy(conn: Connection) -> bool:
     """Whether rows are bulk-loaded with ``COPY`` (PostgreSQL through psycopg 3's copy API)."""
     return conn.dialect.name == "postgresql" and conn.dialect.driver == "psycopg"
@@ -410,45 +369,44 @@ def _insert_rows(conn: Connection, table: Table, names: list[str], tuples: list[
         conn.execute(insert(table), [dict(zip(names, t)) for t in tuples])
 
 
-def write_shard(engine: Engine, build_id: int, result: ShardRows, *, lock_token: str | None = None) -> None:
+def write_shard(engine: Engine, build_id: int, result: ShardRows | PackedShard, *, lock_token: str | None = None) -> None:
     """Store one shard — linkages, segments, dwells and the shard row — in ONE transaction.
 
-    Bulk Core ``insert()`` executemany per table (``COPY`` on PostgreSQL). With
-    ``lock_token`` the transaction first checks (and refreshes) our builder lock. Any failure rolls back the whole shard: a NaN or
-    inf (checked here, because SQLite would turn NaN into NULL and a nullable column would
+    ``result`` is a shard's rows as dicts (checked here) or packed by a worker
+    (:class:`db.packed.PackedShard`, checked there): on SQLite a packed shard is attached and
+    copied table by table with ``INSERT … SELECT``, plain rows go in by one raw
+    ``executemany`` of tuples per table; on PostgreSQL both by ``COPY``. With ``lock_token``
+    the transaction first checks (and refreshes) our builder lock. Any failure rolls back the
+    whole shard: a NaN or inf (SQLite would turn NaN into NULL and a nullable column would
     silently take it) or a constraint violation raises :class:`ShardWriteError`.
     """
     index = int(result.shard_index)
-    linkages = [{**row, "build_id": build_id} for row in result.linkages]
-    batches = []  # (table, column names, rows as tuples), parents first: foreign keys are checked row by row
-    for name, table, rows in (("linkage", Linkage.__table__, linkages), ("segment", Segment.__table__, result.segments),
-                              ("dwell", dwell_staging, result.dwells)):
-        names = [c.name for c in table.columns if rows and c.name in rows[0]]
-        tuples = list(map(itemgetter(*names), rows)) if names else []
-        if not _all_finite(table, names, tuples):
-            bad = _first_nonfinite(rows)
-            if bad is not None:
-                i, key, value = bad
-                raise ShardWriteError(f"shard {index}: {name} row {i} has {key}={value!r}; nothing of the shard was written")
-        batches.append((table, names, tuples))
-    if not math.isfinite(result.seconds):
-        raise ShardWriteError(f"shard {index}: seconds={result.seconds!r}; nothing of the shard was written")
+    packed = result if isinstance(result, PackedShard) else None
+    batches = None if packed is not None else checked_rows(result, {"linkage": {"build_id": build_id}})
+    if packed is not None and not math.isfinite(packed.seconds):
+        raise ShardWriteError(f"shard {index}: seconds={packed.seconds!r}; nothing of the shard was written")
+    counts = ((packed.n_linkages, packed.n_segments) if packed is not None
+              else (len(batches[0][2]), len(batches[1][2])))
     shard_row = dict(
         build_id=build_id,
         shard_index=index,
-        n_linkages=len(result.linkages),
-        n_segments=len(result.segments),
+        n_linkages=counts[0],
+        n_segments=counts[1],
         skipped_json=json.dumps(dict(sorted(result.skipped.items())), sort_keys=True),
         seconds=float(result.seconds),
         digest=result.digest or shard_digest(result.linkages, result.segments, result.dwells),
     )
     try:
-        with engine.begin() as conn:
-            if lock_token is not None:
-                _assert_lock(conn, build_id, lock_token)
-            for table, names, tuples in batches:
-                _insert_rows(conn, table, names, tuples)
-            conn.execute(insert(Shard), [shard_row])
+        with engine.connect() as conn, _attached(conn, packed) as schema:
+            with conn.begin():
+                if lock_token is not None:
+                    _assert_lock(conn, build_id, lock_token)
+                if schema is not None:
+                    _copy_packed(conn, schema, packed, build_id)
+                else:
+                    for table, names, tuples in batches if batches is not None else _unpacked(packed, build_id):
+                        _insert_rows(conn, table, names, tuples)
+                conn.execute(insert(Shard), [shard_row])
     except IntegrityError as exc:
         clash = _stored_already(engine, result)
         if clash is not None:  # rows the atlas should not hold (ids are deterministic): damage, not a bug
@@ -458,11 +416,67 @@ def write_shard(engine: Engine, build_id: int, result: ShardRows, *, lock_token:
         raise ShardWriteError(f"shard {index} of build {build_id} rolled back: {first}") from exc
 
 
+#: The schema name a packed shard is attached under while it is copied.
+_PACKED_SCHEMA = "packed_shard"
+
+
+@contextmanager
+def _attached(conn: Connection, packed: PackedShard | None) -> Iterator[str | None]:
+    """On SQLite, ``packed``'s database attached to ``conn`` (outside any transaction: SQLite
+    attaches only there) for the copy, detached afterwards; its schema name, or None when
+    there is nothing to attach (plain rows, another database)."""
+    if packed is None or conn.dialect.name != "sqlite":
+        yield None
+        return
+    raw = conn.connection.dbapi_connection
+    raw.execute(f"ATTACH ':memory:' AS {_PACKED_SCHEMA}")
+    try:
+        raw.deserialize(packed.data, name=_PACKED_SCHEMA)
+        yield _PACKED_SCHEMA
+    finally:
+        try:
+            raw.execute(f"DETACH {_PACKED_SCHEMA}")
+        except Exception:  # noqa: BLE001 - a connection left attached must not go back to the pool
+            conn.invalidate()
+            raise
+
+
+def _copy_packed(conn: Connection, schema: str, packed: PackedShard, build_id: int) -> None:
+    """The packed tables into the atlas's, one ``INSERT … SELECT`` each, parents first (the
+    linkage rows get ``build_id``)."""
+    raw = conn.connection.dbapi_connection
+    quote = conn.dialect.identifier_preparer.quote
+    for (_, _, table), n in zip(TABLES, (packed.n_linkages, packed.n_segments, packed.n_dwells)):
+        if not n:
+            continue
+        names = [quote(c) for c in packed_columns(raw, schema, table.name)]
+        source = ", ".join(names)
+        if table.name == "linkage":
+            conn.exec_driver_sql(f"INSERT INTO main.linkage ({quote('build_id')}, {source}) "
+                                 f"SELECT ?, {source} FROM {schema}.linkage ORDER BY rowid", (build_id,))
+        else:
+            conn.exec_driver_sql(f"INSERT INTO main.{quote(table.name)} ({source}) "
+                                 f"SELECT {source} FROM {schema}.{quote(table.name)} ORDER BY rowid")
+
+
+def _unpacked(packed: PackedShard, build_id: int) -> list[tuple[Table, list[str], list[tuple]]]:
+    """A packed shard's rows as (table, names, tuples) per table, for a database that cannot
+    attach it (already checked by the worker; the linkage rows get ``build_id``)."""
+    out = []
+    for (_, _, table), n in zip(TABLES, (packed.n_linkages, packed.n_segments, packed.n_dwells)):
+        rows = unpack(packed.data, table.name) if n else []
+        if table.name == "linkage":
+            rows = [{**row, "build_id": build_id} for row in rows]
+        names = [c.name for c in table.columns if rows and c.name in rows[0]]
+        out.append((table, names, [tuple(row[k] for k in names) for row in rows]))
+    return out
+
+
 def _stored_already(engine: Engine, result: ShardRows) -> str | None:
     """"linkage ID" if the atlas already holds one of this shard's linkages — its ids derive
     from the shard index, so that is this shard's own row, stored without its shard row (or
     under a build row since deleted): a damaged atlas. None otherwise (a bug upstream)."""
-    ids = [row["id"] for row in result.linkages]
+    ids = list(result.linkage_ids) if isinstance(result, PackedShard) else [row["id"] for row in result.linkages]
     with engine.connect() as conn:
         for start in range(0, len(ids), 500):  # under every dialect's parameter limit
             found = conn.execute(select(Linkage.id).where(Linkage.id.in_(ids[start:start + 500])).limit(1)).scalar()

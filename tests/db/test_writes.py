@@ -19,6 +19,7 @@ from sqlalchemy import delete, func, insert, inspect, select, text, update
 from sqlalchemy.exc import IntegrityError
 
 import db.writes
+from db.packed import PackedShard, pack, unpack
 from db import SCHEMA_VERSION, AtlasError, Build, Dwell, Linkage, Segment, Shard, open_atlas
 from db.schema import dwell_staging
 from db.writes import (
@@ -37,6 +38,19 @@ SPEC_A = json.dumps({"name": "demo", "samples": 8})
 SPEC_B = json.dumps({"name": "other", "samples": 9})
 DIGEST_A = "a" * 64
 DIGEST_B = "b" * 64
+
+
+def plain(rows):
+    return rows
+
+
+def packed(rows):
+    """``rows`` as a worker hands them over (:func:`db.packed.pack`)."""
+    return pack(rows, None)
+
+
+#: The two forms a shard reaches the writer in.
+FORMS = [pytest.param(plain, id="plain"), pytest.param(packed, id="packed")]
 
 
 def count(engine, model) -> int:
@@ -78,22 +92,26 @@ def test_new_build_row_and_shard_rows(engine):
     dict(radius=float("inf")),
     dict(dwell_angle=-0.1),           # CHECK dwell_key > 0 (and dwell_angle), caught by the database
 ])
-def test_a_bad_row_rolls_the_whole_shard_back(engine, bad):
+@pytest.mark.parametrize("form", FORMS)
+def test_a_bad_row_rolls_the_whole_shard_back(engine, bad, form):
+    """Plain rows are checked by the writer, packed ones by the packing (a worker): the same
+    error either way, and nothing of the shard is written."""
     h, lock = start(engine)
-    write_shard(engine, h.build_id, shard_rows(0), lock_token=lock.token)
+    write_shard(engine, h.build_id, form(shard_rows(0)), lock_token=lock.token)
     with pytest.raises(ShardWriteError, match="shard 1"):
-        write_shard(engine, h.build_id, shard_rows(1, **bad), lock_token=lock.token)
+        write_shard(engine, h.build_id, form(shard_rows(1, **bad)), lock_token=lock.token)
     # shard 0 intact, nothing at all of shard 1 (its linkage came first in the transaction)
     assert [count(engine, m) for m in (Linkage, Segment, dwell_staging, Shard)] == [1, 1, 1, 1]
 
 
-def test_a_duplicate_id_rolls_back(engine):
+@pytest.mark.parametrize("form", FORMS)
+def test_a_duplicate_id_rolls_back(engine, form):
     h, lock = start(engine)
-    write_shard(engine, h.build_id, shard_rows(0), lock_token=lock.token)
+    write_shard(engine, h.build_id, form(shard_rows(0)), lock_token=lock.token)
     one = shard_rows(1)
     dup = replace(one, dwells=[one.dwells[0], {**one.dwells[0]}])  # the same (segment, level) twice
     with pytest.raises(ShardWriteError, match="rolled back"):
-        write_shard(engine, h.build_id, dup, lock_token=lock.token)
+        write_shard(engine, h.build_id, form(dup), lock_token=lock.token)
     assert count(engine, Shard) == 1 and count(engine, Linkage) == 1
 
 
@@ -236,19 +254,21 @@ def test_a_writer_blocked_behind_a_takeover_loses_cleanly(engine):
 AWKWARD = [1 / 3, 2.0**-1074, 1e-300, -1e300, math.pi * 1e17, math.nextafter(1.0, 2.0), -0.0]
 
 
-@pytest.mark.parametrize("path", ["bulk", "insert"])
+@pytest.mark.parametrize("path", ["bulk", "insert", "packed"])
 def test_floats_round_trip_bit_for_bit(engine, monkeypatch, path):
     """What is read back is exactly what was written (the digest rounds to 12 digits, the
-    query and the report do not), through COPY on PostgreSQL and through INSERT."""
+    query and the report do not), through COPY on PostgreSQL, through INSERT, and packed by a
+    worker (copied by INSERT … SELECT on SQLite, read back and loaded on PostgreSQL)."""
     if path == "insert":
         monkeypatch.setattr(db.writes, "_uses_copy", lambda conn: False)
+    form = packed if path == "packed" else plain
     h, lock = start(engine)
     rows = shard_rows(0)
     values = dict(zip(("u", "v", "phi_gen", "phi_gen2"), AWKWARD[:4], strict=True))
     dwell = dict(zip(("x", "y", "radius"), AWKWARD[4:], strict=True))
     rows.segments[0].update(values)
     rows.dwells[0].update(dwell)
-    write_shard(engine, h.build_id, rows, lock_token=lock.token)
+    write_shard(engine, h.build_id, form(rows), lock_token=lock.token)
     with engine.connect() as conn:
         got = [*conn.execute(select(*(getattr(Segment, k) for k in values))).one(),
                *conn.execute(select(*(dwell_staging.c[k] for k in dwell))).one()]
@@ -327,12 +347,41 @@ def test_a_build_row_deleted_is_one_line_not_a_collision(engine):
     assert count(engine, Linkage) == 0 and (h.replaced or "").startswith("rows of no recorded build")
 
 
-def test_a_shard_whose_rows_are_already_stored_is_a_damaged_atlas(engine):
+@pytest.mark.parametrize("form", FORMS)
+def test_a_shard_whose_rows_are_already_stored_is_a_damaged_atlas(engine, form):
     h, lock = start(engine)
     write_shard(engine, h.build_id, shard_rows(0), lock_token=lock.token)
     with engine.begin() as conn:  # its shard row lost, its rows kept: what no writer leaves
         conn.execute(delete(Shard))
     with pytest.raises(AtlasError, match=r"is damaged: it already holds linkage \d+ of shard 0, which has no shard "
                                          r"row \(shard rolled back\); restore"):
-        write_shard(engine, h.build_id, shard_rows(0), lock_token=lock.token)
+        write_shard(engine, h.build_id, form(shard_rows(0)), lock_token=lock.token)
     assert count(engine, Linkage) == 1 and count(engine, Shard) == 0
+
+
+@pytest.mark.parametrize("empty", [False, True])
+def test_a_packed_shard_stores_what_its_plain_rows_store(engine, tmp_path, empty):
+    """The same shards written packed into this atlas and plain into another hold the same
+    rows, value for value, and the same shard rows; a packed shard unpacks to its rows (an
+    empty shard too: a batch of linkages none of which gives a segment)."""
+    rows = [shard_rows(i) for i in range(3)]
+    if empty:
+        rows[1] = replace(rows[1], segments=[], dwells=[])
+    other = open_atlas(str(tmp_path / "plain.sqlite"), create=True)
+    for target, form in ((engine, packed), (other, plain)):
+        h, lock = start(target)
+        for r in rows:
+            write_shard(target, h.build_id, form(r), lock_token=lock.token)
+    for r in rows:
+        p = pack(r, "d")
+        assert isinstance(p, PackedShard) and p.digest == "d" and p.linkage_ids == tuple(x["id"] for x in r.linkages)
+        assert (p.linkages, p.segments, p.dwells) == (r.linkages, r.segments, r.dwells)
+        assert (p.n_linkages, p.n_segments, p.n_dwells) == (len(r.linkages), len(r.segments), len(r.dwells))
+    tables = (Linkage.__table__, Segment.__table__, dwell_staging, Shard.__table__)
+    read = []
+    for target in (engine, other):
+        with target.connect() as conn:
+            read.append([sorted(tuple(map(repr, row)) for row in conn.execute(select(t).where(True)))
+                         for t in tables])
+    assert read[0] == read[1] and len(read[0][2]) == 3 - empty
+    other.dispose()
