@@ -39,9 +39,10 @@ import json
 import math
 import os
 import socket
+import sys
 import time
 import uuid
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from datetime import UTC, datetime
@@ -434,10 +435,19 @@ def _attached(conn: Connection, packed: PackedShard | None) -> Iterator[str | No
         raw.deserialize(packed.data, name=_PACKED_SCHEMA)
         yield _PACKED_SCHEMA
     finally:
-        try:
-            raw.execute(f"DETACH {_PACKED_SCHEMA}")
-        except Exception:  # noqa: BLE001 - a connection left attached must not go back to the pool
-            conn.invalidate()
+        _restore(conn, lambda: raw.execute(f"DETACH {_PACKED_SCHEMA}"))
+
+
+def _restore(conn: Connection, undo: Callable[[], object]) -> None:
+    """Run ``undo`` (what puts ``conn`` back as the pool hands it out); if it fails, the
+    connection is invalidated (closed, never reused) and the failure raised — unless another
+    error (a Ctrl-C, a failed write) is already on its way out, which it must not mask."""
+    in_flight = sys.exc_info()[1]  # (called from a finally: the error leaving, if any)
+    try:
+        undo()
+    except Exception:  # noqa: BLE001
+        conn.invalidate()
+        if in_flight is None:
             raise
 
 
@@ -534,13 +544,12 @@ def _moving_staged_rows(conn: Connection) -> Iterator[None]:
     try:
         yield
     finally:
-        try:
+        def undo() -> None:
             conn.exec_driver_sql("PRAGMA foreign_keys=ON")
             conn.exec_driver_sql("PRAGMA threads=0")
             conn.commit()
-        except Exception:  # noqa: BLE001 - a broken connection must not go back to the pool as it is
-            conn.invalidate()
-            raise
+
+        _restore(conn, undo)
 
 
 def release_lock(engine: Engine, build_id: int, token: str) -> None:

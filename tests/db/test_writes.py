@@ -113,6 +113,9 @@ def test_a_duplicate_id_rolls_back(engine, form):
     with pytest.raises(ShardWriteError, match="rolled back"):
         write_shard(engine, h.build_id, form(dup), lock_token=lock.token)
     assert count(engine, Shard) == 1 and count(engine, Linkage) == 1
+    # the connection that failed went back to the pool as it came (a packed shard detached)
+    write_shard(engine, h.build_id, form(shard_rows(2)), lock_token=lock.token)
+    assert count(engine, Shard) == 2 and count(engine, Linkage) == 2
 
 
 def test_resume_knows_done_shards_and_drops_orphans(engine):
