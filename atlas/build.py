@@ -32,8 +32,8 @@ import atlas.shard as _shard
 from atlas.malloc import raise_malloc_thresholds
 from atlas.pool import TICK_SECONDS, pool_map
 from atlas.shard import ShardResult
-from db.packed import PackedShard
 from atlas.sweep import SweepLinkages, SweepSpec, sweep_linkages
+from db.packed import PackedShard
 
 # TICK_SECONDS: how often a runner calls its tick while waiting (the Dask engine reads it here)
 __all__ = ["TICK_SECONDS", "BuildSummary", "ShardDone", "ShardRunner", "build_atlas", "run_shards"]

@@ -46,8 +46,8 @@ import atlas.build as _build
 import atlas.shard as _shard
 from atlas.malloc import raise_malloc_thresholds
 from atlas.shard import ShardResult
-from db.packed import PackedShard
 from atlas.sweep import SweepLinkages, SweepSpec
+from db.packed import PackedShard
 
 if TYPE_CHECKING:
     from distributed import Client, Future, as_completed

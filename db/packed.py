@@ -55,8 +55,8 @@ class ShardRows(Protocol):
     seconds: float
 
 
-#: (what a row list is called in messages and in :class:`ShardRows`, the atlas table its rows
-#: go to), parents first: the writer's foreign keys are checked row by row.
+#: Per table: its name in messages, its row list in :class:`ShardRows`, the atlas table its rows
+#: go to; parents first (the writer's foreign keys are checked row by row).
 TABLES: tuple[tuple[str, str, Table], ...] = (
     ("linkage", "linkages", Linkage.__table__),
     ("segment", "segments", Segment.__table__),
@@ -153,7 +153,8 @@ def pack(result: ShardRows, digest: str | None) -> PackedShard:
         for table, names, tuples in batches:
             # no types, no constraints: the values go in as Python gives them (REAL, INTEGER,
             # TEXT, NULL) and come out the same; the atlas's tables check them on the copy
-            con.execute(f"CREATE TABLE {_quote(table.name)} ({', '.join(map(_quote, names or ['id']))})")
+            declared = names or [c.name for c in table.columns if c.name != "build_id"]  # (an empty table)
+            con.execute(f"CREATE TABLE {_quote(table.name)} ({', '.join(map(_quote, declared))})")
             if tuples:
                 con.executemany(f"INSERT INTO {_quote(table.name)} VALUES ({', '.join('?' * len(names))})", tuples)
         con.commit()
