@@ -6,6 +6,7 @@ guides, labelled points. Each mechanism builds its own sketch; this module only 
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -76,7 +77,11 @@ def draw_sketch(sketch: Sketch, path: str | Path, title: str = "") -> Path:
         ax.set_title(plot_text(title), fontsize=10)
     if sketch.paths:
         ax.legend(fontsize=8, loc="best")
-    fig.tight_layout()
+    with warnings.catch_warnings():
+        # a label too long for any margin (a linkage file may name a joint so): drawn as it is,
+        # without matplotlib's warning on the user's terminal
+        warnings.filterwarnings("ignore", message="Tight layout not applied", category=UserWarning)
+        fig.tight_layout()
     path = Path(path)
     fig.savefig(path)
     plt.close(fig)
