@@ -482,7 +482,7 @@ def _unpacked(packed: PackedShard, build_id: int) -> list[tuple[Table, list[str]
     return out
 
 
-def _stored_already(engine: Engine, result: ShardRows) -> str | None:
+def _stored_already(engine: Engine, result: ShardRows | PackedShard) -> str | None:
     """"linkage ID" if the atlas already holds one of this shard's linkages — its ids derive
     from the shard index, so that is this shard's own row, stored without its shard row (or
     under a build row since deleted): a damaged atlas. None otherwise (a bug upstream)."""
