@@ -239,15 +239,18 @@ def _timed_build(spec, samples: int, workers: int) -> dict:
 
 def _timed_ingest(spec, samples: int, workers: int) -> dict:
     """The single writer's rate: the shards of ``samples`` computed first (``workers``
-    processes, not timed), then handed to :func:`atlas.build.build_atlas` as if computed —
+    processes, not timed) and packed as a worker hands them over (:func:`atlas.shard.handed_over`,
+    also with one worker), then handed to :func:`atlas.build.build_atlas` as if computed —
     what is timed is the driver alone: the shards' writes, the build's digest and the file's
     packing, into a new SQLite atlas."""
     from atlas.build import build_atlas, run_shards
+    from atlas.shard import ShardResult, handed_over
 
     small = spec.replace(samples=samples)
     sweep = sweep_linkages(small)
     t0 = time.perf_counter()
-    cached = {r.shard_index: r for r in run_shards(small, sweep, range(sweep.n_shards(small.shard_size)), workers)}
+    cached = {r.shard_index: handed_over(r) if isinstance(r, ShardResult) else r
+              for r in run_shards(small, sweep, range(sweep.n_shards(small.shard_size)), workers)}
     computed = time.perf_counter() - t0
 
     def replay(spec, sweep, indices, workers, *, tick=None):
