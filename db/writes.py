@@ -53,7 +53,7 @@ from sqlalchemy.exc import IntegrityError
 
 from db.digest import shard_digest, stored_digest
 from db.engine import AtlasError, atlas_name, damaged, display_target, start_writing
-from db.packed import TABLES, PackedShard, ShardRows, ShardWriteError, checked_rows, unpack
+from db.packed import TABLES, PackedShard, ShardRows, ShardWriteError, checked_rows
 from db.packed import columns as packed_columns
 from db.spec import spec_name
 from db.schema import SCHEMA_VERSION, Build, Dwell, Linkage, Segment, Shard, dwell_staging
@@ -383,7 +383,8 @@ def write_shard(engine: Engine, build_id: int, result: ShardRows | PackedShard, 
     """
     index = int(result.shard_index)
     packed = result if isinstance(result, PackedShard) else None
-    batches = None if packed is not None else checked_rows(result, {"linkage": {"build_id": build_id}})
+    extra = {"linkage": {"build_id": build_id}}
+    batches = None if packed is not None else checked_rows(result, extra)
     if packed is not None and not math.isfinite(packed.seconds):
         raise ShardWriteError(f"shard {index}: seconds={packed.seconds!r}; nothing of the shard was written")
     counts = ((packed.n_linkages, packed.n_segments) if packed is not None
@@ -405,7 +406,8 @@ def write_shard(engine: Engine, build_id: int, result: ShardRows | PackedShard, 
                 if schema is not None:
                     _copy_packed(conn, schema, packed, build_id)
                 else:
-                    for table, names, tuples in batches if batches is not None else _unpacked(packed, build_id):
+                    # a packed shard that cannot be attached: its rows read back (PostgreSQL)
+                    for table, names, tuples in batches if batches is not None else checked_rows(packed, extra):
                         _insert_rows(conn, table, names, tuples)
                 conn.execute(insert(Shard), [shard_row])
     except IntegrityError as exc:
@@ -467,19 +469,6 @@ def _copy_packed(conn: Connection, schema: str, packed: PackedShard, build_id: i
         else:
             conn.exec_driver_sql(f"INSERT INTO main.{quote(table.name)} ({source}) "
                                  f"SELECT {source} FROM {schema}.{quote(table.name)} ORDER BY rowid")
-
-
-def _unpacked(packed: PackedShard, build_id: int) -> list[tuple[Table, list[str], list[tuple]]]:
-    """A packed shard's rows as (table, names, tuples) per table, for a database that cannot
-    attach it (already checked by the worker; the linkage rows get ``build_id``)."""
-    out = []
-    for (_, _, table), n in zip(TABLES, (packed.n_linkages, packed.n_segments, packed.n_dwells)):
-        rows = unpack(packed.data, table.name) if n else []
-        if table.name == "linkage":
-            rows = [{**row, "build_id": build_id} for row in rows]
-        names = [c.name for c in table.columns if rows and c.name in rows[0]]
-        out.append((table, names, [tuple(row[k] for k in names) for row in rows]))
-    return out
 
 
 def _stored_already(engine: Engine, result: ShardRows | PackedShard) -> str | None:
