@@ -35,7 +35,6 @@ Pure: arrays in, a frozen struct of arrays out, skipped cases counted by reason.
 
 from __future__ import annotations
 
-import itertools
 import math
 from collections import Counter
 from dataclasses import dataclass, field
@@ -45,7 +44,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinematics.fourbar import fourbar_motion
-from kinematics.loop import line_intersection, transmission_fold
+from kinematics.loop import line_intersection
 from kinematics.status import Status
 from synth.ball import ball_point
 from synth.double_ball import double_ball_points
@@ -121,11 +120,12 @@ class FoundSegments:
     generating angle(s) (rad), scan ray angle (arcs; 0 otherwise), coupler point ``uv``, the
     osculating geometry — line ``point`` + unit ``direction`` (lines; for double lines also
     ``point2``/``direction2`` and their ``intersection``) or circle ``center`` + ``radius``
-    (arcs) — and the four-bar transmission-angle range over the widest dwell (rad, folded to
-    [0, π/2]). Per segment, level and part (``[:, level, part]``): ``has_dwell``, the interval
-    ``phi_start`` < ``phi_end`` (rad, ``phi_start`` in [0, 2π)), ``max_deviation`` from the
-    fitted geometry, which is ``fit_point`` + ``fit_direction`` (lines) or ``fit_point`` +
-    ``fit_radius`` (arcs). Per segment and level (``[:, level]``), arcs only: ``excursion``,
+    (arcs). Per segment, level and part (``[:, level, part]``): ``has_dwell``, the interval
+    ``phi_start`` < ``phi_end`` (rad, ``phi_start`` in [0, 2π)) on which the path stays within
+    the level's tolerance of its fitted geometry, which is ``fit_point`` + ``fit_direction``
+    (lines) or ``fit_point`` + ``fit_radius`` (arcs). (No deviation reached inside the interval
+    and no transmission range: nothing stores them, and the build computed them for nothing —
+    ~80 ms of a ``standard`` shard's 1.3 s.) Per segment and level (``[:, level]``), arcs only: ``excursion``,
     the path's largest distance from that level's circle over the whole turn (crank lengths,
     on the fine grid; 0 for lines and where there is no dwell): it sets the RRR rocker a
     swing needs (:mod:`synth.dwell_key`).
@@ -144,13 +144,10 @@ class FoundSegments:
     intersection: C128
     center: C128
     radius: F64
-    transmission_min: F64
-    transmission_max: F64
     tolerances: tuple[float, ...]
     has_dwell: NDArray[np.bool_]
     phi_start: F64
     phi_end: F64
-    max_deviation: F64
     fit_point: C128
     fit_direction: C128
     fit_radius: F64
@@ -389,7 +386,6 @@ def find_segments(b: F64, c: F64, d: F64, branch: I64, search: SegmentSearch) ->
     phi_f = np.arange(mf) * fine_step
     motion = fourbar_motion(1.0, b[:, None], c[:, None], d[:, None], phi_f, br[:, None], order=0)
     A, E = np.broadcast_to(motion.A, motion.shape), motion.e_theta
-    mu = transmission_fold(motion.e_theta * np.conj(motion.e_gamma))
 
     m = _Measured.empty(n_cand, levels)
     top = levels - 1
@@ -421,8 +417,8 @@ def find_segments(b: F64, c: F64, d: F64, branch: I64, search: SegmentSearch) ->
             _refine_ends(m, b, c, d, br, cand, rows[m.has[rows, level] & ~m.truncated[rows, level]], level, search)
     # a narrower band whose run still reached the widest window's edge: no dwell stored there
     np.logical_and(m.has, ~m.truncated, out=m.has)
-    return _assemble(A, E, cand, keep, search, m.start, m.end, np.where(m.has, m.dwell, 0.0),
-                     m.point, m.direction, m.radius, mu, skipped)
+    return _assemble(A, E, cand, keep, search, m.start, np.where(m.has, m.dwell, 0.0), m.point, m.direction,
+                     m.radius, skipped)
 
 
 @dataclass(frozen=True, slots=True)
@@ -543,8 +539,7 @@ def _arc_excursion(A, E, cand, first, kind, has, gp, gr) -> F64:
 _EXCURSION_BLOCK = 512
 
 
-def _assemble(A, E, cand, keep, search, start, end, dwell, gp, gd, gr, mu, skipped) -> FoundSegments:
-    levels = len(search.tolerances)
+def _assemble(A, E, cand, keep, search, start, dwell, gp, gd, gr, skipped) -> FoundSegments:
     first = np.flatnonzero(keep & ((cand.partner < 0) | (np.arange(keep.size) < cand.partner)))
     partner = np.where(cand.partner[first] >= 0, cand.partner[first], first)
     kind = np.where(cand.partner[first] >= 0, SegmentKind.DOUBLE_LINE.code, cand.kind[first])
@@ -558,38 +553,6 @@ def _assemble(A, E, cand, keep, search, start, end, dwell, gp, gd, gr, mu, skipp
     twopi = 2 * np.pi
     s = np.mod(start[two], twopi).transpose(0, 2, 1)
     e = s + dwell[two].transpose(0, 2, 1)
-    # transmission angle over the widest interval, deviation reached at every level (≤ the
-    # band), both on the fine grid
-    mf = A.shape[1]
-    fine_step = twopi / mf
-    tmin = np.full(first.size, np.pi / 2)
-    tmax = np.zeros(first.size)
-    maxdev = np.zeros((first.size, levels, 2))
-    k0 = np.ceil(start / fine_step - 1e-9).astype(np.int64)
-    k1 = np.floor(end / fine_step + 1e-9).astype(np.int64)
-    for part in range(2):
-        seg = np.arange(first.size) if part == 0 else np.flatnonzero(is_double)  # a single has one part
-        rows = two[seg, part]
-        for level in range(levels):
-            span = k1[rows, level] - k0[rows, level] + 1
-            # intervals grouped by length, so that a few long ones do not widen every gather
-            for shorter, width in itertools.pairwise((0, 16, 32, 64, 128, 256, 2 * mf)):
-                pick = np.flatnonzero((span > shorter) & (span <= width))
-                if not pick.size:
-                    continue
-                r, at = rows[pick], seg[pick]
-                offsets = np.arange(min(width, mf))
-                idx = (k0[r, level][:, None] + offsets) % mf
-                inside = offsets <= (k1[r, level] - k0[r, level])[:, None]
-                link = cand.linkage[r][:, None]
-                z = A[link, idx] + E[link, idx] * cand.uv[r][:, None]
-                dev = np.abs(path_deviation(z, cand.kind[r][:, None], gp[r, level][:, None], gd[r, level][:, None],
-                                            gr[r, level][:, None]))
-                maxdev[at, level, part] = np.where(inside, dev, 0.0).max(axis=1)
-                if level == levels - 1:
-                    vals = mu[link, idx]
-                    tmin[at] = np.minimum(tmin[at], np.where(inside, vals, np.inf).min(axis=1))
-                    tmax[at] = np.maximum(tmax[at], np.where(inside, vals, -np.inf).max(axis=1))
     excursion = _arc_excursion(A, E, cand, first, kind, has[:, :, 0], gp, gr)
     a_dbl = is_double
     p1, p2 = cand.point[two[:, 0]], cand.point[two[:, 1]]
@@ -615,13 +578,10 @@ def _assemble(A, E, cand, keep, search, start, end, dwell, gp, gd, gr, mu, skipp
         intersection=inter[sel],
         center=np.where(kind == SegmentKind.ARC.code, cand.point[first], 0)[sel],
         radius=np.where(kind == SegmentKind.ARC.code, cand.radius[first], 0.0)[sel],
-        transmission_min=tmin[sel],
-        transmission_max=tmax[sel],
         tolerances=tuple(search.tolerances),
         has_dwell=has[sel],
         phi_start=s[sel],
         phi_end=e[sel],
-        max_deviation=maxdev[sel],
         fit_point=gp[two].transpose(0, 2, 1)[sel],
         fit_direction=gd[two].transpose(0, 2, 1)[sel],
         fit_radius=gr[two].transpose(0, 2, 1)[sel],
