@@ -9,14 +9,13 @@ from __future__ import annotations
 import time
 from collections import Counter
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
 from atlas.sweep import SweepLinkages, SweepSpec, sweep_linkages
 from db.digest import shard_digest
 from db.packed import PACKING, PackedShard, pack
-from db.rows import linkage_rows, segment_rows
+from db.rows import TableColumns, linkage_columns, segment_columns
 from kinematics.fourbar import fourbar_motion
 from kinematics.loop import transmission_fold
 from synth.segments import SegmentSearch, find_segments
@@ -29,15 +28,15 @@ _TRANSMISSION_SAMPLES = 360
 
 @dataclass(frozen=True, slots=True)
 class ShardResult:
-    """Rows of one shard, ready for bulk insertion: dicts keyed by column name, plain Python
-    values (no numpy scalars, no NaN/inf), ids included. ``skipped`` counts degenerate cases
-    by reason; ``seconds`` is the compute time (not part of the content); ``digest`` the
-    shard's ``db.digest.shard_digest`` (None: the writer computes it)."""
+    """Rows of one shard per table, as columns (:class:`db.rows.TableColumns`: arrays, ids
+    included; :meth:`~db.rows.TableColumns.rows` spells them out as dicts). ``skipped`` counts
+    degenerate cases by reason; ``seconds`` is the compute time (not part of the content);
+    ``digest`` the shard's ``db.digest.shard_digest`` (None: the writer computes it)."""
 
     shard_index: int
-    linkages: list[dict[str, Any]]
-    segments: list[dict[str, Any]]
-    dwells: list[dict[str, Any]]
+    linkages: TableColumns
+    segments: TableColumns
+    dwells: TableColumns
     skipped: dict[str, int] = field(default_factory=dict)
     seconds: float = 0.0
     digest: str | None = None
@@ -45,6 +44,10 @@ class ShardResult:
     @property
     def n_segments(self) -> int:
         return len(self.segments)
+
+    @property
+    def linkage_ids(self) -> tuple[int, ...]:
+        return tuple(np.asarray(self.linkages.values.get("id", ()), np.int64).tolist())
 
 
 def handed_over(result: ShardResult) -> ShardResult | PackedShard:
@@ -83,11 +86,11 @@ def compute_shard(spec: SweepSpec, shard_index: int, linkages: SweepLinkages | N
     keep = ok_link
     if not keep.all():  # a crank-rocker closes over the whole turn; anything else is not stored
         skipped["linkage does not assemble over the whole turn"] += int(np.count_nonzero(~keep))
-    links = linkage_rows(shard_index, sweep_index[keep], b[keep], c[keep], d[keep], br[keep], grashof[keep], mu[keep])
+    links = linkage_columns(shard_index, sweep_index[keep], b[keep], c[keep], d[keep], br[keep], grashof[keep], mu[keep])
     found = find_segments(b[keep], c[keep], d[keep], br[keep], SegmentSearch.from_spec(spec))
     skipped.update(found.skipped)
-    segments, dwells = segment_rows(found, links)
-    digest = shard_digest(links, segments, dwells)  # here, on a worker: the writer stays free
+    segments, dwells = segment_columns(found, links)
+    digest = shard_digest(links, segments, dwells)  # here, on a worker, from the arrays: the writer stays free
     return ShardResult(
         shard_index=int(shard_index),
         linkages=links,

@@ -12,21 +12,21 @@ atlas's own constraints. On another database the writer reads the tuples back an
 as it loads any rows (``COPY`` on PostgreSQL).
 
 NaN and ±inf: SQLite stores a NaN as NULL, which a nullable column would take silently, so rows
-are checked before they are packed (:func:`checked_rows`: one ``fsum`` per table, then the
-culprit named row by row) — the check the writer made before, moved with the rows.
+are checked before they are packed (:func:`checked_rows`: ``isfinite`` over each float column
+of the shard's :class:`db.rows.TableColumns`, the first culprit named) — the check the writer
+made before, moved with the rows.
 """
 
 from __future__ import annotations
 
-import itertools
 import math
 import sqlite3
 from dataclasses import dataclass, field
-from operator import itemgetter
 from typing import Any, Protocol
 
-from sqlalchemy import Float, Table
+from sqlalchemy import Table
 
+from db.rows import TableColumns
 from db.schema import Linkage, Segment, dwell_staging
 
 __all__ = ["PACKING", "PackedShard", "ShardRows", "ShardWriteError", "checked_rows", "pack", "unpack"]
@@ -44,15 +44,17 @@ class ShardWriteError(RuntimeError):
 
 
 class ShardRows(Protocol):
-    """What a shard result holds (``atlas.shard.ShardResult``): its rows as dicts keyed by
-    column name."""
+    """What a shard result holds (``atlas.shard.ShardResult``): its rows per table, as columns."""
 
     shard_index: int
-    linkages: list[dict[str, Any]]
-    segments: list[dict[str, Any]]
-    dwells: list[dict[str, Any]]
+    linkages: TableColumns
+    segments: TableColumns
+    dwells: TableColumns
     skipped: dict[str, int]
     seconds: float
+
+    @property
+    def linkage_ids(self) -> tuple[int, ...]: ...
 
 
 #: Per table: its name in messages, its row list in :class:`ShardRows`, the atlas table its rows
@@ -65,52 +67,27 @@ TABLES: tuple[tuple[str, str, Table], ...] = (
 
 
 def checked_rows(result: ShardRows, extra: dict[str, dict[str, Any]] | None = None) -> list[tuple[Table, list[str], list[tuple]]]:
-    """The rows of ``result`` per atlas table — (table, column names in schema order, tuples) —
-    after checking that every float is finite (:class:`ShardWriteError` naming the first that is
-    not). ``extra`` adds columns to every row of a table (the writer's ``build_id``)."""
+    """The rows of ``result`` per atlas table — (table, column names in schema order, tuples of
+    plain Python values) — after checking that every float is finite (:class:`ShardWriteError`
+    naming the first that is not, row by row). ``extra`` adds a column of one value to every
+    row of a table (the writer's ``build_id``)."""
     index = int(result.shard_index)
     out = []
     for name, attr, table in TABLES:
-        rows = getattr(result, attr)
-        more = (extra or {}).get(table.name)
-        if more:
-            rows = [{**row, **more} for row in rows]
-        names = [c.name for c in table.columns if rows and c.name in rows[0]]
-        tuples = list(map(itemgetter(*names), rows)) if len(names) > 1 else [(row[names[0]],) for row in rows] if names else []
-        if not _all_finite(table, names, tuples):
-            bad = _first_nonfinite(rows)
-            if bad is not None:
-                i, key, value = bad
-                raise ShardWriteError(f"shard {index}: {name} row {i} has {key}={value!r}; nothing of the shard was written")
-        out.append((table, names, tuples))
+        columns: TableColumns = getattr(result, attr)
+        bad = columns.first_nonfinite()
+        if bad is not None:
+            i, key, value = bad
+            raise ShardWriteError(f"shard {index}: {name} row {i} has {key}={value!r}; nothing of the shard was written")
+        n = len(columns)
+        given = dict(zip(columns.values, columns.lists()))
+        if n:
+            given.update({k: [v] * n for k, v in (extra or {}).get(table.name, {}).items()})
+        names = [c.name for c in table.columns if c.name in given]
+        out.append((table, names, list(zip(*(given[k] for k in names)))))
     if not math.isfinite(result.seconds):
         raise ShardWriteError(f"shard {index}: seconds={result.seconds!r}; nothing of the shard was written")
     return out
-
-
-def _first_nonfinite(rows: list[dict[str, Any]]) -> tuple[int, str, float] | None:
-    for i, row in enumerate(rows):
-        for key, value in row.items():
-            if isinstance(value, float) and not math.isfinite(value):
-                return i, key, value
-    return None
-
-
-def _all_finite(table: Table, names: list[str], tuples: list[tuple]) -> bool:
-    """Whether every float column of ``tuples`` (values in ``names`` order) is finite: one
-    ``fsum`` over all of them, in C (a NaN or ±inf anywhere makes it non-finite; the floats
-    are picked row by row, not transposed into columns, which cost several times the sum).
-    False also when the sum overflows or a value is not a number; :func:`_first_nonfinite`
-    then looks row by row."""
-    floats = {c.name for c in table.columns if isinstance(c.type, Float)}
-    at = [k for k, n in enumerate(names) if n in floats]
-    if not at or not tuples:
-        return True
-    values = map(itemgetter(*at), tuples) if len(at) > 1 else ((row[at[0]],) for row in tuples)
-    try:
-        return math.isfinite(math.fsum(filter(None, itertools.chain.from_iterable(values))))
-    except (OverflowError, TypeError):
-        return False
 
 
 @dataclass(frozen=True, slots=True)
@@ -130,18 +107,18 @@ class PackedShard:
     seconds: float = 0.0
     digest: str | None = None
 
-    # the rows as dicts again (tests, and the writer's message when a shard clashes)
+    # the rows as columns again (tests, and the writer where it cannot attach the packed database)
     @property
-    def linkages(self) -> list[dict[str, Any]]:
-        return unpack(self.data, "linkage")
+    def linkages(self) -> TableColumns:
+        return TableColumns.of_rows(None, unpack(self.data, "linkage"))
 
     @property
-    def segments(self) -> list[dict[str, Any]]:
-        return unpack(self.data, "segment")
+    def segments(self) -> TableColumns:
+        return TableColumns.of_rows(None, unpack(self.data, "segment"))
 
     @property
-    def dwells(self) -> list[dict[str, Any]]:
-        return unpack(self.data, dwell_staging.name)
+    def dwells(self) -> TableColumns:
+        return TableColumns.of_rows(None, unpack(self.data, dwell_staging.name))
 
 
 def pack(result: ShardRows, digest: str | None) -> PackedShard:

@@ -19,6 +19,10 @@ radians, fixed frame).
 from __future__ import annotations
 
 import math
+import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from operator import itemgetter
 from typing import Any
 
 import numpy as np
@@ -28,8 +32,8 @@ from synth.dwell_key import arc_dwell_key
 from synth.kinds import SEGMENT_KINDS, SegmentKind
 from synth.segments import FoundSegments
 
-__all__ = ["SEGMENTS_PER_LINKAGE", "length_ceil_milli", "line_offset", "line_offsets", "line_point", "linkage_id", "linkage_rows", "segment_rows",
-           "transmission_floor_cdeg"]
+__all__ = ["SEGMENTS_PER_LINKAGE", "TableColumns", "length_ceil_milli", "line_offset", "line_offsets", "line_point",
+           "linkage_columns", "linkage_id", "segment_columns", "transmission_floor_cdeg"]
 
 #: Room for segment ordinals inside one linkage's id range (ids stay below 2^63 for 10^8 linkages).
 SEGMENTS_PER_LINKAGE = 100_000
@@ -40,25 +44,96 @@ def linkage_id(sweep_index: int, branch: int) -> int:
     return 2 * int(sweep_index) + (0 if branch == 1 else 1) + 1
 
 
-def linkage_rows(shard_index: int, sweep_index: NDArray, b: NDArray, c: NDArray, d: NDArray, branch: NDArray,
-                 grashof: NDArray, transmission: NDArray) -> list[dict[str, Any]]:
-    """Rows of the ``linkage`` table, one per four-bar; ``transmission`` (N, M) holds its folded
-    transmission angle over the turn (rad; NaN where it does not assemble, not read)."""
-    return [
-        {
-            "id": linkage_id(int(sweep_index[i]), int(branch[i])),
-            "shard_index": int(shard_index),
-            "sweep_index": int(sweep_index[i]),
-            "b": float(b[i]),
-            "c": float(c[i]),
-            "d": float(d[i]),
-            "branch": int(branch[i]),
-            "grashof": int(grashof[i]),
-            "transmission_min": float(np.nanmin(transmission[i])),
-            "transmission_max": float(np.nanmax(transmission[i])),
-        }
-        for i in range(len(b))
-    ]
+@dataclass(frozen=True, slots=True)
+class TableColumns:
+    """One table's rows as columns, in row order: ``values`` by column name (a float64 or int64
+    array, or a list of ``str``), and ``nulls`` by column name where it is NULL somewhere (a bool
+    array, True: NULL; the value there is a placeholder and means nothing). What a shard
+    computes, digests (:func:`db.digest.shard_digest`) and turns into rows (:meth:`rows`)."""
+
+    values: dict[str, Any]
+    nulls: dict[str, NDArray[np.bool_]] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(next(iter(self.values.values()))) if self.values else 0
+
+    def lists(self) -> list[list[Any]]:
+        """The columns in :attr:`values`' order as lists of plain Python values (``tolist``: no
+        numpy scalars), None where NULL."""
+        out = []
+        for name, values in self.values.items():
+            null = self.nulls.get(name)
+            if null is not None and null.any():
+                values = np.asarray(values).astype(object)  # a float64 as a Python float
+                values[null] = None
+            out.append(values.tolist() if isinstance(values, np.ndarray) else list(values))
+        return out
+
+    def rows(self) -> list[dict[str, Any]]:
+        """The rows as dicts keyed by column name, in :attr:`values`' order (as :meth:`lists`)."""
+        names = list(self.values)
+        return [dict(zip(names, row)) for row in zip(*self.lists())]
+
+    def first_nonfinite(self) -> tuple[int, str, float] | None:
+        """(row, column, value) of the first NaN or ±inf, row by row, a row's columns in
+        :attr:`values`' order (a NULL is none); None if every float is finite."""
+        first = None
+        for name, values in self.values.items():
+            if not (isinstance(values, np.ndarray) and values.dtype.kind == "f"):
+                continue
+            bad = ~np.isfinite(values)
+            if name in self.nulls:
+                bad &= ~self.nulls[name]
+            if bad.any():
+                i = int(np.argmax(bad))
+                if first is None or i < first[0]:
+                    first = (i, name, float(values[i]))
+        return first
+
+    @classmethod
+    def of_rows(cls, names: Sequence[str] | None, rows: Sequence[Sequence[Any]] | Sequence[Mapping[str, Any]]) -> TableColumns:
+        """The columns ``names`` of ``rows`` given as tuples of values in ``names`` order, or as
+        dicts (``names`` None: the first row's keys): None is NULL. A column of ``str`` stays a
+        list; every other column becomes a float64 array if it holds a float, int64 otherwise."""
+        if rows and isinstance(rows[0], Mapping):
+            names = list(rows[0]) if names is None else names
+            rows = [itemgetter(*names)(row) if len(names) > 1 else (row[names[0]],) for row in rows]
+        names = list(names or [])
+        columns = list(zip(*rows)) if rows else [() for _ in names]
+        values, nulls = {}, {}
+        for name, column in zip(names, columns):
+            if None in column:
+                nulls[name] = np.fromiter((v is None for v in column), bool, len(column))
+                fill = "" if any(isinstance(v, str) for v in column) else 0
+                column = [fill if v is None else v for v in column]
+            if any(isinstance(v, str) for v in column):
+                values[name] = list(column)
+            else:
+                values[name] = np.array(column, np.float64 if any(isinstance(v, float) for v in column) else np.int64)
+        return cls(values, nulls)
+
+
+def linkage_columns(shard_index: int, sweep_index: NDArray, b: NDArray, c: NDArray, d: NDArray, branch: NDArray,
+                    grashof: NDArray, transmission: NDArray) -> TableColumns:
+    """The ``linkage`` table's columns, one row per four-bar; ``transmission`` (N, M) holds its
+    folded transmission angle over the turn (rad; NaN where it does not assemble, not read)."""
+    sweep_index = np.asarray(sweep_index, np.int64)
+    branch = np.asarray(branch, np.int64)
+    with warnings.catch_warnings():  # a linkage of no assembled sample (none reaches a row) is all NaN
+        warnings.simplefilter("ignore", RuntimeWarning)
+        low, high = np.nanmin(transmission, axis=1), np.nanmax(transmission, axis=1)
+    return TableColumns({
+        "id": 2 * sweep_index + np.where(branch == 1, 0, 1) + 1,  # linkage_id's rule, for every row at once
+        "shard_index": np.full(sweep_index.size, int(shard_index), np.int64),
+        "sweep_index": sweep_index,
+        "b": np.asarray(b, np.float64),
+        "c": np.asarray(c, np.float64),
+        "d": np.asarray(d, np.float64),
+        "branch": branch,
+        "grashof": np.asarray(grashof, np.int64),
+        "transmission_min": np.asarray(low, np.float64),
+        "transmission_max": np.asarray(high, np.float64),
+    })
 
 
 def transmission_floor_cdeg(angle: float) -> int:
@@ -96,9 +171,9 @@ def line_point(offset: float, direction: float) -> complex:
     return offset * 1j * complex(math.cos(direction), math.sin(direction))
 
 
-def segment_rows(found: FoundSegments, linkages: list[dict[str, Any]]) -> tuple[list[dict], list[dict]]:
-    """Rows of the ``segment`` and ``dwell`` tables for ``found``, whose ``linkage`` indexes
-    ``linkages`` (the rows of :func:`linkage_rows`). Each dwell row carries conservative
+def segment_columns(found: FoundSegments, linkages: TableColumns) -> tuple[TableColumns, TableColumns]:
+    """The ``segment`` and ``dwell`` tables' columns for ``found``, whose ``linkage`` indexes
+    the rows of ``linkages`` (:func:`linkage_columns`). Each dwell row carries conservative
     integer copies of its linkage's constraint figures (smallest transmission angle floored
     to 0.01°, longest link ceiled to 0.001 crank), so that the query's walk filters on them
     without a join. A double line gets a dwell row only at the levels where both its
@@ -106,46 +181,40 @@ def segment_rows(found: FoundSegments, linkages: list[dict[str, Any]]) -> tuple[
 
     Rows come segment by segment, a segment's dwell rows level by level. The figures are
     worked out for all rows at once (:func:`_stretches`), each to the same float as
-    :func:`line_offset` and :func:`synth.dwell_key.arc_dwell_key` give it for one row; the
-    dicts are made from plain lists (``tolist``: Python floats and ints)."""
+    :func:`line_offset` and :func:`synth.dwell_key.arc_dwell_key` give it for one row."""
     code = found.kind
     double = code == SegmentKind.DOUBLE_LINE.code
-    owner = found.linkage.tolist()
-    links = [linkages[j] for j in owner]
-    sids = [link["id"] * SEGMENTS_PER_LINKAGE + o for link, o in zip(links, _ordinals(found.linkage).tolist())]
-    names = [kind.value for kind in SEGMENT_KINDS]
-    segments = [
-        {"id": sid, "linkage_id": link["id"], "kind": kind, "phi_gen": phi, "phi_gen2": phi2, "u": u, "v": v}
-        for sid, link, kind, phi, phi2, u, v in zip(
-            sids, links, map(names.__getitem__, code.tolist()), found.phi_gen.tolist(),
-            _nullable(double, found.phi_gen2[double]), found.uv.real.tolist(), found.uv.imag.tolist())
-    ]
+    owner = found.linkage
+    link_id = np.asarray(linkages.values["id"], np.int64)
+    sids = link_id[owner] * SEGMENTS_PER_LINKAGE + _ordinals(owner)
+    names = np.array([kind.value for kind in SEGMENT_KINDS], dtype=object)
+    segments = TableColumns(
+        {"id": sids, "linkage_id": link_id[owner], "kind": names[code].tolist(), "phi_gen": found.phi_gen,
+         "phi_gen2": np.where(double, found.phi_gen2, 0.0), "u": found.uv.real.copy(), "v": found.uv.imag.copy()},
+        {"phi_gen2": ~double},
+    )
 
     # the dwell rows: (segment, level) where the first stretch has a dwell (a double line: both)
     has = found.has_dwell[:, :len(found.tolerances)]
     seg, level = np.nonzero(has[:, :, 0] & (has[:, :, 1] | ~double[:, None]))  # segment-major: the rows' order
-    # the integer copies, worked out once per linkage
-    copies = {j: (transmission_floor_cdeg(linkages[j]["transmission_min"]),
-                  length_ceil_milli(max(linkages[j]["b"], linkages[j]["c"], linkages[j]["d"]))) for j in set(owner)}
-    copy_min, copy_longest = ([copies[j][k] for j in owner] for k in (0, 1))
-    seg_list = seg.tolist()
-    columns = _stretches(found, seg, level)
-    dwells = [
-        {"kind": kind, "level": lv, "segment_id": sid, "transmission_min_cdeg": tmin, "longest_link_milli": longest,
-         "dwell_key": key, "dwell_angle": angle, "phi_start": start, "x": x, "y": y, "direction": direction,
-         "radius": radius, "dwell_angle2": angle2, "phi_start2": start2, "x2": x2, "direction2": direction2}
-        for kind, lv, sid, tmin, longest, key, angle, start, x, y, direction, radius, angle2, start2, x2, direction2
-        in zip(code[seg].tolist(), level.tolist(), map(sids.__getitem__, seg_list), map(copy_min.__getitem__, seg_list),
-               map(copy_longest.__getitem__, seg_list), *columns)
-    ]
+    # the integer copies, worked out once per linkage by the scalar rules
+    low, b, c, d = (linkages.values[n].tolist() for n in ("transmission_min", "b", "c", "d"))
+    copy_min = np.array([transmission_floor_cdeg(t) for t in low], np.int64)
+    copy_longest = np.array([length_ceil_milli(max(x)) for x in zip(b, c, d)], np.int64)
+    values, nulls = _stretches(found, seg, level)
+    dwells = TableColumns(
+        {"kind": code[seg], "level": level.astype(np.int64), "segment_id": sids[seg],
+         "transmission_min_cdeg": copy_min[owner[seg]], "longest_link_milli": copy_longest[owner[seg]], **values},
+        nulls,
+    )
     return segments, dwells
 
 
-def _stretches(found: FoundSegments, seg: NDArray[np.int64], level: NDArray[np.int64]) -> list[list]:
-    """The dwell columns of the rows (``seg``, ``level``), from ``dwell_key`` to ``direction2``
-    in row order, as lists (None where a column does not apply). A line's key is its dwell
-    angle; an arc's is its dwell key, the angle in a column of its own. A double line's first
-    stretch is a line's, its second goes in the ``…2`` columns."""
+def _stretches(found: FoundSegments, seg: NDArray[np.int64], level: NDArray[np.int64]) -> tuple[dict, dict]:
+    """The dwell columns of the rows (``seg``, ``level``), from ``dwell_key`` to ``direction2``,
+    and where each is NULL (a column that does not apply). A line's key is its dwell angle; an
+    arc's is its dwell key, the angle in a column of its own. A double line's first stretch is
+    a line's, its second goes in the ``…2`` columns."""
     code = found.kind[seg]
     arc = code == SegmentKind.ARC.code
     line = ~arc
@@ -156,23 +225,22 @@ def _stretches(found: FoundSegments, seg: NDArray[np.int64], level: NDArray[np.i
     key = angle.copy()  # a line's
     key[arc] = arc_dwell_key(angle[arc], found.excursion[seg[arc], level[arc]], np.asarray(found.tolerances)[level[arc]])
     # np.angle of an array runs the arctan2 loop np.angle of one value runs: the same floats
-    direction = np.angle(found.fit_direction[seg[line], level[line], 0])
+    direction = np.zeros(seg.size)
+    direction[line] = np.angle(found.fit_direction[seg[line], level[line], 0])
     x = point.real.copy()  # an arc's centre
-    x[line] = line_offsets(point[line], direction)
-    start2 = found.phi_start[seg[double], level[double], 1]
-    direction2 = np.angle(found.fit_direction[seg[double], level[double], 1])
-    return [key.tolist(), _nullable(arc, angle[arc]), start.tolist(), x.tolist(), _nullable(arc, point.imag[arc]),
-            _nullable(line, direction), _nullable(arc, found.fit_radius[seg[arc], level[arc], 0]),
-            _nullable(double, found.phi_end[seg[double], level[double], 1] - start2), _nullable(double, start2),
-            _nullable(double, line_offsets(found.fit_point[seg[double], level[double], 1], direction2)),
-            _nullable(double, direction2)]
-
-
-def _nullable(where: NDArray[np.bool_], values: NDArray) -> list:
-    """A column of ``where.size`` rows: ``values`` (as Python floats) where ``where``, None elsewhere."""
-    out = np.full(where.size, None, dtype=object)
-    out[where] = values  # an object array takes a float64 as a Python float
-    return out.tolist()
+    x[line] = line_offsets(point[line], direction[line])
+    start2 = np.where(double, found.phi_start[seg, level, 1], 0.0)
+    direction2 = np.where(double, np.angle(found.fit_direction[seg, level, 1]), 0.0)
+    x2 = np.zeros(seg.size)
+    x2[double] = line_offsets(found.fit_point[seg[double], level[double], 1], direction2[double])
+    values = {"dwell_key": key, "dwell_angle": np.where(arc, angle, 0.0), "phi_start": start, "x": x,
+              "y": np.where(arc, point.imag, 0.0), "direction": direction,
+              "radius": np.where(arc, found.fit_radius[seg, level, 0], 0.0),
+              "dwell_angle2": np.where(double, found.phi_end[seg, level, 1] - found.phi_start[seg, level, 1], 0.0),
+              "phi_start2": start2, "x2": x2, "direction2": direction2}
+    nulls = {"dwell_angle": line, "y": line, "direction": arc, "radius": line,
+             "dwell_angle2": ~double, "phi_start2": ~double, "x2": ~double, "direction2": ~double}
+    return values, nulls
 
 
 def _ordinals(linkage: NDArray[np.int64]) -> NDArray[np.int64]:

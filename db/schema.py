@@ -37,8 +37,11 @@ __all__ = ["SCHEMA_VERSION", "APPLICATION", "Base", "Meta", "Build", "Shard", "L
 #: is defined over them (``db.digest``); shards append their dwell rows to ``dwell_staging``,
 #: moved into ``dwell`` in key order when the build completes. 5: arc rows are keyed by their dwell
 #: key (the stored dwell × the path's excursion from the circle^¼, :mod:`synth.dwell_key`), which
-#: orders them by the RRR dwell they predict; their dwell angle moves to a column of its own.
-SCHEMA_VERSION = 5
+#: orders them by the RRR dwell they predict; their dwell angle moves to a column of its own. 6:
+#: the shard digest (``shard.digest``, and so ``build.content_digest``) is defined over binary
+#: records of the rows, floats rounded to 40 bits, instead of their ``%.12g`` text (``db.digest``):
+#: the same rows, another hash — an atlas of schema 5 would fail ``--verify``.
+SCHEMA_VERSION = 6
 #: Written to the meta table so that a foreign SQLite file is recognised as such.
 APPLICATION = "dwell-atlas"
 

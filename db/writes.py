@@ -373,7 +373,7 @@ def _insert_rows(conn: Connection, table: Table, names: list[str], tuples: list[
 def write_shard(engine: Engine, build_id: int, result: ShardRows | PackedShard, *, lock_token: str | None = None) -> None:
     """Store one shard — linkages, segments, dwells and the shard row — in ONE transaction.
 
-    ``result`` is a shard's rows as dicts (checked here) or packed by a worker
+    ``result`` is a shard's rows as columns (checked here) or packed by a worker
     (:class:`db.packed.PackedShard`, checked there): on SQLite a packed shard is attached and
     copied table by table with ``INSERT … SELECT``, plain rows go in by one raw
     ``executemany`` of tuples per table; on PostgreSQL both by ``COPY``. With ``lock_token``
@@ -475,7 +475,7 @@ def _stored_already(engine: Engine, result: ShardRows | PackedShard) -> str | No
     """"linkage ID" if the atlas already holds one of this shard's linkages — its ids derive
     from the shard index, so that is this shard's own row, stored without its shard row (or
     under a build row since deleted): a damaged atlas. None otherwise (a bug upstream)."""
-    ids = list(result.linkage_ids) if isinstance(result, PackedShard) else [row["id"] for row in result.linkages]
+    ids = list(result.linkage_ids)
     with engine.connect() as conn:
         for start in range(0, len(ids), 500):  # under every dialect's parameter limit
             found = conn.execute(select(Linkage.id).where(Linkage.id.in_(ids[start:start + 500])).limit(1)).scalar()

@@ -35,7 +35,7 @@ import numpy as np
 from atlas.sweep import PRESETS, sweep_linkages
 from cli.budget import check_time
 from cli.options import RAYS, SEARCH_STEP_DEG, writable_file
-from db.rows import linkage_rows, segment_rows
+from db.rows import linkage_columns, segment_columns
 from kinematics.fourbar import fourbar_motion
 from synth.kinds import SEGMENT_KINDS, SegmentKind
 from synth.minimum_zone import path_deviation
@@ -143,13 +143,13 @@ def atlas(preset, proportions, resolutions, reference_step, reference_rays, dwel
     b, c, d = (np.repeat(x[:n], len(spec.branches)) for x in (sweep.b, sweep.c, sweep.d))
     br = np.tile(np.asarray(spec.branches), n)
     levels = len(spec.tolerances)
-    links = linkage_rows(0, np.arange(b.size), b, c, d, br, np.zeros(b.size, int), np.zeros((b.size, 1)))
+    links = linkage_columns(0, np.arange(b.size), b, c, d, br, np.zeros(b.size, int), np.zeros((b.size, 1)))
 
     def search(step: float, rays: int):
         s = SegmentSearch.from_spec(spec.replace(crank_step_deg=step, rays=rays))
         t0 = time.perf_counter()
         found = find_segments(b, c, d, br, s)
-        rows = segment_rows(found, links)
+        rows = [table.rows() for table in segment_columns(found, links)]
         return found, rows, time.perf_counter() - t0
 
     ref, _, ref_seconds = search(reference_step, reference_rays)

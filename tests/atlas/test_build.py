@@ -16,6 +16,7 @@ from atlas.build import build_atlas, run_shards
 from atlas.shard import compute_shard
 from db import AtlasError, open_atlas
 from db.digest import content_digest
+from db.rows import TableColumns
 from db.writes import ShardWriteError
 
 #: a small sweep with demo-like search settings: a few dozen linkages in several shards
@@ -66,7 +67,7 @@ def test_uninterrupted_build_matches_the_shards(reference):
     assert summary.linkages == sum(len(r.linkages) for r in direct) > 0
     assert summary.linkages_computed == 2 * len(sweep_linkages(SPEC))
     for kind in ("line", "arc", "double_line"):
-        assert summary.segments[kind] == sum(1 for r in direct for s in r.segments if s["kind"] == kind)
+        assert summary.segments[kind] == sum(1 for r in direct for s in r.segments.values["kind"] if s == kind)
     assert summary.dwells == sum(len(r.dwells) for r in direct)
     assert build_row(path) == ("complete", None, N_SHARDS)
     assert len(digest) == 64 and int(digest, 16) >= 0
@@ -147,9 +148,9 @@ def test_a_bad_shard_is_rolled_back_and_the_others_kept(tmp_path, reference):
     def poisoned(spec, sweep, indices, workers, *, tick=None):
         for result in run_shards(spec, sweep, indices, 1):
             if result.shard_index == 2:
-                bad = [dict(r) for r in result.linkages]
+                bad = result.linkages.rows()
                 bad[-1]["transmission_max"] = float("nan")
-                result = replace(result, linkages=bad)
+                result = replace(result, linkages=TableColumns.of_rows(None, bad))
             yield result
 
     path = tmp_path / "bad.sqlite"

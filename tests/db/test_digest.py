@@ -1,19 +1,28 @@
-"""Content digest: canonical text, what it ignores, what it does not; the same on SQLite and
-PostgreSQL, for hand-made shards and for real builds."""
+"""Content digest: its records written out by hand from the rules (floats rounded in exact
+arithmetic), what it ignores, what it does not; the same on SQLite and PostgreSQL, for
+hand-made shards and for real builds."""
 
 from __future__ import annotations
 
 import hashlib
+import math
+import struct
+import sys
 from dataclasses import replace
+from fractions import Fraction
 
+import numpy as np
 import pytest
+from hypothesis import example, given
+from hypothesis import strategies as st
 from shards import shard_rows
-from sqlalchemy import insert, select, update
+from sqlalchemy import Float, String, insert, select, update
 
 from atlas.build import build_atlas
 from atlas.sweep import PRESETS
 from db import SCHEMA_VERSION, Build, Dwell, Linkage, Segment, Shard, open_atlas
-from db.digest import DIGEST_EXCLUDED, content_digest, format_value, shard_digest, shard_digests, stored_digest
+from db.digest import DIGEST_EXCLUDED, content_digest, rounded_bits, shard_digest, shard_digests, stored_digest
+from db.rows import TableColumns
 from db.summary import atlas_summary
 from db.writes import finish_build, write_shard
 from synth.kinds import SegmentKind
@@ -38,23 +47,52 @@ def make(target, shards, *, spec_json='{"name": "demo"}', extra_builds=0):
     return engine
 
 
-def test_canonical_text_of_a_known_atlas(atlas_url):
+def _rounded(x: float) -> float:
+    """``x`` rounded to 40 significant bits, half away from zero, in exact arithmetic (a normal
+    float or 0; −0.0 gives +0.0)."""
+    if x == 0:
+        return 0.0
+    m, e = math.frexp(abs(x))  # |x| = m·2^e, m in [0.5, 1)
+    n = math.floor(Fraction(m) * 2**40 + Fraction(1, 2))  # 40 bits: n in [2^39, 2^40]
+    return math.copysign(math.ldexp(n, e - 40), x)
+
+
+def _record(model, row) -> bytes:
+    """A row's record written out from the module docstring's rules, a value at a time."""
+    out = b""
+    for c in model.__table__.columns:
+        if c.name in DIGEST_EXCLUDED[model.__tablename__]:
+            continue
+        v = row[c.name]
+        out += b"\x01" if v is None else b"\x00"
+        if isinstance(c.type, String):
+            out += (b"" if v is None else str(v).encode()).ljust(c.type.length, b"\x00")
+        elif isinstance(c.type, Float):
+            out += struct.pack("<d", 0.0 if v is None else _rounded(v))
+        else:
+            out += struct.pack("<q", 0 if v is None else v)
+    return out
+
+
+def _by_hand(model, rows) -> bytes:
+    """The header and the records of ``rows`` (dicts), in primary-key order."""
+    cols = [c.name for c in model.__table__.columns if c.name not in DIGEST_EXCLUDED[model.__tablename__]]
+    key = [c.name for c in model.__table__.primary_key.columns]
+    head = ("#" + model.__tablename__ + "\t" + "\t".join(cols) + "\n").encode()
+    return head + b"".join(_record(model, r) for r in sorted(rows, key=lambda r: [r[n] for n in key]))
+
+
+def _digest_by_hand(linkages, segments, dwells) -> str:
+    return hashlib.sha256(_by_hand(Linkage, linkages) + _by_hand(Segment, segments) + _by_hand(Dwell, dwells)).hexdigest()
+
+
+def test_records_of_a_known_atlas(atlas_url):
     rows = shard_rows(0)
     engine = make(atlas_url, [rows])
-    lk, sg, dw = rows.linkages[0], rows.segments[0], rows.dwells[0]
-    # written out by hand from the rules in db/digest.py
-    text = (
-        "#linkage\tid\tshard_index\tsweep_index\tb\tc\td\tbranch\tgrashof\ttransmission_min\ttransmission_max\n"
-        "1\t0\t0\t3\t2.5\t3\t1\t1\t0.5\t1.5\n"
-        "#segment\tid\tlinkage_id\tkind\tphi_gen\tphi_gen2\tu\tv\n"
-        f"{sg['id']}\t1\t\"arc\"\t1\t~\t1.2\t0.8\n"
-        "#dwell\tkind\tlevel\tdwell_key\tsegment_id\tdwell_angle\ttransmission_min_cdeg\tlongest_link_milli\tradius"
-        "\tphi_start\tx\ty\tdirection\tdwell_angle2\tphi_start2\tx2\tdirection2\n"
-        f"1\t0\t0.5\t{sg['id']}\t0.5\t2864\t3000\t2\t0.75\t0.5\t0.25\t~\t~\t~\t~\t~\n"
-    )
-    assert lk["id"] == 1
-    shard = hashlib.sha256(text.encode()).hexdigest()
-    assert shard_digest(rows.linkages, rows.segments, rows.dwells) == shard
+    lk, sg, dw = rows.linkages.rows(), rows.segments.rows(), rows.dwells.rows()
+    assert lk[0]["id"] == 1 and sg[0]["kind"] == "arc" and dw[0]["direction"] is None
+    shard = _digest_by_hand(lk, sg, dw)
+    assert shard_digest(rows.linkages, rows.segments, rows.dwells) == shard == shard_digest(lk, sg, dw)
     assert content_digest(engine) == hashlib.sha256(f"0\t{shard}\n".encode()).hexdigest()
     with engine.connect() as conn:
         assert stored_digest(conn, 1) == content_digest(engine)  # from the shard row's digest
@@ -110,48 +148,53 @@ def test_a_build_stores_the_digest_its_rows_give(tmp_path):
     engine.dispose()
 
 
-def test_format_value_rules():
-    b = Linkage.__table__.c.b
-    assert format_value(b, -0.0) == format_value(b, 0.0) == "0"
-    assert format_value(b, 1 / 3) == "0.333333333333"
-    assert format_value(b, -2.5e-300) == "-2.5e-300"
-    assert format_value(b, None) == "~"
-    assert format_value(Linkage.__table__.c.id, 2**40) == str(2**40)
-    assert format_value(Segment.__table__.c.kind, "arc") == '"arc"'
+@given(st.floats(-1e300, 1e300).filter(lambda x: x == 0 or abs(x) >= sys.float_info.min))  # the schema's range
+@example(1.0 + 2.0**-40)  # half an ulp of 40 bits: away from zero
+@example(-(1.0 + 2.0**-40))
+@example(2.0 - 2.0**-52)  # rounds up into the next binade
+@example(-0.0)
+@example(1e300)
+def test_floats_are_rounded_to_40_bits_as_exact_arithmetic_rounds_them(x):
+    assert rounded_bits(np.array([x])).tobytes() == struct.pack("<d", _rounded(x))
 
 
-def _text(model, rows) -> str:
-    """The canonical text of ``rows`` (dicts) written out value by value with ``format_value``."""
-    cols = [c for c in model.__table__.columns if c.name not in DIGEST_EXCLUDED[model.__tablename__]]
-    key = [c.name for c in model.__table__.primary_key.columns]
-    lines = ["#" + model.__tablename__ + "\t" + "\t".join(c.name for c in cols)]
-    lines += ["\t".join(format_value(c, row[c.name]) for c in cols) for row in sorted(rows, key=lambda r: [r[n] for n in key])]
-    return "\n".join(lines) + "\n"
+def test_rounding_edges():
+    bits = lambda x: rounded_bits(np.array([x]))[0]  # noqa: E731
+    assert bits(1.0 + 2.0**-40) == bits(1.0 + 2.0**-39) != bits(1.0)  # the half-way case: away from zero
+    assert bits(1.0 + 2.0**-41) == bits(1.0)
+    assert bits(2.0 - 2.0**-52) == bits(2.0)  # the carry moves to the next binade
+    assert bits(-0.0) == bits(0.0) == 0
+    assert bits(-3.0) != bits(3.0)
 
 
-def test_shard_digest_writes_what_format_value_writes():
-    """``shard_digest`` writes a row at a time with one format string; its text is
-    ``format_value``'s value by value: −0.0 (and only it) as 0, NULL as ~, 12 significant
-    digits, a kind (a ``StrEnum`` member too) as JSON, rows in key order whatever their order
-    here, NULLs in different columns row by row, and a NULL where the schema has none."""
+def test_shard_digest_is_the_records_written_by_hand():
+    """``shard_digest`` from dicts and from columns is the records written out value by value:
+    −0.0 as 0, NULL flagged, floats rounded to 40 bits, a kind (a ``StrEnum`` member too) as
+    zero-padded UTF-8, rows in key order whatever their order here, NULLs in different columns
+    row by row, and a NULL where the schema has none."""
     base = shard_rows(0)
-    lk = dict(base.linkages[0], b=-0.0, c=1 / 3, d=-2.5e-300, transmission_min=-1e-300, transmission_max=float(2**60))
-    sg = [dict(base.segments[0], phi_gen=-0.0, u=-0.5, v=1e21),
-          dict(base.segments[0], id=base.segments[0]["id"] + 1, kind=SegmentKind.DOUBLE_LINE, phi_gen2=-0.0, v=-0.0)]
-    arc = dict(base.dwells[0], x=-0.0, y=-1e-300, phi_start=0.0)
-    line = dict(base.dwells[0], kind=0, level=2, dwell_angle=None, x=-0.0, y=None, radius=None, direction=-0.0)
+    b_lk, b_sg, b_dw = base.linkages.rows()[0], base.segments.rows()[0], base.dwells.rows()[0]
+    lk = dict(b_lk, b=-0.0, c=1 / 3, d=-2.5e-300, transmission_min=-1e-300, transmission_max=float(2**60))
+    sg = [dict(b_sg, phi_gen=-0.0, u=-0.5, v=1e21),
+          dict(b_sg, id=b_sg["id"] + 1, kind=SegmentKind.DOUBLE_LINE, phi_gen2=-0.0, v=-0.0)]
+    arc = dict(b_dw, x=-0.0, y=-1e-300, phi_start=0.0)
+    line = dict(b_dw, kind=0, level=2, dwell_angle=None, x=-0.0, y=None, radius=None, direction=-0.0)
     double = dict(line, kind=2, segment_id=sg[1]["id"], dwell_angle2=1 / 3, phi_start2=-0.0, x2=-0.0, direction2=2.5)
     dw = [double, line, arc]  # not in key order
-    text = _text(Linkage, [lk]) + _text(Segment, sg) + _text(Dwell, dw)
-    assert "1\t0\t0\t0\t0.333333333333\t-2.5e-300\t1\t1\t-1e-300\t1.15292150461e+18\n" in text
-    assert f'{sg[1]["id"]}\t1\t"double_line"\t1\t0\t1.2\t0\n' in text
-    fields = text.replace("\n", "\t").split("\t")
-    assert "-0" not in fields and "-1e-300" in fields and "-0.5" in fields
-    assert shard_digest([lk], sg, dw) == hashlib.sha256(text.encode()).hexdigest()
-    # a NULL in a column the schema keeps NOT NULL is written ~ too (a digest of what was given)
+    want = _digest_by_hand([lk], sg, dw)
+    assert shard_digest([lk], sg, dw) == want
+    assert shard_digest(*(TableColumns.of_rows(None, rows) for rows in ([lk], sg, dw))) == want
+    assert shard_digest([lk], sg, [arc, double, line]) == want
+    # −0.0 and +0.0 are one value; a NULL is not 0
+    assert shard_digest([dict(lk, b=0.0)], sg, dw) == want
+    assert shard_digest([lk], sg, [double, dict(line, direction=0.0), arc]) == want
+    assert shard_digest([lk], sg, [double, dict(line, y=0.0), arc]) != want
+    # a NULL in a column the schema keeps NOT NULL is flagged too (a digest of what was given)
     odd = [dict(line, phi_start=None, transmission_min_cdeg=None)]
-    assert shard_digest([lk], sg, odd) == hashlib.sha256((text.split("#dwell")[0] + _text(Dwell, odd)).encode()).hexdigest()
-    assert shard_digest([], [], []) == hashlib.sha256((_text(Linkage, []) + _text(Segment, []) + _text(Dwell, [])).encode()).hexdigest()
+    assert shard_digest([lk], sg, odd) == _digest_by_hand([lk], sg, odd) != shard_digest([lk], sg, [line])
+    assert shard_digest([], [], []) == _digest_by_hand([], [], [])
+    with pytest.raises(ValueError, match="longer than its column"):
+        shard_digest([lk], [dict(b_sg, kind="a kind too long")], [])
 
 
 def _facts(target: str, *, recompute: bool = True) -> tuple[str | None, str | None, dict]:

@@ -139,7 +139,7 @@ def _one_row_per_table(engine) -> None:
     dwell row staged, and the same row in the dwell table)."""
     write_shard(engine, 1, shard_rows(0))
     with engine.begin() as conn:
-        conn.execute(insert(Dwell), shard_rows(0).dwells)
+        conn.execute(insert(Dwell), shard_rows(0).dwells.rows())
 
 
 def _float_columns_in_database(engine) -> tuple[int, int]:

@@ -10,7 +10,7 @@ from dataclasses import replace
 
 from hypothesis import example, given
 from hypothesis import strategies as st
-from shards import shard_rows
+from shards import shard_rows, with_rows
 from sqlalchemy import insert
 
 from db import SCHEMA_VERSION, Build, open_atlas
@@ -69,10 +69,10 @@ def _boundary_shard(transmission: float, longest: float, radius: float):
     """One linkage whose smallest transmission angle and longest link, and one arc whose radius,
     are the given values, with the integer copies computed as the build computes them."""
     rows = shard_rows(0, radius=radius)
-    link = {**rows.linkages[0], "transmission_min": transmission, "b": longest, "c": longest / 2, "d": longest / 2}
-    dwell = {**rows.dwells[0], "transmission_min_cdeg": transmission_floor_cdeg(transmission),
+    link = {**rows.linkages.rows()[0], "transmission_min": transmission, "b": longest, "c": longest / 2, "d": longest / 2}
+    dwell = {**rows.dwells.rows()[0], "transmission_min_cdeg": transmission_floor_cdeg(transmission),
              "longest_link_milli": length_ceil_milli(longest)}
-    return replace(rows, linkages=[link], dwells=[dwell])
+    return with_rows(rows, linkages=[link], dwells=[dwell])
 
 
 def test_a_linkage_exactly_at_every_limit_is_walked(atlas_url):
@@ -84,9 +84,9 @@ def test_a_linkage_exactly_at_every_limit_is_walked(atlas_url):
     limits = dict(min_transmission=math.radians(33.333333), max_length=ratio, min_radius_ratio=1 / ratio)
     window = [DwellWindow(0, 0.0, 7.0, 0.5, 10)]
     found = select_segments(engine, ("arc",), window, **limits)
-    assert [r.segment_id for r in found] == [shard_rows(0).segments[0]["id"]]
+    assert [r.segment_id for r in found] == [shard_rows(0).segments.rows()[0]["id"]]
     assert [r.segment_id for rows in scan_segments(engine, "arc", 0, **limits) for r in rows] == \
-        [shard_rows(0).segments[0]["id"]]
+        [shard_rows(0).segments.rows()[0]["id"]]
     assert AtlasSource(engine).count_segments("arc", 0, **limits) == 1
     stricter = {**limits, "min_transmission": math.radians(33.333333 + 0.02)}
     assert select_segments(engine, ("arc",), window, **stricter) == []
@@ -97,13 +97,14 @@ def test_rows_read_back_as_written(atlas_url):
     """An arc and a double line: the query's rows hold the stored interval, geometry and the
     level's tolerance (from the sweep spec), the line as a point on it and its direction."""
     rows = shard_rows(0)
-    sid = rows.segments[0]["id"]
+    segment, dwell = rows.segments.rows()[0], rows.dwells.rows()[0]
+    sid = segment["id"]
     point, direction = 0.4 - 1.3j, 0.7
     offset = line_offset(point, direction)
-    double = {**rows.segments[0], "id": sid + 1, "kind": "double_line", "phi_gen2": 4.0}
-    line_row = {**rows.dwells[0], "segment_id": sid + 1, "kind": 2, "x": offset, "y": None, "direction": direction,
+    double = {**segment, "id": sid + 1, "kind": "double_line", "phi_gen2": 4.0}
+    line_row = {**dwell, "segment_id": sid + 1, "kind": 2, "x": offset, "y": None, "direction": direction,
                 "radius": None, "dwell_angle2": 0.25, "phi_start2": 3.5, "x2": -offset, "direction2": direction + 1}
-    engine = _atlas(atlas_url, replace(rows, segments=[rows.segments[0], double], dwells=[rows.dwells[0], line_row]))
+    engine = _atlas(atlas_url, with_rows(rows, segments=[segment, double], dwells=[dwell, line_row]))
     arc = segment_row(engine, sid, 0)
     assert arc.kind == "arc" and arc.tolerance == 0.001 and arc.parts == ((0.75, 1.25, 0.5, 0.25, None, 2.0),)
     dbl = segment_row(engine, sid + 1, 0)

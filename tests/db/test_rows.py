@@ -1,5 +1,5 @@
-"""The atlas's rows (``db.rows.segment_rows``): worked out for a whole shard at once, they are
-the rows spelled out one at a time from their definitions — the same dicts, keys in the same
+"""The atlas's rows (``db.rows.segment_columns``): worked out for a whole shard at once, as
+columns, they are the rows spelled out one at a time from their definitions — the same dicts, keys in the same
 order, the same Python floats and ints to the last bit — on a real shard of every kind."""
 
 from __future__ import annotations
@@ -12,7 +12,8 @@ import pytest
 
 import atlas.shard
 from atlas.sweep import PRESETS
-from db.rows import SEGMENTS_PER_LINKAGE, length_ceil_milli, line_offset, segment_rows, transmission_floor_cdeg
+from db.rows import (SEGMENTS_PER_LINKAGE, TableColumns, length_ceil_milli, line_offset, linkage_columns,
+                     segment_columns, transmission_floor_cdeg)
 from synth.dwell_key import arc_dwell_key
 from synth.kinds import SEGMENT_KINDS, SegmentKind
 from synth.segments import SegmentSearch, find_segments
@@ -21,20 +22,20 @@ from synth.segments import SegmentSearch, find_segments
 @pytest.fixture(scope="module")
 def shard():
     """(found segments, linkage rows, the shard's result) of a small demo shard, as
-    ``atlas.shard.compute_shard`` passes them to :func:`segment_rows`."""
+    ``atlas.shard.compute_shard`` passes them to :func:`segment_columns` (the linkages as rows)."""
     seen = {}
 
     def capture(found, links):
         seen["found"], seen["links"] = found, links
-        return segment_rows(found, links)
+        return segment_columns(found, links)
 
     mp = pytest.MonkeyPatch()
-    mp.setattr(atlas.shard, "segment_rows", capture)
+    mp.setattr(atlas.shard, "segment_columns", capture)
     try:
         result = atlas.shard.compute_shard(PRESETS["demo"].replace(shard_size=16), 0)
     finally:
         mp.undo()
-    return seen["found"], seen["links"], result
+    return seen["found"], seen["links"].rows(), result
 
 
 def _stretch(found, i, level, part, *, arc):
@@ -93,9 +94,10 @@ def test_segment_rows_are_the_rows_spelled_out_one_at_a_time(shard):
     segments, dwells = _reference(found, links)
     assert {d["kind"] for d in dwells} == {k.code for k in SegmentKind}  # every kind
     assert any(d["level"] > 0 for d in dwells)
-    _same(result.segments, segments)
-    _same(result.dwells, dwells)
-    assert all(type(v) in (int, float, str, type(None)) for row in result.dwells + result.segments for v in row.values())
+    _same(result.segments.rows(), segments)
+    _same(result.dwells.rows(), dwells)
+    assert all(type(v) in (int, float, str, type(None)) for row in result.dwells.rows() + result.segments.rows()
+               for v in row.values())
 
 
 def test_a_double_line_needs_both_stretches_at_a_level(shard):
@@ -105,7 +107,7 @@ def test_a_double_line_needs_both_stretches_at_a_level(shard):
     has = found.has_dwell.copy()
     has[double, :, 1] = False  # the second stretch nowhere: no dwell row for a double line
     lone = replace(found, has_dwell=has)
-    segments, dwells = segment_rows(lone, links)
+    segments, dwells = (t.rows() for t in segment_columns(lone, TableColumns.of_rows(None, links)))
     assert len(segments) == len(found)
     assert not any(d["kind"] == SegmentKind.DOUBLE_LINE.code for d in dwells)
     _same(dwells, _reference(lone, links)[1])
@@ -113,4 +115,5 @@ def test_a_double_line_needs_both_stretches_at_a_level(shard):
 
 def test_no_segments_no_rows():
     found = find_segments(np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0, int), SegmentSearch())
-    assert segment_rows(found, []) == ([], [])
+    links = linkage_columns(0, *(np.zeros(0),) * 4, np.zeros(0, int), np.zeros(0, int), np.zeros((0, 1)))
+    assert [t.rows() for t in segment_columns(found, links)] == [[], []]

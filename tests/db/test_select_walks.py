@@ -13,7 +13,7 @@ from sqlalchemy import insert, select
 from atlas.shard import ShardResult
 from db import SCHEMA_VERSION, Build, open_atlas
 from db.queries import WALKS_CHUNK, AtlasSource, segment_row, select_segments, tolerance_levels
-from db.rows import SEGMENTS_PER_LINKAGE, length_ceil_milli, linkage_id, transmission_floor_cdeg
+from db.rows import SEGMENTS_PER_LINKAGE, TableColumns, length_ceil_milli, linkage_id, transmission_floor_cdeg
 from db.schema import Dwell
 from db.writes import finish_build, write_shard
 from synth.kinds import SEGMENT_KINDS, SegmentKind
@@ -47,6 +47,7 @@ def _shard(rng: random.Random) -> ShardResult:
                     longest_link_milli=length_ceil_milli(longest), dwell_angle2=key / 3 if double else None,
                     phi_start2=3.5 if double else None, x2=-0.5 if double else None,
                     direction2=1.1 + i / 40 if double else None))
+    linkages, segments, dwells = (TableColumns.of_rows(None, rows) for rows in (linkages, segments, dwells))
     return ShardResult(shard_index=0, linkages=linkages, segments=segments, dwells=dwells, skipped={}, seconds=0.5)
 
 

@@ -18,7 +18,7 @@ from atlas.sweep import PRESETS, sweep_linkages
 from kinematics.fourbar import fourbar_motion
 from synth import ball_point, pole
 from synth.kinds import SEGMENT_KINDS, SegmentKind
-from db.rows import segment_rows
+from db.rows import linkage_columns, segment_columns
 from synth.segments import SegmentSearch, find_segments
 
 SPEC = PRESETS["demo"]
@@ -233,7 +233,8 @@ def test_same_input_same_output(batch):
 def test_no_linkages_no_segments():
     found = find_segments(np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0, int), SegmentSearch())
     assert len(found) == 0
-    assert segment_rows(found, []) == ([], [])
+    links = linkage_columns(0, *(np.zeros(0),) * 4, np.zeros(0, int), np.zeros(0, int), np.zeros((0, 1)))
+    assert [t.rows() for t in segment_columns(found, links)] == [[], []]
 
 
 def test_one_straight_stretch_seen_twice_is_no_double_line():
