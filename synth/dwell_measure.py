@@ -32,16 +32,38 @@ __all__ = ["measure_dwells"]
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _run(absdev, band, centre, size):
-    """[lo, hi] of the samples with |deviation| ≤ ``band`` contiguous with ``centre``
-    (hi < lo, namely [centre + 1, centre], when the centre itself is outside)."""
+def _run(absdev, band, centre, size, z, kind, point, direction, radius, have_lo, have_hi):
+    """[lo, hi] of the samples with |deviation| ≤ ``band`` from the geometry (``point``,
+    ``direction``, ``radius``) contiguous with ``centre`` (hi < lo, namely [centre + 1, centre],
+    when the centre itself is outside). ``absdev`` holds the deviations of the samples
+    ``have_lo``..``have_hi`` already (none when ``have_lo`` > ``have_hi``); the others are
+    worked out as the run reaches them: a run is a fraction of its window, and the deviation
+    over the whole window was most of the measurement's time."""
+    if have_lo > have_hi:
+        have_lo, have_hi = centre + 1, centre
+    while have_lo > centre:
+        have_lo -= 1
+        absdev[have_lo] = abs(deviation_at(z[have_lo], kind, point, direction, radius))
+    while have_hi < centre:
+        have_hi += 1
+        absdev[have_hi] = abs(deviation_at(z[have_hi], kind, point, direction, radius))
     if not absdev[centre] <= band:
         return centre + 1, centre
     lo = centre
-    while lo > 0 and absdev[lo - 1] <= band:
+    while lo > 0:
+        if lo - 1 < have_lo:
+            have_lo = lo - 1
+            absdev[have_lo] = abs(deviation_at(z[have_lo], kind, point, direction, radius))
+        if not absdev[lo - 1] <= band:
+            break
         lo -= 1
     hi = centre
-    while hi < size - 1 and absdev[hi + 1] <= band:
+    while hi < size - 1:
+        if hi + 1 > have_hi:
+            have_hi = hi + 1
+            absdev[have_hi] = abs(deviation_at(z[have_hi], kind, point, direction, radius))
+        if not absdev[hi + 1] <= band:
+            break
         hi += 1
     return lo, hi
 
@@ -88,9 +110,7 @@ def measure_dwells(A, E, link, centre, uv, kind, width, point, direction, radius
         p, d, r = point[i], direction[i], radius[i]
         for level in range(nlev):
             eps = levels[level]
-            for j in range(size):
-                dev[j] = abs(deviation_at(z[j], k, p, d, r))
-            lo, hi = _run(dev, eps, w, size)
+            lo, hi = _run(dev, eps, w, size, z, k, p, d, r, 1, 0)
             ext = max((hi - lo + 1) // 4, 1)
             for _ in range(tries):
                 if hi < lo:
@@ -100,13 +120,13 @@ def measure_dwells(A, E, link, centre, uv, kind, width, point, direction, radius
                 for q in range(spread.size):
                     zs[q] = z[t_lo + int(np.rint(spread[q] * (t_hi - t_lo)))]
                 p2, d2, r2 = fit_row(zs, k, p, d, r, iterations, work)
-                for j in range(size):
+                for j in range(t_lo, t_hi + 1):  # what the peak reads; the run reads on as it needs
                     trial[j] = abs(deviation_at(z[j], k, p2, d2, r2))
                 h = window_peak(trial, t_lo, t_hi)
                 ok = h <= eps * (1 - margin)
                 if ok:
                     p, d, r = p2, d2, r2
-                    lo, hi = _run(trial, eps, w, size)
+                    lo, hi = _run(trial, eps, w, size, z, k, p, d, r, t_lo, t_hi)
                 target = (t_hi - t_lo + 1) * (eps / max(h, 1e-300)) ** 0.25 * safety
                 # capped at the window before it becomes an integer (beyond it the target is
                 # clipped anyway): an exact fit (h = 0) predicts a stretch of ~1e74 samples;
