@@ -533,6 +533,13 @@ def _remove_new_side_files(path: Path, before: set[Path]) -> None:
         pass
 
 
+#: The page size of a new SQLite atlas (bytes). 16 KiB rather than SQLite's 4 KiB: a build
+#: writes and sorts millions of ~130-byte dwell rows, and a quarter of the pages to split,
+#: journal and check made the single writer's ingest 2 430 → ~3 000 linkages/s
+#: (``dwell bench atlas --ingest``; docs/speed-and-scale.md §1b).
+SQLITE_PAGE_SIZE = 16384
+
+
 def _sqlite_pragmas(engine: Engine, *, wal: bool) -> None:
     @event.listens_for(engine, "connect")
     def _on_connect(dbapi_conn, _record):  # noqa: ANN001 - DBAPI connection
@@ -540,6 +547,7 @@ def _sqlite_pragmas(engine: Engine, *, wal: bool) -> None:
         cur.execute("PRAGMA foreign_keys=ON")
         cur.execute("PRAGMA busy_timeout=30000")
         if wal:  # a new file; an existing one changes mode when a build writes (start_writing)
+            cur.execute(f"PRAGMA page_size={SQLITE_PAGE_SIZE}")  # before the first table: fixed from then on
             cur.execute("PRAGMA journal_mode=WAL")
         cur.execute("PRAGMA journal_mode")
         if str(cur.fetchone()[0]).lower() == "wal":  # durable in WAL mode, unlike in rollback mode

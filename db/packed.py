@@ -24,6 +24,7 @@ import sqlite3
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
+import numpy as np
 from sqlalchemy import Table
 
 from db.rows import TableColumns
@@ -87,7 +88,34 @@ def checked_rows(result: ShardRows, extra: dict[str, dict[str, Any]] | None = No
         out.append((table, names, list(zip(*(given[k] for k in names)))))
     if not math.isfinite(result.seconds):
         raise ShardWriteError(f"shard {index}: seconds={result.seconds!r}; nothing of the shard was written")
+    problem = _foreign_reference(result)
+    if problem:
+        raise ShardWriteError(f"shard {index}: {problem}; nothing of the shard was written")
     return out
+
+
+def _foreign_reference(result: ShardRows) -> str | None:
+    """What in ``result`` names a row outside the shard — a segment of a linkage it does not
+    hold, a dwell row of a segment it does not hold — or names one (segment, level) twice;
+    None if nothing. A shard's rows name only each other (ids derive from its linkages, see
+    ``db.rows``), so its foreign keys hold within the shard itself: a packed shard is copied
+    with SQLite's foreign key checks off (``db.writes._attached``), on this check's word."""
+    values = lambda table, name: np.asarray(table.values.get(name, ()), np.int64)  # noqa: E731
+    links, segments = values(result.linkages, "id"), values(result.segments, "id")
+    owner = values(result.segments, "linkage_id")
+    stray = owner[~np.isin(owner, links)]
+    if stray.size:
+        return f"a segment names linkage {int(stray[0])}, which is not one of the shard's"
+    seg, level = values(result.dwells, "segment_id"), values(result.dwells, "level")
+    stray = seg[~np.isin(seg, segments)]
+    if stray.size:
+        return f"a dwell row names segment {int(stray[0])}, which is not one of the shard's"
+    order = np.lexsort((level, seg))
+    twice = np.flatnonzero((np.diff(seg[order]) == 0) & (np.diff(level[order]) == 0))
+    if twice.size:
+        i = order[twice[0]]
+        return f"two dwell rows of segment {int(seg[i])} at level {int(level[i])}"
+    return None
 
 
 @dataclass(frozen=True, slots=True)

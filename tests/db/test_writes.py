@@ -21,6 +21,7 @@ from sqlalchemy.exc import IntegrityError
 import db.writes
 from db.packed import PackedShard, pack
 from db import SCHEMA_VERSION, AtlasError, Build, Dwell, Linkage, Segment, Shard, open_atlas
+from db.engine import SQLITE_PAGE_SIZE
 from db.schema import dwell_staging
 from db.writes import (
     STALE_SECONDS,
@@ -85,6 +86,9 @@ def test_new_build_row_and_shard_rows(engine):
     assert json.loads(shard.skipped_json) == {"pole at infinity": 0}
     # a shard's dwell rows wait in the staging table until the build completes
     assert [count(engine, m) for m in (Linkage, Segment, dwell_staging, Dwell)] == [1, 1, 1, 0]
+    if engine.dialect.name == "sqlite":  # a new atlas's pages: 16 KiB (db.engine.SQLITE_PAGE_SIZE)
+        with engine.connect() as conn:
+            assert conn.exec_driver_sql("PRAGMA page_size").scalar() == SQLITE_PAGE_SIZE == 16384
 
 
 @pytest.mark.parametrize("bad", [
@@ -104,18 +108,50 @@ def test_a_bad_row_rolls_the_whole_shard_back(engine, bad, form):
     assert [count(engine, m) for m in (Linkage, Segment, dwell_staging, Shard)] == [1, 1, 1, 1]
 
 
+def _dangling_dwell_refused(engine) -> None:
+    """A pooled connection has its foreign keys on: a staged dwell row of no segment is refused."""
+    row = {**shard_rows(0).dwells.rows()[0], "segment_id": -7}
+    with pytest.raises(IntegrityError), engine.begin() as conn:
+        conn.execute(insert(dwell_staging), [row])
+
+
+def _repeated(one):
+    return with_rows(one, dwells=[one.dwells.rows()[0], one.dwells.rows()[0]])  # the same (segment, level) twice
+
+
+def _foreign_segment(one):
+    return with_rows(one, dwells=[{**one.dwells.rows()[0], "segment_id": shard_rows(0).segments.rows()[0]["id"]}])
+
+
+def _foreign_linkage(one):
+    return with_rows(one, segments=[{**one.segments.rows()[0], "linkage_id": shard_rows(0).linkages.rows()[0]["id"]}])
+
+
+def _negative_angle(one):
+    return with_rows(one, dwells=[{**one.dwells.rows()[0], "dwell_angle": -0.1}])
+
+
+@pytest.mark.parametrize("spoil, message", [
+    (_repeated, r"shard 1: two dwell rows of segment \d+ at level 0; nothing of the shard was written"),
+    (_foreign_segment, r"shard 1: a dwell row names segment \d+, which is not one of the shard's"),
+    (_foreign_linkage, r"shard 1: a segment names linkage 1, which is not one of the shard's"),
+    (_negative_angle, r"shard 1 of build \d+ rolled back: CHECK constraint failed|violates check constraint"),
+])
 @pytest.mark.parametrize("form", FORMS)
-def test_a_duplicate_id_rolls_back(engine, form):
+def test_a_shard_whose_rows_break_a_key_is_refused_whole(engine, form, spoil, message):
+    """Rows that repeat a (segment, level) or name a segment or linkage of another shard are
+    refused by the check that packs them (a packed shard is copied with SQLite's foreign key
+    checks off, on that check's word), a row check by the database: nothing of the shard is
+    written, and the connection goes back to the pool as it came (foreign keys on, a packed
+    shard detached)."""
     h, lock = start(engine)
     write_shard(engine, h.build_id, form(shard_rows(0)), lock_token=lock.token)
-    one = shard_rows(1)
-    dup = with_rows(one, dwells=[one.dwells.rows()[0], one.dwells.rows()[0]])  # the same (segment, level) twice
-    with pytest.raises(ShardWriteError, match="rolled back"):
-        write_shard(engine, h.build_id, form(dup), lock_token=lock.token)
-    assert count(engine, Shard) == 1 and count(engine, Linkage) == 1
-    # the connection that failed went back to the pool as it came (a packed shard detached)
+    with pytest.raises(ShardWriteError, match=message):
+        write_shard(engine, h.build_id, form(spoil(shard_rows(1))), lock_token=lock.token)
+    assert count(engine, Shard) == 1 and count(engine, Linkage) == 1 and count(engine, dwell_staging) == 1
     write_shard(engine, h.build_id, form(shard_rows(2)), lock_token=lock.token)
     assert count(engine, Shard) == 2 and count(engine, Linkage) == 2
+    _dangling_dwell_refused(engine)
 
 
 def test_resume_knows_done_shards_and_drops_orphans(engine):
@@ -295,9 +331,10 @@ def _complete(engine, n_shards=2):
 
 
 def test_the_move_at_the_end_keeps_every_foreign_key_and_gives_them_back(engine):
-    """finish_build moves the staged rows with SQLite's foreign keys off (each was checked
-    when it was staged): the moved rows still meet them, and the connection that moved them
-    goes back to the pool with foreign keys on (a dwell row of no segment is refused)."""
+    """finish_build moves the staged rows with SQLite's foreign keys and row checks off (each
+    was checked when it was staged): the moved rows still meet them, and the connection that
+    moved them goes back to the pool with both on (a dwell row of no segment, a negative dwell
+    key are refused)."""
     _complete(engine)
     with engine.connect() as conn:
         if engine.dialect.name == "sqlite":
@@ -308,6 +345,8 @@ def test_the_move_at_the_end_keeps_every_foreign_key_and_gives_them_back(engine)
     assert moved is not None
     with pytest.raises(IntegrityError), engine.begin() as conn:
         conn.execute(insert(Dwell), [{**moved, "segment_id": -7}])
+    with pytest.raises(IntegrityError, match="CHECK|check constraint"), engine.begin() as conn:  # row checks back on
+        conn.execute(insert(Dwell), [{**moved, "level": 5, "dwell_key": -1.0}])
 
 
 def test_verify_passes_a_whole_atlas_and_names_a_changed_value_and_orphans(engine):
@@ -320,7 +359,7 @@ def test_verify_passes_a_whole_atlas_and_names_a_changed_value_and_orphans(engin
     assert ok.integrity == ("ok" if engine.dialect.name == "sqlite" else None)
     with engine.begin() as conn:  # shard 1's dwell row (segment ids follow linkage ids)
         first = conn.execute(select(func.max(Dwell.segment_id))).scalar_one()
-        conn.execute(update(Dwell).where(Dwell.segment_id == first).values(x=Dwell.x + 1e-6))  # above 12 digits
+        conn.execute(update(Dwell).where(Dwell.segment_id == first).values(x=Dwell.x + 1e-6))  # above the digest's 40 bits
     bad = verify_atlas(engine)
     assert len(bad.problems) == 1 and "do not give its stored content digest" in bad.problems[0]
     assert bad.problems[0].endswith("shards whose rows changed: 1)")
