@@ -17,7 +17,7 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from db import SCHEMA_VERSION, AtlasError, Base, Build, Dwell, Linkage, Meta, open_atlas
-from db.engine import wal_page_size, database_url, display_target, settle_sqlite
+from db.engine import SQLITE_PAGE_SIZE, database_url, display_target, settle_sqlite, wal_page_size
 from db.writes import write_shard
 
 
@@ -467,7 +467,7 @@ def test_wal_header_page_size_and_checksum(tmp_path):
 @pytest.mark.parametrize("readonly", [True, False])
 def test_any_wal_beside_a_complete_atlas_is_refused_untouched(tmp_path, readonly):
     path = _settled_atlas(tmp_path)
-    path.with_name("a.sqlite-wal").write_bytes(_wal_of_another_database(tmp_path, 4096))  # same page size
+    path.with_name("a.sqlite-wal").write_bytes(_wal_of_another_database(tmp_path, SQLITE_PAGE_SIZE))  # same page size
     before = _files(path.parent)
     with pytest.raises(AtlasError, match="is a complete atlas .* but 'a.sqlite-wal' lies beside it"):
         open_atlas(str(path), readonly=readonly, create=not readonly)
@@ -482,7 +482,7 @@ def test_a_wal_of_another_page_size_beside_a_wal_mode_atlas_is_refused(tmp_path)
     assert path.read_bytes()[18] == 2
     path.with_name("a.sqlite-wal").write_bytes(_wal_of_another_database(tmp_path, 1024))
     before = _files(folder)
-    with pytest.raises(AtlasError, match=r"write-ahead log of another database \(page size 1024, the atlas has 4096\)"):
+    with pytest.raises(AtlasError, match=rf"write-ahead log of another database \(page size 1024, the atlas has {SQLITE_PAGE_SIZE}\)"):
         open_atlas(str(path), readonly=True)
     assert _files(folder) == before
 
