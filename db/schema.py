@@ -40,7 +40,8 @@ __all__ = ["SCHEMA_VERSION", "APPLICATION", "Base", "Meta", "Build", "Shard", "L
 #: orders them by the RRR dwell they predict; their dwell angle moves to a column of its own. 6:
 #: the shard digest (``shard.digest``, and so ``build.content_digest``) is defined over binary
 #: records of the rows, floats rounded to 40 bits, instead of their ``%.12g`` text (``db.digest``):
-#: the same rows, another hash — an atlas of schema 5 would fail ``--verify``.
+#: the same rows, another hash — an atlas of schema 5 would fail ``--verify``; ``dwell_staging``
+#: has no index and no foreign key (its keys are checked on the way in).
 SCHEMA_VERSION = 6
 #: Written to the meta table so that a foreign SQLite file is recognised as such.
 APPLICATION = "dwell-atlas"
@@ -240,19 +241,22 @@ class Dwell(Base):
     )
 
 
-#: Where a build's shards append their dwell rows: the columns and row checks of ``dwell``, no
-#: clustered key — a shard's rows go to the end of the table, a few pages per shard — and a
-#: unique (segment, level), which a shard's ascending segment ids fill in order. The build's
-#: last transaction moves the rows into ``dwell`` in its key order (``db.writes.finish_build``),
-#: so the clustered table is written once, sequentially, instead of at a random place per row,
-#: which rewrote pages all over it at every shard (the write-ahead log of a ``standard`` build
-#: took ~10 GB of writes). Empty in a complete atlas; digested and counted with ``dwell``.
+#: Where a build's shards append their dwell rows: the columns and row checks of ``dwell`` and
+#: nothing else — no clustered key, no index, no foreign key: a shard's rows go to the end of the
+#: table, a few pages per shard. Their keys are checked on the way in, for every shard and
+#: every database, by the packing's check (``db.packed.checked_rows``: each row's segment is one
+#: of its shard's, no (segment, level) twice; a segment id derives from its linkage's, which is
+#: its shard's alone), which made the unique (segment, level) index and the foreign key — a
+#: third of the single writer's ingest — repeat work. The build's last transaction moves the
+#: rows into ``dwell`` in its key order (``db.writes.finish_build``), so the clustered table is
+#: written once, sequentially, instead of at a random place per row, which rewrote pages all
+#: over it at every shard (the write-ahead log of a ``standard`` build took ~10 GB of writes).
+#: Empty in a complete atlas; digested and counted with ``dwell``; a build's clean-up deletes its
+#: rows before their segments (``db.writes._delete_rows``).
 dwell_staging = Table(
     "dwell_staging",
     Base.metadata,
-    *(Column(c.name, c.type, *([ForeignKey("segment.id")] if c.name == "segment_id" else []), nullable=c.nullable)
-      for c in Dwell.__table__.columns),
-    UniqueConstraint("segment_id", "level", name="uq_dwell_staging_segment_level"),
+    *(Column(c.name, c.type, nullable=c.nullable) for c in Dwell.__table__.columns),
     *_dwell_checks("dwell_staging"),
 )
 

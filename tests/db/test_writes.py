@@ -108,11 +108,11 @@ def test_a_bad_row_rolls_the_whole_shard_back(engine, bad, form):
     assert [count(engine, m) for m in (Linkage, Segment, dwell_staging, Shard)] == [1, 1, 1, 1]
 
 
-def _dangling_dwell_refused(engine) -> None:
-    """A pooled connection has its foreign keys on: a staged dwell row of no segment is refused."""
-    row = {**shard_rows(0).dwells.rows()[0], "segment_id": -7}
+def _dangling_segment_refused(engine) -> None:
+    """A pooled connection has its foreign keys on: a segment of no linkage is refused."""
+    row = {**shard_rows(0).segments.rows()[0], "id": 7, "linkage_id": -7}
     with pytest.raises(IntegrityError), engine.begin() as conn:
-        conn.execute(insert(dwell_staging), [row])
+        conn.execute(insert(Segment), [row])
 
 
 def _repeated(one):
@@ -151,7 +151,7 @@ def test_a_shard_whose_rows_break_a_key_is_refused_whole(engine, form, spoil, me
     assert count(engine, Shard) == 1 and count(engine, Linkage) == 1 and count(engine, dwell_staging) == 1
     write_shard(engine, h.build_id, form(shard_rows(2)), lock_token=lock.token)
     assert count(engine, Shard) == 2 and count(engine, Linkage) == 2
-    _dangling_dwell_refused(engine)
+    _dangling_segment_refused(engine)
 
 
 def test_resume_knows_done_shards_and_drops_orphans(engine):
