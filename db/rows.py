@@ -12,8 +12,10 @@ interrupted and resumed:
   dwell key, segment id), the query's walk order (:class:`db.schema.Dwell`): a line's dwell
   key is its dwell angle, an arc's its dwell angle × excursion^¼ (:mod:`synth.dwell_key`)
 
-Values are plain Python (no numpy scalars); units as :mod:`db.schema` says (crank lengths,
-radians, fixed frame).
+A table's rows stay columns (:class:`TableColumns`: an array per column, a mask where it is
+NULL) from the shard to the packing and the digest; :meth:`TableColumns.rows` spells them out as
+dicts of plain Python values. Units as :mod:`db.schema` says (crank lengths, radians, fixed
+frame).
 """
 
 from __future__ import annotations

@@ -525,10 +525,10 @@ def _moving_staged_rows(conn: Connection) -> Iterator[None]:
     """SQLite settings for the move of the staged dwell rows, on ``conn`` outside any
     transaction (SQLite ignores these pragmas inside one), restored afterwards.
 
-    * ``foreign_keys=OFF``: every staged row's segment was checked when the row was appended,
-      and nothing deletes a segment in the move's transaction, so checking each moved row's
-      segment again (and the row-by-row delete that a foreign key forces on emptying the
-      staging table) only costs time: ``standard``'s move and delete 9.5 → 5 s.
+    * ``foreign_keys=OFF``: every staged row's segment was checked when the row was staged
+      (one of its shard's segments, ``db.packed.checked_rows``), and nothing deletes a segment
+      in the move's transaction, so checking each moved row's segment again only costs time:
+      ``standard``'s move and delete 9.5 → 5 s.
     * ``ignore_check_constraints=ON``: the staging table has the row checks of ``dwell``
       (``db.schema._dwell_checks``, one definition for both), which every staged row passed
       when it was appended; checking them again took ~15 % of the move.
