@@ -66,8 +66,11 @@ class TableColumns:
         for name, values in self.values.items():
             null = self.nulls.get(name)
             if null is not None and null.any():
-                values = np.asarray(values).astype(object)  # a float64 as a Python float
-                values[null] = None
+                if isinstance(values, np.ndarray):
+                    values = values.astype(object)  # a float64 as a Python float
+                    values[null] = None
+                else:  # texts as they are (a numpy string array would drop trailing NULs)
+                    values = [None if n else v for v, n in zip(values, null.tolist())]
             out.append(values.tolist() if isinstance(values, np.ndarray) else list(values))
         return out
 

@@ -1,14 +1,18 @@
 """The atlas's rows (``db.rows.segment_columns``): worked out for a whole shard at once, as
-columns, they are the rows spelled out one at a time from their definitions — the same dicts, keys in the same
-order, the same Python floats and ints to the last bit — on a real shard of every kind."""
+columns, they are the rows spelled out one at a time from their definitions — the same dicts,
+keys in the same order, the same Python floats and ints to the last bit — on a real shard of
+every kind; and columns made of any rows spell those rows out again (``TableColumns``)."""
 
 from __future__ import annotations
 
 import math
+import struct
 from dataclasses import replace
 
 import numpy as np
 import pytest
+from hypothesis import example, given
+from hypothesis import strategies as st
 
 import atlas.shard
 from atlas.sweep import PRESETS
@@ -117,3 +121,46 @@ def test_no_segments_no_rows():
     found = find_segments(np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0, int), SegmentSearch())
     links = linkage_columns(0, *(np.zeros(0),) * 4, np.zeros(0, int), np.zeros(0, int), np.zeros((0, 1)))
     assert [t.rows() for t in segment_columns(found, links)] == [[], []]
+
+
+_COLUMN = st.sampled_from(["float", "int", "str"])
+
+
+@st.composite
+def _table(draw):
+    """Rows as dicts: a few columns, each of one type (floats with NaN and ±inf, 64-bit ints,
+    short texts), any of them NULL (None) anywhere."""
+    kinds = draw(st.lists(_COLUMN, min_size=1, max_size=5))
+    value = {"float": st.floats(allow_nan=True, allow_infinity=True), "int": st.integers(-2**63, 2**63 - 1),
+             "str": st.text(max_size=4)}
+    n = draw(st.integers(1, 6))
+    columns = [draw(st.lists(st.none() | value[k], min_size=n, max_size=n)) for k in kinds]
+    return [{f"c{j}": col[i] for j, col in enumerate(columns)} for i in range(n)], kinds
+
+
+@given(_table())
+@example(([{"c0": None, "c1": -0.0}, {"c0": 3, "c1": float("nan")}], ["int", "float"]))
+@example(([{"c0": "a\x00"}, {"c0": None}], ["str"]))
+def test_columns_spell_out_the_rows_they_were_made_of(table):
+    """``TableColumns.of_rows`` then ``rows`` gives the same dicts back, values of the same
+    type and bits (−0.0, NaN), None where NULL; ``first_nonfinite`` names the first NaN or
+    ±inf row by row, as a scan of the dicts does."""
+    rows, kinds = table
+    cols = TableColumns.of_rows(None, rows)
+    assert len(cols) == len(rows)
+    back = cols.rows()
+    for row, got in zip(rows, back):
+        assert list(got) == list(row)
+        for k, v in row.items():
+            w = got[k]
+            assert type(w) is type(v)
+            if isinstance(v, float):
+                assert struct.pack("<d", w) == struct.pack("<d", v)
+            else:
+                assert w == v
+    first = next(((i, k, v) for i, row in enumerate(rows) for k, v in row.items()
+                  if isinstance(v, float) and not math.isfinite(v)), None)
+    found = cols.first_nonfinite()
+    assert (found is None) == (first is None)
+    if first is not None:
+        assert found[:2] == first[:2] and struct.pack("<d", found[2]) == struct.pack("<d", first[2])
