@@ -35,15 +35,20 @@ from synth.kinds import SEGMENT_KINDS, SegmentKind
 from synth.segments import FoundSegments
 
 __all__ = ["SEGMENTS_PER_LINKAGE", "TableColumns", "length_ceil_milli", "line_offset", "line_offsets", "line_point",
-           "linkage_columns", "linkage_id", "segment_columns", "transmission_floor_cdeg"]
+           "linkage_columns", "linkage_id", "linkage_ids", "segment_columns", "transmission_floor_cdeg"]
 
 #: Room for segment ordinals inside one linkage's id range (ids stay below 2^63 for 10^8 linkages).
 SEGMENTS_PER_LINKAGE = 100_000
 
 
+def linkage_ids(sweep_index: NDArray, branch: NDArray) -> NDArray[np.int64]:
+    """The deterministic primary keys of (proportion, branch) pairs (the module docstring's rule)."""
+    return 2 * np.asarray(sweep_index, np.int64) + (np.asarray(branch) != 1) + 1
+
+
 def linkage_id(sweep_index: int, branch: int) -> int:
-    """The deterministic primary key of a (proportion, branch) pair."""
-    return 2 * int(sweep_index) + (0 if branch == 1 else 1) + 1
+    """The deterministic primary key of one (proportion, branch) pair."""
+    return int(linkage_ids(np.array([sweep_index]), np.array([branch]))[0])
 
 
 @dataclass(frozen=True, slots=True)
@@ -128,7 +133,7 @@ def linkage_columns(shard_index: int, sweep_index: NDArray, b: NDArray, c: NDArr
         warnings.simplefilter("ignore", RuntimeWarning)
         low, high = np.nanmin(transmission, axis=1), np.nanmax(transmission, axis=1)
     return TableColumns({
-        "id": 2 * sweep_index + np.where(branch == 1, 0, 1) + 1,  # linkage_id's rule, for every row at once
+        "id": linkage_ids(sweep_index, branch),
         "shard_index": np.full(sweep_index.size, int(shard_index), np.int64),
         "sweep_index": sweep_index,
         "b": np.asarray(b, np.float64),
