@@ -58,8 +58,8 @@ class ShardRows(Protocol):
     def linkage_ids(self) -> tuple[int, ...]: ...
 
 
-#: Per table: its name in messages, its row list in :class:`ShardRows`, the atlas table its rows
-#: go to; parents first (the writer's foreign keys are checked row by row).
+#: Per table: its name in messages, its columns' attribute in :class:`ShardRows`, the atlas table its rows
+#: go to; parents first (where the writer's foreign keys are on, each row is checked as it goes in).
 TABLES: tuple[tuple[str, str, Table], ...] = (
     ("linkage", "linkages", Linkage.__table__),
     ("segment", "segments", Segment.__table__),
@@ -166,11 +166,9 @@ def pack(result: ShardRows, digest: str | None) -> PackedShard:
         data = con.serialize()
     finally:
         con.close()
-    links = batches[0][2]
-    at = batches[0][1].index("id") if links else 0
     return PackedShard(
-        shard_index=int(result.shard_index), data=data, n_linkages=len(links), n_segments=len(batches[1][2]),
-        n_dwells=len(batches[2][2]), linkage_ids=tuple(row[at] for row in links),
+        shard_index=int(result.shard_index), data=data, n_linkages=len(batches[0][2]), n_segments=len(batches[1][2]),
+        n_dwells=len(batches[2][2]), linkage_ids=tuple(result.linkage_ids),
         skipped=dict(result.skipped), seconds=float(result.seconds), digest=digest,
     )
 
