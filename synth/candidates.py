@@ -25,6 +25,7 @@ import numpy as np
 from synth.buildability import clearances
 from synth.figures import SixBarFigures, link_ratios
 from synth.kinds import OutputTag
+from synth.pareto import pareto_layers
 from synth.sixbar import OutputDyad, SixBar, SixBars, crank_grid, simulate
 
 __all__ = ["Candidate", "Request", "candidate_dimensions", "candidate_id", "decode_dimensions", "dimension_vector",
@@ -331,24 +332,6 @@ def objectives(request: Request, figures: list[SixBarFigures]) -> np.ndarray:
     return np.array(rows, dtype=float).reshape(-1, 5)
 
 
-def _pareto_layers(obj: np.ndarray) -> np.ndarray:
-    """Non-dominated sorting: layer 0 is the Pareto front, layer 1 the front of the rest, …"""
-    n = obj.shape[0]
-    layer = np.full(n, -1)
-    le = np.all(obj[:, None, :] <= obj[None, :, :], axis=2)
-    lt = np.any(obj[:, None, :] < obj[None, :, :], axis=2)
-    dominates = le & lt  # [i, j]: i dominates j
-    remaining = np.ones(n, bool)
-    k = 0
-    while remaining.any():
-        dominated = (dominates & remaining[:, None]).any(axis=0)
-        front = remaining & ~dominated
-        layer[front] = k
-        remaining &= ~front
-        k += 1
-    return layer
-
-
 def rank(request: Request, candidates: list[Candidate]) -> list[Candidate]:
     """Candidates in rank order (Pareto layer, then score, then id), ``rank`` set from 1."""
     if not candidates:
@@ -357,7 +340,7 @@ def rank(request: Request, candidates: list[Candidate]) -> list[Candidate]:
     # simulated in, and a mirror pair's are equal only to rounding; ties then fall to the id,
     # so a ranking does not depend on how the six-bars were batched.
     obj = np.round(objectives(request, [c.figures for c in candidates]), 10)
-    layer = _pareto_layers(obj)
+    layer = pareto_layers(obj)
     scale = np.array([max(request.dwell_tol, math.radians(0.5)), request.band, math.radians(45.0), 100.0, 1.0])
     score = (obj + np.array([0.0, 0.0, math.pi / 2, 0.0, 0.0])) / scale
     total = np.round(score.sum(axis=1), 10)
