@@ -15,6 +15,8 @@ import functools
 from collections.abc import Iterator, Sequence
 from typing import Any
 
+import numpy as np
+
 from sqlalchemy import (
     CompoundSelect,
     Engine,
@@ -31,11 +33,12 @@ from sqlalchemy import (
 from sqlalchemy.orm import Session
 
 from db.engine import atlas_name, damaged
-from db.rows import length_ceil_milli, line_point, transmission_floor_cdeg
+from db.rows import length_ceil_milli, line_points, transmission_floor_cdeg
 from db.schema import Dwell, Linkage, Segment, stored_dwell_angle
 from db.spec import last_spec, tolerances
 from synth.kinds import SegmentKind
-from synth.query import DwellWindow, SegmentRow
+from synth.query import DwellWindow
+from synth.segment_rows import SegmentBatch, SegmentRow
 
 #: Segment ids bound in one statement of :func:`select_segments`.
 IN_CHUNK = 5000
@@ -113,12 +116,14 @@ def scan_segments(
     max_length: float = 1e300,
     min_radius_ratio: float = 0.0,
     batch: int = 4000,
-) -> Iterator[list[SegmentRow]]:
+) -> Iterator[SegmentBatch]:
     """Every segment of ``kind`` with a dwell at ``level``, filtered as in
-    :func:`select_segments`, in batches of up to ``batch`` (in dwell-key order: a keyset walk
-    of the dwell table's key, so each batch costs its own rows, not an offset)."""
+    :func:`select_segments`, in batches of up to ``batch`` rows as columns (in dwell-key order: a
+    keyset walk of the dwell table's key, so each batch costs its own rows, not an offset; each
+    row's segment and linkage joined by primary key in the same statement)."""
     length, ratio, limits = _limits(min_transmission, max_length, min_radius_ratio)
-    page = (select(*_DWELL_COLUMNS)
+    page = (select(*_DWELL_COLUMNS, Segment.id.label("segment"), *_SEGMENT_COLUMNS).select_from(Dwell)
+            .outerjoin(Segment, Segment.id == Dwell.segment_id).outerjoin(Linkage, Linkage.id == Segment.linkage_id)
             .where(Dwell.kind == SegmentKind(kind).code, Dwell.level == level, *_filters(length, ratio),
                    or_(Dwell.dwell_key > bindparam("key"),
                        and_(Dwell.dwell_key == bindparam("key"), Dwell.segment_id > bindparam("sid"))))
@@ -128,11 +133,54 @@ def scan_segments(
     while True:
         with engine.connect() as conn:
             hits = conn.execute(page, {**limits, "key": key, "sid": sid}).all()
-            if not hits:
-                return
-            rows = _segment_rows(engine, conn, hits, tolerance)
+        if not hits:
+            return
         key, sid = hits[-1].dwell_key, hits[-1].segment_id
-        yield rows
+        yield _segment_batch(engine, kind, hits, tolerance)
+
+
+def _segment_batch(engine: Engine, kind: str, hits: Sequence, tolerance: dict[int, float]) -> SegmentBatch:
+    """The :class:`SegmentBatch` of ``hits``, dwell rows of segments of ``kind`` read with their
+    segment and linkage (:data:`_DWELL_COLUMNS`, the segment's id or None if it is missing,
+    :data:`_SEGMENT_COLUMNS`); ``tolerance``: level → path tolerance (crank lengths). The one
+    place where a stored dwell row becomes the query's stretches: the interval's end is its
+    start plus the dwell angle, a line's point its foot from A0 (:func:`db.rows.line_points`)."""
+    (segment_id, levels, _, angle, start, x, y, direction, radius, angle2, start2, x2, direction2,
+     segment, u, v, phi_gen, b, c, d, branch, transmission_min) = zip(*hits)
+    if None in segment or None in b:  # dwell rows whose segment (or its linkage) was deleted: only a damaged atlas
+        lost = segment_id[list(segment).index(None) if None in segment else list(b).index(None)]
+        raise damaged(atlas_name(engine), f"dwell rows name segment {lost}, which does not exist")
+    n = len(hits)
+
+    def column(values: Sequence, dtype=np.float64) -> np.ndarray:
+        return np.array(values, dtype)
+
+    def nullable(values: Sequence) -> np.ndarray:
+        return np.array([np.nan if x is None else x for x in values], np.float64) if None in values else column(values)
+
+    start = column(start)
+    first = np.empty((n, 6))
+    first[:, 0], first[:, 1] = start, start + column(angle)
+    if kind == SegmentKind.ARC.value:
+        first[:, 2], first[:, 3], first[:, 4], first[:, 5] = column(x), column(y), np.nan, column(radius)
+        parts = (first,)
+    else:
+        direction = column(direction)
+        foot = line_points(column(x), direction)
+        first[:, 2], first[:, 3], first[:, 4], first[:, 5] = foot.real, foot.imag, direction, np.nan
+        parts = (first,)
+    has_parts = np.ones(n, np.int64)
+    if kind == SegmentKind.DOUBLE_LINE.value:
+        angle2, start2 = nullable(angle2), nullable(start2)
+        direction2 = nullable(direction2)
+        foot2 = line_points(nullable(x2), direction2)
+        second = np.stack([start2, start2 + angle2, foot2.real, foot2.imag, direction2, np.full(n, np.nan)], axis=1)
+        parts = (first, second)
+        has_parts += ~np.isnan(angle2)
+    return SegmentBatch(kind, column(segment_id, np.int64), column(levels, np.int64),
+                        column([tolerance.get(lv, 0.0) for lv in levels]),
+                        column(b), column(c), column(d), column(branch, np.int64), column(u), column(v),
+                        column(phi_gen), column(transmission_min), parts, has_parts)
 
 
 def count_segments(engine: Engine, kind: str, level: int, *, min_transmission: float = 0.0,
@@ -148,9 +196,11 @@ def count_segments(engine: Engine, kind: str, level: int, *, min_transmission: f
 _DWELL_COLUMNS = (Dwell.segment_id, Dwell.level, Dwell.dwell_key, stored_dwell_angle(Dwell).label("dwell_angle"),
                   Dwell.phi_start, Dwell.x, Dwell.y, Dwell.direction,
                   Dwell.radius, Dwell.dwell_angle2, Dwell.phi_start2, Dwell.x2, Dwell.direction2)
-#: What a query reads of a segment: its own columns and its linkage's (one join by primary key).
-_SEGMENTS = (select(Segment.id, Segment.kind, Segment.u, Segment.v, Segment.phi_gen, Linkage.b, Linkage.c, Linkage.d,
-                    Linkage.branch, Linkage.transmission_min).join(Linkage, Segment.linkage_id == Linkage.id))
+#: What a query reads of a dwell row's segment and linkage.
+_SEGMENT_COLUMNS = (Segment.u, Segment.v, Segment.phi_gen, Linkage.b, Linkage.c, Linkage.d, Linkage.branch,
+                    Linkage.transmission_min)
+#: A segment with :data:`_SEGMENT_COLUMNS`, after its id and kind (one join by primary key).
+_SEGMENTS = select(Segment.id, Segment.kind, *_SEGMENT_COLUMNS).join(Linkage, Segment.linkage_id == Linkage.id)
 #: :data:`_SEGMENTS` of the segment ids bound as ``ids`` (one statement object, so that its
 #: compiled form and result columns are reused, not rebuilt, at every query).
 _SEGMENTS_BY_ID = _SEGMENTS.where(Segment.id.in_(bindparam("ids", expanding=True)))
@@ -213,24 +263,6 @@ def _walks(n: int, length: bool, ratio: bool) -> CompoundSelect:
     return union_all(*parts)
 
 
-def _parts(dw) -> tuple[tuple, ...]:
-    """A walked dwell row (:data:`_DWELL_COLUMNS`, then anything) as :attr:`SegmentRow.parts`:
-    per stretch (phi_start, phi_end, x, y, direction or None, radius or None); a line's point
-    is its foot from A0."""
-    _, _, _, angle, phi_start, x, y, direction, radius, angle2, phi_start2, x2, direction2, *_ = dw
-    if radius is not None:
-        return ((phi_start, phi_start + angle, x, y, None, radius),)
-    parts = [_line_part(phi_start, angle, x, direction)]
-    if angle2 is not None:
-        parts.append(_line_part(phi_start2, angle2, x2, direction2))
-    return tuple(parts)
-
-
-def _line_part(phi_start: float, dwell_angle: float, offset: float, direction: float) -> tuple:
-    foot = line_point(offset, direction)
-    return (phi_start, phi_start + dwell_angle, foot.real, foot.imag, direction, None)
-
-
 def _segment_rows(engine: Engine, conn, hits: Sequence, tolerance: dict[int, float]) -> list[SegmentRow]:
     """The :class:`SegmentRow` of each walked dwell row of ``hits`` (:data:`_DWELL_COLUMNS`),
     in that order, with its segment and linkage read by primary key; ``tolerance``: level →
@@ -243,20 +275,20 @@ def _segment_rows(engine: Engine, conn, hits: Sequence, tolerance: dict[int, flo
     # takes at most 32 766 in one, PostgreSQL 65 535)
     for k in range(0, len(ids), IN_CHUNK):
         segs.update((r[0], r) for r in conn.execute(_SEGMENTS_BY_ID, {"ids": ids[k : k + IN_CHUNK]}).all())
-    lost = [h.segment_id for h in hits if h.segment_id not in segs]
-    if lost:  # dwell rows whose segment (or its linkage) was deleted: only a damaged atlas
-        raise damaged(atlas_name(engine), f"dwell rows name segment {lost[0]}, which does not exist")
-    return [_segment_row(segs[h.segment_id], h.level, tolerance.get(h.level, 0.0), h) for h in hits]
-
-
-def _segment_row(seg, level: int, tolerance: float, dw) -> SegmentRow:
-    """A segment (:data:`_SEGMENTS` row) at ``level`` with its dwell row ``dw`` (None: no
-    dwell there, ``parts`` empty)."""
-    segment_id, kind, u, v, phi_gen, b, c, d, branch, transmission_min = seg
-    return SegmentRow(
-        segment_id=segment_id, kind=kind, level=level, tolerance=tolerance, b=b, c=c, d=d, branch=branch, u=u, v=v,
-        phi_gen=phi_gen, parts=() if dw is None else _parts(dw), fourbar_transmission_min=transmission_min,
-    )
+    width = len(_DWELL_COLUMNS)
+    missing = (None,) * (1 + len(_SEGMENT_COLUMNS))
+    by_kind: dict[str, list[int]] = {}
+    joined = []
+    for i, h in enumerate(hits):
+        seg = segs.get(h.segment_id)
+        joined.append((*h[:width], *(missing if seg is None else (seg[0], *seg[2:]))))
+        # a missing segment's kind does not matter: its batch names it as damaged
+        by_kind.setdefault(SegmentKind.LINE.value if seg is None else seg[1], []).append(i)
+    out: list[SegmentRow] = [None] * len(hits)  # type: ignore[list-item]
+    for kind, index in by_kind.items():
+        for i, row in zip(index, _segment_batch(engine, kind, [joined[i] for i in index], tolerance)):
+            out[i] = row
+    return out
 
 
 def nearest_dwell_angles(engine: Engine, kinds: tuple[str, ...], target: float) -> tuple[float | None, float | None]:
@@ -294,7 +326,10 @@ def segment_row(engine: Engine, segment_id: int, level: int) -> SegmentRow | Non
             return None
         dw = conn.execute(select(*_DWELL_COLUMNS).where(
             Dwell.kind == SegmentKind(seg.kind).code, Dwell.level == level, Dwell.segment_id == segment_id)).first()
-    return _segment_row(seg, level, 0.0 if dw is None else dict(tolerance_levels(engine)).get(level, 0.0), dw)
+    if dw is None:
+        segment_id, kind, u, v, phi_gen, b, c, d, branch, transmission_min = seg
+        return SegmentRow(segment_id, kind, level, 0.0, b, c, d, branch, u, v, phi_gen, (), transmission_min)
+    return _segment_batch(engine, seg.kind, [(*dw, seg[0], *seg[2:])], dict(tolerance_levels(engine)))[0]
 
 
 class AtlasSource:

@@ -34,7 +34,7 @@ from synth.dwell_key import arc_dwell_key
 from synth.kinds import SEGMENT_KINDS, SegmentKind
 from synth.segments import FoundSegments
 
-__all__ = ["SEGMENTS_PER_LINKAGE", "TableColumns", "length_ceil_milli", "line_offset", "line_offsets", "line_point",
+__all__ = ["SEGMENTS_PER_LINKAGE", "TableColumns", "length_ceil_milli", "line_offset", "line_offsets", "line_point", "line_points",
            "linkage_columns", "linkage_id", "linkage_ids", "segment_columns", "transmission_floor_cdeg"]
 
 #: Room for segment ordinals inside one linkage's id range (ids stay below 2^63 for 10^8 linkages).
@@ -177,8 +177,16 @@ def line_offsets(point: NDArray[np.complex128], direction: NDArray[np.float64]) 
 
 def line_point(offset: float, direction: float) -> complex:
     """The foot from A0 of the stored line (``offset``, ``direction``): the inverse of
-    :func:`line_offset` up to the line's own points."""
-    return offset * 1j * complex(math.cos(direction), math.sin(direction))
+    :func:`line_offset` up to the line's own points (:func:`line_points` of one line)."""
+    return complex(line_points(np.array([offset], float), np.array([direction], float))[0])
+
+
+def line_points(offset: NDArray[np.float64], direction: NDArray[np.float64]) -> NDArray[np.complex128]:
+    """:func:`line_point` of each (offset, direction): offset·i·e^{iδ}, its parts written as
+    rounded products, so that a line's foot is the same float alone or in an array."""
+    foot = np.empty(np.shape(offset), np.complex128)
+    foot.real, foot.imag = -(offset * np.sin(direction)), offset * np.cos(direction)
+    return foot
 
 
 def segment_columns(found: FoundSegments, linkages: TableColumns) -> tuple[TableColumns, TableColumns]:

@@ -58,6 +58,7 @@ from synth.candidates import (
 from synth.dwell_key import arc_key_target
 from synth.figures import SixBarFigures, figures_with_dwell_bounds, footprints, sixbar_figures
 from synth.output_range import Dwell
+from synth.segment_rows import SegmentBatch, SegmentRow
 from synth.sixbar import OutputDyad, SixBar, SixBars, crank_grid
 from synth.sixbar import simulate as simulate_motion
 
@@ -124,27 +125,6 @@ CONSTRAINTS = ("assembly", "dwell", "swing", "step", "transmission", "link_ratio
 
 
 @dataclass(frozen=True, slots=True)
-class SegmentRow:
-    """A stored segment with the dwell row (one level; both parts for a double line) that
-    matched the request. Angles in radians, lengths in crank lengths."""
-
-    segment_id: int
-    kind: str
-    level: int
-    tolerance: float
-    b: float
-    c: float
-    d: float
-    branch: int
-    u: float
-    v: float
-    phi_gen: float
-    #: per part: (phi_start, phi_end, x, y, direction or None, radius or None)
-    parts: tuple[tuple[float, float, float, float, float | None, float | None], ...]
-    fourbar_transmission_min: float
-
-
-@dataclass(frozen=True, slots=True)
 class DwellWindow:
     """Stored rows wanted: at tolerance ``level`` (None: any level), with a dwell key in [low,
     high], the ``limit`` closest to ``target``. A line's dwell key is its dwell angle (rad), an
@@ -179,9 +159,9 @@ class SegmentSource(Protocol):
         """The stored dwell angles (rad) of ``kinds`` just below and just above ``target``."""
 
     def scan_segments(self, kind: str, level: int, *, min_transmission: float, max_length: float,
-                      min_radius_ratio: float, batch: int) -> Iterator[list[SegmentRow]]:
+                      min_radius_ratio: float, batch: int) -> Iterator[SegmentBatch]:
         """Every segment of ``kind`` with a dwell at ``level`` (filtered as in
-        :meth:`select_segments`), in batches of up to ``batch``."""
+        :meth:`select_segments`), in batches of up to ``batch`` rows as columns."""
 
     def count_segments(self, kind: str, level: int, *, min_transmission: float, max_length: float,
                        min_radius_ratio: float) -> int:
@@ -328,16 +308,17 @@ class Fitted:
         return SixBar(1.0, r.b, r.c, r.d, r.branch, r.u, r.v, self.dyad)
 
 
-def _paths(rows: Sequence[SegmentRow], phi: np.ndarray) -> np.ndarray:
+def _paths(rows: SegmentBatch | Sequence[SegmentRow], phi: np.ndarray) -> np.ndarray:
+    """The coupler-point paths of ``rows`` (a batch, or rows of any kinds) on the crank grid ``phi``."""
     from kinematics.fourbar import fourbar_motion
 
-    b = np.array([r.b for r in rows])[:, None]
-    c = np.array([r.c for r in rows])[:, None]
-    d = np.array([r.d for r in rows])[:, None]
-    br = np.array([r.branch for r in rows])[:, None]
-    uv = np.array([complex(r.u, r.v) for r in rows])[:, None]
-    motion = fourbar_motion(1.0, b, c, d, phi, br, order=0)
-    return motion.A + motion.e_theta * uv
+    if isinstance(rows, SegmentBatch):
+        b, c, d, branch, uv = rows.b, rows.c, rows.d, rows.branch, rows.coupler_point()
+    else:
+        b, c, d, branch = (np.array([getattr(r, name) for r in rows]) for name in ("b", "c", "d", "branch"))
+        uv = np.array([complex(r.u, r.v) for r in rows])
+    motion = fourbar_motion(1.0, b[:, None], c[:, None], d[:, None], phi, branch[:, None], order=0)
+    return motion.A + motion.e_theta * uv[:, None]
 
 
 def fit(request: Request, rows: Sequence[SegmentRow], kind: str) -> list[Fitted]:
@@ -349,48 +330,50 @@ def fit(request: Request, rows: Sequence[SegmentRow], kind: str) -> list[Fitted]
 class _FitArrays:
     """The dyads :func:`fit` finds, one entry per dyad in row and slot order, before any
     object is made (most of a complete search's fits fail the prescreen): the id's output tag,
-    each dyad's row (index into the rows fitted) and slot, its pivot and (RRR) rocker, rod,
-    branch and where Q rests (the arc's centre)."""
+    each dyad's row (index into the rows fitted) and slot, its pivot, its stretch's line point
+    or arc centre (part 0: where an RRR's Q rests; the prescreen measures angles from it) and
+    (RRR) rocker, rod and branch."""
 
     output: str
     index: np.ndarray
     slot: np.ndarray
     pivot: np.ndarray
+    point: np.ndarray
     rocker: np.ndarray | None = None
     rod: np.ndarray | None = None
     branch: np.ndarray | None = None
-    rest: np.ndarray | None = None
 
 
 def _fit_arrays(request: Request, rows: Sequence[SegmentRow], kind: str) -> tuple[_FitArrays, np.ndarray]:
-    """The dyads found for ``rows`` (all of kind ``kind``) and the rows' coupler-point paths on
-    the fit's crank grid."""
+    """The dyads found for ``rows`` (all of kind ``kind``; a :class:`SegmentBatch` or a list of
+    rows) and the rows' coupler-point paths on the fit's crank grid."""
     from synth.dyad import fit_rpr, fit_rrr, rpr_double
 
     phi = crank_grid(FIT_SAMPLES)
     none = np.zeros(0, np.int64)
-    if not rows:
-        return _FitArrays(_OUTPUT_OF[kind], none, none, np.zeros(0, complex)), np.zeros((0, FIT_SAMPLES), complex)
-    paths = _paths(rows, phi)
+    if not len(rows):
+        empty = np.zeros(0, complex)
+        return _FitArrays(_OUTPUT_OF[kind], none, none, empty, empty), np.zeros((0, FIT_SAMPLES), complex)
+    batch = SegmentBatch.of_rows(rows, kind)
+    paths = _paths(batch, phi)
+    point = batch.point(0)
     if kind == "double_line":
-        line1 = (np.array([complex(r.parts[0][2], r.parts[0][3]) for r in rows]), np.array([r.parts[0][4] for r in rows]))
-        line2 = (np.array([complex(r.parts[1][2], r.parts[1][3]) for r in rows]), np.array([r.parts[1][4] for r in rows]))
-        found = rpr_double(line1, line2)
-        (index,) = np.nonzero(found.found)
-        return _FitArrays("dbl", index, np.zeros_like(index), found.pivot[index]), paths
-    start = np.array([r.parts[0][0] for r in rows])
-    end = np.array([r.parts[0][1] for r in rows])
-    point = np.array([complex(r.parts[0][2], r.parts[0][3]) for r in rows])
+        two = np.flatnonzero(batch.has_parts == 2)  # a double line holds both stretches at the level
+        found = rpr_double((point[two], batch.part(0, "direction")[two]),
+                           (batch.point(1)[two], batch.part(1, "direction")[two]))
+        (hit,) = np.nonzero(found.found)
+        index = two[hit]
+        return _FitArrays("dbl", index, np.zeros_like(index), found.pivot[hit], point[index]), paths
+    interval = (batch.part(0, "start"), batch.part(0, "end"))
     if kind == "line":
-        direction = np.array([r.parts[0][4] for r in rows])
-        found = fit_rpr(point, direction, phi, paths, (start, end), request.swing)
+        found = fit_rpr(point, batch.part(0, "direction"), phi, paths, interval, request.swing)
         index, slot = np.nonzero(found.found)  # row-major: row, then slot order
-        return _FitArrays("rpr", index, slot, found.pivot[index, slot]), paths
-    radius = np.array([r.parts[0][5] for r in rows])
-    found = fit_rrr(point, radius, phi, paths, (start, end), request.swing, request.min_transmission, keep=2)
+        return _FitArrays("rpr", index, slot, found.pivot[index, slot], point[index]), paths
+    found = fit_rrr(point, batch.part(0, "radius"), phi, paths, interval, request.swing, request.min_transmission,
+                    keep=2)
     index, slot = np.nonzero(found.found)
-    return _FitArrays("rrr", index, slot, found.pivot[index, slot], found.rocker[index, slot], found.rod[index, slot],
-                      found.branch[index, slot], point[index]), paths
+    return _FitArrays("rrr", index, slot, found.pivot[index, slot], point[index], found.rocker[index, slot],
+                      found.rod[index, slot], found.branch[index, slot]), paths
 
 
 _OUTPUT_OF = {"line": "rpr", "arc": "rrr", "double_line": "dbl"}
@@ -404,13 +387,13 @@ def _fitted(rows: Sequence[SegmentRow], found: _FitArrays, keep: np.ndarray | No
     index, slot, pivot = (x[pick].tolist() for x in (found.index, found.slot, found.pivot))
     if found.output != "rrr":
         return [Fitted(rows[i], found.output, k, OutputDyad.rpr(D)) for i, k, D in zip(index, slot, pivot)]
-    rocker, rod, branch, rest = (x[pick].tolist() for x in (found.rocker, found.rod, found.branch, found.rest))
+    rocker, rod, branch, rest = (x[pick].tolist() for x in (found.rocker, found.rod, found.branch, found.point))
     return [Fitted(rows[i], "rrr", k, OutputDyad.rrr(D, L, rho, int(br)), Q)
             for i, k, D, L, rho, br, Q in zip(index, slot, pivot, rocker, rod, branch, rest)]
 
 
-def prescreen(request: Request, rows: Sequence[SegmentRow], found: _FitArrays, paths: np.ndarray) -> np.ndarray:
-    """Which of the dyads ``found`` for ``rows`` (:func:`_fit_arrays`, in its order) may meet
+def prescreen(request: Request, found: _FitArrays, paths: np.ndarray) -> np.ndarray:
+    """Which of the dyads ``found`` (:func:`_fit_arrays`, in its order) may meet
     ``request``, from the paths they were fitted to (``paths``, exact coupler-point positions on
     the fit's crank grid), before any simulation and before any object is made for them: the
     output angle on that grid in closed form (RPR: the slot's direction P − D; RRR: the
@@ -421,10 +404,8 @@ def prescreen(request: Request, rows: Sequence[SegmentRow], found: _FitArrays, p
     arc centre (RRR) seen from D, and unwrapped along the turn."""
     if not found.index.size:
         return np.zeros(0, bool)
-    point = np.array([complex(r.parts[0][2], r.parts[0][3]) for r in rows])  # the stretch's line point
-    rest = (found.rest if found.rest is not None else point[found.index])[:, None]
     links = None if found.output != "rrr" else tuple(x[:, None] for x in (found.rod, found.rocker, found.branch))
-    return _output_screen(request, paths[found.index], found.pivot[:, None], rest, links)
+    return _output_screen(request, paths[found.index], found.pivot[:, None], found.point[:, None], links)
 
 
 def _reference(f: Fitted) -> complex:
@@ -867,7 +848,7 @@ def search_batch(job: tuple[Sequence[Request], str, Sequence[SegmentRow]]
     fits, paths = _fit_arrays(requests[0], rows, kind)
     met, simulated = [], []
     for request in requests:
-        found, n = simulate(request, _fitted(rows, fits, prescreen(request, rows, fits, paths)))
+        found, n = simulate(request, _fitted(rows, fits, prescreen(request, fits, paths)))
         met.append(found)
         simulated.append(n)
     return met, len(rows), fits.index.size, simulated
@@ -956,7 +937,7 @@ def answer(request: Request, source: SegmentSource, *,
             found, paths = _fit_arrays(request, of_kind, kind)
             fits = _fitted(of_kind, found)  # every fit: a no-match is diagnosed and refined from them
             fitted.extend(fits)
-            passed += [f for f, k in zip(fits, prescreen(request, of_kind, found, paths)) if k]
+            passed += [f for f, k in zip(fits, prescreen(request, found, paths)) if k]
         clock["fit"] = clock.get("fit", 0.0) + time.perf_counter() - t
         return passed
 

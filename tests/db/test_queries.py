@@ -8,14 +8,17 @@ import cmath
 import math
 from dataclasses import replace
 
+import numpy as np
+import pytest
 from hypothesis import example, given
 from hypothesis import strategies as st
 from shards import shard_rows, with_rows
-from sqlalchemy import insert
+from sqlalchemy import insert, inspect
 
 from db import SCHEMA_VERSION, Build, open_atlas
+from db.engine import AtlasError
 from db.queries import AtlasSource, scan_segments, segment_row, select_segments
-from db.rows import length_ceil_milli, line_offset, line_point, transmission_floor_cdeg
+from db.rows import length_ceil_milli, line_offset, line_point, line_points, transmission_floor_cdeg
 from db.writes import finish_build, write_shard
 from synth.query import DwellWindow
 
@@ -116,3 +119,59 @@ def test_rows_read_back_as_written(atlas_url):
     assert segment_row(engine, sid, 1).parts == ()  # no row at that level
     assert segment_row(engine, sid + 7, 0) is None
     engine.dispose()
+
+
+def test_scanned_batches_spell_out_the_rows_read_one_by_one(atlas_url):
+    """The complete search's batches (columns, one joined statement) hold every value that
+    :func:`segment_row` reads for the same segment and level, bit for bit: an arc, a line and a
+    double line."""
+    rows = shard_rows(0)
+    segment, dwell = rows.segments.rows()[0], rows.dwells.rows()[0]
+    sid = segment["id"]
+    direction = 0.7
+    offset = line_offset(0.4 - 1.3j, direction)
+    line = {**segment, "id": sid + 1, "kind": "line"}
+    double = {**segment, "id": sid + 2, "kind": "double_line", "phi_gen2": 4.0, "u": -0.3, "v": 1e-17}
+    line_row = {**dwell, "segment_id": sid + 1, "kind": 0, "dwell_key": 0.5, "dwell_angle": None, "x": offset,
+                "y": None, "direction": direction, "radius": None}
+    double_row = {**line_row, "segment_id": sid + 2, "kind": 2, "dwell_angle2": 0.25, "phi_start2": 3.5,
+                  "x2": -offset, "direction2": -2.9}
+    engine = _atlas(atlas_url, with_rows(rows, segments=[segment, line, double], dwells=[dwell, line_row, double_row]))
+    for kind, want in (("arc", sid), ("line", sid + 1), ("double_line", sid + 2)):
+        (batch,) = scan_segments(engine, kind, 0)
+        assert len(batch) == 1 and batch.kind == kind
+        one = segment_row(engine, want, 0)
+        assert list(batch) == [one] and batch[0].parts and batch[-1] == one
+        assert [x.hex() for p in batch[0].parts for x in p if x is not None] == \
+            [x.hex() for p in one.parts for x in p if x is not None]
+    engine.dispose()
+
+
+def test_a_scan_names_a_dwell_row_without_its_segment(atlas_url):
+    """Only a damaged atlas has one: one line naming the segment, not a row with holes."""
+    engine = _atlas(atlas_url, shard_rows(0))
+    sid = shard_rows(0).segments.rows()[0]["id"]
+    with engine.begin() as conn:
+        if engine.dialect.name == "sqlite":
+            conn.exec_driver_sql("PRAGMA foreign_keys=OFF")  # the pooled connection's; restored below
+        else:  # the tests' role owns the tables, but is no superuser to switch the key checks off
+            for fk in inspect(conn).get_foreign_keys("dwell"):
+                conn.exec_driver_sql(f'ALTER TABLE dwell DROP CONSTRAINT "{fk["name"]}"')
+        conn.exec_driver_sql(f"DELETE FROM segment WHERE id = {sid}")
+    if engine.dialect.name == "sqlite":
+        with engine.begin() as conn:
+            conn.exec_driver_sql("PRAGMA foreign_keys=ON")
+    with pytest.raises(AtlasError, match=f"is damaged: dwell rows name segment {sid}, which does not exist"):
+        list(scan_segments(engine, "arc", 0))
+    engine.dispose()
+
+
+@given(st.lists(st.tuples(st.floats(-1e3, 1e3), st.floats(-10.0, 10.0)), min_size=1, max_size=20))
+@example([(0.0, 0.0), (-0.0, math.pi), (1.5, -0.0)])
+def test_line_points_are_each_line_point(lines):
+    """A line's foot is the same float alone or in an array (the scan reads arrays, a report one row)."""
+    offset, direction = (np.array(x, float) for x in zip(*lines))
+    feet = line_points(offset, direction)
+    for foot, o, d in zip(feet.tolist(), offset.tolist(), direction.tolist()):
+        one = line_point(o, d)
+        assert (foot.real.hex(), foot.imag.hex()) == (one.real.hex(), one.imag.hex())
