@@ -16,7 +16,6 @@ from collections.abc import Iterator, Sequence
 from typing import Any
 
 import numpy as np
-
 from sqlalchemy import (
     CompoundSelect,
     Engine,
@@ -163,12 +162,11 @@ def _segment_batch(engine: Engine, kind: str, hits: Sequence, tolerance: dict[in
     first[:, 0], first[:, 1] = start, start + column(angle)
     if kind == SegmentKind.ARC.value:
         first[:, 2], first[:, 3], first[:, 4], first[:, 5] = column(x), column(y), np.nan, column(radius)
-        parts = (first,)
     else:
         direction = column(direction)
         foot = line_points(column(x), direction)
         first[:, 2], first[:, 3], first[:, 4], first[:, 5] = foot.real, foot.imag, direction, np.nan
-        parts = (first,)
+    parts: tuple[np.ndarray, ...] = (first,)
     has_parts = np.ones(n, np.int64)
     if kind == SegmentKind.DOUBLE_LINE.value:
         angle2, start2 = nullable(angle2), nullable(start2)

@@ -34,8 +34,8 @@ from synth.dwell_key import arc_dwell_key
 from synth.kinds import SEGMENT_KINDS, SegmentKind
 from synth.segments import FoundSegments
 
-__all__ = ["SEGMENTS_PER_LINKAGE", "TableColumns", "length_ceil_milli", "line_offset", "line_offsets", "line_point", "line_points",
-           "linkage_columns", "linkage_id", "linkage_ids", "segment_columns", "transmission_floor_cdeg"]
+__all__ = ["SEGMENTS_PER_LINKAGE", "TableColumns", "length_ceil_milli", "line_offset", "line_offsets", "line_point",
+           "line_points", "linkage_columns", "linkage_id", "linkage_ids", "segment_columns", "transmission_floor_cdeg"]
 
 #: Room for segment ordinals inside one linkage's id range (ids stay below 2^63 for 10^8 linkages).
 SEGMENTS_PER_LINKAGE = 100_000

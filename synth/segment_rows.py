@@ -54,9 +54,9 @@ _PART_FIELDS = ("start", "end", "x", "y", "direction", "radius")
 
 @dataclass(frozen=True, slots=True, eq=False)
 class SegmentBatch(Sequence[SegmentRow]):
-    """Rows of one segment kind as columns, in row order: what the
-    complete search fits without making an object per row (most rows yield no six-bar). A
-    :class:`SegmentRow` is spelled out only for the rows that need one (:meth:`__getitem__`).
+    """Rows of one segment kind as columns, in row order: what the complete search fits
+    without making an object per row (most rows yield no six-bar). A :class:`SegmentRow` is
+    spelled out only for the rows that need one (:meth:`__getitem__`).
 
     ``parts`` holds, per part, a (rows, 6) float array in :data:`Part` order with NaN for a
     direction or radius the part has not (a line has no radius, an arc no direction), and
@@ -91,9 +91,9 @@ class SegmentBatch(Sequence[SegmentRow]):
         parts = tuple(tuple(None if np.isnan(x) and f in ("direction", "radius") else x
                             for f, x in zip(_PART_FIELDS, p[i].tolist()))
                       for p in self.parts[: int(self.has_parts[i])])
-        return SegmentRow(int(self.segment_id[i]), self.kind, int(self.level[i]), float(self.tolerance[i]), float(self.b[i]),
-                          float(self.c[i]), float(self.d[i]), int(self.branch[i]), float(self.u[i]), float(self.v[i]),
-                          float(self.phi_gen[i]), parts, float(self.fourbar_transmission_min[i]))
+        return SegmentRow(int(self.segment_id[i]), self.kind, int(self.level[i]), float(self.tolerance[i]),
+                          float(self.b[i]), float(self.c[i]), float(self.d[i]), int(self.branch[i]), float(self.u[i]),
+                          float(self.v[i]), float(self.phi_gen[i]), parts, float(self.fourbar_transmission_min[i]))
 
     def __iter__(self) -> Iterator[SegmentRow]:
         return (self[i] for i in range(len(self)))
@@ -129,8 +129,6 @@ class SegmentBatch(Sequence[SegmentRow]):
             return np.array([getattr(r, name) for r in rows], dtype).reshape(n)
 
         return cls(kind, column("segment_id", np.int64), column("level", np.int64), column("tolerance", np.float64),
-                   column("b", np.float64), column("c", np.float64),
-                   column("d", np.float64), column("branch", np.int64), column("u", np.float64),
-                   column("v", np.float64), column("phi_gen", np.float64),
-                   column("fourbar_transmission_min", np.float64), tuple(parts),
-                   np.array([len(r.parts) for r in rows], np.int64).reshape(n))
+                   *(column(name, np.float64) for name in ("b", "c", "d")), column("branch", np.int64),
+                   *(column(name, np.float64) for name in ("u", "v", "phi_gen", "fourbar_transmission_min")),
+                   tuple(parts), np.array([len(r.parts) for r in rows], np.int64).reshape(n))
