@@ -9,6 +9,7 @@ A0) or its arc's centre, and the line's direction or the arc's radius.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
@@ -83,20 +84,33 @@ class SegmentBatch(Sequence[SegmentRow]):
 
     def __getitem__(self, i):  # type: ignore[override]
         if isinstance(i, slice):
-            return [self[k] for k in range(*i.indices(len(self)))]
+            return self.rows()[i]
         n = len(self)
         if not -n <= i < n:
             raise IndexError(f"row {i} of a batch of {n}")
         i %= n
-        parts = tuple(tuple(None if np.isnan(x) and f in ("direction", "radius") else x
-                            for f, x in zip(_PART_FIELDS, p[i].tolist()))
-                      for p in self.parts[: int(self.has_parts[i])])
-        return SegmentRow(int(self.segment_id[i]), self.kind, int(self.level[i]), float(self.tolerance[i]),
-                          float(self.b[i]), float(self.c[i]), float(self.d[i]), int(self.branch[i]), float(self.u[i]),
-                          float(self.v[i]), float(self.phi_gen[i]), parts, float(self.fourbar_transmission_min[i]))
+        return self._spelled(i, i + 1)[0]
 
     def __iter__(self) -> Iterator[SegmentRow]:
-        return (self[i] for i in range(len(self)))
+        return iter(self.rows())
+
+    def rows(self) -> list[SegmentRow]:
+        """Every row spelled out, in order (one pass over the columns)."""
+        return self._spelled(0, len(self))
+
+    def _spelled(self, lo: int, hi: int) -> list[SegmentRow]:
+        """Rows ``lo`` to ``hi`` (exclusive) as :class:`SegmentRow`: plain Python values
+        (``tolist``), None for a NaN direction or radius."""
+        columns = [x[lo:hi].tolist() for x in (self.segment_id, self.level, self.tolerance, self.b, self.c, self.d,
+                                               self.branch, self.u, self.v, self.phi_gen,
+                                               self.fourbar_transmission_min, self.has_parts)]
+        parts = [p[lo:hi].tolist() for p in self.parts]
+        out = []
+        for k, (sid, level, tol, b, c, d, branch, u, v, phi_gen, mu, n_parts) in enumerate(zip(*columns)):
+            spelled = tuple((s, e, x, y, None if dr != dr else dr, None if r != r else r)  # x != x: NaN
+                            for s, e, x, y, dr, r in (part[k] for part in parts[:n_parts]))
+            out.append(SegmentRow(sid, self.kind, level, tol, b, c, d, branch, u, v, phi_gen, spelled, mu))
+        return out
 
     def part(self, k: int, field: str) -> NDArray[np.float64]:
         """Column ``field`` (one of :data:`_PART_FIELDS`) of part ``k`` (NaN where a row has
@@ -120,10 +134,11 @@ class SegmentBatch(Sequence[SegmentRow]):
             raise ValueError(f"a batch holds rows of one kind ({kind})")
         n = len(rows)
         width = max((len(r.parts) for r in rows), default=1) or 1
-        parts = [np.full((n, 6), np.nan) for _ in range(width)]
-        for i, r in enumerate(rows):
-            for k, p in enumerate(r.parts):
-                parts[k][i] = [np.nan if x is None else x for x in p]
+        nan = math.nan
+        none = (nan,) * 6
+        parts = [np.array([(p[0], p[1], p[2], p[3], nan if p[4] is None else p[4], nan if p[5] is None else p[5])
+                           if (p := (r.parts[k] if k < len(r.parts) else None)) is not None else none for r in rows],
+                          np.float64).reshape(n, 6) for k in range(width)]
 
         def column(name: str, dtype) -> np.ndarray:
             return np.array([getattr(r, name) for r in rows], dtype).reshape(n)
