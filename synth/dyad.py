@@ -75,18 +75,24 @@ def _rows(path_z: ArrayLike, *params: ArrayLike) -> tuple[tuple[int, ...], C128,
     return lead, np.broadcast_to(z, lead + z.shape[-1:]).reshape(R, -1), out
 
 
-def _dwell_mask(phi0: float, h: float, m: int, start: np.ndarray, end: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Samples inside the crank interval [start, end] (cyclic; end may pass 2π) and the sample
-    nearest to its middle, per row: (mask (R, M), mid index (R,))."""
+def _mid_sample(phi0: float, h: float, m: int, start: np.ndarray, end: np.ndarray) -> np.ndarray:
+    """The sample nearest to the middle of the crank interval [start, end] (cyclic; end may pass
+    2π), per row (R,)."""
+    if np.any(end - start < 0):
+        raise ValueError("dwell interval must have end >= start (radians, end may pass 2*pi)")
+    return np.mod(np.rint((0.5 * (start + end) - phi0) / h).astype(np.int64), m)
+
+
+def _dwell_mask(phi0: float, h: float, m: int, start: np.ndarray, end: np.ndarray) -> np.ndarray:
+    """Samples inside the crank interval [start, end] (cyclic; end may pass 2π), per row
+    (R, M); an interval shorter than a step keeps its :func:`_mid_sample`."""
+    mid = _mid_sample(phi0, h, m, start, end)
     phi = phi0 + h * np.arange(m)
     span = end - start
-    if np.any(span < 0):
-        raise ValueError("dwell interval must have end >= start (radians, end may pass 2*pi)")
     rel = np.mod(phi[None, :] - start[:, None], _TWO_PI)
     mask = (rel <= span[:, None] + 1e-12) | (span[:, None] >= _TWO_PI)
-    mid = np.mod(np.rint((0.5 * (start + end) - phi0) / h).astype(np.int64), m)
-    mask[np.arange(mask.shape[0]), mid] = True  # an interval shorter than a step keeps one sample
-    return mask, mid
+    mask[np.arange(mask.shape[0]), mid] = True
+    return mask
 
 
 def _solve_two_stage(solve, path, lo, hi, u0, target, active):
@@ -204,7 +210,7 @@ def fit_rpr(line_point: ArrayLike, line_direction: ArrayLike, phi: ArrayLike, pa
     e = np.exp(1j * delta.astype(float))
     w = (z - P0[:, None]) * np.conj(e)[:, None]
     t, n = w.real, w.imag
-    mask, _ = _dwell_mask(phi0, h, m, s0.astype(float), s1.astype(float))
+    mask = _dwell_mask(phi0, h, m, s0.astype(float), s1.astype(float))
     t_lo = np.where(mask, t, np.inf).min(axis=1)
     t_hi = np.where(mask, t, -np.inf).max(axis=1)
     sigma = np.array([-1.0, 1.0])
@@ -452,7 +458,8 @@ def fit_rrr(circle_center: ArrayLike, radius: ArrayLike, phi: ArrayLike, path_z:
     if int(directions) < 4 or int(keep) < 1:
         raise ValueError("need directions >= 4 and keep >= 1")
     R = z.shape[0]
-    _, mid = _dwell_mask(phi0, h, m, s0.astype(float), s1.astype(float))
+    # only the middle sample: where Q rests, which puts the rocker's branch
+    mid = _mid_sample(phi0, h, m, s0.astype(float), s1.astype(float))
     w = z - C0[:, None]  # (R, M)
     cm = math.cos(min_transmission)
     q_mid_w = w[np.arange(R), mid]

@@ -100,7 +100,7 @@ def coarse_scan(source, swing_deg: float = 30.0) -> None:
         lead, z, (C0, rho, s0, s1, target) = fits._rows(query._paths(rows, phi), x + 1j * y, radius, start, end,
                                                          request.swing)
         phi0, h, m = fits.grid_step(phi)
-        mask, mid = fits._dwell_mask(phi0, h, m, s0, s1)
+        mask, mid = fits._dwell_mask(phi0, h, m, s0, s1), fits._mid_sample(phi0, h, m, s0, s1)
         w = z - C0[:, None]
         R = len(rows)
         _, peak_ok = fits._rrr_coarse_scan(w, rho, math.cos(request.min_transmission), w[np.arange(R), mid], target,
