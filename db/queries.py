@@ -146,9 +146,8 @@ def _segment_batch(engine: Engine, kind: str, hits: Sequence, tolerance: dict[in
     start plus the dwell angle, a line's point its foot from A0 (:func:`db.rows.line_points`)."""
     (segment_id, levels, _, angle, start, x, y, direction, radius, angle2, start2, x2, direction2,
      segment, u, v, phi_gen, b, c, d, branch, transmission_min) = zip(*hits)
-    if None in segment or None in b:  # dwell rows whose segment (or its linkage) was deleted: only a damaged atlas
-        lost = segment_id[list(segment).index(None) if None in segment else list(b).index(None)]
-        raise damaged(atlas_name(engine), f"dwell rows name segment {lost}, which does not exist")
+    if None in segment or None in b:  # the outer join found no segment (or linkage) for a dwell row
+        raise _lost_segment(engine, segment_id[list(segment).index(None) if None in segment else list(b).index(None)])
     n = len(hits)
 
     def column(values: Sequence, dtype=np.float64) -> np.ndarray:
@@ -261,6 +260,11 @@ def _walks(n: int, length: bool, ratio: bool) -> CompoundSelect:
     return union_all(*parts)
 
 
+def _lost_segment(engine: Engine, segment_id: int) -> Exception:
+    """The error for dwell rows whose segment (or its linkage) was deleted: only a damaged atlas has them."""
+    return damaged(atlas_name(engine), f"dwell rows name segment {segment_id}, which does not exist")
+
+
 def _segment_rows(engine: Engine, conn, hits: Sequence, tolerance: dict[int, float]) -> list[SegmentRow]:
     """The :class:`SegmentRow` of each walked dwell row of ``hits`` (:data:`_DWELL_COLUMNS`),
     in that order, with its segment and linkage read by primary key; ``tolerance``: level →
@@ -273,15 +277,16 @@ def _segment_rows(engine: Engine, conn, hits: Sequence, tolerance: dict[int, flo
     # takes at most 32 766 in one, PostgreSQL 65 535)
     for k in range(0, len(ids), IN_CHUNK):
         segs.update((r[0], r) for r in conn.execute(_SEGMENTS_BY_ID, {"ids": ids[k : k + IN_CHUNK]}).all())
+    lost = [h.segment_id for h in hits if h.segment_id not in segs]
+    if lost:
+        raise _lost_segment(engine, lost[0])
     width = len(_DWELL_COLUMNS)
-    missing = (None,) * (1 + len(_SEGMENT_COLUMNS))
     by_kind: dict[str, list[int]] = {}
     joined = []
     for i, h in enumerate(hits):
-        seg = segs.get(h.segment_id)
-        joined.append((*h[:width], *(missing if seg is None else (seg[0], *seg[2:]))))
-        # a missing segment's kind does not matter: its batch names it as damaged
-        by_kind.setdefault(SegmentKind.LINE.value if seg is None else seg[1], []).append(i)
+        seg = segs[h.segment_id]
+        joined.append((*h[:width], seg[0], *seg[2:]))
+        by_kind.setdefault(seg[1], []).append(i)
     out: list[SegmentRow] = [None] * len(hits)  # type: ignore[list-item]
     for kind, index in by_kind.items():
         for i, row in zip(index, _segment_batch(engine, kind, [joined[i] for i in index], tolerance)):

@@ -147,7 +147,7 @@ def test_scanned_batches_spell_out_the_rows_read_one_by_one(atlas_url):
     engine.dispose()
 
 
-def test_a_scan_names_a_dwell_row_without_its_segment(atlas_url):
+def test_a_read_names_a_dwell_row_without_its_segment(atlas_url):
     """Only a damaged atlas has one: one line naming the segment, not a row with holes."""
     engine = _atlas(atlas_url, shard_rows(0))
     sid = shard_rows(0).segments.rows()[0]["id"]
@@ -163,6 +163,8 @@ def test_a_scan_names_a_dwell_row_without_its_segment(atlas_url):
             conn.exec_driver_sql("PRAGMA foreign_keys=ON")
     with pytest.raises(AtlasError, match=f"is damaged: dwell rows name segment {sid}, which does not exist"):
         list(scan_segments(engine, "arc", 0))
+    with pytest.raises(AtlasError, match=f"is damaged: dwell rows name segment {sid}, which does not exist"):
+        select_segments(engine, ("arc",), [DwellWindow(0, 0.0, 7.0, 0.5, 10)])  # the sample's read too
     engine.dispose()
 
 

@@ -16,9 +16,10 @@ finite = st.floats(-1e6, 1e6, allow_nan=False)
 
 
 def _part(kind: str):
-    geometry = (st.tuples(finite, finite, finite, finite, st.none(), st.floats(1e-3, 1e3)) if kind == "arc" else
-                st.tuples(finite, finite, finite, finite, st.floats(-math.pi, math.pi), st.none()))
-    return geometry
+    """A stretch: an arc has a radius and no direction, a line the other way round."""
+    if kind == "arc":
+        return st.tuples(finite, finite, finite, finite, st.none(), st.floats(1e-3, 1e3))
+    return st.tuples(finite, finite, finite, finite, st.floats(-math.pi, math.pi), st.none())
 
 
 @st.composite
