@@ -24,7 +24,8 @@ from synth.candidates import OUTPUTS, Request
 from synth.kinds import OutputKind
 from synth.query import SAMPLES, QueryResult, RebuildError
 
-__all__ = ["answer", "no_match_json", "no_match_message", "query", "rebuild", "request_from_options", "table"]
+__all__ = ["BAD_INPUT", "FOUND", "NONE_FOUND", "answer", "no_match_json", "no_match_message", "query", "rebuild",
+           "request_from_options", "table"]
 
 _DEFAULTS = {f.name: f.default for f in dataclasses.fields(Request)}
 
@@ -99,7 +100,7 @@ def rebuild(engine, ids: list[str], request: Request):
 
 def request_from_options(dwell: float, dwell_tol: float | None = None, swing: float | None = None,
                          swing_tol: float | None = None, output: str | None = None, dwells: int | None = None,
-                         dwell_tolerance: float | None = None, crank: float | None = None,
+                         band: float | None = None, crank: float | None = None,
                          min_transmission: float | None = None, max_link_ratio: float | None = None,
                          top: int | None = None, *, min_arm: float | None = None, min_clearance: float | None = None,
                          rpm: float | None = None, max_accel: float | None = None,
@@ -112,7 +113,7 @@ def request_from_options(dwell: float, dwell_tol: float | None = None, swing: fl
         raise InputError(f"--dwell must be at least {720.0 / SAMPLES:g}° (the simulation samples the turn "
                          f"every {360.0 / SAMPLES:g}°), got {dwell:g}")
     given = {"dwell": math.radians(dwell), "dwell_tol": _rad(dwell_tol), "swing": _rad(swing),
-             "swing_tol": _rad(swing_tol), "output": output, "dwells": dwells, "band": _rad(dwell_tolerance),
+             "swing_tol": _rad(swing_tol), "output": output, "dwells": dwells, "band": _rad(band),
              "crank": crank, "min_transmission": _rad(min_transmission), "max_link_ratio": max_link_ratio, "top": top,
              "min_arm": min_arm, "min_clearance": min_clearance, "rpm": rpm, "refine": refine, "complete": complete}
     if max_accel is not None:
@@ -319,7 +320,13 @@ ACCEL_LIMIT = Bounded(1e-9, 1e100, "an angular acceleration in rad/s²")
 TOP = Count(1, 1000, "candidates")
 
 
-@click.command("query")
+#: Exit statuses of ``dwell query`` (as grep's): six-bars found, none found, bad input.
+FOUND, NONE_FOUND, BAD_INPUT = 0, 1, 2
+
+
+@click.command("query", epilog=f"Exit status: {FOUND} if six-bars were found, {NONE_FOUND} if none meets the request "
+               f"(why, on stderr; with --json, the no_match object on stdout), {BAD_INPUT} for bad input "
+               "(an option, a value or the atlas).")
 @click.option("--db", "target", required=True, envvar="DWELL_ATLAS", show_envvar=True, metavar="PATH|URL",
               help="Atlas: SQLite file path or SQLAlchemy URL.")
 @click.option("--dwell", type=DWELL_DEG, required=True, help="Dwell angle (degrees of crank rotation).")
@@ -334,14 +341,18 @@ TOP = Count(1, 1000, "candidates")
               show_default=True, help="Output dyad.")
 @click.option("--dwells", type=Count(1, 2, "dwells per turn"), default=_DEFAULTS["dwells"], show_default=True,
               help="Dwells per turn: 1, or 2 (double Ball point, RPR).")
-@click.option("--band", "--dwell-tolerance", "dwell_tolerance", type=BAND_DEG, default=default_deg("band"), show_default=True,
-              help="Total width (°) of the output band that counts as a dwell.")
+@click.option("--band", type=BAND_DEG, default=default_deg("band"), show_default=True,
+              help="Total width (°) of the output band that counts as a dwell (not --dwell-tol, the error "
+                   "allowed on the dwell angle).")
 @click.option("--crank", type=LENGTH, default=_DEFAULTS["crank"], show_default=True,
               help="Crank length (your unit).")
 @click.option("--min-transmission", type=TRANSMISSION_RANGE, default=default_deg("min_transmission"),
               show_default=True, help="Smallest transmission angle (°).")
 @click.option("--max-link-ratio", type=LINK_RATIO, default=_DEFAULTS["max_link_ratio"], show_default=True,
-              help="Largest longest/shortest link ratio.")
+              help="Largest link ratio: the longest link over the shortest, every link counted — crank, "
+                   "rocker, ground, the coupler as the plate it is (A-B, A-P and B-P, P the coupler point) "
+                   "and the output dyad's (RRR rocker and rod; RPR the slot's reach, the slider's farthest "
+                   "distance from its pivot).")
 @click.option("--top", type=TOP, default=_DEFAULTS["top"], show_default=True, help="Candidates returned.")
 @click.option("--min-arm", type=CRANKS, default=_DEFAULTS["min_arm"], show_default=True,
               help="Smallest distance of an RPR slider from its slot pivot over the turn (crank lengths).")
@@ -361,11 +372,11 @@ TOP = Count(1, 1000, "candidates")
 @click.option("--report", "report_dir", type=click.Path(file_okay=False), default=None,
               help="Also write the report of the candidates to this folder.")
 @units_option
-def query(target, dwell, dwell_tol, swing, step, swing_tol, output, dwells, dwell_tolerance, crank, min_transmission,
+def query(target, dwell, dwell_tol, swing, step, swing_tol, output, dwells, band, crank, min_transmission,
           max_link_ratio, top, min_arm, min_clearance, rpm, max_accel, refine, complete, workers, as_json, report_dir,
           units):
-    """Ranked six-bars for a requested dwell and swing (see README: ranking)."""
-    request = request_from_options(dwell, dwell_tol, swing, swing_tol, output.lower(), dwells, dwell_tolerance, crank,
+    """Ranked six-bars for a requested dwell and swing (see README: ranking; docs/query.md)."""
+    request = request_from_options(dwell, dwell_tol, swing, swing_tol, output.lower(), dwells, band, crank,
                                    min_transmission, max_link_ratio, top, min_arm=min_arm, min_clearance=min_clearance,
                                    rpm=rpm, max_accel=max_accel, step=step, refine=refine, complete=complete)
     if report_dir is not None:
@@ -396,6 +407,7 @@ def query(target, dwell, dwell_tol, swing, step, swing_tol, output, dwells, dwel
         click.echo(table(result, units))
     if not result.candidates:
         click.echo(f"dwell: {no_match_message(result)}", err=True)
+        click.get_current_context().exit(NONE_FOUND)  # a script tells "none" from "some" (as grep)
     if report_dir is not None and result.candidates:
         from report.export import write_report
 

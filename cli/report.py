@@ -19,7 +19,7 @@ from cli.query import BAND_DEG, DWELL_DEG, TRANSMISSION_RANGE
               help="Candidate id(s) from `dwell query` (repeat the option or separate with spaces).")
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False), help="Folder for the report.")
 @click.option("--dwell", type=DWELL_DEG, default=None, help="Requested dwell (°) for the output deviation window.")
-@click.option("--band", "--dwell-tolerance", "dwell_tolerance", type=BAND_DEG, default=0.1, show_default=True,
+@click.option("--band", type=BAND_DEG, default=0.1, show_default=True,
               help="Total width (°) of the output band that counts as a dwell.")
 @click.option("--crank", type=LENGTH, default=1.0, show_default=True, help="Crank length (your unit).")
 @click.option("--min-transmission", type=TRANSMISSION_RANGE, default=30.0, show_default=True,
@@ -28,7 +28,7 @@ from cli.query import BAND_DEG, DWELL_DEG, TRANSMISSION_RANGE
               help="Crank speed for the output's peak velocity, acceleration and jerk (rev/min).")
 @units_option
 @click.argument("more_ids", nargs=-1)
-def report(target, ids, out_dir, dwell, dwell_tolerance, crank, min_transmission, rpm, units, more_ids):
+def report(target, ids, out_dir, dwell, band, crank, min_transmission, rpm, units, more_ids):
     """Write JSON, CSV, plots, drawings, DXF and an animated HTML page for the candidates."""
     from cli.query import rebuild, request_from_options
     from db.engine import damaged, open_atlas
@@ -52,7 +52,7 @@ def report(target, ids, out_dir, dwell, dwell_tolerance, crank, min_transmission
         raise InputError(str(exc)) from None
     probe_folder(out, "--out")
     # the deviation window: the requested dwell, or the rebuilt six-bar's own dwell
-    request = request_from_options(dwell if dwell is not None else 60.0, 2.0, 30.0, 0.5, "any", 1, dwell_tolerance,
+    request = request_from_options(dwell if dwell is not None else 60.0, 2.0, 30.0, 0.5, "any", 1, band,
                                    crank, min_transmission, 1e12, len(names), rpm=rpm)
     engine = open_atlas(target, readonly=True)
     try:

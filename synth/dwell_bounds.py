@@ -1,16 +1,25 @@
 """Necessary conditions on a six-bar's dwell and swing from its segment's stored data.
 
 The derivation is in ``docs/complete-query.md``; in short (crank a = 1, β the output band in
-rad, m₄ = min(1, b, c, d) the four-bar's shortest link, ρ_max the request's longest/shortest
-link ratio):
+rad, ρ_max the request's longest/shortest link ratio, m = :func:`~synth.link_ratio.segment_shortest`
+the shortest link the segment fixes: min(1, b, c, d, |AP|, |BP|), the coupler plate's sides
+included):
 
+* **The ratio.** The link ratio (:mod:`synth.link_ratio`) counts the dyad's links (RPR reach,
+  RRR rocker and rod) with the segment's, so a six-bar within ρ_max has every link ≤ ρ_max ×
+  its shortest link ≤ ρ_max·m. Counting the plate's sides makes the ratio of a six-bar only
+  larger (more links: the longest can only grow, the shortest only shrink), so every six-bar
+  within the limit now was within it before, and m ≤ m₄ = min(1, b, c, d): a bound taken with
+  m is at least as tight as one with m₄ and still necessary. Passing m₄ stays necessary too
+  (looser).
 * **RPR** (slot pivot D anywhere, on or off the line): while ψ = arg(P − D) stays within β,
   P stays within r·sin(β/2) of the line through D at the band's mid angle, r = max|P − D|
-  ≤ ρ_max·m₄ (the slot reach is a link of the ratio). So the minimum-zone line half-width of
-  the path over the dwell is ≤ ε*_RPR = ρ_max·m₄·sin(β/2).
+  ≤ ρ_max·m (the slot reach is a link of the ratio). So the minimum-zone line half-width of
+  the path over the dwell is ≤ ε*_RPR = ρ_max·m·sin(β/2).
 * **RRR** (rocker pivot D anywhere, rocker L, rod ρ): while arg(Q − D) stays within β, Q stays
   within 2L·sin(β/4) of the arc's mid point Q_m, so |P − Q_m| ∈ [ρ − δ, ρ + δ],
-  δ = 2L·sin(β/4) ≤ 2ρ_max·m₄·sin(β/4) = ε*_RRR: a minimum-zone annulus half-width bound.
+  δ = 2L·sin(β/4) ≤ 2ρ_max·m·sin(β/4) = ε*_RRR (L ≤ ρ_max·m: the rocker is a link of the
+  ratio): a minimum-zone annulus half-width bound.
 
 The segment's **deviation profile** L(ε) — the longest crank interval containing the
 generating angle on which the path's minimum-zone half-width is ≤ ε — then bounds the dwell
@@ -18,9 +27,14 @@ generating angle on which the path's minimum-zone half-width is ≤ ε — then 
 smallest stored level ε_k ≥ ε* (L is non-decreasing in ε).
 
 Swing (the output rocks, no revolution): RPR, the whole coupler curve lies in a circular sector
-of angle S (the swing) and radius ρ_max·m₄ about D, so its convex hull's minimum width
-W ≤ ρ_max·m₄·sin S (S ≤ π/2), i.e. S ≥ arcsin(W/(ρ_max·m₄)). RRR, the curve lies within ρ of
-an arc of angle S and radius L: its diameter Δ ≤ 2L·sin(S/2) + 2ρ (S ≤ π).
+of angle S (the swing) and radius ρ_max·m about D (the reach is a link), so its convex hull's
+minimum width W ≤ ρ_max·m·sin S (S ≤ π/2), i.e. S ≥ arcsin(W/(ρ_max·m)). RRR, the curve lies
+within ρ of an arc of angle S and radius L ≤ ρ_max·m: its diameter Δ ≤ 2L·sin(S/2) + 2ρ
+(S ≤ π).
+
+The RPR reach in the ratio is the largest |P − D| on the figures' crank samples, which may
+fall short of the continuous maximum by the sagitta of one sample step (~1e-5 of the reach at
+0.5°); the deviation profile's slack of two grid steps and more covers it.
 
 Pure: arrays in, arrays out.
 """
@@ -267,8 +281,11 @@ def path_tolerance(kind: str, band: ArrayLike, max_link_ratio: ArrayLike, shorte
     """ε*: the largest path half-width (crank lengths) a dyad of ``kind`` within the ratio can
     turn into an output band ``band`` (rad, total width).
 
-    ``kind`` "rpr": ρ_max·m₄·sin(β/2); "rrr": 2ρ_max·m₄·sin(β/4). ``shortest`` = m₄ =
-    min(1, b, c, d)."""
+    ``kind`` "rpr": ρ_max·m·sin(β/2); "rrr": 2ρ_max·m·sin(β/4). ``shortest`` = m, the
+    shortest link the segment fixes (:func:`~synth.link_ratio.segment_shortest`, the coupler
+    plate's sides included): the dyad's reach or rocker, a link of the ratio, is at most
+    ρ_max·m in any six-bar within ``max_link_ratio``. Any upper bound on m (e.g. the
+    four-bar's min(1, b, c, d)) keeps ε* an upper bound, looser."""
     beta = np.asarray(band, float)
     reach = np.asarray(max_link_ratio, float) * np.asarray(shortest, float)
     if kind == OutputTag.RPR:
@@ -331,16 +348,18 @@ def _hull(z: C128) -> C128:
 
 
 def rpr_min_swing(width: ArrayLike, max_link_ratio: ArrayLike, shortest: ArrayLike) -> F64:
-    """Smallest swing (rad) an RPR output of reach ≤ ρ_max·m₄ can make on a curve of hull
-    width ``width``: arcsin(W/(ρ_max·m₄)) (π/2 where W exceeds the reach: then the swing
-    exceeds π/2 or the output cannot follow)."""
+    """Smallest swing (rad) an RPR output of reach ≤ ρ_max·m can make on a curve of hull
+    width ``width``: arcsin(W/(ρ_max·m)) (π/2 where W exceeds the reach: then the swing
+    exceeds π/2 or the output cannot follow). ``shortest`` = m as in :func:`path_tolerance`:
+    the reach is a link of the ratio."""
     ratio = np.asarray(width, float) / (np.asarray(max_link_ratio, float) * np.asarray(shortest, float))
     return np.arcsin(np.minimum(ratio, 1.0))
 
 
 def rrr_min_swing(diameter: ArrayLike, rod: ArrayLike, max_link_ratio: ArrayLike, shortest: ArrayLike) -> F64:
-    """Smallest swing (rad) of an RRR output with rod ρ and rocker ≤ ρ_max·m₄ on a curve of
-    diameter Δ: 2·arcsin((Δ − 2ρ)/(2ρ_max·m₄)) clipped to [0, π]."""
+    """Smallest swing (rad) of an RRR output with rod ρ and rocker ≤ ρ_max·m on a curve of
+    diameter Δ: 2·arcsin((Δ − 2ρ)/(2ρ_max·m)) clipped to [0, π]. ``shortest`` = m as in
+    :func:`path_tolerance`: the rocker is a link of the ratio."""
     x = (np.asarray(diameter, float) - 2 * np.asarray(rod, float)) / (2 * np.asarray(max_link_ratio, float)
                                                                      * np.asarray(shortest, float))
     return 2 * np.arcsin(np.clip(x, 0.0, 1.0))

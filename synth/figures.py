@@ -24,6 +24,7 @@ from kinematics.fourbar import FourBarMotion
 from kinematics.loop import sampled_extreme
 from kinematics.status import Status
 from synth.buildability import Buildability, buildability
+from synth.link_ratio import link_ratio, segment_links
 from synth.output_range import Dwell, dwell_angle_bounds, dwell_intervals, output_deviation, output_swing
 from synth.sixbar import ExactOutput, SixBar, SixBarMotion, SixBars, as_batch, crank_grid, simulate
 from synth.types import C128, F64
@@ -53,10 +54,9 @@ class SixBarFigures:
         Minimum over the turn of the folded transmission angles (rad, [0, π/2]); 0 where the
         mechanism does not assemble.
     link_ratio : float
-        Longest over shortest link length: crank a, coupler b, rocker c, ground d, and the
-        dyad's — RRR rocker L and rod ρ; RPR the slot length the rocker needs, max |P − D|.
-        (Sides of the ternary links — coupler point offsets, pivot placement — are placements,
-        not link lengths, and are left out.)
+        Longest over shortest link length (:mod:`synth.link_ratio`): crank a, the coupler as
+        the ternary plate it is (b, |AP|, |BP|), rocker c, ground d and the dyad's links — RRR
+        rocker L and rod ρ; RPR the slot length the rocker needs, max |P − D|.
     footprint : float
         Area of the convex hull of the fixed pivots A0, B0, D and the paths of A, B, P and (RRR)
         Q over the turn (length²).
@@ -195,13 +195,14 @@ def _figures_but_dwells(batch: SixBars, phi: F64, motion: SixBarMotion, psi_at, 
 
 
 def link_ratios(batch: SixBars, motion: SixBarMotion) -> F64:
-    """Per row, the longest link over the shortest (the figures' ``link_ratio``): crank,
-    coupler, rocker, ground and the output dyad's two — an RPR's slot counted as its longest
-    reach |P − D| over ``motion``'s samples (any order: positions only)."""
+    """Per row, the figures' ``link_ratio`` (:mod:`synth.link_ratio`): longest over shortest
+    of the crank, coupler plate (b, |AP|, |BP|), rocker, ground and the output dyad's links —
+    an RRR's rocker and rod, an RPR's slot as its longest reach |P − D| over ``motion``'s
+    samples (any order: positions only)."""
     reach = np.max(np.abs(motion.z[0] - motion.pivot), axis=1)
-    links = np.stack([batch.a, batch.b, batch.c, batch.d,
-                      np.where(batch.rpr, reach, batch.rocker), np.where(batch.rpr, reach, batch.rod)], axis=1)
-    return links.max(axis=1) / links.min(axis=1)
+    fixed = segment_links(batch.a, batch.b, batch.c, batch.d, batch.u, batch.v)
+    dyad = np.stack([np.where(batch.rpr, reach, batch.rocker), np.where(batch.rpr, reach, batch.rod)], axis=1)
+    return link_ratio(np.concatenate([fixed, dyad], axis=1))
 
 
 def footprints(sixbars: SixBars, samples: int = 720) -> F64:

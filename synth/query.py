@@ -477,6 +477,18 @@ def reseat(request: Request, fitted: Sequence[Fitted]) -> list[Fitted]:
             for i, k in zip(*np.nonzero(keep))]
 
 
+def _no_worse_than_fits(request: Request, moved: list[Candidate], answered: list[Candidate]) -> list[Candidate]:
+    """The ``moved`` six-bars (:func:`reseat`) that may stand for their fit: a moved pivot is a
+    change of the fit it was moved from (its ``refined_from``), kept only if no worse on every
+    objective of the ranking (:func:`synth.refine.better_or_equal`) where that fit met the
+    request itself (it is then among the ``answered``); beside a fit that missed, it is new."""
+    from synth.refine import better_or_equal
+
+    met = {c.id: c.figures for c in answered}
+    return [c for c in moved
+            if (fit_ := met.get(c.id.split(REFINED_MARK)[0])) is None or better_or_equal(request, c.figures, fit_)]
+
+
 #: Pivots screened at a time by :func:`reseat` (n × samples temporaries), and its coarse
 #: screen's sample step (every 4th of the fit's 1° grid).
 _BLOCK = 8192
@@ -999,7 +1011,7 @@ def answer(request: Request, source: SegmentSource, *,
         if sparse:
             candidates += meeting(sampled(WIDER * PER_LEVEL))
         if sparse and len(_distinct(candidates)) < request.top:
-            found = moved_pivots(candidates)
+            found = _no_worse_than_fits(request, moved_pivots(candidates), candidates)
             moved_ids = {c.id.split(REFINED_MARK)[0] for c in found} - {c.id for c in candidates}
             candidates += found
         deep = tuple(k for k in kinds if k in DEEPER_KINDS)

@@ -29,14 +29,21 @@ over a crank window of length L containing the retrieved dwell's middle
 the constraint excesses, each in its own unit and zero inside a margin: the dwell
 through g(D − tol/2) ≤ band (a dwell at least that long) and g(D + tol/2) ≥ band (none longer),
 |swing − S| ≤ swing_tol/2, the transmission angles, the link ratio, the torque arm, the
-clearance and the peak acceleration. A six-bar that does not assemble over the turn, toggles
-or revolves is worse than any other.
+clearance and the peak acceleration. A six-bar that already meets the request is held, in
+the loop, to no worse than it is on the ranking's objectives the grid can measure: its dwell
+within its own dwell error of the request (g(D − e₀) ≤ band, g(D + e₀) ≥ band), its worst
+transmission angle and its peak |ψ″| (:func:`_bounds`) — a stiller rest bought with a longer
+dwell, a poorer transmission or a harder output would be refused by the check. A six-bar that
+does not assemble over the turn, toggles or revolves is worse than any other.
 
 The result is then checked as the query checks any six-bar: rounded to what its id holds
 (:func:`~synth.candidates.round_dimensions`), its full figures from
 :func:`~synth.figures.sixbar_figures` (720 samples, refined dwell ends), and kept only if it
-meets the request and — for a six-bar that met it before — its deviation is smaller;
-otherwise the original is kept.
+meets the request and — for a six-bar that met it before — it is no worse on any of the
+ranking's objectives and better on one (:func:`better_or_equal`: the dwell error, the
+deviation, the worst transmission angle, the footprint and the peak output acceleration);
+otherwise the original is kept. A refinement that only trades one objective for another is
+not kept: the designer asked for the same six-bar, better.
 """
 
 from __future__ import annotations
@@ -49,13 +56,13 @@ import numpy as np
 
 from synth.batched_cma import cma_es
 from synth.buildability import clearances
-from synth.candidates import Request, dimension_vector, round_dimensions, sixbar_from_vector
-from synth.figures import SixBarFigures, sixbar_figures
+from synth.candidates import Request, dimension_vector, objectives, round_dimensions, sixbar_from_vector
+from synth.figures import SixBarFigures, link_ratios, sixbar_figures
 from synth.kinds import OutputKind
 from synth.output_range import output_deviation
 from synth.sixbar import SixBar, SixBars, crank_grid, simulate
 
-__all__ = ["PARAMETERS", "Refinement", "refine"]
+__all__ = ["PARAMETERS", "Refinement", "better_or_equal", "refine"]
 
 #: The dimensions moved, in the order of the optimisation vector (crank-normalised; a = 1).
 PARAMETERS = ("b", "c", "d", "u", "v", "pivot_x", "pivot_y", "rocker", "rod")
@@ -137,19 +144,47 @@ def _batch(p: np.ndarray, branch: np.ndarray, rpr: np.ndarray, dyad_branch: np.n
 
 
 def _objective(request: Request, p: np.ndarray, branch, rpr, dyad_branch, centres: np.ndarray,
-               phi: np.ndarray) -> np.ndarray:
+               bounds: np.ndarray, phi: np.ndarray) -> np.ndarray:
     """(R,) objective of the dimension rows ``p`` (R, 9) whose dwells should sit around crank
-    angles ``centres`` (R, C) rad (see the module docstring); lower is better."""
+    angles ``centres`` (R, C) rad, held to ``bounds`` (R, 4: :func:`_bounds`) (see the module
+    docstring); lower is better."""
     batch = _batch(p, branch, rpr, dyad_branch)
     # trial six-bars may degenerate (a link ratio over a zero-length reach): such a row's
     # objective is not finite and is set to the worst below, so the arithmetic stays quiet
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        return _objective_rows(request, batch, rpr, centres, phi)
+        return _objective_rows(request, batch, rpr, centres, bounds, phi)
 
 
-def _objective_rows(request: Request, batch: SixBars, rpr: np.ndarray, centres: np.ndarray,
+def _bounds(request: Request, before: Sequence[SixBarFigures]) -> np.ndarray:
+    """(K, 4) what the loop holds each six-bar to: the half-width (rad) of the dwell's window
+    about the requested dwell, the smallest worst transmission angle (rad), the largest peak
+    |ψ″| (rad/rad², inf: none) and the band's margin (a fraction) on that window's ends. For a
+    six-bar that meets the request, no worse than it is on the ranking's objectives (its dwell
+    error, transmission, peak acceleration; the footprint is left to the check) with no band
+    margin (its dwell error may be far below the grid's step: the check decides): a change
+    that trades them for deviation would be refused by the check (:func:`better_or_equal`).
+    For a miss, the request's: half the dwell tolerance, its minimum transmission, its
+    ``max_accel``, ``_BAND_MARGIN``."""
+    from synth.query import meets  # (the query imports this module)
+
+    w = 2 * math.pi * request.rpm / 60
+    cap = math.inf if request.max_accel is None else request.max_accel / (w * w)
+    out = np.empty((len(before), 4))
+    for k, f in enumerate(before):
+        if meets(request, f):
+            error = max(abs(d.angle - request.dwell) for d in f.dwells[: request.dwells])
+            out[k] = (min(0.5 * request.dwell_tol, error), min(f.transmission_fourbar, f.transmission_output),
+                      min(cap, f.build.peak_rates[1]) if f.build is not None else cap, 0.0)
+        else:
+            out[k] = (0.5 * request.dwell_tol, request.min_transmission, cap, _BAND_MARGIN)
+    return out
+
+
+def _objective_rows(request: Request, batch: SixBars, rpr: np.ndarray, centres: np.ndarray, bounds: np.ndarray,
                     phi: np.ndarray) -> np.ndarray:
-    order = 2 if request.max_accel is not None else 0
+    margin, mu_floor, accel_cap, band_margin = bounds.T
+    capped = np.isfinite(accel_cap)
+    order = 2 if capped.any() else 0
     motion = simulate(batch, phi, order=order)
     psi = motion.psi
     R, M = psi.shape
@@ -157,39 +192,45 @@ def _objective_rows(request: Request, batch: SixBars, rpr: np.ndarray, centres: 
     good = np.all(motion.status == 0, axis=1) & (np.abs(psi[:, -1] - psi[:, 0]) < math.pi)
 
     band = request.band
-    m = 0.5 * request.dwell_tol
     longest = 2 * math.pi - 2 * h
-    lengths = np.array([min(max(request.dwell - m, 2 * h), longest), min(request.dwell, longest),
-                        min(request.dwell + m, longest)])
+    lengths = np.stack([np.clip(request.dwell - margin, 2 * h, longest), np.full(R, min(request.dwell, longest)),
+                        np.minimum(request.dwell + margin, longest)], axis=1)  # (R, 3)
     C = centres.shape[1]
     dev, _ = output_deviation(phi, np.broadcast_to(psi[:, None, None, :], (R, C, 3, M)),
                               np.broadcast_to(centres[:, :, None], (R, C, 3)),
-                              np.broadcast_to(lengths, (R, C, 3)))
+                              np.broadcast_to(lengths[:, None, :], (R, C, 3)))
     objective = dev[:, :, 1].max(axis=1) / band
-    excess = np.maximum(0.0, dev[:, :, 0] - band * (1 - _BAND_MARGIN)).sum(axis=1) / band
-    if request.dwell + m < longest:
-        excess += np.maximum(0.0, band * (1 + _BAND_MARGIN) - dev[:, :, 2]).sum(axis=1) / band
+    excess = np.maximum(0.0, dev[:, :, 0] - (band * (1 - band_margin))[:, None]).sum(axis=1) / band
+    excess += np.where(request.dwell + margin < longest,
+                       np.maximum(0.0, (band * (1 + band_margin))[:, None] - dev[:, :, 2]).sum(axis=1) / band, 0.0)
     if request.swing is not None:
         swing = psi.max(axis=1) - psi.min(axis=1)
         unit = max(request.swing_tol, math.radians(0.01))
         excess += np.maximum(0.0, np.abs(swing - request.swing) - 0.5 * request.swing_tol) / unit
     mu = np.minimum(motion.transmission_fourbar.min(axis=1), motion.transmission_output.min(axis=1))
-    excess += np.maximum(0.0, request.min_transmission + _TRANSMISSION_MARGIN - mu) / math.radians(1.0)
+    excess += np.maximum(0.0, mu_floor + _TRANSMISSION_MARGIN - mu) / math.radians(1.0)
     _, clear, _, _ = clearances(batch, motion, every=CLEARANCE_EVERY)
     reach = np.abs(motion.z[0] - batch.pivot[:, None])
-    links = np.stack([np.ones(R), batch.b, batch.c, batch.d, np.where(rpr, reach.max(axis=1), batch.rocker),
-                      np.where(rpr, reach.max(axis=1), batch.rod)], axis=1)
-    ratio = links.max(axis=1) / links.min(axis=1)
+    ratio = link_ratios(batch, motion)  # the figures' own formula, on the loop's grid
     excess += np.maximum(0.0, ratio / request.max_link_ratio - 0.999) / 0.01
     arm = reach.min(axis=1)
     excess += np.where(rpr, np.maximum(0.0, request.min_arm * 1.02 + 1e-3 - arm), 0.0) / 0.01
     excess += np.maximum(0.0, request.min_clearance * 1.02 + 1e-3 - clear) / 0.01
-    if request.max_accel is not None:
-        w = 2 * math.pi * request.rpm / 60
-        peak = np.abs(motion.dpsi[1]).max(axis=1) * w * w
-        excess += np.maximum(0.0, peak / request.max_accel - 0.99) / 0.01
+    if order == 2:
+        peak = np.abs(motion.dpsi[1]).max(axis=1)
+        excess += np.where(capped, np.maximum(0.0, peak / np.where(capped, accel_cap, 1.0) - 0.99) / 0.01, 0.0)
     f = objective + PENALTY * excess
     return np.where(good & np.isfinite(f), f, _WORST)
+
+
+def better_or_equal(request: Request, new: SixBarFigures, old: SixBarFigures) -> bool:
+    """Whether figures ``new`` may replace ``old`` in a ranking for ``request``: no worse on
+    any of the ranking's objectives (:func:`~synth.candidates.objectives`: dwell error,
+    output deviation, worst transmission angle, footprint, peak output acceleration) and
+    better on one, both rounded as :func:`~synth.candidates.rank` rounds them (so that the
+    last bits of a simulation do not decide). Both in the same units (e.g. crank lengths)."""
+    obj = np.round(objectives(request, [new, old]), 10)
+    return bool(np.all(obj[0] <= obj[1]) and np.any(obj[0] < obj[1]))
 
 
 #: evaluate(x, who): the objective of steps x (len(who), T, 9) of the candidates ``who``.
@@ -304,6 +345,7 @@ def refine(request: Request, sixbars: Sequence[SixBar], before: Sequence[SixBarF
     branch = np.array([sixbars[k].branch for k in rows])
     dyad_branch = np.array([sixbars[k].dyad.branch for k in rows])
     centres = np.array([[0.5 * (d.start + d.end) for d in before[k].dwells[:dwells]] for k in rows])
+    bounds = _bounds(request, [before[k] for k in rows])
     phi = crank_grid(samples)
 
     def steps(search: Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray]], start: np.ndarray,
@@ -320,7 +362,7 @@ def refine(request: Request, sixbars: Sequence[SixBar], before: Sequence[SixBarF
             g = only[who]
             rep = lambda a: np.repeat(a[g], T, axis=0)  # noqa: E731
             p = (start[g, None, :] + scale[g, None, :] * x).reshape(-1, 9)
-            f = _objective(request, p, rep(branch), rep(rpr), rep(dyad_branch), rep(centres), phi)
+            f = _objective(request, p, rep(branch), rep(rpr), rep(dyad_branch), rep(centres), rep(bounds), phi)
             return f.reshape(len(who), T)
 
         x, f, n = search(evaluate, start[only], *args, seed)
@@ -352,9 +394,7 @@ def refine(request: Request, sixbars: Sequence[SixBar], before: Sequence[SixBarF
         if not meets(request, f):
             out[i] = Refinement(old.sixbar, old.figures, old.before, False, old.meets, int(count[k]))
             continue
-        dev_new = max(f.deviations) if f.deviations else 0.0
-        dev_old = max(old.before.deviations) if old.before.deviations else math.inf
-        if old.meets and not dev_new < dev_old:
+        if old.meets and not better_or_equal(request, f, old.before):
             out[i] = Refinement(old.sixbar, old.figures, old.before, False, True, int(count[k]))
         else:
             out[i] = Refinement(sb, f, old.before, True, True, int(count[k]))

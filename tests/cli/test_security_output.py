@@ -207,7 +207,7 @@ def test_killed_report_leaves_the_old_or_the_new_report(tmp_path, small_atlas):
     def report(args, target):
         return [*DWELL, "report", "--db", path, "--out", str(target), *args]
 
-    old_args, new_args = ["--candidates", ids[0]], ["--candidates", *ids, "--dwell-tolerance", "0.2"]
+    old_args, new_args = ["--candidates", ids[0]], ["--candidates", *ids, "--band", "0.2"]
     subprocess.run(report(new_args, tmp_path / "reference"), check=True, capture_output=True)
     new = _digest(tmp_path / "reference")
     t0 = time.perf_counter()

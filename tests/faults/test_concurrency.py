@@ -64,8 +64,8 @@ def test_readers_are_not_blocked_while_a_build_writes(tmp_path, capsys, referenc
         t0 = time.perf_counter()
         rc, out, err = run(capsys, "query", "--db", atlas_url, *QUERY, "--json")
         latency["query"].append(time.perf_counter() - t0)
-        assert rc == 0, err
         assert isinstance(json.loads(out)["candidates"], list)
+        assert rc == (0 if json.loads(out)["candidates"] else 1), err  # 1: none found (yet), as grep
     out, err = build.communicate()
     assert build.returncode == 0, err
     # the reads ran between the builder's commits and saw them

@@ -3,7 +3,9 @@
 Six-bars are built as the query builds them (segments of real linkages from
 ``synth.segments.find_segments``, output dyads from ``synth.dyad``) and simulated exactly
 (``synth.figures.sixbar_figures``); the bound uses the six-bar's own link ratio as the limit
-(the tightest limit it meets), so a violation would be a six-bar the query could wrongly prune.
+(the tightest limit it meets; the coupler plate's sides counted, synth.link_ratio) and the
+shortest link its segment fixes (the plate's included), so a violation would be a six-bar the
+query could wrongly prune.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from synth.dwell_bounds import (
 )
 from synth.dyad import fit_rpr, fit_rrr
 from synth.figures import sixbar_figures
+from synth.link_ratio import segment_shortest
 from synth.segments import SegmentSearch, find_segments
 from synth.sixbar import SixBar, crank_grid
 
@@ -45,7 +48,6 @@ def sixbar_cases(b: float, c: float, d: float, branch: int, swing: float, band: 
     ``per_kind`` segments of each kind of one linkage with dyads fitted for ``swing``."""
     found = find_segments(np.array([b]), np.array([c]), np.array([d]), np.array([branch]), SEARCH)
     phi = crank_grid(360)
-    shortest = min(1.0, b, c, d)
     out = []
     width, diameter = curve_extent(b, c, d, branch, found.uv) if len(found) else (np.zeros(0), np.zeros(0))
     for kind in (0, 1):
@@ -71,6 +73,10 @@ def sixbar_cases(b: float, c: float, d: float, branch: int, swing: float, band: 
             if not dyads:
                 continue
             profile = deviation_profile(b, c, d, branch, uv, float(found.phi_gen[i]), kind, step=STEP)
+            # the shortest link the segment fixes, the coupler plate's sides included: every
+            # link of a six-bar within a ratio is at most the ratio times it
+            shortest = float(segment_shortest(1.0, b, c, d, uv.real, uv.imag))
+            assert shortest <= min(1.0, b, c, d)
             for dyad in dyads:
                 sb = SixBar(1.0, b, c, d, branch, uv.real, uv.imag, dyad)
                 f = sixbar_figures(sb, band=band, footprint=False)
