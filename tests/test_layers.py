@@ -47,6 +47,7 @@ KNOWN_CYCLES: frozenset[frozenset[str]] = frozenset({
 KNOWN_PRIVATE_IMPORTS: frozenset[tuple[str, str, str]] = frozenset({
     ("tests.synth.measure_swing_monotone", "synth.query", "_figures"),
     ("tests.synth.test_refine", "synth.query", "_misses"),
+    ("tests.synth.test_refine", "synth.query", "_no_worse_than_fits"),
     ("tests.synth.test_batched_cma", "synth.refine", "_descend"),
     ("tests.synth.test_band_windows", "synth.output_range", "_vertex_bounds"),
     ("tests.synth.test_pair_search", "synth.output_range", "_pair_search"),
