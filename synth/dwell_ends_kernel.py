@@ -161,7 +161,7 @@ def refine_windows(params: F64, rpr: np.ndarray, six: np.ndarray, E: F64, upper:
                    fine: int, extend_points: int) -> tuple[F64, F64, F64, F64]:
     """The refinement of :func:`synth.output_range.dwell_intervals` after its grid search, for
     rows whose exact ψ is six-bar ``six[r]``'s (``params``, ``rpr``: the kernel's rows,
-    :func:`synth.sixbar._kernel_inputs`): ``E`` ``(R, 2M)`` the samples over two turns,
+    :func:`synth.sixbar.kernel_inputs`): ``E`` ``(R, 2M)`` the samples over two turns,
     ``upper``/``lower`` their vertex bounds, ``band`` ``(R,)``, the grid (φ₀, h), the candidate
     windows' starts ``cs`` and flags ``ok`` ``(R, C, W)``, the grid dwell's sample count ``nn``
     ``(R, C)``, ``fine`` points per grid step (``DWELL_FINE``) and ``extend_points``. Returns

@@ -32,10 +32,12 @@ from synth.sixbar import OutputDyad
 from synth.types import C128, F64
 
 __all__ = [
-    "SWING_TOL",
     "DoubleRprPivot",
     "RprFit",
     "RrrFit",
+    "RrrTerms",
+    "SWING_MAX_ITER",
+    "SWING_TOL",
     "fit_rpr",
     "fit_rrr",
     "pivots_around",
@@ -46,7 +48,8 @@ __all__ = [
 #: |swing − requested| (rad) below which a fitted dyad counts as achieving the swing.
 SWING_TOL = 1e-9
 _TWO_PI = 2.0 * math.pi
-_MAX_ITER = 60
+#: Iteration cap of the swing solve (the compiled `solve_rpr`/`solve_rrr`), with SWING_TOL.
+SWING_MAX_ITER = 60
 #: Samples over the turn of the first (coarse) stage of the swing solve.
 _SOLVE_SAMPLES = 180
 
@@ -227,7 +230,8 @@ def fit_rpr(line_point: ArrayLike, line_direction: ArrayLike, phi: ArrayLike, pa
 
         # the swing and ∂S/∂u, ∂ψ/∂t_D = Im(−1/(P − D)) at the extreme samples
         t_s, n_s = np.ascontiguousarray(path_tn.real), np.ascontiguousarray(path_tn.imag)
-        return solve_rpr(t_s, n_s, row_of, side, t_end_f, lo, hi, u0, target, active, check_far, SWING_TOL, _MAX_ITER)
+        return solve_rpr(t_s, n_s, row_of, side, t_end_f, lo, hi, u0, target, active, check_far, SWING_TOL,
+                         SWING_MAX_ITER)
 
     target2 = np.broadcast_to(target[:, None], (R, 2))
     u0 = target2 / np.maximum(width, 1e-12)[:, None]
@@ -494,7 +498,7 @@ def _rrr_coarse_scan(w: C128, rho: F64, cm: float, q_mid_w: C128, target: F64, m
     """:func:`fit_rrr`'s coarse scan of ``K`` rocker directions for rows ``w = P − C₀``:
     the ``n_keep`` best local maxima of the estimated transmission angle per row (R, n_keep)
     and which of them are feasible peaks."""
-    coarse_terms = _RrrTerms(w[:, :: max(1, m // _RANK_SAMPLES)], rho, cm, q_mid_w)
+    coarse_terms = RrrTerms(w[:, :: max(1, m // _RANK_SAMPLES)], rho, cm, q_mid_w)
     R = w.shape[0]
     coarse = np.broadcast_to(np.arange(K) * (_TWO_PI / K), (R, K))
     mu_c = coarse_terms.estimate(coarse, target)[-1]
@@ -512,8 +516,8 @@ def _rrr_fine_fit(C0: C128, w: C128, rho: F64, min_transmission: float, q_mid_w:
     cm = math.cos(min_transmission)
     # The directions are ranked on about _RANK_SAMPLES samples (a ranking needs no more); the
     # chosen ones are then bounded and solved on the full path.
-    full = _RrrTerms(w, rho, cm, q_mid_w)
-    coarse_terms = _RrrTerms(w[:, :: max(1, m // _RANK_SAMPLES)], rho, cm, q_mid_w)
+    full = RrrTerms(w, rho, cm, q_mid_w)
+    coarse_terms = RrrTerms(w[:, :: max(1, m // _RANK_SAMPLES)], rho, cm, q_mid_w)
     R, n_keep = centre.shape
     step = _TWO_PI / K
 
@@ -566,7 +570,7 @@ _RANK_SAMPLES = 120
 _FINE = 17
 
 
-class _RrrTerms:
+class RrrTerms:
     """Per-sample terms of the closed-form RRR relations for one set of path samples.
 
     With w = P − C₀, p + iq = w·e^{−iα}: cos μ = A·u + B, A = (ρ² − |w|²)/(2ρ), B = p/ρ.
@@ -634,7 +638,7 @@ def _solve_rrr(w, rho, alpha, branch, u_lo, u_hi, u_est, target, active):
     def solve(wk, lo, hi, u0, target, active, check_far):
         wx, wy = np.ascontiguousarray(wk.real), np.ascontiguousarray(wk.imag)
         return solve_rrr(wx, wy, row_of, ex, ey, br_f, rho_f, lo, hi, u0, target, active, check_far, SWING_TOL,
-                         _MAX_ITER)
+                         SWING_MAX_ITER)
 
     # Rows without a feasible u-interval get a harmless dummy bracket and stay inactive.
     act = active & (u_hi > 0) & (u_lo <= u_hi)

@@ -1,5 +1,5 @@
 """The dyad fits' compiled parts: the RRR fit's closed-form direction ranking
-(:class:`synth.dyad._RrrTerms`'s ``estimate``: per row and rocker direction, two passes over
+(:class:`synth.dyad.RrrTerms`'s ``estimate``: per row and rocker direction, two passes over
 the path samples instead of a dozen ``(rows, directions, samples)`` temporaries), and the
 swing S(u) with its derivative that the RRR and RPR swing solves iterate on
 (:func:`rrr_swing`: the dyad loop, the rocker's extremes and ∂S/∂u; :func:`rpr_swing`: the
@@ -27,7 +27,7 @@ from synth.parallel_rows import over_rows
 from synth.sample_ranges import parabola_rise
 from synth.sixbar_kernel import closing_point
 
-__all__ = ["direction_estimates", "rpr_swing", "rrr_swing", "solve_rpr", "solve_rrr"]
+__all__ = ["direction_estimates", "pseudo_angle", "rpr_swing", "rrr_swing", "solve_rpr", "solve_rrr"]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -68,7 +68,7 @@ def direction_estimates(wx, wy, A, inv_a_rho, half, rho, c, s, branch, target, r
     """For samples ``wx, wy, A, inv_a_rho, half`` ``(R, S)`` (C-contiguous float64), radii
     ``rho`` and swings ``target`` ``(R,)``, direction cosines and sines ``c, s``, branches and
     scale ``ratio`` ``(R, J)``: (u_lo, u_hi, u_est, cos_max, feasible), each ``(R, J)`` —
-    :meth:`synth.dyad._RrrTerms.estimate`'s quantities before its arccos."""
+    :meth:`synth.dyad.RrrTerms.estimate`'s quantities before its arccos."""
     R, J = c.shape
     out = [np.empty((R, J)) for _ in range(4)] + [np.empty((R, J), np.bool_)]
     # ~4 ns a sample and direction
@@ -88,7 +88,7 @@ def _vertex_value(y, k, sign):
 
 
 @numba.njit(cache=True, nogil=True)
-def _pseudo_angle(y, x):
+def pseudo_angle(y, x):
     """A number in [−2, 2] that orders directions (x, y) as atan2(y, x) does (its cut and signed
     zeros included), at the cost of one division: 1 − x/(|x| + |y|), negated below the axis."""
     p = 1.0 - x / (abs(x) + abs(y))
@@ -148,7 +148,7 @@ def _rrr_one(wx, wy, r, ex, ey, br, rho, u, scratch):
         # η = arg(e^{iψ}·(−ē)), the rocker's turn from rest: ordered by its pseudo-angle,
         # its arctangent taken only where a value is read (extremes, the cut's crossings)
         xa[k], ya[k] = c2 * (-ex) - s2 * ey, c2 * ey + s2 * (-ex)
-        order[k] = _pseudo_angle(ya[k], xa[k])
+        order[k] = pseudo_angle(ya[k], xa[k])
         any_sing = any_sing or status != 0
     khi, klo, S, jump = _angle_swing(xa, ya, order, eta)
     scale = L * u ** 2
@@ -220,7 +220,7 @@ def _rpr_one(t_s, n_s, r, sg, t_end, u, scratch):
         # ψ = arg(−σ·(P − D)) in the line's frame: the angle's cut runs along the line from
         # D away from the stretch
         xa[k], ya[k] = -sg * (t_s[r, k] - tD), -sg * n_s[r, k]
-        order[k] = _pseudo_angle(ya[k], xa[k])
+        order[k] = pseudo_angle(ya[k], xa[k])
     khi, klo, S, invalid = _angle_swing(xa, ya, order, psi)
     a_hi, b_hi = t_s[r, khi] - tD, n_s[r, khi]
     a_lo, b_lo = t_s[r, klo] - tD, n_s[r, klo]

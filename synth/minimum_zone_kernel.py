@@ -19,7 +19,7 @@ import numpy as np
 
 from synth.kinds import SegmentKind
 
-__all__ = ["deviation_at", "fit_row", "fit_rows", "window_peak"]
+__all__ = ["deviation_at", "fit_row", "fit_rows", "lawson", "window_peak"]
 
 _LINE = SegmentKind.LINE.code
 #: Relative ridge on the normal equations: keeps near-singular fits (a stretch seen almost
@@ -38,7 +38,7 @@ def deviation_at(z, kind, point, direction, radius):
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def _lawson(c0, c1, c2, r0, p, iterations, w, res):
+def lawson(c0, c1, c2, r0, p, iterations, w, res):
     """Approximate Chebyshev (minimax) solution x of r0 ≈ x₀·c0 + x₁·c1 (+ x₂·c2 if ``p`` is
     3) over the samples; ``w``, ``res`` are work arrays of the samples' length. Returns the
     best x seen (x₂ = 0 when ``p`` is 2).
@@ -142,7 +142,7 @@ def fit_row(zs, kind, point, direction, radius, iterations, work):
             c0[j] = 1.0
             c1[j] /= scale
             c2[j] = 0.0
-        x0, x1, _ = _lawson(c0, c1, c2, r0, 2, iterations, w, res)
+        x0, x1, _ = lawson(c0, c1, c2, r0, 2, iterations, w, res)
         return point + 1j * direction * x0, direction * cmath.exp(1j * (x1 / scale)), radius
     mean0 = mean1 = 0.0
     for j in range(k):
@@ -165,7 +165,7 @@ def fit_row(zs, kind, point, direction, radius, iterations, work):
         c0[j] /= scale0
         c1[j] /= scale1
         c2[j] = 1.0
-    x0, x1, x2 = _lawson(c0, c1, c2, r0, 3, iterations, w, res)
+    x0, x1, x2 = lawson(c0, c1, c2, r0, 3, iterations, w, res)
     dcx, dcy = x0 / scale0, x1 / scale1
     return point + dcx + 1j * dcy, direction, radius + x2 - dcx * mean0 - dcy * mean1
 

@@ -52,8 +52,10 @@ __all__ = [
     "SixBars",
     "as_batch",
     "crank_grid",
+    "kernel_inputs",
     "output_angle",
     "simulate",
+    "simulate_numpy",
 ]
 
 U16 = NDArray[np.uint16]
@@ -390,7 +392,7 @@ def simulate(sixbar: SixBar | SixBars, phi: ArrayLike, *, order: int = 2, on_deg
             raise_on_flags(motion.status, "six-bar", Status.NOT_ASSEMBLABLE | (Status.TOGGLE if order else Status.OK))
         return motion
     batch, single = as_batch(sixbar)
-    return _simulate_numpy(batch, single, phi, order, mode)
+    return simulate_numpy(batch, single, phi, order, mode)
 
 
 def output_angle(sixbars: SixBars, phi: ArrayLike) -> F64:
@@ -402,7 +404,7 @@ def output_angle(sixbars: SixBars, phi: ArrayLike) -> F64:
 
 class ExactOutput:
     """:func:`output_angle` of one batch as a :data:`~synth.output_range.PsiAt` evaluator,
-    holding the compiled kernel's rows (``params``, ``rpr``: :func:`_kernel_inputs`; the pin
+    holding the compiled kernel's rows (``params``, ``rpr``: :func:`kernel_inputs`; the pin
     tolerance :data:`PIN_ON_PIVOT_EPS`): the dwell refinement then evaluates ψ pointwise inside
     its own compiled pass (:mod:`synth.dwell_ends_kernel`) instead of calling back."""
 
@@ -411,7 +413,7 @@ class ExactOutput:
 
     def __init__(self, sixbars: SixBars):
         self.sixbars = sixbars
-        self.params, self.rpr = _kernel_inputs(sixbars)
+        self.params, self.rpr = kernel_inputs(sixbars)
 
     def __call__(self, phi: ArrayLike) -> F64:
         """ψ at crank angles ``(M,)`` (shared), ``(N, M)``, or ``(N, ...)`` (row n: six-bar n's)."""
@@ -426,7 +428,7 @@ class ExactOutput:
         return output_angles(self.params, self.rpr, phi_rows, PIN_ON_PIVOT_EPS)
 
 
-def _kernel_inputs(sixbar: SixBar | SixBars) -> tuple[F64, NDArray[np.bool_]]:
+def kernel_inputs(sixbar: SixBar | SixBars) -> tuple[F64, NDArray[np.bool_]]:
     """The compiled kernel's parameter rows ``(N, 12)`` — a, b, c, d, branch, u, v, pivot x,
     pivot y, rocker, rod, dyad branch — and which rows are RPR."""
     if isinstance(sixbar, SixBar):  # one row straight from the fields: the single call stays cheap
@@ -456,7 +458,7 @@ def _simulate_compiled(sixbar: SixBar | SixBars, phi: F64, phi_rows: F64, order:
     from synth.sixbar_kernel import sixbar_positions  # numba: imported on first use
 
     single = isinstance(sixbar, SixBar)
-    params, rpr = _kernel_inputs(sixbar)
+    params, rpr = kernel_inputs(sixbar)
     points, angles, derivs, st_fb, status = sixbar_positions(params, rpr, phi_rows, PIN_ON_PIVOT_EPS, order)
     if single:
         points, angles, derivs, st_fb, status = points[:, 0], angles[:, 0], derivs[:, 0], st_fb[0], status[0]
@@ -471,7 +473,7 @@ def _simulate_compiled(sixbar: SixBar | SixBars, phi: F64, phi_rows: F64, order:
     return SixBarMotion(phi, fb, z, pivot, points[2], psi, tuple(derivs[2::3]), mu_fb, mu_out, status)
 
 
-def _simulate_numpy(batch: SixBars, single: bool, phi: F64, order: int, mode: str) -> SixBarMotion:
+def simulate_numpy(batch: SixBars, single: bool, phi: F64, order: int, mode: str) -> SixBarMotion:
     """Every order, every broadcastable ``phi``: the reference path (see :func:`simulate`) and
     the fallback for crank angles the compiled kernel does not take."""
     col = (lambda x: x[0]) if single else (lambda x: x[:, None])

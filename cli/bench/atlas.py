@@ -194,15 +194,15 @@ def atlas(preset, proportions, resolutions, reference_step, reference_rays, dwel
         "machine": {"cpus": os.cpu_count(), "python": platform.python_version(), "machine": platform.machine()},
     }
     if build_samples:
-        report["build"] = _timed_build(spec, build_samples, workers)
+        report["build"] = timed_build(spec, build_samples, workers)
     if ingest_samples:
-        report["ingest"] = _timed_ingest(spec, ingest_samples, workers)
+        report["ingest"] = timed_ingest(spec, ingest_samples, workers)
     click.echo(json.dumps(report, indent=2))
     if plot:
         _plot(report, Path(plot))
 
 
-def _timed_build(spec, samples: int, workers: int) -> dict:
+def timed_build(spec, samples: int, workers: int) -> dict:
     from atlas.build import build_atlas
     from db.engine import open_atlas
     from db.summary import storage_bytes
@@ -237,7 +237,7 @@ def _timed_build(spec, samples: int, workers: int) -> dict:
     }
 
 
-def _timed_ingest(spec, samples: int, workers: int) -> dict:
+def timed_ingest(spec, samples: int, workers: int) -> dict:
     """The single writer's rate: the shards of ``samples`` computed first (``workers``
     processes, not timed) and packed as a worker hands them over (:func:`atlas.shard.handed_over`,
     also with one worker), then handed to :func:`atlas.build.build_atlas` as if computed —

@@ -7,8 +7,8 @@ exponential-series recurrence (e^{iθ})ₙ = (1/n)·Σₖ k·iθₖ·(e^{iθ})�
 derivative system of the product.
 
 The residual functions take the path derivatives z^{(k)} of a coupler point and the phasor
-derivatives (e^{iθ})^{(k)} (= ∂z^{(k)}/∂p) and work on numpy arrays and on mpmath numbers
-alike (the 40-digit tests use them too). Distances are first-order distances of a point from
+derivatives (e^{iθ})^{(k)} (= ∂z^{(k)}/∂p), as numpy arrays. The tests' 40-digit reference
+(``tests/synth/mp_fourbar.py``) is a separate one, with gradients of its own. Distances are first-order distances of a point from
 an exact locus, |f|/|∇f|, with ∇ taken as 2·∂f/∂p̄ (a complex number).
 """
 
@@ -80,14 +80,6 @@ def _loop_jet(a, b, c, d, branch, phi, order: int) -> LoopJet:
         e.append(1j * thetas[-1] * e0 + pn)
         g.append(1j * gammas[-1] * g0 + qn)
     return LoopJet([A * (1j**k) for k in range(order + 1)], [e[k] * factorial(k) for k in range(order + 1)])
-
-
-def curvature(z):
-    """κ and dκ/dφ of a path from (z, z′, z″, z‴)."""
-    c2 = z[1].conjugate() * z[2]
-    c3 = z[1].conjugate() * z[3]
-    s = abs(z[1]) ** 2
-    return c2.imag / s**1.5, c3.imag / s**1.5 - 3 * c2.imag * c2.real / s**2.5
 
 
 def centre_of_curvature(z):

@@ -27,7 +27,7 @@ from cli.options import SEED
 from cli.bench.kinematics import MIN_POSITIONS_PER_RUN, best_time, random_linkages, check_positions, sizes_option
 from cli.bench.plain import sixbar_rrr_positions
 from synth import parallel_rows
-from synth.sixbar import SixBars, _simulate_numpy, simulate
+from synth.sixbar import SixBars, simulate_numpy, simulate
 
 #: Peak memory of simulate(order=0) per position (bytes; 229 measured with tracemalloc).
 SIXBAR_BYTES_PER_POSITION = 300
@@ -92,7 +92,7 @@ def sixbar(sizes: str, angles: int, repeat: int, seed: int) -> None:
         t_threads = best_time(run, repeat, loops) if cores > 1 else t_ours
         t_plain = best_time(lambda: _plain(six, phi), repeat, loops)
         single = one is not None
-        t_numpy = best_time(lambda: _simulate_numpy(SixBars.from_sixbars([one]) if single else six, single, phi, 0,
+        t_numpy = best_time(lambda: simulate_numpy(SixBars.from_sixbars([one]) if single else six, single, phi, 0,
                                                     "flag"), repeat, loops)
         results.append({
             "n": n,

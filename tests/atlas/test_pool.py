@@ -2,19 +2,19 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
+#: The folder that makes :mod:`harness` importable, for the driver and the workers it starts.
+TESTS = Path(__file__).resolve().parents[1]
 
 # Stops the pool (a tick that raises) while the pool's manager thread waits for the rest of a
 # result message that will never come; the process must still exit.
 CUT_OFF = """
-import sys
-sys.path.insert(0, {here!r})
 import atlas.pool as pool
-from pool_faults import send_half_a_result
+from harness.pool_faults import send_half_a_result
 
 pool.TICK_SECONDS = 0.5
 
@@ -40,8 +40,8 @@ def test_a_worker_cut_off_while_sending_its_result_does_not_hang_the_driver():
     waiting for the rest, and the interpreter, which joins that thread at exit, hung (a
     random-seed run: ``dwell atlas build`` never exited after Ctrl-C). The driver process
     must stop the pool and exit within seconds."""
-    proc = subprocess.run([sys.executable, "-c", CUT_OFF.format(here=str(HERE))], capture_output=True, text=True,
-                          timeout=60)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(TESTS), os.environ.get("PYTHONPATH")]))}
+    proc = subprocess.run([sys.executable, "-c", CUT_OFF], capture_output=True, text=True, timeout=60, env=env)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout == "stopped\n"
     assert proc.stderr == ""

@@ -56,9 +56,9 @@ def test_bench_sixbar_json(capsys):
 def test_bench_atlas_build_reports_bytes_per_linkage():
     """The timed build's bytes per linkage are the SQLite file's pages over its linkages."""
     from atlas.sweep import PRESETS
-    from cli.bench.atlas import STORAGE_FLOOR, _timed_build
+    from cli.bench.atlas import STORAGE_FLOOR, timed_build
 
-    doc = _timed_build(PRESETS["demo"], 24, 1)
+    doc = timed_build(PRESETS["demo"], 24, 1)
     assert doc["linkages"] > 0 and doc["storage_bytes"] % 4096 == 0 and doc["storage_bytes"] > 0
     assert abs(doc["bytes_per_linkage"] - doc["storage_bytes"] / doc["linkages"]) <= 0.05
     assert doc["floor_bytes_per_linkage"] == STORAGE_FLOOR
@@ -69,10 +69,10 @@ def test_bench_atlas_ingest_writes_every_shard_it_computed():
     """The ingest timing writes the computed shards (all their linkages) through the product's
     build, and its rate is those linkages over the timed seconds."""
     from atlas.sweep import PRESETS, sweep_linkages
-    from cli.bench.atlas import INGEST_FLOOR, _timed_ingest
+    from cli.bench.atlas import INGEST_FLOOR, timed_ingest
 
     spec = PRESETS["demo"].replace(shard_size=8)
-    doc = _timed_ingest(spec, 24, 1)
+    doc = timed_ingest(spec, 24, 1)
     sweep = sweep_linkages(spec.replace(samples=24))
     assert doc["shards"] == sweep.n_shards(8) >= 2
     assert 0 < doc["linkages"] <= len(sweep) * len(spec.branches) and doc["dwell_rows"] > doc["linkages"]

@@ -1,6 +1,6 @@
 """``dwell query`` on a small built atlas: every returned candidate re-simulated independently.
 
-The independent simulation is the plain per-angle loop of ``tests/synth/test_sixbar.py``
+The independent simulation is the plain per-angle loop of :mod:`harness.plain_sixbar`
 (circle intersections with cmath, no numpy, no code of ``synth``), at 0.05° steps; its dwell
 is the longest run of samples within the band (so it may be up to one step shorter).
 """
@@ -9,8 +9,6 @@ from __future__ import annotations
 
 import json
 import math
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,8 +19,8 @@ from cli.main import main
 from report.candidate_json import sixbar_from_json
 from synth.sixbar import simulate
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "synth"))
-from test_sixbar import reference_psi
+from harness.plain_sixbar import reference_psi
+
 
 SPEC = PRESETS["demo"].replace(samples=384)
 STEP = 0.05  # degrees

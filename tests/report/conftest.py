@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from report_cases import (
+from harness.report_cases import (
     REQUEST,
     REQUEST2,
     double_dwell_candidates,

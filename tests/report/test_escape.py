@@ -105,7 +105,7 @@ def test_report_page_svgs_and_files_with_a_hostile_candidate_id(tmp_path, candid
     candidate), no more; the id shown as text; every SVG it writes clean."""
     import dataclasses
 
-    from report_cases import REQUEST
+    from harness.report_cases import REQUEST
 
     from report.export import write_report
 

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from report_cases import EVIL_ID, REQUEST
+from harness.report_cases import EVIL_ID, REQUEST
 
 from report.candidate_json import request_json, sixbar_from_json
 from report.cycle import CYCLE_COLUMNS

@@ -7,7 +7,7 @@ import hashlib
 from pathlib import Path
 
 import pytest
-from report_cases import REQUEST
+from harness.report_cases import REQUEST
 
 import report.folder as folder
 from report.export import write_report

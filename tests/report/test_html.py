@@ -11,7 +11,7 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
-from report_cases import EVIL_ID
+from harness.report_cases import EVIL_ID
 
 from report.html_page import inline_svg
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 import tomllib
 
 from linkage_checks import check_linkage_files
-from report_cases import EVIL_ID
+from harness.report_cases import EVIL_ID
 
 from cli.main import main
 

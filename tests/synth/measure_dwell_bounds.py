@@ -7,8 +7,7 @@ import sys
 
 def necessity(count, seed=2026):
     import math, time, sys, numpy as np
-    sys.path.insert(0, __import__('os').path.dirname(__file__))
-    import test_dwell_bounds as T
+    import test_dwell_bounds as T  # this folder is sys.path[0] when the script runs
     from synth.dwell_bounds import dwell_bound, path_tolerance, deviation_profile, PROFILE_LEVELS
     from synth.segments import find_segments
     rng = np.random.default_rng(seed)
@@ -18,7 +17,7 @@ def necessity(count, seed=2026):
     margins = {"rpr": [], "rrr": []}
     for it in range(count):
         b, c, d = rng.uniform(1.5, 5.0, 3)
-        if not T._grashof_crank(b, c, d): continue
+        if not T.grashof_crank(b, c, d): continue
         band = math.radians(rng.choice([0.05, 0.1, 0.3, 1.0]))
         for name, f, bound, smin, tight in T.sixbar_cases(float(b), float(c), float(d), int(rng.choice([1, -1])),
                                                          math.radians(rng.uniform(10, 80)), band, per_kind=3):

@@ -38,6 +38,8 @@ import pytest
 from mp_fourbar import (
     DPS,
     Instant,
+    centre_of_curvature,
+    curvature,
     distance_to_ball_point,
     distance_to_cubic,
     distance_to_inflection_circle,
@@ -45,7 +47,6 @@ from mp_fourbar import (
     tangent_deviation,
 )
 
-from cli.bench.reference import centre_of_curvature, curvature  # generic: fed 40-digit numbers here
 from kinematics.fourbar import GrashofType, fourbar_motion, grashof_type
 from synth.ball import ball_point, ball_point_offset_rate
 from synth.double_ball import double_ball_points, theta4

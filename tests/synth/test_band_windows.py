@@ -67,14 +67,16 @@ def test_whole_turn_and_zero_band():
 
 
 def test_six_bar_outputs():
-    from cli.bench.sixbar import random_rrr_sixbars
-    from synth.sixbar import crank_grid, simulate
+    """The outputs of six-bars with one and with two dwells (RPR and RRR)."""
+    from harness.report_cases import double_dwell_candidates, single_dwell_candidates
+    from synth.sixbar import SixBars, crank_grid, simulate
 
-    psi = simulate(random_rrr_sixbars(6, 11), crank_grid(72), order=0).psi
+    sixbars = SixBars.from_sixbars([c.sixbar for c in single_dwell_candidates() + double_dwell_candidates()])
+    psi = simulate(sixbars, crank_grid(72), order=0).psi
     E = np.concatenate([psi, psi], axis=1)
     upper, lower = _vertex_bounds(E)
     for band in (1e-3, 1e-2, 0.1, 1.0):
-        check(upper, lower, np.full(6, band), 72)
+        check(upper, lower, np.full(len(psi), band), 72)
 
 
 samples = hnp.arrays(np.float64, st.tuples(st.integers(1, 3), st.integers(4, 30)),

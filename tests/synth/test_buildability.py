@@ -5,8 +5,6 @@ a brute-force walk of every pair on a 10x finer crank grid, the dynamics' scalin
 from __future__ import annotations
 
 import math
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,8 +13,8 @@ from synth.buildability import buildability, output_rates
 from synth.figures import sixbar_figures
 from synth.sixbar import SixBars, crank_grid, simulate
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "report"))
-from report_cases import double_dwell_candidates, single_dwell_candidates  # noqa: E402
+from harness.report_cases import double_dwell_candidates, single_dwell_candidates
+
 
 
 @pytest.fixture(scope="module")

@@ -98,7 +98,7 @@ def sixbar_cases(b: float, c: float, d: float, branch: int, swing: float, band: 
     return out
 
 
-def _grashof_crank(b: float, c: float, d: float) -> bool:
+def grashof_crank(b: float, c: float, d: float) -> bool:
     """The crank (1, the shortest link here) turns fully: Grashof, s + l ≤ p + q."""
     longest = max(b, c, d)
     return 1 + longest <= b + c + d - longest
@@ -119,7 +119,7 @@ def _check(cases) -> None:
 )
 @example(b=3.0, c=2.5, d=3.0, branch=1, swing=math.radians(30), band=math.radians(0.1))
 def test_simulated_dwell_and_swing_never_beat_the_bounds(b, c, d, branch, swing, band):
-    if not _grashof_crank(b, c, d):
+    if not grashof_crank(b, c, d):
         return  # not a crank-rocker / Grashof crank: find_segments wants a full turn
     _check(sixbar_cases(b, c, d, branch, swing, band))
 
@@ -132,7 +132,7 @@ def test_bounds_hold_and_are_not_loose_on_a_sample():
     checked = elsewhere = 0
     for _ in range(6):
         b, c, d = rng.uniform(2.0, 4.0, 3)
-        if not _grashof_crank(b, c, d):
+        if not grashof_crank(b, c, d):
             continue
         cases = sixbar_cases(float(b), float(c), float(d), 1, math.radians(rng.uniform(15, 60)),
                              math.radians(rng.choice([0.1, 0.5])), per_kind=2)

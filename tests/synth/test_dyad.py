@@ -306,7 +306,7 @@ def _numpy_estimate(terms, alpha, target, ratio):
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_compiled_rrr_ranking_is_the_numpy_expressions_bit_for_bit(seed):
-    from synth.dyad import _RrrTerms
+    from synth.dyad import RrrTerms
 
     rng = np.random.default_rng(seed)
     R, S, J = 40, 120, 24
@@ -316,7 +316,7 @@ def test_compiled_rrr_ranking_is_the_numpy_expressions_bit_for_bit(seed):
     w = (rho[:, None] * (1 + rng.uniform(0, 0.3, (R, 1)) * np.sin(t * rng.integers(1, 4, (R, 1))))
          * np.exp(1j * (t + rng.uniform(0, 6, (R, 1)))))
     w[::7, 3] = rho[::7] + 0j
-    terms = _RrrTerms(w, rho, math.cos(math.radians(rng.uniform(20, 50))), w[:, 5])
+    terms = RrrTerms(w, rho, math.cos(math.radians(rng.uniform(20, 50))), w[:, 5])
     alpha = rng.uniform(0, 2 * np.pi, (R, J))
     target = rng.uniform(0.1, 1.5, R)
     for ratio in (1.0, rng.uniform(0.5, 2.0, (R, J))):
@@ -444,7 +444,7 @@ def _numpy_rtsafe(F, lo, hi, u0, target, active, check_far):
     ``F(rows, u) -> (S, dS/du, invalid)`` evaluating only the dyads still iterating: the
     reference of the compiled :func:`synth.dyad_kernel.solve_rrr` and ``solve_rpr`` (the form
     the fits used before, kept here)."""
-    from synth.dyad import _MAX_ITER
+    from synth.dyad import SWING_MAX_ITER
 
     lo, hi, target = lo.astype(float).copy(), hi.astype(float).copy(), target.astype(float)
     active = active.copy()
@@ -455,7 +455,7 @@ def _numpy_rtsafe(F, lo, hi, u0, target, active, check_far):
         active[sel] = inv_hi | (S_hi >= target[sel] - SWING_TOL)
     S, converged = np.zeros_like(u), np.zeros(u.shape, bool)
     todo = np.flatnonzero(active)
-    for _ in range(_MAX_ITER):
+    for _ in range(SWING_MAX_ITER):
         if todo.size == 0:
             break
         ut, lt, ht = u[todo], lo[todo], hi[todo]
@@ -483,7 +483,7 @@ def test_compiled_newton_is_the_numpy_rtsafe_bit_for_bit(seed, kind):
     some dyads inactive, with and without the far-end check; and a root found has S(u) within
     SWING_TOL of the target."""
     from synth import parallel_rows
-    from synth.dyad import _MAX_ITER
+    from synth.dyad import SWING_MAX_ITER
     from synth.dyad_kernel import rpr_swing, rrr_swing, solve_rpr, solve_rrr
 
     rng = np.random.default_rng(seed)
@@ -497,7 +497,7 @@ def test_compiled_newton_is_the_numpy_rtsafe_bit_for_bit(seed, kind):
         e = np.exp(1j * rng.uniform(0, 2 * np.pi, N))
         ex, ey, branch, rows = e.real.copy(), e.imag.copy(), rng.choice([-1.0, 1.0], N), np.arange(N)
         F = lambda sel, u: rrr_swing(wx, wy, rows[sel], ex[sel], ey[sel], branch[sel], rho[sel], u)  # noqa: E731
-        solve = lambda *a: solve_rrr(wx, wy, rows, ex, ey, branch, rho, *a, SWING_TOL, _MAX_ITER)  # noqa: E731
+        solve = lambda *a: solve_rrr(wx, wy, rows, ex, ey, branch, rho, *a, SWING_TOL, SWING_MAX_ITER)  # noqa: E731
         lo, hi = np.full(N, 0.05), np.full(N, 2.0)
     else:
         phase = lambda: t + rng.uniform(0, 6, (N, 1))  # noqa: E731
@@ -506,7 +506,7 @@ def test_compiled_newton_is_the_numpy_rtsafe_bit_for_bit(seed, kind):
         side, rows = rng.choice([-1.0, 1.0], N), np.arange(N)
         t_end = np.where(side > 0, t_s.max(axis=1), t_s.min(axis=1)) + side * 0.1
         F = lambda sel, u: rpr_swing(t_s, n_s, rows[sel], side[sel], t_end[sel], u)  # noqa: E731
-        solve = lambda *a: solve_rpr(t_s, n_s, rows, side, t_end, *a, SWING_TOL, _MAX_ITER)  # noqa: E731
+        solve = lambda *a: solve_rpr(t_s, n_s, rows, side, t_end, *a, SWING_TOL, SWING_MAX_ITER)  # noqa: E731
         lo, hi = np.zeros(N), np.full(N, 10.0)
     target = np.radians(rng.uniform(5, 120, N))
     u0 = rng.uniform(0.01, 3.0, N)  # some outside the RRR bracket: clipped
@@ -528,21 +528,21 @@ def test_compiled_newton_is_the_numpy_rtsafe_bit_for_bit(seed, kind):
 
 
 def test_pseudo_angle_orders_directions_as_atan2_signed_zeros_and_cut_included():
-    from synth.dyad_kernel import _pseudo_angle
+    from synth.dyad_kernel import pseudo_angle
 
     rng = np.random.default_rng(5)
     angles = np.concatenate([rng.uniform(-np.pi, np.pi, 400), np.linspace(-np.pi, np.pi, 17)])
     xy = [(math.sin(a), math.cos(a)) for a in angles] + [(0.0, 1.0), (-0.0, 1.0), (0.0, -1.0), (-0.0, -1.0),
                                                          (1.0, 0.0), (-1.0, -0.0), (1e-300, -1.0), (-1e-300, -1.0)]
     exact = np.array([math.atan2(y, x) for y, x in xy])
-    pseudo = np.array([_pseudo_angle(y, x) for y, x in xy])
+    pseudo = np.array([pseudo_angle(y, x) for y, x in xy])
     assert np.all(np.abs(pseudo) <= 2.0)
     i, j = np.triu_indices(len(xy), 1)
     apart = np.abs(exact[i] - exact[j]) > 1e-12
     np.testing.assert_array_equal(np.sign(pseudo[i] - pseudo[j])[apart], np.sign(exact[i] - exact[j])[apart])
     # the cut (−x axis): on it or just above it the largest direction, below it the smallest,
     # as atan2 has them (+π, −π) — signed zeros included
-    assert _pseudo_angle(0.0, -1.0) == _pseudo_angle(1e-300, -1.0) == 2.0
-    assert _pseudo_angle(-0.0, -1.0) == _pseudo_angle(-1e-300, -1.0) == -2.0
+    assert pseudo_angle(0.0, -1.0) == pseudo_angle(1e-300, -1.0) == 2.0
+    assert pseudo_angle(-0.0, -1.0) == pseudo_angle(-1e-300, -1.0) == -2.0
     # the extremes agree up to a tie within rounding (what the kernels' docstring allows)
     assert exact[np.argmax(pseudo)] >= exact.max() - 1e-12 and exact[np.argmin(pseudo)] <= exact.min() + 1e-12

@@ -18,7 +18,7 @@ from scipy.optimize import linprog
 from kinematics.loop import parabola_vertex
 from synth.kinds import SegmentKind
 from synth.minimum_zone import minimum_zone_fit, path_deviation
-from synth.minimum_zone_kernel import _lawson, deviation_at, window_peak
+from synth.minimum_zone_kernel import lawson, deviation_at, window_peak
 
 LINE, ARC = SegmentKind.LINE.code, SegmentKind.ARC.code
 K = 21
@@ -52,7 +52,7 @@ def test_lawson_comes_within_15_percent_of_the_exact_chebyshev_fit(coef, noise, 
     else:
         cols = [np.cos(0.7 * X), np.sin(0.7 * X), np.ones(K)]
     c2 = cols[2] if p == 3 else np.zeros(K)
-    x = _lawson(cols[0], cols[1], c2, r0, p, 10, np.empty(K), np.empty(K))
+    x = lawson(cols[0], cols[1], c2, r0, p, 10, np.empty(K), np.empty(K))
     h = np.abs(r0 - x[0] * cols[0] - x[1] * cols[1] - x[2] * c2).max()
     best = _chebyshev_lp(cols, r0)
     if best < LP_RESOLUTION:  # the LP resolves the optimum no better (it reported 0 for 5e-11)

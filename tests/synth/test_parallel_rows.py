@@ -14,9 +14,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from synth import parallel_rows
-from synth.sixbar import PIN_ON_PIVOT_EPS, _kernel_inputs, crank_grid, simulate
+from synth.sixbar import PIN_ON_PIVOT_EPS, kernel_inputs, crank_grid, simulate
 
-from test_sixbar_kernel import _random_batch  # tests/synth: mixed RPR/RRR six-bars, some not assembling
+from test_sixbar_kernel import random_batch  # tests/synth: mixed RPR/RRR six-bars, some not assembling
 
 
 @pytest.fixture
@@ -68,8 +68,8 @@ def test_an_error_in_a_block_is_raised_once_every_block_is_done(threads):
 def test_six_bar_motion_the_same_on_any_number_of_threads(threads, order):
     from synth.sixbar_kernel import output_angles
 
-    batch = _random_batch(300, seed=3)
-    params, rpr = _kernel_inputs(batch)
+    batch = random_batch(300, seed=3)
+    params, rpr = kernel_inputs(batch)
     rows_phi = np.random.default_rng(4).uniform(0, 2 * np.pi, (300, 40))
     results = []
     for n in (1, 2, 3):
@@ -88,7 +88,7 @@ def test_clearances_band_windows_and_vertex_bounds_the_same_on_any_number_of_thr
     from synth.buildability import clearances
     from synth.sample_ranges import vertex_bounds
 
-    batch = _random_batch(200, seed=5)
+    batch = random_batch(200, seed=5)
     motion = simulate(batch, crank_grid(720), order=0)
     E = np.concatenate([motion.psi, motion.psi + (motion.psi[:, -1:] - motion.psi[:, :1])], axis=1)
     band = np.full(200, np.radians(0.5))

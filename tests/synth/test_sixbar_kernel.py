@@ -1,5 +1,5 @@
 """The compiled six-bar kernel (``synth.sixbar_kernel``, what ``simulate`` runs) against the
-numpy reference path (``synth.sixbar._simulate_numpy``, itself checked against an independent
+numpy reference path (``synth.sixbar.simulate_numpy``, itself checked against an independent
 per-angle solution and central differences in ``test_sixbar.py``), at derivative orders 0, 1
 and 2: the same statuses and, where the dyad is well conditioned, the same positions, angles
 and derivatives to ~1e-11 — on mechanisms with
@@ -18,14 +18,14 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from kinematics.status import AssemblyError, Status
-from synth.sixbar import OutputDyad, SixBar, SixBars, _simulate_numpy, crank_grid, output_angle, simulate
+from synth.sixbar import OutputDyad, SixBar, SixBars, simulate_numpy, crank_grid, output_angle, simulate
 
 from test_sixbar import sixbar_strategy  # tests/synth: any six-bar
 
 NA = int(Status.NOT_ASSEMBLABLE)
 
 
-def _random_batch(n: int, seed: int) -> SixBars:
+def random_batch(n: int, seed: int) -> SixBars:
     """Mixed RPR/RRR six-bars on both branches, a third of them with dyads or four-bars that
     cannot assemble over part of the turn, a few with the slot pivot on the coupler path."""
     rng = np.random.default_rng(seed)
@@ -81,9 +81,9 @@ def _size(batch: SixBars) -> np.ndarray:
 
 @pytest.mark.parametrize("order", [0, 1, 2])
 def test_kernel_matches_the_numpy_path_on_random_six_bars(order):
-    batch = _random_batch(4000, 7)
+    batch = random_batch(4000, 7)
     phi = crank_grid(360)
-    fast, ref = simulate(batch, phi, order=order), _simulate_numpy(batch, False, phi, order, "flag")
+    fast, ref = simulate(batch, phi, order=order), simulate_numpy(batch, False, phi, order, "flag")
     assert_same_motion(fast, ref, batch)
     # the sample holds every case: running, dyad apart, four-bar apart
     assert np.count_nonzero(ref.status == 0) > 100_000
@@ -100,13 +100,13 @@ def test_kernel_matches_the_numpy_path_on_random_six_bars(order):
 
 @pytest.mark.parametrize("order", [0, 2])
 def test_kernel_takes_one_crank_grid_per_six_bar(order):
-    batch = _random_batch(50, 3)
+    batch = random_batch(50, 3)
     rng = np.random.default_rng(0)
     phi = np.sort(rng.uniform(0, 2 * math.pi, (50, 97)), axis=1)
-    fast, ref = simulate(batch, phi, order=order), _simulate_numpy(batch, False, phi, order, "flag")
+    fast, ref = simulate(batch, phi, order=order), simulate_numpy(batch, False, phi, order, "flag")
     assert_same_motion(fast, ref, batch)
     shared = simulate(batch, phi[:1], order=order)  # (1, M): one grid for all
-    assert_same_motion(shared, _simulate_numpy(batch, False, phi[:1], order, "flag"), batch)
+    assert_same_motion(shared, simulate_numpy(batch, False, phi[:1], order, "flag"), batch)
 
 
 @pytest.mark.parametrize("order", [0, 1, 2])
@@ -117,7 +117,7 @@ def test_single_six_bar_and_shapes_the_kernel_does_not_take(order):
     assert one.psi.shape == (360,) and one.fourbar.A.shape == (360,) and np.ndim(one.pivot) == 0
     assert all(x.shape == (360,) for x in (*one.z, *one.dpsi, *one.fourbar.dtheta))
     one_batch = SixBars.from_sixbars([sb])
-    assert_same_motion(one, _simulate_numpy(one_batch, True, phi, order, "flag"), one_batch)
+    assert_same_motion(one, simulate_numpy(one_batch, True, phi, order, "flag"), one_batch)
     batch = SixBars.from_sixbars([sb, sb])
     np.testing.assert_array_equal(simulate(batch, phi, order=order).psi[1], one.psi)
     # a scalar crank angle goes through the numpy path
@@ -141,7 +141,7 @@ def test_degenerate_positions_are_flagged_alike(order):
         SixBar(1e70, 3e70, 3e70, 3.5e70, -1, 1e70, -1e70, OutputDyad.rrr(2e70 - 3e70j, 4e70, 3e70, -1)),
     ]
     batch = SixBars.from_sixbars(cases)
-    fast, ref = simulate(batch, phi, order=order), _simulate_numpy(batch, False, phi, order, "flag")
+    fast, ref = simulate(batch, phi, order=order), simulate_numpy(batch, False, phi, order, "flag")
     assert_same_motion(fast, ref, batch)
     assert fast.status[0].any() and fast.status[1].any() and fast.status[2][0] & NA and fast.status[3][0] & NA
     assert np.all(fast.transmission_output[2] == 0.5 * math.pi)
@@ -156,5 +156,5 @@ def test_degenerate_positions_are_flagged_alike(order):
 def test_any_six_bar_runs_the_same_in_the_kernel(sbs, samples, start, order):
     batch = SixBars.from_sixbars(sbs)
     phi = crank_grid(samples, start)
-    fast, ref = simulate(batch, phi, order=order), _simulate_numpy(batch, False, phi, order, "flag")
+    fast, ref = simulate(batch, phi, order=order), simulate_numpy(batch, False, phi, order, "flag")
     assert_same_motion(fast, ref, batch)

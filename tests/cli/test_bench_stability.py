@@ -1,6 +1,7 @@
 """A small ``dwell bench stability`` run: random and adversarial cases (link ratios 1e-3…1e3,
 change points ± 1e-12, 1e-9 rad from toggles and from θ′ = 0, rays 1e-12 rad from the pole
-tangent and normal, coupler points 1e6 cranks away)."""
+tangent and normal, coupler points 1e6 cranks away). The cases are the benchmark's own
+(:mod:`cli.bench.stability`); the last test turns them on line scanning's gates."""
 
 from __future__ import annotations
 

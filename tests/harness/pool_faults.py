@@ -1,6 +1,6 @@
 """Work items that fail the way a worker of :func:`atlas.pool.pool_map` can (run in the
-workers of ``tests/atlas/test_pool.py``; importable there because the driver puts this folder
-on ``sys.path`` before the pool starts its processes)."""
+workers of ``tests/atlas/test_pool.py``, whose driver process gets ``tests/`` on its
+``PYTHONPATH``, as pytest has it)."""
 
 from __future__ import annotations
 
