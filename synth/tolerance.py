@@ -36,6 +36,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from synth.kinds import OutputKind
 from synth.output_range import output_deviation
 from synth.sixbar import ExactOutput, SixBar, SixBars, crank_grid, simulate
 from synth.types import F64
@@ -76,7 +77,7 @@ def perturbed(sixbar: SixBar, tolerance: float, unit: F64) -> tuple[SixBars, F64
     d = np.abs(ground)
     turn = np.conj(ground) / d  # e^{−iβ}
     pivot = (dy.pivot + dev[:, 11] + 1j * dev[:, 12] - a0) * turn
-    rrr = dy.rocker > 0
+    rrr = dy.kind is OutputKind.RRR
     ones = np.ones(n)
     batch = SixBars(sixbar.a + dev[:, 0], sixbar.b + dev[:, 1], sixbar.c + dev[:, 2], d, sixbar.branch * ones,
                     sixbar.u + dev[:, 3], sixbar.v + dev[:, 4], np.full(n, not rrr), pivot,
