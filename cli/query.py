@@ -105,7 +105,7 @@ def request_from_options(dwell: float, dwell_tol: float | None = None, swing: fl
                          top: int | None = None, *, min_arm: float | None = None, min_clearance: float | None = None,
                          rpm: float | None = None, max_accel: float | None = None,
                          step: float | None = None, refine: bool | None = None,
-                         complete: bool | None = None) -> Request:
+                         complete: bool | None = None, tolerance: float | None = None) -> Request:
     """A :class:`Request` from the command's units (degrees); None takes the field's default.
     A bad value is the user's error (one line naming the option)."""
     # the deviation window must hold at least two samples of the simulation's crank grid
@@ -115,7 +115,8 @@ def request_from_options(dwell: float, dwell_tol: float | None = None, swing: fl
     given = {"dwell": math.radians(dwell), "dwell_tol": _rad(dwell_tol), "swing": _rad(swing),
              "swing_tol": _rad(swing_tol), "output": output, "dwells": dwells, "band": _rad(band),
              "crank": crank, "min_transmission": _rad(min_transmission), "max_link_ratio": max_link_ratio, "top": top,
-             "min_arm": min_arm, "min_clearance": min_clearance, "rpm": rpm, "refine": refine, "complete": complete}
+             "min_arm": min_arm, "min_clearance": min_clearance, "rpm": rpm, "refine": refine, "complete": complete,
+             "tolerance": tolerance}
     if max_accel is not None:
         given["max_accel"] = max_accel
     if step is not None:
@@ -196,7 +197,8 @@ def table(result: QueryResult, units: str = "") -> str:
             + _refined_note(result) + ")")
     lines = [head]
     width = max([26] + [len(c.id) for c in result.candidates])
-    cols = (f"{'rank':>4}  {'id':<{width}} {'out':<3} {'dwell °':>15} {'dev °':>7} {'swing °':>8} {'μ4 °':>6} {'μout °':>6} "
+    tol = f" {'tol dev °':>9}" if req.tolerance > 0 else ""
+    cols = (f"{'rank':>4}  {'id':<{width}} {'out':<3} {'dwell °':>15} {'dev °':>7}{tol} {'swing °':>8} {'μ4 °':>6} {'μout °':>6} "
             f"{'ratio':>6} {'arm':>7} {'clear':>7} {'α rad/s²':>9}  {'refined: dwell, dev °':<28} six-bar")
     lines.append(cols)
     for c in result.candidates:
@@ -208,12 +210,18 @@ def table(result: QueryResult, units: str = "") -> str:
         clear = "-" if b is None else f"{b.clearance:.4g}"
         accel = "-" if b is None else f"{b.dynamics(req.rpm)[1]:.4g}"
         mu_out = "slot" if sb.dyad.kind == OutputKind.RPR else f"{math.degrees(f.transmission_output):.1f}"
+        if req.tolerance > 0:
+            t = c.toleranced_deviation
+            tol = f" {'fails' if t is None else f'{math.degrees(t):.3f}':>9}"
         lines.append(
-            f"{c.rank:>4}  {c.id:<{width}} {sb.dyad.kind:<3} {dw:>15} {math.degrees(dev):>7.3f} {math.degrees(f.swing):>8.2f} "
+            f"{c.rank:>4}  {c.id:<{width}} {sb.dyad.kind:<3} {dw:>15} {math.degrees(dev):>7.3f}{tol} {math.degrees(f.swing):>8.2f} "
             f"{math.degrees(f.transmission_fourbar):>6.1f} {mu_out:>6} "
             f"{f.link_ratio:>6.2f} {arm:>7} {clear:>7} {accel:>9}  {_refined_text(c, req):<28} {_sixbar_text(sb)}"
         )
-    lines.append(f"dev: output deviation over the requested dwell; μ4, μout: smallest transmission angles "
+    tol_note = (f"tol dev: 95th percentile of dev over 256 six-bars made within ±{req.tolerance:g} "
+                f"{units or 'your unit'} of each length and pivot coordinate, the ranking's deviation (fails: more "
+                f"than 5 % of them do not assemble); " if req.tolerance > 0 else "")
+    lines.append(f"dev: output deviation over the requested dwell; {tol_note}μ4, μout: smallest transmission angles "
                  f"(four-bar, output dyad; a slotted rocker's is 90°); arm: slider to slot pivot (RPR); clear: "
                  f"smallest clearance to a fixed pivot; α: peak output acceleration at {req.rpm:g} rpm; refined: the dwell "
                  f"and dev before → after refinement (-: kept as retrieved; an id after ~ holds the refined dimensions); six-bar: "
@@ -358,6 +366,9 @@ FOUND, NONE_FOUND, BAD_INPUT = 0, 1, 2
               help="Smallest distance of an RPR slider from its slot pivot over the turn (crank lengths).")
 @click.option("--min-clearance", type=CRANKS, default=_DEFAULTS["min_clearance"], show_default=True,
               help="Smallest distance of a moving joint or output link from a fixed pivot (crank lengths).")
+@click.option("--tolerance", type=LENGTH, default=None, metavar="LEN",
+              help="Manufacturing tolerance (your unit, like --crank): also rank by the output deviation "
+                   "95 % of six-bars made within ±LEN of every length and pivot coordinate keep.")
 @click.option("--rpm", type=RPM, default=_DEFAULTS["rpm"], show_default=True,
               help="Crank speed for the output's peak velocity, acceleration and jerk (rev/min).")
 @click.option("--max-accel", type=ACCEL_LIMIT, default=None, help="Largest peak output acceleration (rad/s²) at --rpm.")
@@ -373,12 +384,13 @@ FOUND, NONE_FOUND, BAD_INPUT = 0, 1, 2
               help="Also write the report of the candidates to this folder.")
 @units_option
 def query(target, dwell, dwell_tol, swing, step, swing_tol, output, dwells, band, crank, min_transmission,
-          max_link_ratio, top, min_arm, min_clearance, rpm, max_accel, refine, complete, workers, as_json, report_dir,
-          units):
-    """Ranked six-bars for a requested dwell and swing (see README: ranking; docs/query.md)."""
+          max_link_ratio, top, min_arm, min_clearance, tolerance, rpm, max_accel, refine, complete, workers, as_json,
+          report_dir, units):
+    """Ranked six-bars for a requested dwell and swing (docs/query.md)."""
     request = request_from_options(dwell, dwell_tol, swing, swing_tol, output.lower(), dwells, band, crank,
                                    min_transmission, max_link_ratio, top, min_arm=min_arm, min_clearance=min_clearance,
-                                   rpm=rpm, max_accel=max_accel, step=step, refine=refine, complete=complete)
+                                   rpm=rpm, max_accel=max_accel, step=step, refine=refine, complete=complete,
+                                   tolerance=tolerance)
     if report_dir is not None:
         _check_report_dir(Path(report_dir))
     from db.engine import open_atlas

@@ -57,6 +57,7 @@ def request_json(request: Request, units: str = "mm") -> dict:
         "max_accel_rad_s2": request.max_accel,
         "refine": request.refine,
         "complete": request.complete,
+        f"tolerance_{length_key(units)}": request.tolerance or None,
     }
 
 
@@ -89,6 +90,9 @@ def candidate_json(c: Candidate, rpm: float = 60.0, units: str = "mm") -> dict:
         f"coupler_point_{L}": [sb.u, sb.v],
         "output": output,
         "dwells": dwells,
+        # with --tolerance: the 95th percentile of the output deviation over six-bars made
+        # within it (synth.tolerance); null without one or where too many of them do not assemble
+        "toleranced_deviation_deg": None if c.toleranced_deviation is None else math.degrees(c.toleranced_deviation),
         "swing_deg": math.degrees(f.swing),
         "step_deg": None if f.step is None else math.degrees(f.step),
         # a slotted rocker's transmission angle is 90° by construction: no figure (null)

@@ -76,6 +76,8 @@ CSV_COLUMNS: tuple[tuple[str, str, str], ...] = (
     *(col for k in range(1, MAX_DWELLS + 1) for col in _dwell_columns(k)),
     ("swing_deg", "deg", "output swing, max ψ - min ψ over the turn"),
     ("output_deviation_deg", "deg", "largest of the dwells' output deviations (the ranking's objective)"),
+    ("toleranced_deviation_deg", "deg", "with --tolerance: 95th percentile of output_deviation_deg over 256 six-bars "
+     "made within it (the ranking's objective then; empty otherwise)"),
     ("transmission_fourbar_min_deg", "deg", "smallest four-bar transmission angle over the turn, in [0, 90]"),
     ("transmission_output_min_deg", "deg", "smallest output transmission angle over the turn (RRR; empty for RPR, whose slot transmits at 90)"),
     ("link_ratio", "", "longest over shortest link length"),
@@ -202,6 +204,7 @@ def candidate_row(c: Candidate) -> dict[str, Any]:
     row |= {
         "swing_deg": math.degrees(f.swing),
         "output_deviation_deg": math.degrees(max(f.deviations)) if f.deviations else None,
+        "toleranced_deviation_deg": None if c.toleranced_deviation is None else math.degrees(c.toleranced_deviation),
         "transmission_fourbar_min_deg": math.degrees(f.transmission_fourbar),
         "transmission_output_min_deg": None if dy.kind == "RPR" else math.degrees(f.transmission_output),
         "link_ratio": f.link_ratio, "footprint": f.footprint,

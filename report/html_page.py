@@ -279,15 +279,19 @@ def _dwells_text(c: Candidate) -> str:
 
 
 def _summary_table(entries: list[PageEntry]) -> str:
-    head = ("rank", "id", "output", "dwell(s)", "deviation", "swing", "μ four-bar", "μ output", "link ratio",
-            "footprint")
+    # the toleranced deviation (--tolerance) beside the nominal one, where it was worked out
+    toleranced = any(e.candidate.toleranced_deviation is not None for e in entries)
+    head = ("rank", "id", "output", "dwell(s)", "deviation", *(("toleranced deviation",) if toleranced else ()),
+            "swing", "μ four-bar", "μ output", "link ratio", "footprint")
     rows = []
     for e in entries:
         c, f = e.candidate, e.candidate.figures
         dev = max(f.deviations) if f.deviations else None
+        tol = c.toleranced_deviation
         cells = [f'<a href="#cand-{int(c.rank)}">{int(c.rank)}</a>', f"<code>{_esc(c.id)}</code>",
                  _esc(c.sixbar.dyad.kind),
                  _esc(_dwells_text(c)), "–" if dev is None else f"{math.degrees(dev):.4f}°",
+                 *((("–" if tol is None else f"{math.degrees(tol):.4f}°"),) if toleranced else ()),
                  f"{math.degrees(f.swing):.3f}°", f"{math.degrees(f.transmission_fourbar):.1f}°",
                  "slot" if c.sixbar.dyad.kind == "RPR" else f"{math.degrees(f.transmission_output):.1f}°",
                  f"{f.link_ratio:.2f}", _num(f.footprint, 6)]
@@ -328,6 +332,9 @@ def _dimensions_table(entry: PageEntry, rpm: float) -> str:
         dwells = " / ".join(f"{math.degrees(d.angle):.3f}°" for d in g.dwells)
         dev = f" · deviation {math.degrees(max(g.deviations)):.4f}°" if g.deviations else ""
         rows.append(("refined from (as retrieved)", f"dwell {dwells} · swing {math.degrees(g.swing):.4f}°{dev}"))
+    if c.toleranced_deviation is not None:
+        rows.append(("toleranced deviation (95 % of six-bars made within the tolerance)",
+                     f"{math.degrees(c.toleranced_deviation):.4f}°"))
     rows += [("swing", f"{math.degrees(f.swing):.4f}°"),
              ("min transmission, four-bar", f"{math.degrees(f.transmission_fourbar):.2f}°"),
              ("min transmission, output", "slot (90° by construction)" if dy.kind == "RPR"

@@ -73,6 +73,10 @@ class Request:
     max_accel: float | None = None
     #: Two dwells: the output's turn between its two rests (rad, None: any), ±``swing_tol``.
     step: float | None = None
+    #: Manufacturing tolerance (the user's length unit, 0: none): each candidate also gets the
+    #: 95th percentile of its output deviation over draws made within ±tolerance
+    #: (synth.tolerance), and the ranking uses it in place of the nominal deviation.
+    tolerance: float = 0.0
 
     def __post_init__(self) -> None:
         bad = ValueError
@@ -112,6 +116,8 @@ class Request:
         if self.step is not None and not (math.isfinite(self.step) and 0 < self.step < math.pi and self.dwells == 2):
             raise bad("--step (the turn between two rests) must be between 0 and 180 degrees (exclusive) and "
                       "needs --dwells 2")
+        if not (math.isfinite(self.tolerance) and self.tolerance >= 0):
+            raise bad(f"--tolerance must be a length >= 0, got {self.tolerance:g}")
         if self.max_accel is not None and not (math.isfinite(self.max_accel) and self.max_accel > 0):
             raise bad(f"--max-accel must be > 0 rad/s^2, got {self.max_accel:g}")
 
@@ -132,6 +138,10 @@ class Candidate:
     #: A refined six-bar (synth.refine): the figures of the six-bar it was refined from (same
     #: units as ``figures``); None if it was not refined or refinement kept it unchanged.
     refined_from: SixBarFigures | None = None
+    #: With a request's tolerance: the 95th percentile of the output deviation (rad, the
+    #: largest of its dwells') over six-bars made within it (synth.tolerance); None without a
+    #: tolerance, or where more than 5 % of those six-bars do not assemble.
+    toleranced_deviation: float | None = None
 
 
 def screen(request: Request, sixbars: SixBars, samples: int = 720) -> np.ndarray:
@@ -339,7 +349,10 @@ def rank(request: Request, candidates: list[Candidate]) -> list[Candidate]:
     # Rounded: the same six-bar's figures differ in the last bits with the batch it was
     # simulated in, and a mirror pair's are equal only to rounding; ties then fall to the id,
     # so a ranking does not depend on how the six-bars were batched.
-    obj = np.round(objectives(request, [c.figures for c in candidates]), 10)
+    obj = objectives(request, [c.figures for c in candidates])
+    if request.tolerance > 0:  # the deviation that survives the workshop; none survives: last
+        obj[:, 1] = [math.pi if c.toleranced_deviation is None else c.toleranced_deviation for c in candidates]
+    obj = np.round(obj, 10)
     layer = pareto_layers(obj)
     scale = np.array([max(request.dwell_tol, math.radians(0.5)), request.band, math.radians(45.0), 100.0, 1.0])
     score = (obj + np.array([0.0, 0.0, math.pi / 2, 0.0, 0.0])) / scale

@@ -25,12 +25,12 @@ __all__ = ["pair_clearances"]
 _RRR_PAIRS, _RPR_PAIRS = 14, 2
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _squared(x, y):
     return x * x + y * y
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _segment_distance2(px, py, ax, ay, bx, by):
     """Squared distance from p to the segment a–b."""
     abx, aby = bx - ax, by - ay

@@ -40,7 +40,7 @@ _MEMO = 1024
 _EMPTY = -(1 << 62)
 
 
-@numba.njit(cache=True, nogil=True, inline="always", error_model="numpy")
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _psi(params, rpr, i, phi, pin_eps, ref):
     """Exact ψ of six-bar ``i`` at crank angle ``phi`` on the 2π branch nearest ``ref``
     (``ref + wrap_angle(ψ − ref)``, :func:`synth.output_range._rewrap`)."""
@@ -48,7 +48,7 @@ def _psi(params, rpr, i, phi, pin_eps, ref):
     return ref + (((math.atan2(ey, ex) - ref) + math.pi) % _TWO_PI - math.pi)
 
 
-@numba.njit(cache=True, nogil=True, inline="always", error_model="numpy")
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _fine_path(params, rpr, i, pin_eps, E, r, m, net, first, steps, K, phi0, h, at, vals, keys, memo):
     """:func:`synth.output_range._fine_path` for one window: ψ at K points per grid step over
     ``steps`` steps from sample ``first`` into ``at`` and ``vals`` (``steps·K + 1`` points;
@@ -184,7 +184,7 @@ def refine_windows(params: F64, rpr: np.ndarray, six: np.ndarray, E: F64, upper:
     return out[..., 0], out[..., 1], out[..., 2], out[..., 3]
 
 
-@numba.njit(cache=True, nogil=True, inline="always", error_model="numpy")
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _slab_ref(slab, r, i_lo, x, phi0, h):
     """ψ linear between the slab's samples at crank angle x (slab offset 0 is sample
     i_lo − 1): the 2π branch to evaluate on."""
@@ -194,7 +194,7 @@ def _slab_ref(slab, r, i_lo, x, phi0, h):
     return (1 - w) * slab[r, j] + w * slab[r, j + 1]
 
 
-@numba.njit(cache=True, nogil=True, inline="always", error_model="numpy")
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _best_split(params, rpr, i, pin_eps, slab, r, i_lo, f, L, c, phi0, h, mid_hi, mid_lo,
                 fv, gv, sf_max, sf_min, pg_max, pg_min):
     """ψ at the window starts ``f`` and ends f + L, the suffix extremes of the starts' values

@@ -31,7 +31,7 @@ from synth.minimum_zone_kernel import deviation_at, fit_row, window_peak
 __all__ = ["measure_dwells"]
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _run(absdev, band, centre, size, z, kind, point, direction, radius, have_lo, have_hi):
     """[lo, hi] of the samples with |deviation| ≤ ``band`` from the geometry (``point``,
     ``direction``, ``radius``) contiguous with ``centre`` (hi < lo, namely [centre + 1, centre],

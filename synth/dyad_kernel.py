@@ -116,7 +116,7 @@ def _angle_swing(xa, ya, order, angle):
     return khi, klo, swing, False
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@numba.njit(cache=True, nogil=True)
 def _rtsafe_step(u, lt, ht, St, dS, invalid, target, tol):
     """One step of the safeguarded Newton on [lt, ht] (Numerical Recipes' ``rtsafe``) from the
     swing St and dS/du at u: (S, converged, lt, ht, next u, go on). An invalid S (revolving,
@@ -134,7 +134,7 @@ def _rtsafe_step(u, lt, ht, St, dS, invalid, target, tol):
     return St, conv, lt, ht, step, (not conv) and (ht - lt) > 1e-15 * ht
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@numba.njit(cache=True, nogil=True)
 def _rrr_one(wx, wy, r, ex, ey, br, rho, u, scratch):
     """(S, dS/du, invalid) of one RRR dyad (:func:`rrr_swing`'s row); ``scratch``: (4, M)."""
     M = wx.shape[1]
@@ -210,7 +210,7 @@ def rrr_swing(wx, wy, rows, ex, ey, branch, rho, u):
     return S, dS, invalid
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@numba.njit(cache=True, nogil=True)
 def _rpr_one(t_s, n_s, r, sg, t_end, u, scratch):
     """(S, dS/du, invalid) of one RPR dyad (:func:`rpr_swing`'s row); ``scratch``: (4, M)."""
     M = t_s.shape[1]

@@ -27,7 +27,7 @@ _LINE = SegmentKind.LINE.code
 _RIDGE = 1e-13
 
 
-@numba.njit(cache=True, nogil=True, inline="always", error_model="numpy")
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def deviation_at(z, kind, point, direction, radius):
     """:func:`path_deviation` of one sample (scalars): Im(conj(direction)·(z − point)) for a
     line, |z − point| − radius for a circle."""

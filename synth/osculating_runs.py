@@ -28,7 +28,7 @@ __all__ = ["osculating_runs", "osculating_scores"]
 SCORE_OFFSETS = (2, 4)
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _deviation(A, E, row, k, m, uv, kind, point, direction, radius):
     """|deviation| of linkage ``row``'s path at crank step ``k`` (cyclic)."""
     k = k % m

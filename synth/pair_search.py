@@ -16,7 +16,7 @@ import numpy as np
 __all__ = ["longest_pairs", "pair_query"]
 
 
-@numba.njit(cache=True, nogil=True, inline="always", error_model="numpy")
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def pair_query(left_at, lv, right_at, rv, hi_in, lo_in, b, scratch, last_of):
     """One query: start points ``left_at``/``lv``, end points ``right_at``/``rv`` (1-D,
     ascending), the extremes ``hi_in``/``lo_in`` of what lies between, the band ``b``;

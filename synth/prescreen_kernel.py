@@ -35,7 +35,7 @@ __all__ = ["screen_outputs"]
 _NA = int(Status.NOT_ASSEMBLABLE)
 
 
-@numba.njit(cache=True, nogil=True, inline="always", error_model="numpy")
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _within_band(psi, m, length, band, top, bottom):
     """Some cyclic window of ``length`` consecutive samples of ``psi[:m]`` lies within ``band``
     (max − min ≤ band); a window longer than the turn holds every sample."""

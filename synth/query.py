@@ -916,6 +916,22 @@ def search_many(requests: Sequence[Request], source: SegmentSource, *,
     return [(found, SearchCount(rows_n, fitted_n, n, len(found))) for found, n in zip(out, simulated)]
 
 
+def _toleranced(request: Request, candidates: list[Candidate]) -> list[Candidate]:
+    """With ``request.tolerance``: each candidate with its toleranced deviation
+    (:func:`synth.tolerance.toleranced_deviation` over the middles of its dwells, the request's
+    dwell length), worked out afresh (a refined six-bar is another six-bar); else as they are."""
+    if request.tolerance <= 0:
+        return candidates
+    from synth.tolerance import toleranced_deviation
+
+    out = []
+    for c in candidates:
+        centres = [0.5 * (d.start + d.end) for d in c.figures.dwells[: request.dwells]]
+        value = toleranced_deviation(c.sixbar, request.tolerance, centres, request.dwell) if centres else None
+        out.append(dataclasses.replace(c, toleranced_deviation=value))
+    return out
+
+
 def answer(request: Request, source: SegmentSource, *,
            on_progress: Callable[[int, int], None] | None = None,
            map_batches: BatchMap | None = None,
@@ -1019,6 +1035,7 @@ def answer(request: Request, source: SegmentSource, *,
             candidates += meeting(sampled(DEEPER * PER_LEVEL, deep))
         considered = len({r.segment_id for r in rows})
     t3 = time.perf_counter()
+    candidates = _toleranced(request, candidates)
     top = [dataclasses.replace(c, rank=i + 1) for i, c in enumerate(_distinct(rank(request, candidates))[: request.top])]
     clock["rank"] = time.perf_counter() - t3
     nearest: tuple[float | None, float | None] = (None, None)
@@ -1028,7 +1045,7 @@ def answer(request: Request, source: SegmentSource, *,
     if top and request.refine:
         t4 = time.perf_counter()
         top, better = _refined(request, top)
-        top = rank(request, top)
+        top = rank(request, _toleranced(request, top))
         refined = (len(top), better)
         clock["refine"] = time.perf_counter() - t4
     misses_met = 0
@@ -1046,7 +1063,7 @@ def answer(request: Request, source: SegmentSource, *,
                                                min(FILL, request.top) - len(top))
         if found:
             top = [dataclasses.replace(c, rank=i + 1)
-                   for i, c in enumerate(_distinct(rank(request, [*top, *found]))[: request.top])]
+                   for i, c in enumerate(_distinct(rank(request, [*top, *_toleranced(request, found)]))[: request.top])]
             misses_met = len({c.id for c in found} & {c.id for c in top})
             no_match = None
         refined = (refined[0] + tried, refined[1] + better)

@@ -27,7 +27,7 @@ from synth.types import F64
 __all__ = ["parabola_rise", "range_extremes", "range_max_min", "sliding_extremes", "vertex_bounds"]
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@numba.njit(cache=True, nogil=True)
 def parabola_rise(ym, y0, yp):
     """Scalar :func:`kinematics.loop.parabola_vertex`, the same operations: (the second
     difference D = y₋ − 2y₀ + y₊, the vertex's rise over y₀ −(y₋ − y₊)²/(8D), 0 where D = 0)."""
@@ -38,7 +38,7 @@ def parabola_rise(ym, y0, yp):
     return den, -(diff ** 2 / (8 * den))
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@numba.njit(cache=True, nogil=True)
 def range_max_min(upper, lower, r, s, n):
     """(max of ``upper``, min of ``lower``) over samples [s, s + n) of row ``r``; (+inf, −inf)
     for a range that is empty or runs off the samples (never within a band)."""

@@ -36,7 +36,7 @@ _NA = int(Status.NOT_ASSEMBLABLE)
 _TOGGLE = int(Status.TOGGLE)
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@numba.njit(cache=True, error_model="numpy")
 def closing_point(rx, ry, l1, l2, branch):
     """Scalar :func:`kinematics.loop.circle_intersection_xy`: (cos1, sin1, cos2, sin2, status,
     k1, k2), e2 put back on the unit circle where the loop does not close, k1 and k2 the Cramer
@@ -90,7 +90,7 @@ def closing_point(rx, ry, l1, l2, branch):
     return c1, s1, c2, s2, status, (l2 / l1) * k2 / u, k2 / u
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@numba.njit(cache=True, error_model="numpy")
 def _divide(ax, ay, bx, by):
     """(a / b) for complex a, b by Smith's scaling, as numpy divides (no overflow of |b|²)."""
     if abs(bx) >= abs(by):
@@ -102,20 +102,20 @@ def _divide(ax, ay, bx, by):
     return (ax * rat + ay) * scl, (ay * rat - ax) * scl
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@numba.njit(cache=True, error_model="numpy")
 def _fold(cos_mu):
     """:func:`kinematics.loop.transmission_fold` of the relative phasor's real part."""
     mu = math.acos(min(max(cos_mu, -1.0), 1.0))
     return min(mu, math.pi - mu)
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@numba.njit(cache=True, error_model="numpy")
 def _size(a, b, c, d, dx, dy):
     """The six-bar's size for the pin test: its longest four-bar link or |D|."""
     return max(max(max(a, b), max(c, d)), math.hypot(dx, dy))
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@numba.njit(cache=True, error_model="numpy")
 def _coupler_point(a, b, c, d, branch, u, v, cphi, sphi):
     """The four-bar at crank angle φ (cos φ, sin φ): circles about A (radius b) and B0 (radius
     c), R = B0 − A. Returns :func:`closing_point`'s seven values (e^{iθ}, e^{iγ}, status, rate
@@ -126,7 +126,7 @@ def _coupler_point(a, b, c, d, branch, u, v, cphi, sphi):
     return ct, st, cg, sg, fb, fk1, fk2, ax, ay, wx, wy, ax + wx, ay + wy
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@numba.njit(cache=True, error_model="numpy")
 def _slot_phasor(zx, zy, dx, dy, pin_eps, size):
     """The RPR slot's direction e^{iψ} = W/|W|, W = P − D, as numpy's complex ÷ real computes
     it ((W + 0i)·(1/|W|), zeros' signs included), its status (NOT_ASSEMBLABLE and a +x
@@ -140,7 +140,7 @@ def _slot_phasor(zx, zy, dx, dy, pin_eps, size):
     return (rx + ry * 0.0) * scale, (ry - rx * 0.0) * scale, 0, rx, ry
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy")
+@numba.njit(cache=True, error_model="numpy")
 def output_phasor(params, rpr, i, phi, pin_eps):
     """Six-bar ``i``'s output direction e^{iψ} = (cos ψ, sin ψ) at one crank angle ``phi``
     (rad) and its :class:`~kinematics.status.Status` flags: :func:`_positions`' order-0 path

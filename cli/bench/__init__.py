@@ -15,6 +15,7 @@ SUBCOMMANDS = {
     "faults": "cli.bench.faults:faults",
     "coverage": "cli.bench.coverage:coverage",
     "sixbar": "cli.bench.sixbar:sixbar",
+    "tolerance": "cli.bench.tolerance:tolerance",
 }
 
 

@@ -106,3 +106,17 @@ def test_plain_sixbar_matches_a_hand_built_one():
     Q = meet(P, rho, D, L, D)
     psi = float(sixbar_rrr_positions(a, b, c, d, u, v, D, L, rho, np.array([phi]))[0])
     assert abs(np.angle(np.exp(1j * (psi - np.angle(Q - D))))) < 1e-12
+
+
+def test_bench_tolerance_json(capsys):
+    """The toleranced deviation's cost per candidate: both six-bars get a figure above their
+    nominal deviation, timed, with the percentile's spread over seeds."""
+    code = main(["bench", "tolerance", "--draws", "32", "--repeat", "1", "--seeds", "2"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    doc = json.loads(out)
+    assert doc["draws"] == 32 and [r["sixbar"] for r in doc["results"]] == ["rrr_60_30", "rpr_45_40"]
+    for r in doc["results"]:
+        assert r["toleranced_deviation_deg"] > r["nominal_deviation_deg"] > 0
+        assert 0 < r["seconds_per_candidate"] < 60 and r["percentile_spread_over_seeds_deg"] >= 0
+    assert main(["bench", "tolerance", "--draws", "8"]) == 2

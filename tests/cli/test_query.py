@@ -533,3 +533,23 @@ def test_the_first_answer_freezes_the_long_lived_objects_once(atlas_path, monkey
         assert gc.get_freeze_count() <= frozen  # none added (a frozen object freed leaves the count)
     finally:
         engine.dispose()
+
+
+def test_tolerance_adds_a_column_and_ranks_by_it(atlas_path, capsys):
+    """--tolerance (the user's unit, like --crank): every candidate's toleranced deviation in
+    the JSON and the table, at least its nominal one, and the ranking by it."""
+    args = ["query", "--db", atlas_path, "--dwell", "45", "--swing", "40", "--output", "rpr", "--top", "3",
+            "--crank", "40", "--no-refine"]
+    code, out, err = run(capsys, *args, "--tolerance", "0.05", "--json")
+    assert code == 0, err
+    doc = json.loads(out)
+    assert doc["request"]["tolerance_mm"] == 0.05
+    tol = [c["toleranced_deviation_deg"] for c in doc["candidates"]]
+    assert tol and all(t is not None for t in tol)
+    for c, t in zip(doc["candidates"], tol):
+        assert t >= max(d["output_deviation_deg"] for d in c["dwells"]) * 0.999
+    code, out, err = run(capsys, *args, "--tolerance", "0.05")
+    assert code == 0 and "tol dev °" in out and f"{tol[0]:.3f}" in out
+    code, out, err = run(capsys, *args, "--json")
+    assert all(c["toleranced_deviation_deg"] is None for c in json.loads(out)["candidates"])
+    assert run(capsys, *args, "--tolerance", "-0.05")[0] == 2

@@ -1,0 +1,115 @@
+"""synth.tolerance: the toleranced output deviation, held to a plain loop over the same draws."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from synth.candidates import Candidate, Request, rank
+from synth.figures import sixbar_figures
+from synth.output_range import output_deviation
+from synth.sixbar import ExactOutput, OutputDyad, SixBar, crank_grid, simulate
+from synth.tolerance import DRAWS, PERCENTILE, deviation_draws, perturbed, toleranced_deviation, unit_draws
+
+# the demo's best RRR 60°/30° six-bar (crank 1) and an RPR 45°/40° one
+RRR = SixBar(1.0, 3.542, 2.49, 3.938, 1, 3.645, -0.321, OutputDyad.rrr(complex(4.219, -0.5853), 0.4984, 2.807, 1))
+RPR = SixBar(1.0, 4.072, 1.546, 4.173, 1, 3.794, -0.2963, OutputDyad.rpr(complex(1.982, 2.447)))
+BAND = math.radians(0.1)
+
+
+def _centres(sb: SixBar, length: float) -> list[float]:
+    f = sixbar_figures(sb, band=BAND, dwell_length=length)
+    return [0.5 * (d.start + d.end) for d in f.dwells]
+
+
+def _brute_force(sb: SixBar, tol: float, centres: list[float], length: float, draws: int) -> np.ndarray:
+    """One draw at a time, written out: the drawn dimensions, the draw's own frame (A0′ at the
+    origin, B0′ on +x), one six-bar simulated alone, its deviation per dwell."""
+    out = []
+    phi = crank_grid(720)
+    for row in unit_draws(draws):
+        e = tol * row
+        a0 = complex(e[7], e[8])
+        b0 = complex(sb.d + e[9], e[10])
+        beta = math.atan2((b0 - a0).imag, (b0 - a0).real)
+        rot = complex(math.cos(-beta), math.sin(-beta))
+        dy = sb.dyad
+        pivot = (dy.pivot + complex(e[11], e[12]) - a0) * rot
+        if dy.kind == "RRR":
+            dyad = OutputDyad.rrr(pivot, dy.rocker + e[5], dy.rod + e[6], dy.branch)
+        else:
+            dyad = OutputDyad.rpr(pivot)
+        one = SixBar(sb.a + e[0], sb.b + e[1], sb.c + e[2], abs(b0 - a0), sb.branch, sb.u + e[3], sb.v + e[4], dyad)
+        m = simulate(one, phi, order=1)
+        if np.any(m.status != 0) or abs(m.psi[-1] - m.psi[0]) >= math.pi:
+            out.append(math.inf)
+            continue
+        worst = 0.0
+        for c in centres:
+            c_draw = (c - beta - phi[0]) % (2 * math.pi) + phi[0]
+            from synth.sixbar import SixBars
+
+            dev, _ = output_deviation(phi, m.psi, c_draw, length, psi_at=ExactOutput(SixBars.from_sixbars([one])),
+                                      dpsi1=m.dpsi[0])
+            worst = max(worst, float(dev))
+        out.append(worst)
+    return np.array(out)
+
+
+@pytest.mark.parametrize("sb, dwell_deg", [(RRR, 60.0), (RPR, 45.0)])
+def test_draws_match_a_plain_loop_over_the_same_draws(sb, dwell_deg):
+    length = math.radians(dwell_deg)
+    centres = _centres(sb, length)
+    tol = 0.05 / 40  # 0.05 mm on a 40 mm crank
+    batch = deviation_draws(sb, tol, centres, length, draws=48)
+    loop = _brute_force(sb, tol, centres, length, 48)
+    assert np.all(np.isfinite(batch)) and np.all(np.isfinite(loop))
+    np.testing.assert_allclose(batch, loop, rtol=0, atol=1e-12)
+    # the tolerance moves the rest: the draws spread, and some rest worse than the drawing
+    nominal = max(sixbar_figures(sb, band=BAND, dwell_length=length).deviations)
+    assert batch.max() > nominal * 1.05 and batch.std() > 0
+
+
+def test_zero_tolerance_is_the_nominal_deviation():
+    length = math.radians(60.0)
+    nominal = max(sixbar_figures(RRR, band=BAND, dwell_length=length).deviations)
+    dev = deviation_draws(RRR, 0.0, _centres(RRR, length), length, draws=8)
+    np.testing.assert_allclose(dev, nominal, rtol=0, atol=1e-12)
+
+
+def test_percentile_of_256_seeded_draws_is_deterministic_and_grows_with_the_tolerance():
+    length = math.radians(60.0)
+    centres = _centres(RRR, length)
+    small = toleranced_deviation(RRR, 0.02 / 40, centres, length)
+    large = toleranced_deviation(RRR, 0.05 / 40, centres, length)
+    assert large == toleranced_deviation(RRR, 0.05 / 40, centres, length)
+    draws = deviation_draws(RRR, 0.05 / 40, centres, length)
+    assert len(draws) == DRAWS
+    assert large == pytest.approx(float(np.percentile(draws, PERCENTILE)), abs=0)
+    nominal = max(sixbar_figures(RRR, band=BAND, dwell_length=length).deviations)
+    assert nominal < small < large
+
+
+def test_moved_ground_pivots_turn_the_frame():
+    unit = np.zeros((1, 13))
+    unit[0, 8] = 1.0  # A0 moved up by the tolerance: the ground line turns clockwise
+    batch, beta = perturbed(RRR, 0.1, unit)
+    assert beta[0] == pytest.approx(math.atan2(-0.1, RRR.d), rel=1e-15)
+    assert batch.d[0] == pytest.approx(math.hypot(RRR.d, 0.1), rel=1e-15)
+    # D keeps its distance to A0′
+    assert abs(batch.pivot[0]) == pytest.approx(abs(RRR.dyad.pivot - 0.1j), rel=1e-14)
+
+
+def test_a_tolerance_no_draw_survives_is_none_and_ranks_last():
+    length = math.radians(60.0)
+    centres = _centres(RRR, length)
+    assert toleranced_deviation(RRR, 2.0, centres, length, draws=32) is None  # links of ±2 cranks
+    f = sixbar_figures(RRR, band=BAND, dwell_length=length)
+    req = Request(dwell=length, swing=math.radians(30.0), tolerance=0.001)
+    worse = Candidate("b", 1, RRR, f, toleranced_deviation=None)
+    better = Candidate("a", 2, RRR, f, toleranced_deviation=math.radians(0.5))
+    assert [c.id for c in rank(req, [worse, better])] == ["a", "b"]
+    with pytest.raises(ValueError, match="--tolerance"):
+        Request(dwell=length, swing=math.radians(30.0), tolerance=-1.0)
