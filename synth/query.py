@@ -203,7 +203,9 @@ class NoMatch:
     #: (°); link ratio, acceleration: the smallest; arm, clearance: the largest (crank
     #: lengths) — against the request's ``limit`` (the requested value for dwell, swing and
     #: step). None when no fitted six-bar misses one constraint alone (or the diagnosis was
-    #: made from bounds, :func:`diagnose_by_bounds`).
+    #: made from bounds, :func:`diagnose_by_bounds`). With nothing fitted: the transmission
+    #: angle, if the sample without its limit holds segments, and the best four-bar's among
+    #: them (:func:`_unfitted_reach`).
     reach: tuple[str, float, float] | None = None
 
     @property
@@ -692,6 +694,20 @@ def diagnose(request: Request, fitted: Sequence[Fitted],
     best_total, fit_, fig, _ = misses[0]
     found = _no_match(request, len(fitted), rejected, None if best_total == math.inf else (fit_, fig))
     return dataclasses.replace(found, reach=_reach(request, misses))
+
+
+def _unfitted_reach(request: Request, source: SegmentSource, kinds: tuple[str, ...]) -> tuple[str, float, float] | None:
+    """:attr:`NoMatch.reach` of a request whose sample held no segment: the four-bars'
+    transmission angle, when the sample without that limit holds segments — with the largest
+    smallest transmission angle (°) among their four-bars (RRR 10° at a 30° swing on
+    ``standard``: the 49 arcs whose keys predict it all belong to four-bars below 10°)."""
+    if request.min_transmission <= 0:
+        return None
+    rows = select(source, dataclasses.replace(request, min_transmission=0.0), kinds)
+    if not rows:
+        return None
+    return ("transmission", math.degrees(max(r.fourbar_transmission_min for r in rows)),
+            math.degrees(request.min_transmission))
 
 
 def _reach(request: Request, misses: list[tuple[float, Fitted, SixBarFigures, dict]]
@@ -1195,6 +1211,7 @@ def _answer_one(request: Request, source: SegmentSource, *,
             clock["simulate"] = clock.get("simulate", 0.0) + time.perf_counter() - t4
         if not no_match.fitted:  # no six-bar to show: the stored dwells the atlas has instead
             nearest = source.nearest_dwell_angles(kinds, request.dwell)
+            no_match = dataclasses.replace(no_match, reach=_unfitted_reach(request, source, kinds))
     reseated = frozenset(c.id for c in top if c.id.split(REFINED_MARK)[0] in moved_ids)
     return _Answered(QueryResult(request, top, considered, simulated, nearest, clock, no_match, refined,
                                  from_misses=bool(top) and not before_refine, misses_met=misses_met,

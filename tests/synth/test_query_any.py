@@ -122,3 +122,60 @@ def test_a_no_match_of_any_is_both_diagnoses_in_one(source):
     nearer = min((b, c), key=total)
     assert a.nearest.id == nearer.nearest.id
     assert a.would_meet == dataclasses.replace(nearer.would_meet, output="any")
+
+
+@pytest.mark.parametrize("dwell, swing, output", [(150, 90, "rrr"), (10, 10, "rpr"), (60, 30, "rrr")])
+def test_the_constraint_in_the_way_is_the_best_figure_of_the_six_bars_missing_it_alone(source, dwell, swing, output):
+    """A no-match's ``reach``: the constraint that the nearest six-bar missing a single one
+    misses, and the best figure on it of every fitted six-bar missing it alone (recomputed
+    here from every fit's own figures)."""
+    from synth.figures import sixbar_figures
+    from synth.query import SAMPLES, diagnose, fit, select
+    from synth.sixbar import SixBars
+
+    request = Request(dwell=dwell * DEG, swing=swing * DEG, output=output, dwell_tol=(0.0 if dwell == 60 else 2) * DEG,
+                      min_transmission=45 * DEG)
+    kind = "line" if output == "rpr" else "arc"
+    fits = fit(request, select(source, request, (kind,), 30), kind)
+    assert fits
+    figures = sixbar_figures(SixBars.from_sixbars([f.sixbar() for f in fits]), band=request.band,
+                             dwell_length=request.dwell, dwells=1, samples=SAMPLES, footprint=False)
+    excess = [violations(request, f) for f in figures]
+    alone = [(next(k for k, x in e.items() if x > 0), f, _total(e)) for e, f in zip(excess, figures)
+             if not e["assembly"] and sum(x > 0 for x in e.values()) == 1]
+    reach = diagnose(request, fits).reach
+    if not alone:
+        assert reach is None
+        return
+    key = min(alone, key=lambda a: a[2])[0]
+    mine = [f for k, f, _ in alone if k == key]
+    assert reach[0] == key
+    if key == "dwell":
+        best = min((d.angle for f in mine for d in f.dwells[:1]), key=lambda a: abs(a - request.dwell))
+        assert (reach[1], reach[2]) == pytest.approx((math.degrees(best), dwell), abs=1e-9)
+        assert abs(reach[1] - dwell) > 2 * (dwell != 60)
+    elif key == "transmission":
+        best = max(min(f.transmission_fourbar, f.transmission_output) for f in mine)
+        assert (reach[1], reach[2]) == pytest.approx((math.degrees(best), 45.0), abs=1e-9)
+        assert reach[1] < 45
+    else:
+        assert reach[2] in (request.max_link_ratio, request.min_arm, request.min_clearance, swing)
+
+
+def test_a_complete_any_is_the_best_of_both_complete_answers(source):
+    """With ``--complete`` too: ``any`` (each output type searched whole) is the best --top of
+    the union of the complete RPR and RRR answers; handed one search of both kinds
+    (:func:`synth.query.search`, as ``dwell bench coverage --complete`` does), it splits it by
+    output type and answers the same, with the search's counts."""
+    from synth.query import search
+
+    request = Request(dwell=60 * DEG, swing=30 * DEG, top=8, complete=True, refine=False)
+    either = answer(request, source)
+    rpr, rrr = _both(request, source)
+    best = _best_of_union(request, rpr, rrr)
+    assert [_key(c) for c in either.candidates] == [_key(c) for c in best]
+    assert rpr.candidates and rrr.candidates and len(either.candidates) == request.top
+    found, count = search(request, source)
+    again = answer(request, source, searched=(found, count))
+    assert [_key(c) for c in again.candidates] == [_key(c) for c in best]
+    assert (again.considered, again.simulated) == (count.rows, count.simulated)
