@@ -11,7 +11,8 @@ simulation (:func:`~synth.figures.sixbar_figures`) → the six-bars that meet th
 ranked (:func:`~synth.candidates.rank`), one per segment and output type and one of a mirror
 pair → with ``request.refine``, the top ones refined by a local optimisation with exact
 simulation in the loop (:func:`synth.refine.refine`) and ranked again. Lengths are
-crank-normalised until the end, then scaled to ``request.crank``.
+crank-normalised until the end, then scaled to ``request.crank``. ``--output any`` (one dwell)
+runs the pipeline once as RPR and once as RRR and ranks the union of the two answers.
 
 That pipeline runs on a sample of the atlas (:func:`select`: per level, the stored rows
 nearest a target — a line's dwell, an arc's dwell key, :mod:`synth.dwell_key` — a budget;
@@ -20,7 +21,8 @@ With ``request.complete`` it runs instead on every stored segment at every level
 (:func:`search`), pruned only by conditions no meeting six-bar can fail, the prescreen (:func:`prescreen`) among them: the complete answer.
 
 When fewer than ``FILL`` six-bars meet the request (and refinement is on), the nearest misses
-(``MISSES`` at a time, by the sum of their excesses over the limits, for at most
+(of the sample's fits and of the fits to rests twice as long the moved pivots were taken from;
+``MISSES`` at a time, by the sum of their excesses over the limits, for at most
 ``MISS_ROUNDS`` rounds while fewer than ``FILL`` meet) are refined toward it
 (the refinement's reach: a CMA-ES in a wider trust region), and those that then meet it join
 the answer; if nothing meets it even so, the result carries a
