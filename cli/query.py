@@ -274,6 +274,7 @@ def no_match_message(result: QueryResult) -> str:
             change = _options_changed(req, nm.would_meet)
             if change:
                 lines.append(f"  it meets: {change}")
+        lines += _in_the_way(nm)
         if result.refined[0]:
             lines.append(f"  refined: its {result.refined[0]} nearest misses toward the request; none meets it")
         return "\n".join(lines)
@@ -281,13 +282,24 @@ def no_match_message(result: QueryResult) -> str:
     near = [x for x in (below, above) if x is not None]
     if near and min(abs(x - req.dwell) for x in near) <= req.dwell_tol:
         # segments of that dwell exist: it is the dyads that fail the swing or the constraints
-        return (f"{head}; the atlas holds segments of that dwell, but no output dyad fits them: try a larger "
-                f"--max-link-ratio (now {req.max_link_ratio:g}), a lower --min-transmission "
-                f"(now {math.degrees(req.min_transmission):g}°) or another --swing")
+        return "\n".join([f"{head}; the atlas holds segments of that dwell, but no output dyad fits them: try a larger "
+                          f"--max-link-ratio (now {req.max_link_ratio:g}), a lower --min-transmission "
+                          f"(now {math.degrees(req.min_transmission):g}°) or another --swing", *_in_the_way(nm)])
     hint = " and ".join(f"{math.degrees(x):.1f}°" for x in near)
-    return (f"{head}; " + (f"the closest dwells the atlas holds are {hint}: " if near else "")
-            + "try a wider --dwell-tol (the error allowed on the dwell angle) or a larger atlas; a wider "
-              "--band would count a less still output as a dwell")
+    return "\n".join([f"{head}; " + (f"the closest dwells the atlas holds are {hint}: " if near else "")
+                      + "try a wider --dwell-tol (the error allowed on the dwell angle) or a larger atlas; a wider "
+                        "--band would count a less still output as a dwell", *_in_the_way(nm)])
+
+
+def _in_the_way(nm) -> list[str]:
+    """The no-match's line on the one constraint in its way (``synth.query.NoMatch.reach``), if any."""
+    if nm is None or nm.reach is None:
+        return []
+    key, best, limit = nm.reach
+    unit = {"link_ratio": "", "acceleration": " rad/s²", "arm": " cranks", "clearance": " cranks"}.get(key, "°")
+    where = "the stored four-bars near the request" if not nm.fitted else "the fitted six-bars meeting every other limit"
+    return [f"  in the way: the {_CONSTRAINT_NAMES[key]} alone; the best of {where} is {best:.4g}{unit} "
+            f"(asked {limit:.4g}{unit})"]
 
 
 def no_match_json(result: QueryResult, units: str = "mm") -> dict:
@@ -307,6 +319,7 @@ def no_match_json(result: QueryResult, units: str = "mm") -> dict:
     if nm is not None and nm.nearest is not None:
         doc["nearest"] = candidate_json(nm.nearest, result.request.rpm, units)
         doc["would_meet"] = request_json(nm.would_meet, units)
+    doc["in_the_way"] = None if nm is None or nm.reach is None else dict(zip(("constraint", "best", "asked"), nm.reach))
     return doc
 
 

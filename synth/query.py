@@ -11,7 +11,8 @@ simulation (:func:`~synth.figures.sixbar_figures`) → the six-bars that meet th
 ranked (:func:`~synth.candidates.rank`), one per segment and output type and one of a mirror
 pair → with ``request.refine``, the top ones refined by a local optimisation with exact
 simulation in the loop (:func:`synth.refine.refine`) and ranked again. Lengths are
-crank-normalised until the end, then scaled to ``request.crank``.
+crank-normalised until the end, then scaled to ``request.crank``. ``--output any`` (one dwell)
+runs the pipeline once as RPR and once as RRR and ranks the union of the two answers.
 
 That pipeline runs on a sample of the atlas (:func:`select`: per level, the stored rows
 nearest a target — a line's dwell, an arc's dwell key, :mod:`synth.dwell_key` — a budget;
@@ -20,7 +21,8 @@ With ``request.complete`` it runs instead on every stored segment at every level
 (:func:`search`), pruned only by conditions no meeting six-bar can fail, the prescreen (:func:`prescreen`) among them: the complete answer.
 
 When fewer than ``FILL`` six-bars meet the request (and refinement is on), the nearest misses
-(``MISSES`` at a time, by the sum of their excesses over the limits, for at most
+(of the sample's fits and of the fits to rests twice as long the moved pivots were taken from;
+``MISSES`` at a time, by the sum of their excesses over the limits, for at most
 ``MISS_ROUNDS`` rounds while fewer than ``FILL`` meet) are refined toward it
 (the refinement's reach: a CMA-ES in a wider trust region), and those that then meet it join
 the answer; if nothing meets it even so, the result carries a
@@ -196,6 +198,17 @@ class NoMatch:
     rejected: dict[str, int]
     nearest: Candidate | None
     would_meet: Request | None
+    #: The one constraint in the way, with a figure: ``(constraint, best, limit)`` where
+    #: ``constraint`` is the one the nearest six-bar that misses a single constraint misses,
+    #: and ``best`` the best figure on it of every fitted six-bar that meets all the others —
+    #: dwell, swing and step: the value nearest the request's (°); transmission: the largest
+    #: (°); link ratio, acceleration: the smallest; arm, clearance: the largest (crank
+    #: lengths) — against the request's ``limit`` (the requested value for dwell, swing and
+    #: step). None when no fitted six-bar misses one constraint alone (or the diagnosis was
+    #: made from bounds, :func:`diagnose_by_bounds`). With nothing fitted: the transmission
+    #: angle, if the sample without its limit holds segments, and the best four-bar's among
+    #: them (:func:`_unfitted_reach`).
+    reach: tuple[str, float, float] | None = None
 
     @property
     def failed(self) -> str | None:
@@ -693,7 +706,54 @@ def diagnose(request: Request, fitted: Sequence[Fitted],
         for k, x in excess.items():
             rejected[k] += x > 0
     best_total, fit_, fig, _ = misses[0]
-    return _no_match(request, len(fitted), rejected, None if best_total == math.inf else (fit_, fig))
+    found = _no_match(request, len(fitted), rejected, None if best_total == math.inf else (fit_, fig))
+    return dataclasses.replace(found, reach=_reach(request, misses))
+
+
+def _unfitted_reach(request: Request, source: SegmentSource, kinds: tuple[str, ...]) -> tuple[str, float, float] | None:
+    """:attr:`NoMatch.reach` of a request whose sample held no segment: the four-bars'
+    transmission angle, when the sample without that limit holds segments — with the largest
+    smallest transmission angle (°) among their four-bars (RRR 10° at a 30° swing on
+    ``standard``: the 49 arcs whose keys predict it all belong to four-bars below 10°)."""
+    if request.min_transmission <= 0:
+        return None
+    rows = select(source, dataclasses.replace(request, min_transmission=0.0), kinds)
+    if not rows:
+        return None
+    return ("transmission", math.degrees(max(r.fourbar_transmission_min for r in rows)),
+            math.degrees(request.min_transmission))
+
+
+def _reach(request: Request, misses: list[tuple[float, Fitted, SixBarFigures, dict]]
+           ) -> tuple[str, float, float] | None:
+    """:attr:`NoMatch.reach` of ``misses`` (:func:`_misses`, nearest first)."""
+    alone = [(next(k for k, x in excess.items() if x > 0), fig) for total, _, fig, excess in misses
+             if total < math.inf and sum(x > 0 for x in excess.values()) == 1]
+    if not alone:
+        return None
+    key = alone[0][0]
+    figs = [fig for k, fig in alone if k == key]
+    deg = math.degrees
+
+    def nearest(values: list[float], target: float) -> float:
+        return deg(min(values, key=lambda v: abs(v - target)))
+
+    if key == "dwell":
+        return key, nearest([d.angle for f in figs for d in f.dwells[: request.dwells]], request.dwell), deg(request.dwell)
+    if key == "swing":
+        return key, nearest([f.swing for f in figs], request.swing), deg(request.swing)
+    if key == "step":
+        return key, nearest([f.step for f in figs], request.step), deg(request.step)
+    if key == "transmission":
+        best = max(min(f.transmission_fourbar, f.transmission_output) for f in figs)
+        return key, deg(best), deg(request.min_transmission)
+    if key == "link_ratio":
+        return key, min(f.link_ratio for f in figs), request.max_link_ratio
+    if key == "acceleration":
+        return key, min(f.build.dynamics(request.rpm)[1] for f in figs), request.max_accel
+    if key == "arm":
+        return key, max(f.build.arm for f in figs), request.min_arm
+    return key, max(f.build.clearance for f in figs), request.min_clearance
 
 
 def _no_match(request: Request, fitted: int, rejected: dict[str, int],
@@ -939,7 +999,101 @@ def answer(request: Request, source: SegmentSource, *,
     """Ranked candidates for ``request`` from ``source`` (a pure read): from the sample of
     segments :func:`select` takes, or with ``request.complete`` from every six-bar the atlas
     yields (:func:`search`, which reports ``on_progress`` and runs its batches through
-    ``map_batches``; or ``searched``, its result for this request from :func:`search_many`)."""
+    ``map_batches``; or ``searched``, its result for this request from :func:`search_many`).
+
+    ``--output any`` with one dwell is the best of both output types: the request answered as
+    RPR and as RRR, each through the whole pipeline (its sparse-answer steps and refinement
+    sized for ``request.top``), then the union of the two answers ranked once
+    (:func:`~synth.candidates.rank`) and cut to ``request.top`` (:func:`_best_of_both`)."""
+    if request.output == "any" and request.dwells == 1:
+        return _best_of_both(request, source, on_progress=on_progress, map_batches=map_batches, searched=searched)
+    return _answer_one(request, source, on_progress=on_progress, map_batches=map_batches, searched=searched).result
+
+
+@dataclass(frozen=True, slots=True)
+class _Answered:
+    """One output type's answer and which of its candidates are refined near misses (FILL)
+    and six-bars with a moved output pivot (by id): what :func:`_best_of_both` recounts for
+    the candidates that stay in the union's top."""
+
+    result: QueryResult
+    misses: frozenset[str]
+    reseated: frozenset[str]
+
+
+def _best_of_both(request: Request, source: SegmentSource, *,
+                  on_progress: Callable[[int, int], None] | None,
+                  map_batches: BatchMap | None,
+                  searched: tuple[list[Candidate], SearchCount] | None) -> QueryResult:
+    """``request`` (``output="any"``, one dwell) answered as RPR and as RRR, then the best
+    ``request.top`` of the union of the two answers by :func:`~synth.candidates.rank` (Pareto
+    layer, score, id, over the union: a six-bar's layer depends on what it is ranked with).
+    The two answers share no six-bar (their dyads differ), so :func:`_distinct` keeps the
+    union whole. Times, counts and refinements add up; with nothing in either, the no-match
+    is the two diagnoses in one (:func:`_either_no_match`). ``searched`` (a complete search
+    of both kinds, :func:`search_many`) is split by output type; its counts go to the RPR
+    part, so that the sums are the search's own."""
+    parts = []
+    for output in ("rpr", "rrr"):
+        mine = None
+        if searched is not None:
+            found, count = searched
+            met = [c for c in found if c.sixbar.dyad.kind == output.upper()]
+            mine = (met, dataclasses.replace(count, met=len(met)) if output == "rpr" else SearchCount(met=len(met)))
+        parts.append(_answer_one(dataclasses.replace(request, output=output), source, on_progress=on_progress,
+                                 map_batches=map_batches, searched=mine))
+    t = time.perf_counter()
+    top = rank(request, [c for p in parts for c in p.result.candidates])[: request.top]
+    clock: dict[str, float] = {}
+    for p in parts:
+        for k, v in p.result.seconds.items():
+            clock[k] = clock.get(k, 0.0) + v
+    clock["rank"] = clock.get("rank", 0.0) + time.perf_counter() - t
+    results = [p.result for p in parts]
+    no_match = None if top else _either_no_match(request, [r.no_match for r in results])
+    below = [r.nearest[0] for r in results if r.nearest[0] is not None]
+    above = [r.nearest[1] for r in results if r.nearest[1] is not None]
+    nearest = (None, None) if top else (max(below, default=None), min(above, default=None))
+    ids = {c.id for c in top}
+    return QueryResult(request, top, sum(r.considered for r in results), sum(r.simulated for r in results),
+                       nearest, clock, no_match,
+                       (sum(r.refined[0] for r in results), sum(r.refined[1] for r in results)),
+                       from_misses=bool(top) and all(r.from_misses or not r.candidates for r in results),
+                       misses_met=sum(len(p.misses & ids) for p in parts),
+                       reseated=sum(len(p.reseated & ids) for p in parts))
+
+
+def _either_no_match(request: Request, diagnoses: Sequence[NoMatch | None]) -> NoMatch | None:
+    """The :class:`NoMatch` of an ``any`` request from those of its RPR and RRR answers: the
+    six-bars fitted and the rejections summed, the nearest the nearer of the two (the smaller
+    sum of excesses, :func:`violations`; RPR on a tie) with its loosened request."""
+    known = [d for d in diagnoses if d is not None]
+    if not known:
+        return None
+    rejected = {k: sum(d.rejected.get(k, 0) for d in known) for k in CONSTRAINTS}
+
+    def total(d: NoMatch) -> float:
+        # the nearest's figures are in the user's units; the limits are crank-normalised
+        return _total(violations(request, _scaled_figures(d.nearest.figures, 1.0 / request.crank)))
+
+    near = [d for d in known if d.nearest is not None]
+    best = min(near, key=total) if near else None
+    reaches = [d.reach for d in known if d.reach is not None]
+    reach = (best.reach if best is not None and best.reach is not None else None) or next(iter(reaches), None)
+    if reach is not None:  # the best figure of both types on that constraint
+        mine = [r[1] for r in reaches if r[0] == reach[0]]
+        pick = {"transmission": max, "arm": max, "clearance": max, "link_ratio": min, "acceleration": min}.get(
+            reach[0], lambda xs: min(xs, key=lambda x: abs(x - reach[2])))
+        reach = (reach[0], pick(mine), reach[2])
+    return NoMatch(sum(d.fitted for d in known), rejected, None if best is None else best.nearest,
+                   None if best is None else dataclasses.replace(best.would_meet, output=request.output), reach)
+
+
+def _answer_one(request: Request, source: SegmentSource, *,
+                on_progress: Callable[[int, int], None] | None = None,
+                map_batches: BatchMap | None = None,
+                searched: tuple[list[Candidate], SearchCount] | None = None) -> _Answered:
+    """:func:`answer` for one output type (or a double dwell)."""
     clock: dict[str, float] = {}
     t0 = time.perf_counter()
     kinds = kinds_for(request)
@@ -1000,6 +1154,8 @@ def answer(request: Request, source: SegmentSource, *,
                                             WIDER * PER_LEVEL) if (r.segment_id, r.level) not in had]
                 had |= {(r.segment_id, r.level) for r in longer}
                 origins = [f for kind in kinds for f in fit(request, [r for r in longer if r.kind == kind], kind)]
+                if k == RESEAT_LONGER[0]:
+                    longer_fits.extend(origins)
             moved = reseat(request, origins)
             clock["reseat"] = clock.get("reseat", 0.0) + time.perf_counter() - t
             for b in range(0, len(moved), RESEAT_BATCH):  # the fits nearest the request first
@@ -1012,6 +1168,7 @@ def answer(request: Request, source: SegmentSource, *,
         return found
 
     moved_ids: set[str] = set()  # ids of the fits whose answer is a reseated six-bar
+    longer_fits: list[Fitted] = []  # fits to rests of RESEAT_LONGER[0] × the dwell (moved_pivots)
     if request.complete:
         candidates, count = (searched if searched is not None else
                              search(request, source, on_progress=on_progress, map_batches=map_batches))
@@ -1049,6 +1206,7 @@ def answer(request: Request, source: SegmentSource, *,
         refined = (len(top), better)
         clock["refine"] = time.perf_counter() - t4
     misses_met = 0
+    miss_ids: frozenset[str] = frozenset()
     if request.refine and len(top) < min(FILL, request.top):
         if request.complete and not fitted:
             sampled()  # too little in the whole atlas: the sample's near misses are refined
@@ -1058,13 +1216,20 @@ def answer(request: Request, source: SegmentSource, *,
             no_match = diagnose(request, fitted, misses)
         # the diagnosis simulates the fits the screen dropped: simulation time of this answer
         clock["simulate"] = clock.get("simulate", 0.0) + time.perf_counter() - t4
+        if longer_fits:
+            # a short rest's own sample can hold no fit (RRR 10° on ``standard``: the arcs
+            # whose stored rests predict it are all near-toggle four-bars, transmission < 10°,
+            # as the atlas keeps rests ≥ 20° at its widest tolerance); the fits to rests twice
+            # as long miss it by a few degrees and are refined toward it with the others
+            misses = sorted([*misses, *_misses(request, longer_fits, known)], key=lambda m: m[0])
         t5 = time.perf_counter()
         found, tried, better = _refined_misses(request, misses, {c.id.split("~")[0] for c in top},
                                                min(FILL, request.top) - len(top))
         if found:
             top = [dataclasses.replace(c, rank=i + 1)
                    for i, c in enumerate(_distinct(rank(request, [*top, *_toleranced(request, found)]))[: request.top])]
-            misses_met = len({c.id for c in found} & {c.id for c in top})
+            miss_ids = frozenset(c.id for c in found) & {c.id for c in top}
+            misses_met = len(miss_ids)
             no_match = None
         refined = (refined[0] + tried, refined[1] + better)
         clock["refine"] = clock.get("refine", 0.0) + time.perf_counter() - t5
@@ -1077,9 +1242,11 @@ def answer(request: Request, source: SegmentSource, *,
             clock["simulate"] = clock.get("simulate", 0.0) + time.perf_counter() - t4
         if not no_match.fitted:  # no six-bar to show: the stored dwells the atlas has instead
             nearest = source.nearest_dwell_angles(kinds, request.dwell)
-    return QueryResult(request, top, considered, simulated, nearest, clock, no_match, refined,
-                       from_misses=bool(top) and not before_refine, misses_met=misses_met,
-                       reseated=sum(c.id.split(REFINED_MARK)[0] in moved_ids for c in top))
+            no_match = dataclasses.replace(no_match, reach=_unfitted_reach(request, source, kinds))
+    reseated = frozenset(c.id for c in top if c.id.split(REFINED_MARK)[0] in moved_ids)
+    return _Answered(QueryResult(request, top, considered, simulated, nearest, clock, no_match, refined,
+                                 from_misses=bool(top) and not before_refine, misses_met=misses_met,
+                                 reseated=len(reseated)), miss_ids, reseated)
 
 
 def _refined_misses(request: Request, misses: list[tuple[float, Fitted, SixBarFigures, dict]],

@@ -1,11 +1,12 @@
-"""``dwell bench coverage``: which requests an atlas answers, over the grid of issue #13.
+"""``dwell bench coverage``: which requests an atlas answers, over the grid of issues #13 and #41.
 
-Single dwells (RPR and RRR): dwell {30, 45, 60, 75, 90, 105, 120, 150}° × swing {10, 20, 30,
-45, 60, 90}°; double dwells (RPR, ``--dwells 2 --dwell-tol 5``, no swing): dwell {10, 20, 30,
-45, 60, 75, 90, 120}°. Every cell is one :func:`synth.query.answer` with the query's default
-constraints and ``--top``, against one open atlas (as ``dwell bench query``). Reported per
-cell: the candidates found, the best output deviation over the requested dwell (degrees) and
-the time; per family the cells with ≥ 1 and ≥ 3 candidates. A table on stdout, or ``--json``;
+Single dwells (RPR and RRR): dwell {10, 20, 30, 45, 60, 75, 90, 105, 120, 150, 180}° × swing
+{10, 20, 30, 45, 60, 90}° (issue #41's grid); double dwells (RPR, ``--dwells 2 --dwell-tol 5``,
+no swing): dwell {10, 20, 30, 45, 60, 75, 90, 120}°; ``--dwell`` keeps some rows. Every cell is
+one :func:`synth.query.answer` with the query's default constraints and ``--top``, against one
+open atlas (as ``dwell bench query``). Reported per cell: the candidates found, the best output
+deviation over the requested dwell (degrees), the constraint a no-match names and the time; per
+family the cells with ≥ 1 and ≥ 3 candidates. A table on stdout, or ``--json``;
 ``--plot FILE.png`` draws the grids as heat maps. ``--complete`` answers every cell with the
 complete search and measures the default (sampled) query against it: the share of the
 complete answer's coupler curves the sample finds. The cells of one swing (and family) read
@@ -28,7 +29,7 @@ from cli.atlas import db_option
 from cli.options import writable_file
 from cli.query import batch_map, workers_option
 
-SINGLE_DWELLS = (30, 45, 60, 75, 90, 105, 120, 150)
+SINGLE_DWELLS = (10, 20, 30, 45, 60, 75, 90, 105, 120, 150, 180)
 SWINGS = (10, 20, 30, 45, 60, 90)
 DOUBLE_DWELLS = (10, 20, 30, 45, 60, 75, 90, 120)
 DOUBLE_TOL = 5.0
@@ -53,10 +54,12 @@ class Cell:
                                     complete=complete)
 
 
-def cells(families: tuple[str, ...] = FAMILIES) -> list[Cell]:
-    """The grid of ``families``, family by family, dwell-major."""
+def cells(families: tuple[str, ...] = FAMILIES, dwells: tuple[float, ...] = ()) -> list[Cell]:
+    """The grid of ``families``, family by family, dwell-major (only the rows of ``dwells``, °,
+    if any are given)."""
     out = [Cell(fam, d, s) for fam in ("rpr", "rrr") if fam in families for d in SINGLE_DWELLS for s in SWINGS]
-    return out + [Cell("double", d, None) for d in DOUBLE_DWELLS if "double" in families]
+    out += [Cell("double", d, None) for d in DOUBLE_DWELLS if "double" in families]
+    return [c for c in out if not dwells or c.dwell in dwells]
 
 
 def _row(cell: Cell, result, seconds: float, top: int) -> dict:
@@ -70,6 +73,9 @@ def _row(cell: Cell, result, seconds: float, top: int) -> dict:
         "best_deviation_deg": None if not devs else round(math.degrees(min(devs)), 5),
         "best": shown[0].id if shown else None,
         "failed": None if result.no_match is None else result.no_match.failed,
+        # the one constraint in the way, its best figure and the request's (synth.query.NoMatch.reach)
+        "in_the_way": None if result.no_match is None or result.no_match.reach is None else
+        [result.no_match.reach[0], round(result.no_match.reach[1], 4), round(result.no_match.reach[2], 4)],
         "refined": sum(c.refined_from is not None for c in shown),
         "ms": round(1000 * seconds, 1),
     }
@@ -121,11 +127,13 @@ def summary(rows: list[dict]) -> dict:
 @click.option("--complete", is_flag=True,
               help="Answer every cell with the complete search (`dwell query --complete`, unrefined, all its "
                    "six-bars kept) and report, per cell, the share of them the default sampled query finds.")
+@click.option("--dwell", "dwells", type=float, multiple=True,
+              help="Only the grid's rows of this dwell (degrees; repeat for several; default: every row).")
 @workers_option
 @click.option("--json", "as_json", is_flag=True, help="JSON on stdout instead of a table.")
 @click.option("--plot", type=click.Path(dir_okay=False), callback=writable_file(".png"), default=None,
               help="Write the grids as heat maps of the candidates found (PNG).")
-def coverage(db, top, refine, families, complete, workers, as_json, plot):
+def coverage(db, top, refine, families, complete, dwells, workers, as_json, plot):
     """Coverage of the dwell × swing grid (RPR, RRR) and the double-dwell row: candidates, best deviation, time."""
     from cli.bench.query import atlas_facts
     from cli.progress import SearchBar
@@ -133,13 +141,16 @@ def coverage(db, top, refine, families, complete, workers, as_json, plot):
     from db.queries import AtlasSource
     from synth.query import answer, fit_key, search_many
 
+    grid = cells(tuple(families) or FAMILIES, tuple(dwells))
+    if not grid:
+        raise click.BadParameter(f"no row of the grid has a dwell of {', '.join(f'{d:g}' for d in dwells)}°",
+                                 param_hint="'--dwell'")
     engine = open_atlas(db, readonly=True)
     try:
         atlas = atlas_facts(engine)
         source = AtlasSource(engine)
         rows = []
         start = time.perf_counter()
-        grid = cells(tuple(families) or FAMILIES)
         if complete:
             # the complete search keeps all its six-bars (unrefined) for the recall; the
             # cells of one swing share one walk of the atlas and its fits, and each is

@@ -11,6 +11,7 @@ from atlas.build import build_atlas
 from atlas.sweep import PRESETS
 from cli.bench.coverage import DOUBLE_DWELLS, SINGLE_DWELLS, SWINGS
 from cli.main import main
+from synth.query import CONSTRAINTS
 
 
 @pytest.fixture(scope="module")
@@ -69,6 +70,16 @@ def test_coverage_table_and_bad_input(capsys, atlas_path, tmp_path):
     assert code == 2 and out == "" and len(err.strip().splitlines()) == 1
     code, out, err = run(capsys, "bench", "coverage", "--db", str(tmp_path / "none.sqlite"))
     assert code == 2 and out == ""
+    # --dwell keeps the grid's rows of those dwells; one that is no row is bad input
+    code, out, err = run(capsys, "bench", "coverage", "--db", atlas_path, "--family", "rrr", "--dwell", "10",
+                         "--dwell", "180", "--no-refine", "--json")
+    assert code == 0, err
+    rows = json.loads(out)["cells"]
+    assert [(c["family"], c["dwell_deg"], c["swing_deg"]) for c in rows] == [
+        ("rrr", d, s) for d in (10, 180) for s in SWINGS]
+    assert all(c["in_the_way"] is None or c["in_the_way"][0] in CONSTRAINTS for c in rows)
+    code, out, err = run(capsys, "bench", "coverage", "--db", atlas_path, "--dwell", "11")
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1 and "--dwell" in err
 
 
 def test_complete_coverage_measures_the_sampled_query_against_it(capsys, atlas_path, tmp_path):

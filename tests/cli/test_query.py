@@ -360,6 +360,11 @@ def test_no_match_names_the_failed_constraint_and_the_nearest_six_bar(capsys, at
     lines = err.strip().splitlines()
     assert "dwell angle failed most" in lines[0] and lines[1].strip().startswith("nearest:")
     assert lines[2].strip().startswith("it meets: --dwell ")
+    # the dwell alone is in the way: the rest nearest 150° of the six-bars meeting every other limit
+    way = nm["in_the_way"]
+    assert way["constraint"] == "dwell" and way["asked"] == pytest.approx(150) and 60 <= way["best"] < 148
+    assert lines[3].strip() == (f"in the way: the dwell angle alone; the best of the fitted six-bars meeting every "
+                                f"other limit is {way['best']:.4g}° (asked 150°)")
 
 
 def test_an_unbuildable_double_dwell_is_refused_by_the_default_arm(capsys, atlas_path, tmp_path):
