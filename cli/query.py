@@ -353,9 +353,13 @@ FOUND, NONE_FOUND, BAD_INPUT = 0, 1, 2
 @click.option("--dwell", type=DWELL_DEG, required=True, help="Dwell angle (degrees of crank rotation).")
 @click.option("--dwell-tol", type=DWELL_TOL_DEG, default=default_deg("dwell_tol"), show_default=True,
               help="Allowed dwell-angle error (°).")
-@click.option("--swing", type=SWING_DEG, default=None, help="Output swing (°); required for one dwell.")
+@click.option("--swing", type=SWING_DEG, default=None,
+              help="Output swing (°): the output's whole swing, max − min over the turn; required, for one dwell "
+                   "and for two.")
 @click.option("--step", type=STEP_DEG, default=None,
-              help="Two dwells: the output's turn (°) between its two rests, ±--swing-tol.")
+              help="Two dwells: the output's turn (°) between its two rests, ±--swing-tol (at most the swing). "
+                   "Two rests count as two only if the crank turns ≥ 5° and the output leaves both rests' "
+                   "bands by ≥ --swing-tol between them, each way round.")
 @click.option("--swing-tol", type=SWING_TOL_DEG, default=default_deg("swing_tol"), show_default=True,
               help="Allowed swing error (°).")
 @click.option("--output", type=click.Choice(OUTPUTS, case_sensitive=False), default=_DEFAULTS["output"],

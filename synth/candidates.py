@@ -45,7 +45,9 @@ class Request:
     (``dwell query`` shows them in degrees in its ``--help``).
 
     ``band`` is the total width of the output band that counts as standing still; ``swing``
-    is required for one dwell and optional for two (then a constraint, ±``swing_tol``)."""
+    (the output's whole swing, ±``swing_tol``) is required, for one dwell and for two; two
+    dwells may also name the ``step`` between the rests, and are two rests only with motion
+    between them (:func:`~synth.output_range.rests_separated`, at ``swing_tol``)."""
 
     dwell: float
     dwell_tol: float = math.radians(2.0)
@@ -92,8 +94,8 @@ class Request:
             raise bad(f"--output must be one of {', '.join(OUTPUTS)}, got {self.output!r}")
         if self.dwells not in (1, 2):
             raise bad(f"--dwells must be 1 or 2, got {self.dwells}")
-        if self.dwells == 1 and self.swing is None:
-            raise bad("--swing is required for one dwell per turn")
+        if self.swing is None:
+            raise bad("--swing is required (the output's whole swing, for one dwell per turn and for two)")
         if self.dwells == 2 and self.output == OutputTag.RRR:
             raise bad("two dwells per turn come from a double Ball point with an RPR output; use --output rpr or any")
         if self.dwells * self.dwell >= 2 * math.pi:
@@ -118,6 +120,9 @@ class Request:
                       "needs --dwells 2")
         if not (math.isfinite(self.tolerance) and self.tolerance >= 0):
             raise bad(f"--tolerance must be a length >= 0, got {self.tolerance:g}")
+        if self.step is not None and self.step - self.swing_tol > self.swing + self.swing_tol:
+            raise bad(f"--step {math.degrees(self.step):g} is more than --swing {math.degrees(self.swing):g} "
+                      f"(± --swing-tol): both rests lie within the output's swing")
         if self.max_accel is not None and not (math.isfinite(self.max_accel) and self.max_accel > 0):
             raise bad(f"--max-accel must be > 0 rad/s^2, got {self.max_accel:g}")
 

@@ -25,7 +25,8 @@ from kinematics.loop import sampled_extreme
 from kinematics.status import Status
 from synth.buildability import Buildability, buildability
 from synth.link_ratio import link_ratio, segment_links
-from synth.output_range import Dwell, dwell_angle_bounds, dwell_intervals, output_deviation, output_swing
+from synth.output_range import (REST_LEAVE, Dwell, dwell_angle_bounds, dwell_intervals, output_deviation, output_swing,
+                                rests_separated)
 from synth.sixbar import ExactOutput, SixBar, SixBarMotion, SixBars, as_batch, crank_grid, simulate
 from synth.types import C128, F64
 
@@ -39,8 +40,9 @@ class SixBarFigures:
     Attributes
     ----------
     dwells : tuple of Dwell
-        The longest (and, for a double dwell, second longest disjoint) crank interval(s) on
-        which the output stays within the band; (start, end, angle), rad.
+        The longest (and, for a double dwell, the longest separated from it: two rests with
+        motion between them, :func:`~synth.output_range.rests_separated`) crank interval(s)
+        on which the output stays within the band; (start, end, angle), rad.
     deviations : tuple of float
         Per dwell, the output deviation (peak-to-peak of ψ, rad) over a window of the
         requested dwell length placed around it (:func:`~synth.output_range.output_deviation`); empty if no
@@ -66,6 +68,9 @@ class SixBarFigures:
         :class:`Status` flags met anywhere on the turn (OK = 0).
     build : Buildability or None
         Torque arm, slot used, clearance and output rate peaks (:mod:`synth.buildability`).
+    gaps : tuple of (float, float)
+        Two dwells: from the end of each to the start of the other, the crank's turn (rad) and
+        how far the output gets outside both rests' bands (rad); empty otherwise.
     """
 
     dwells: tuple[Dwell, ...]
@@ -79,6 +84,15 @@ class SixBarFigures:
     bounds: tuple[float, float, float, float]
     status: int
     build: Buildability | None = None
+    gaps: tuple[tuple[float, float], ...] = ()
+
+    def rests_apart(self, tol: float) -> bool:
+        """Two dwells that are two rests: the crank turns at least 5° and the output leaves
+        both bands by at least ``tol`` (rad, the swing tolerance) between them, each way round
+        (:func:`~synth.output_range.rests_separated`, the rule's one statement)."""
+        if len(self.dwells) < 2 or len(self.gaps) < 2:
+            return False
+        return bool(rests_separated([g for g, _ in self.gaps], [x for _, x in self.gaps], tol))
 
     @property
     def revolving(self) -> bool:
@@ -103,7 +117,7 @@ class SixBarFigures:
 
 def sixbar_figures(sixbar: SixBar | SixBars, *, band: float, dwell_length: float | None = None,
                    dwells: int = 1, samples: int = 720, motion: SixBarMotion | None = None,
-                   footprint: bool = True) -> SixBarFigures | list[SixBarFigures]:
+                   footprint: bool = True, leave: float = REST_LEAVE) -> SixBarFigures | list[SixBarFigures]:
     """Figures of one six-bar (or a batch, vectorised) from its exact simulation.
 
     Parameters
@@ -121,6 +135,10 @@ def sixbar_figures(sixbar: SixBar | SixBars, *, band: float, dwell_length: float
         A simulation of ``sixbar`` on ``crank_grid(samples)`` with order 2, if already at hand.
     footprint : bool
         Compute the convex-hull footprint (shapely); False leaves it 0 (bounds are kept).
+    leave : float
+        Two dwells: how far (rad) the output must get outside both rests' bands between them
+        for them to count as two (the request's swing tolerance;
+        :func:`~synth.output_range.rests_separated`).
 
     Returns
     -------
@@ -131,7 +149,7 @@ def sixbar_figures(sixbar: SixBar | SixBars, *, band: float, dwell_length: float
     batch, single, phi, motion, psi_at = _simulated(sixbar, samples, motion)
     N = len(batch)
     psi, dpsi = motion.psi, motion.dpsi
-    found = dwell_intervals(phi, psi, band, count=dwells, psi_at=psi_at, dpsi1=dpsi[0])
+    found = dwell_intervals(phi, psi, band, count=dwells, psi_at=psi_at, dpsi1=dpsi[0], leave=leave)
     if dwell_length is not None:
         centre = 0.5 * (found.start + found.end)  # (N, C)
         dev, _ = output_deviation(phi, np.repeat(psi[:, None, :], dwells, axis=1), centre, dwell_length,
@@ -139,8 +157,10 @@ def sixbar_figures(sixbar: SixBar | SixBars, *, band: float, dwell_length: float
                                   dpsi1=np.repeat(dpsi[0][:, None, :], dwells, axis=1))
     else:
         dev = np.zeros((N, 0))
+    both = found.found.all(axis=1)
     out = [dataclasses.replace(f, dwells=tuple(found.dwells((k,))),
-                               deviations=tuple(float(x) for x, ok in zip(dev[k], found.found[k]) if ok))
+                               deviations=tuple(float(x) for x, ok in zip(dev[k], found.found[k]) if ok),
+                               gaps=tuple(zip(found.gap[k].tolist(), found.leave[k].tolist())) if both[k] and dwells == 2 else ())
            for k, f in enumerate(_figures_but_dwells(batch, phi, motion, psi_at, footprint))]
     return out[0] if single else out
 

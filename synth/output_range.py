@@ -41,6 +41,7 @@ __all__ = [
     "grid_step",
     "output_deviation",
     "output_swing",
+    "rests_separated",
     "wrap_angle",
 ]
 
@@ -62,6 +63,40 @@ CANDIDATES = 8
 EXTEND_POINTS = 8
 
 _TWO_PI = 2.0 * math.pi
+
+#: Two dwells are two rests, not one rest split in two, only if the crank turns at least this
+#: much (rad) between them each way round the turn and the output leaves both rests' bands
+#: between them (:func:`rests_separated`, the rule's one statement).
+REST_GAP = math.radians(5.0)
+#: How far (rad) the output must get outside the rests' bands between them when no swing
+#: tolerance is given: the query's default ``--swing-tol``; a query passes its own.
+REST_LEAVE = math.radians(0.5)
+
+
+def rests_separated(gap: ArrayLike, leave: ArrayLike, tol: ArrayLike) -> NDArray[np.bool_]:
+    """Whether two rests of one turn are two: the rule every double dwell is held to.
+
+    Parameters
+    ----------
+    gap : (..., 2) float
+        The crank's turn (rad) from the end of each rest to the start of the other (the two
+        ways round the turn).
+    leave : (..., 2) float
+        Over each of those two crank intervals, how far (rad) the output gets outside the
+        band of each rest, the smaller of the two: min over the rests b of
+        max(max ψ − high_b, low_b − min ψ, 0), ψ over the interval.
+    tol : float or (...,) float
+        The swing tolerance (rad).
+
+    Returns
+    -------
+    (...,) bool
+        Both ways round, the crank turns at least ``REST_GAP`` (5°) and the output leaves
+        both bands by at least ``tol``: the output moves between the rests, each way.
+    """
+    gap, leave = np.asarray(gap, float), np.asarray(leave, float)
+    tol = np.asarray(tol, float)[..., None]
+    return np.all((gap >= REST_GAP) & (leave >= tol), axis=-1)
 
 
 def wrap_angle(x):
@@ -205,8 +240,13 @@ class DwellIntervals:
         min and max of ψ over the interval (rad, on the unwrapped branch of the input);
         high − low ≤ band.
     found : bool
-        False for a second dwell that does not exist (the first covers the whole turn);
-        its other fields are then 0.
+        False for a second dwell that does not exist (the first covers the whole turn, or
+        no rest is separated from the first by :func:`rests_separated`); its other fields
+        are then 0.
+    gap, leave : float64
+        Two dwells found: from the end of each to the start of the other, the crank's turn
+        (rad) and how far the output gets outside both bands (rad, on the grid samples in
+        between; :func:`rests_separated`). 0 otherwise.
     """
 
     start: F64
@@ -215,6 +255,8 @@ class DwellIntervals:
     low: F64
     high: F64
     found: NDArray[np.bool_]
+    gap: F64
+    leave: F64
 
     def dwells(self, index: tuple[int, ...] = ()) -> list[Dwell]:
         """The found dwells of one row (``index`` into the leading shape) as :class:`Dwell`."""
@@ -234,7 +276,8 @@ def _fine_count(h: float) -> int:
 
 
 def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: int = 1,
-                    psi_at: PsiAt | None = None, dpsi1: ArrayLike | None = None) -> DwellIntervals:
+                    psi_at: PsiAt | None = None, dpsi1: ArrayLike | None = None,
+                    leave: float = REST_LEAVE) -> DwellIntervals:
     """Longest crank interval(s), cyclic over the turn, on which ψ stays within a band of
     total width ``band`` (max ψ − min ψ ≤ band).
 
@@ -248,15 +291,20 @@ def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: i
     band : float or (...,) float
         Total band width (rad, ≥ 0).
     count : {1, 2}
-        1: the longest interval. 2: the two longest disjoint intervals (a double-dwell
-        mechanism), longest first; a second that the refinement on the exact path carries
-        into the first is one rest, not found.
+        1: the longest interval. 2: the longest interval and the longest one separated from
+        it (a double-dwell mechanism), longest first: two rests with motion between them
+        (:func:`rests_separated` with tolerance ``leave``). A second that is not separated
+        from the first — a rest the band splits in two, or one the refinement on the exact
+        path carries into the first — is not found.
     psi_at : callable, optional
         Exact ψ(φ) (shape ``(..., K)`` → ``(..., K)``, any 2π branch). With it both ends are
         refined on the exact path (see Notes) to well under 0.005° on the 0.5° grid; without
         it the ends are sample angles.
     dpsi1 : (..., M) float, optional
         ψ′, used only to pick the 2π branch of the turn-closing step (as in :func:`~synth.sixbar.simulate`).
+    leave : float
+        Two dwells: how far (rad) the output must get outside both rests' bands between them,
+        each way round (the swing tolerance; ``REST_LEAVE`` by default).
 
     Returns
     -------
@@ -282,6 +330,11 @@ def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: i
     extreme raised to the vertex of the parabola through it and its neighbours (a peak between
     samples would otherwise let the ends overreach). Checked against a brute-force 0.001° grid
     in ``tests/synth/test_query_stage.py``.
+
+    The second dwell is sought only among grid windows that can be separated from the first:
+    each starts after, and ends before, a sample (ahead of and behind the first dwell) where ψ
+    is more than ``leave`` outside the first's band, and ``REST_GAP`` of crank away from it.
+    Once refined, the two are held to :func:`rests_separated` itself.
     """
     from synth.band_windows import longest_windows  # numba: imported on first use
 
@@ -300,10 +353,7 @@ def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: i
     n1 = length[rows, s1]
     scores, starts, lens, found = [length], [s1], [n1], [np.ones(R, bool)]
     if count == 2:
-        i = np.arange(m)[None, :]
-        inside = np.mod(i - s1[:, None], m) < n1[:, None]
-        gap = np.mod(s1[:, None] - i, m)  # samples from i up to (excluding) the first dwell
-        eff = np.where(inside, 0, np.minimum(length, gap))
+        eff = _separable_windows(E, upper, lower, length, s1, n1, h, m, leave)
         s2 = np.argmax(eff, axis=1)
         n2 = eff[rows, s2]
         scores.append(eff)
@@ -349,10 +399,56 @@ def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: i
         fnd[:, 1] &= (into >= angle[:, 0]) & (into + angle[:, 1] <= _TWO_PI)
     start_n = phi0 + np.mod(start - phi0, _TWO_PI)
     end = start_n + angle
+    gap = leave_by = np.zeros_like(start_n)
+    if count == 2:
+        gap, leave_by = _rest_gaps(E, phi0, h, m, start_n, angle, low, high)
+        fnd[:, 1] &= rests_separated(gap, leave_by, leave)
+        gap, leave_by = (np.where(fnd[:, 1:], x, 0.0) for x in (gap, leave_by))
     zero = lambda x: np.where(fnd, x, 0.0)
     shape = lead + (count,)
     return DwellIntervals(zero(start_n).reshape(shape), zero(end).reshape(shape), zero(angle).reshape(shape),
-                          zero(low).reshape(shape), zero(high).reshape(shape), fnd.reshape(shape))
+                          zero(low).reshape(shape), zero(high).reshape(shape), fnd.reshape(shape),
+                          gap.reshape(shape), leave_by.reshape(shape))
+
+
+def _separable_windows(E, upper, lower, length, s1, n1, h, m, leave):
+    """(R, M) lengths (samples) of the grid windows a second dwell may take from each start:
+    the longest window within the band (``length``), cut to end ``REST_GAP`` before the first
+    dwell and before the last sample ahead of it where ψ is beyond the first dwell's band
+    widened by ``leave``; 0 unless it starts as far after the first dwell and after the first
+    such sample. The first dwell is the grid window (s1, n1)."""
+    hi1, lo1 = _range_extremes(upper, lower, s1[:, None], np.maximum(n1, 1)[:, None])
+    psi = E[:, :m]  # ψ of a rocker is periodic: one turn's samples, read cyclically
+    away = (psi > hi1 + leave) | (psi < lo1 - leave)
+    i = np.arange(m)[None, :]
+    e1 = s1 + n1 - 1
+    ahead = np.mod(i - e1[:, None], m)  # samples from the first dwell's last one to i
+    behind = np.mod(s1[:, None] - i, m)  # samples from i to the first dwell's first one
+    first_away = np.where(away, ahead, m).min(axis=1)  # m: the output never leaves
+    last_away = np.where(away, behind, m).min(axis=1)
+    least = math.ceil(REST_GAP / h)
+    open_ahead = np.maximum(first_away + 1, least)[:, None]
+    open_behind = np.maximum(last_away + 1, least)[:, None]
+    inside = np.mod(i - s1[:, None], m) < n1[:, None]
+    room = behind - open_behind + 1  # samples the window from i may hold before the first dwell
+    eff = np.where(inside | (ahead < open_ahead), 0, np.clip(np.minimum(length, room), 0, None))
+    return np.where((n1 >= m)[:, None], 0, eff)
+
+
+def _rest_gaps(E, phi0, h, m, start, angle, low, high):
+    """For two dwells (R, 2) — crank intervals (start, angle), start in [φ₀, φ₀ + 2π), and
+    bands [low, high] — from the end of each to the start of the other: the crank's turn
+    (rad) and how far the output gets outside both bands there (rad, over the grid samples
+    strictly inside; 0 with none)."""
+    end = start + angle
+    gap = np.mod(start[:, ::-1] - end, _TWO_PI)
+    after = np.floor((end - phi0) / h).astype(np.int64) + 1  # first sample after the end
+    before = np.ceil((end + gap - phi0) / h).astype(np.int64) - 1  # last before the other's start
+    count = np.clip(before - after + 1, 0, m)
+    # read on the two turns of E from the first turn's copy of ``after`` (ψ periodic)
+    hi, lo = _range_extremes(E, E, np.mod(after, m), np.maximum(count, 1))
+    beyond = [np.maximum(np.maximum(hi - high[:, b : b + 1], low[:, b : b + 1] - lo), 0.0) for b in range(2)]
+    return gap, np.where(count >= 1, np.minimum(beyond[0], beyond[1]), 0.0)
 
 
 def _refine_candidates(E, cs, ok, n, band, phi0, h, psi_at, lead, upper, lower):

@@ -536,10 +536,11 @@ def _as_stored(fitted: Fitted) -> Fitted:
 def violations(request: Request, f: SixBarFigures) -> dict[str, float]:
     """How far the figures ``f`` (crank-normalised) miss each constraint of ``request``: 0 where
     met. ``assembly`` is 1 for a six-bar that does not assemble over the turn, toggles or
-    revolves, or has fewer dwells than asked (then nothing else is measured); the angles'
+    revolves, or has fewer dwells than asked — two rests not separated by the swing tolerance
+    are one (:func:`_missing_dwell`) — (then nothing else is measured); the angles'
     excesses in degrees; the link ratio's in percent of the limit."""
     out = dict.fromkeys(CONSTRAINTS, 0.0)
-    if not f.acceptable or len(f.dwells) < request.dwells:
+    if not f.acceptable or _missing_dwell(request, f):
         out["assembly"] = 1.0
         return out
     out["dwell"] = max(_dwell_excess(request, d.angle) for d in f.dwells[: request.dwells])
@@ -560,6 +561,14 @@ def violations(request: Request, f: SixBarFigures) -> dict[str, float]:
     return out
 
 
+def _missing_dwell(request: Request, f: SixBarFigures) -> bool:
+    """Fewer dwells than ``request`` asks for, two rests counting as two only with motion
+    between them (:meth:`~synth.figures.SixBarFigures.rests_apart` at the swing tolerance)."""
+    if len(f.dwells) < request.dwells:
+        return True
+    return request.dwells == 2 and not f.rests_apart(request.swing_tol)
+
+
 def _dwell_excess(request: Request, angle: float) -> float:
     """How far (°) a dwell of ``angle`` (rad) is outside the request's dwell ± tolerance."""
     return max(0.0, math.degrees(abs(angle - request.dwell) - request.dwell_tol))
@@ -567,7 +576,7 @@ def _dwell_excess(request: Request, angle: float) -> float:
 
 def meets(request: Request, f: SixBarFigures) -> bool:
     """Whether the figures ``f`` (crank-normalised) meet ``request`` and its constraints."""
-    if not f.acceptable or len(f.dwells) < request.dwells:
+    if not f.acceptable or _missing_dwell(request, f):
         return False
     if any(abs(d.angle - request.dwell) > request.dwell_tol for d in f.dwells[: request.dwells]):
         return False
@@ -605,7 +614,7 @@ def _candidate(request: Request, fitted: Fitted, f: SixBarFigures) -> Candidate:
 
 def _figures(request: Request, sixbars: list[SixBar], *, footprint: bool = True) -> list[SixBarFigures]:
     return sixbar_figures(SixBars.from_sixbars(sixbars), band=request.band, dwell_length=request.dwell,
-                          dwells=request.dwells, samples=SAMPLES, footprint=footprint)
+                          dwells=request.dwells, samples=SAMPLES, footprint=footprint, leave=request.swing_tol)
 
 
 def simulate(request: Request, fitted: Sequence[Fitted]) -> tuple[list[Candidate], int]:
@@ -1301,18 +1310,20 @@ def rebuild(ids: Sequence[str], source: SegmentSource, request: Request) -> list
         if dims is not None:
             out.append(dataclasses.replace(_rebuild_refined(text, dims, source, request), rank=len(out) + 1))
             continue
-        req = dataclasses.replace(request, swing=swing, dwells=2 if output == "dbl" else 1,
-                                  output="rpr" if output in ("rpr", "dbl") else "rrr")
+        # a double dwell's id from before --swing was required holds no swing ("@free"): its
+        # fit does not use one
+        req = dataclasses.replace(request, swing=request.swing if swing is None else swing,
+                                  dwells=2 if output == "dbl" else 1, output="rpr" if output in ("rpr", "dbl") else "rrr")
         row = source.segment(seg_id, level)
         if row is None:
             raise RebuildError(f"no segment {seg_id} in this atlas (candidate {text!r})")
         found = None
         if row.parts:
             fitted = [f for f in fit(req, [row], row.kind) if f.output == output and f.slot == slot]
-            loose = dataclasses.replace(req, dwell_tol=2 * math.pi - req.dwell - 1e-9, swing_tol=math.pi - 1e-9,
-                                        min_transmission=0.0, max_link_ratio=1e12, min_arm=0.0, min_clearance=0.0,
-                                        max_accel=None)
-            cands, _ = simulate(loose, fitted)
+            # whatever its figures — a fit a six-bar was moved or refined from may revolve, or
+            # have one rest where two were asked —, but a six-bar that assembles and rests
+            cands = [_candidate(req, f, fig) for f, fig in zip(fitted, _figures(req, [f.sixbar() for f in fitted]))
+                     if fig.assembled and fig.dwells] if fitted else []
             found = dataclasses.replace(cands[0], id=text.strip()) if cands else None
         if found is None:
             raise RebuildError(f"candidate {text!r} cannot be rebuilt from this atlas (no fit for that slot and level)")

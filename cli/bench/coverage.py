@@ -1,12 +1,13 @@
 """``dwell bench coverage``: which requests an atlas answers, over the grid of issues #13 and #41.
 
 Single dwells (RPR and RRR): dwell {10, 20, 30, 45, 60, 75, 90, 105, 120, 150, 180}° × swing
-{10, 20, 30, 45, 60, 90}° (issue #41's grid); double dwells (RPR, ``--dwells 2 --dwell-tol 5``,
-no swing): dwell {10, 20, 30, 45, 60, 75, 90, 120}°; ``--dwell`` keeps some rows. Every cell is
-one :func:`synth.query.answer` with the query's default constraints and ``--top``, against one
-open atlas (as ``dwell bench query``). Reported per cell: the candidates found, the best output
-deviation over the requested dwell (degrees), the constraint a no-match names and the time; per
-family the cells with ≥ 1 and ≥ 3 candidates. A table on stdout, or ``--json``;
+{10, 20, 30, 45, 60, 90}° (issue #41's grid); double dwells (RPR, ``--dwells 2 --dwell-tol 5``):
+dwell {10, 20, 30, 45, 60, 75, 90, 120}° × swing {20, 45}° (two rests with motion between them);
+``--dwell`` keeps some rows. Every cell is one :func:`synth.query.answer` with the query's default
+constraints and ``--top``, against one open atlas (as ``dwell bench query``). Reported per cell:
+the candidates found, the best output deviation over the requested dwell (degrees), the
+constraint a no-match names and the time; per family the cells with ≥ 1 and ≥ 3 candidates. A
+table on stdout, or ``--json``;
 ``--plot FILE.png`` draws the grids as heat maps. ``--complete`` answers every cell with the
 complete search and measures the default (sampled) query against it: the share of the
 complete answer's coupler curves the sample finds. The cells of one swing (and family) read
@@ -32,6 +33,7 @@ from cli.query import batch_map, workers_option
 SINGLE_DWELLS = (10, 20, 30, 45, 60, 75, 90, 105, 120, 150, 180)
 SWINGS = (10, 20, 30, 45, 60, 90)
 DOUBLE_DWELLS = (10, 20, 30, 45, 60, 75, 90, 120)
+DOUBLE_SWINGS = (20, 45)
 DOUBLE_TOL = 5.0
 FAMILIES = ("rpr", "rrr", "double")
 
@@ -48,7 +50,7 @@ class Cell:
         from cli.query import request_from_options
 
         if self.family == "double":
-            return request_from_options(self.dwell, DOUBLE_TOL, None, None, "rpr", 2, top=top, refine=refine,
+            return request_from_options(self.dwell, DOUBLE_TOL, self.swing, None, "rpr", 2, top=top, refine=refine,
                                         complete=complete)
         return request_from_options(self.dwell, None, self.swing, None, self.family, 1, top=top, refine=refine,
                                     complete=complete)
@@ -58,7 +60,7 @@ def cells(families: tuple[str, ...] = FAMILIES, dwells: tuple[float, ...] = ()) 
     """The grid of ``families``, family by family, dwell-major (only the rows of ``dwells``, °,
     if any are given)."""
     out = [Cell(fam, d, s) for fam in ("rpr", "rrr") if fam in families for d in SINGLE_DWELLS for s in SWINGS]
-    out += [Cell("double", d, None) for d in DOUBLE_DWELLS if "double" in families]
+    out += [Cell("double", d, s) for d in DOUBLE_DWELLS for s in DOUBLE_SWINGS if "double" in families]
     return [c for c in out if not dwells or c.dwell in dwells]
 
 
@@ -204,11 +206,10 @@ def table(report: dict) -> str:
     rows = report["cells"]
     for fam in report["summary"]:
         mine = [r for r in rows if r["family"] == fam]
-        cols = sorted({r["swing_deg"] for r in mine}, key=lambda x: -1 if x is None else x)
-        head = "swing →" if fam != "double" else f"±{DOUBLE_TOL:g}°"
+        cols = sorted({r["swing_deg"] for r in mine})
+        head = "swing →" if fam != "double" else f"±{DOUBLE_TOL:g}° swing →"
         lines.append("")
-        lines.append(f"{fam.upper():<8}{head:>8}" + "".join(
-            f"{'' if c is None else f'{c:g}°':>20}" for c in cols))
+        lines.append(f"{fam.upper():<8}{head:>8}" + "".join(f"{f'{c:g}°':>20}" for c in cols))
         for d in sorted({r["dwell_deg"] for r in mine}):
             cells_ = {r["swing_deg"]: r for r in mine if r["dwell_deg"] == d}
             text = []
@@ -234,14 +235,14 @@ def _plot(report: dict, path: Path) -> None:
     rows = report["cells"]
     top = report["top"]
     families = list(report["summary"])
-    widths = [1.6 if fam == "double" else 6.0 for fam in families]
+    widths = [2.4 if fam == "double" else 6.0 for fam in families]
     fig, axes = plt.subplots(1, len(families), figsize=(12 * sum(widths) / 13.6 + 1.0, 4.2), width_ratios=widths,
                              constrained_layout=True, squeeze=False)
     axes = axes[0]
     for ax, fam in zip(axes, families):
         mine = [r for r in rows if r["family"] == fam]
         dwells = sorted({r["dwell_deg"] for r in mine})
-        swings = sorted({r["swing_deg"] for r in mine}, key=lambda x: -1 if x is None else x)
+        swings = sorted({r["swing_deg"] for r in mine})
         grid = np.zeros((len(dwells), len(swings)))
         for r in mine:
             grid[dwells.index(r["dwell_deg"]), swings.index(r["swing_deg"])] = r["candidates"]
@@ -251,8 +252,8 @@ def _plot(report: dict, path: Path) -> None:
                 n = int(grid[i, j])
                 ax.text(j, i, str(n), ha="center", va="center", fontsize=8, color="white" if n < 0.6 * top else "black")
         ax.set_yticks(range(len(dwells)), [f"{d:g}°" for d in dwells])
-        ax.set_xticks(range(len(swings)), ["—" if s is None else f"{s:g}°" for s in swings])
-        ax.set_xlabel("swing" if fam != "double" else f"two dwells ±{DOUBLE_TOL:g}°")
+        ax.set_xticks(range(len(swings)), [f"{s:g}°" for s in swings])
+        ax.set_xlabel("swing" if fam != "double" else f"swing, two dwells ±{DOUBLE_TOL:g}°")
         v = report["summary"][fam]
         ax.set_title(f"{fam.upper()}: ≥3 in {v['three_or_more']}/{v['cells']}", fontsize=10)
     axes[0].set_ylabel("dwell")

@@ -72,8 +72,8 @@ REQUESTS: tuple[BenchRequest, ...] = (
     BenchRequest("rrr 120/30", 120, 30, "rrr"),
     BenchRequest("any 60/30", 60, 30, "any"),
     BenchRequest("any 75/50", 75, 50, "any"),
-    BenchRequest("double 30±5", 30, None, "rpr", dwells=2, dwell_tol=5),
-    BenchRequest("double 60±5", 60, None, "rpr", dwells=2, dwell_tol=5),
+    BenchRequest("double 30±5/20", 30, 20, "rpr", dwells=2, dwell_tol=5),
+    BenchRequest("double 60±5/20", 60, 20, "rpr", dwells=2, dwell_tol=5),
     BenchRequest("rrr 60/30 μ≥45°", 60, 30, "rrr", min_transmission=45),
     BenchRequest("any 45/40 ratio≤5", 45, 40, "any", max_link_ratio=5),
 )

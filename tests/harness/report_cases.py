@@ -28,7 +28,7 @@ EVIL_ID = '<script>alert("x")</script>&\'"-rpr0@30'
 
 REQUEST = Request(dwell=40 * DEG, dwell_tol=40 * DEG, swing=30 * DEG, swing_tol=1 * DEG, output="any",
                   band=0.2 * DEG, crank=CRANK, min_transmission=20 * DEG)
-REQUEST2 = Request(dwell=30 * DEG, dwell_tol=40 * DEG, swing=None, output="rpr", dwells=2, band=0.2 * DEG,
+REQUEST2 = Request(dwell=30 * DEG, dwell_tol=40 * DEG, swing=30 * DEG, output="rpr", dwells=2, band=0.2 * DEG,
                    crank=CRANK, min_transmission=20 * DEG)
 
 

@@ -30,7 +30,10 @@ DWELLS = (20, 30, 40, 50, 60, 70, 80, 90, 100, 110, 120, 130, 140, 150)
 FAMILIES = {
     "rpr": Request(dwell=1.0, swing=math.radians(40.0), output="rpr", refine=False),
     "rrr": Request(dwell=1.0, swing=math.radians(30.0), output="rrr", max_link_ratio=20.0, refine=False),
-    "double": Request(dwell=1.0, dwell_tol=math.radians(5.0), dwells=2, output="rpr", refine=False),
+    # two dwells name their swing (issue #41): the test atlas's double dwells that meet the
+    # default limits swing 135°–155° (rests of 24°–56°, 3 000–6 000 rad/s² at 60 rpm)
+    "double": Request(dwell=1.0, dwell_tol=math.radians(10.0), swing=math.radians(145.0), swing_tol=math.radians(10.0),
+                      dwells=2, output="rpr", refine=False),
 }
 
 
@@ -144,7 +147,7 @@ LOOSER = {
 
 @pytest.mark.parametrize("family", sorted(FAMILIES))
 def test_loosening_a_limit_never_removes_a_six_bar(atlas, reference, family):
-    base = dataclasses.replace(FAMILIES[family], max_accel=100.0)
+    base = dataclasses.replace(FAMILIES[family], max_accel=100.0 if family != "double" else 10_000.0)
     # the RRR fit depends on the minimum transmission: with a looser one it is fitted afresh
     refitted = (_every_fit(atlas, dataclasses.replace(base, min_transmission=LOOSER["min_transmission"](base)))
                 if family == "rrr" else reference[family])
@@ -153,6 +156,8 @@ def test_loosening_a_limit_never_removes_a_six_bar(atlas, reference, family):
         request = dataclasses.replace(base, dwell=math.radians(dwell))
         strict = _meeting(request, reference[family])
         for field, looser in LOOSER.items():
+            if field == "swing_tol" and family == "double":
+                continue  # two dwells: --swing-tol is also the least motion between the rests (issue #41)
             loose = dataclasses.replace(request, **{field: looser(request)})
             every = refitted if field == "min_transmission" else reference[family]
             missing = strict - _meeting(loose, every)

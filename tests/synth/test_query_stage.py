@@ -95,13 +95,12 @@ def test_rebuild_gives_the_queried_six_bars(source):
 
 
 @pytest.mark.parametrize("output, dwell, tol, swing, dwells",
-                         [("rpr", 45, 8, 40, 1), ("rrr", 60, 8, 30, 1), ("rpr", 40, 15, None, 2)])
+                         [("rpr", 45, 8, 40, 1), ("rrr", 60, 8, 30, 1), ("rpr", 40, 15, 21.8, 2)])
 def test_grid_screen_never_rejects_a_six_bar_that_meets_the_request(source, output, dwell, tol, swing, dwells):
     """``screen`` is a necessary test: every fitted six-bar whose full figures meet the request
     passes it (checked on all fits of real queries, with a wide dwell tolerance so that many
     meet), and it does reject a share of those that do not."""
-    request = Request(dwell=dwell * DEG, dwell_tol=tol * DEG, swing=None if swing is None else swing * DEG,
-                      swing_tol=2 * DEG, output=output, dwells=dwells, min_transmission=20 * DEG, max_link_ratio=30)
+    request = Request(dwell=dwell * DEG, dwell_tol=tol * DEG, swing=swing * DEG, swing_tol=2 * DEG, output=output, dwells=dwells, min_transmission=20 * DEG, max_link_ratio=30)
     fitted = [f for kind in kinds_for(request) for f in fit(request, select(source, request, (kind,)), kind)]
     batch = SixBars.from_sixbars([f.sixbar() for f in fitted])
     passed = screen(request, batch)
@@ -176,7 +175,7 @@ def _no_match_requests():
            for o in ("rpr", "rrr", "any") for d, s, t in ((10, 10, 0.5), (30, 60, 2), (60, 30, 0.2), (75, 45, 0.5),
                                                           (90, 90, 2), (120, 30, 2), (150, 20, 1), (180, 10, 2),
                                                           (45, 90, 0.2), (105, 60, 0.5))]
-    out += [Request(dwell=d * DEG, dwell_tol=5 * DEG, swing=None, output="rpr", dwells=2, refine=False) for d in (10, 90)]
+    out += [Request(dwell=d * DEG, dwell_tol=5 * DEG, swing=20 * DEG, output="rpr", dwells=2, refine=False) for d in (10, 90)]
     out.append(Request(dwell=60 * DEG, dwell_tol=0.0, swing=30 * DEG, output="rrr", min_transmission=45 * DEG,
                        refine=False))
     return out
@@ -388,7 +387,7 @@ def test_a_sparse_single_dwell_moves_the_output_pivot_off_the_fitted_one(source,
 def test_a_sparse_double_dwell_moves_the_slot_pivot_off_the_crossing(source):
     """Two rests of 20° ± 5°: no crossing of the test atlas's sample gives them (its rests are
     longer). Refined, the slot pivots moved off the crossings do."""
-    request = Request(dwell=20 * DEG, dwell_tol=5 * DEG, dwells=2, output="rpr")
+    request = Request(dwell=20 * DEG, dwell_tol=5 * DEG, swing=8.5 * DEG, swing_tol=2 * DEG, dwells=2, output="rpr")
     assert not answer(dataclasses.replace(request, refine=False), source).candidates
     _check_moved(request, source, answer(request, source))
 

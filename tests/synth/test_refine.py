@@ -48,7 +48,8 @@ def _check_refined(request: Request, c) -> None:
 
 
 @pytest.mark.parametrize("kw", [dict(dwell=45 * DEG, swing=40 * DEG, output="rpr"),
-                                dict(dwell=50 * DEG, dwell_tol=5 * DEG, dwells=2, output="rpr")])
+                                dict(dwell=50 * DEG, dwell_tol=5 * DEG, swing=147.6 * DEG, swing_tol=2 * DEG, dwells=2,
+                                     output="rpr")])
 def test_refined_candidates_meet_the_request_and_deviate_less(source, kw):
     """--no-refine gives the retrieved six-bars; refinement keeps or improves each of them. An
     answer of fewer than FILL (the double dwell on the test atlas) is widened and topped up
