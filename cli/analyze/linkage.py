@@ -37,7 +37,6 @@ from kinematics.assur import (
     assemble,
     configurations,
     decompose,
-    limit_positions,
     linkage_from_text,
     linkage_motion,
     loop_closure,
