@@ -278,8 +278,20 @@ def probe_folder(path: Path, option: str) -> None:
                 break
 
 
+def _unit_name(ctx, param, value: str | None) -> str | None:
+    """``--units`` is a label in every table, drawing and file: plain text, as a linkage file's
+    names (a control character would reach the terminal, the TOML and the SVG)."""
+    from kinematics.assur.linkage_file import plain_text_problem
+
+    if value is not None:
+        problem = plain_text_problem(value)
+        if problem:
+            raise click.BadParameter(problem, param_hint="--units")
+    return value
+
+
 #: The length unit's name: labels, and the DXF's ``$INSUNITS`` (report.dxf.INSUNITS).
-units_option = click.option("--units", default="mm", show_default=True,
+units_option = click.option("--units", default="mm", show_default=True, callback=_unit_name,
                             help="Name of the length unit (labels; mm, cm, m, in, ft … also set the DXF's units).")
 
 output_options = _stack(

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import click
@@ -10,6 +11,31 @@ import click
 from cli.errors import InputError
 from cli.options import LENGTH, RPM, probe_folder, units_option
 from cli.query import BAND_DEG, DWELL_DEG, TRANSMISSION_RANGE
+from report.escape import terminal
+
+
+#: A candidate id as `dwell query` prints it, in ASCII: <segment>-<rpr|rrr|dbl><slot>.<level>@<swing
+#: or free>, optionally ~<refined dimensions, base64url>. Python's int() and float() would also
+#: take "+12", full-width digits and "4_0" — and the report would echo them as typed.
+_ID = re.compile(r"[0-9]+-(rpr|rrr|dbl)[0-9]+\.[0-9]+@(free|[0-9]+(\.[0-9]+)?([eE]-?[0-9]+)?)(~[A-Za-z0-9_-]+)?",
+                 re.ASCII)
+
+
+def canonical_id(text: str) -> str:
+    """``text`` as the id ``dwell query`` would print for the same six-bar; an id in any other
+    spelling is refused in one line (the report shows and files ids: they must be the query's)."""
+    from synth.candidates import REFINED_MARK, candidate_id, parse_candidate_id
+
+    if len(text) > 200 or not _ID.fullmatch(text):
+        raise InputError(f"--candidates: {terminal(repr(text[:80]))} is not a candidate id as `dwell query` prints "
+                         "them (e.g. 1234500007-rrr0.1@30)")
+    try:
+        segment, output, slot, level, swing = parse_candidate_id(text)
+    except ValueError as exc:
+        raise InputError(f"--candidates: {terminal(exc)}") from None
+    base = candidate_id(segment, output, slot, level, swing)
+    refined = text.partition(REFINED_MARK)[2]
+    return f"{base}{REFINED_MARK}{refined}" if refined else base
 
 
 @click.command("report")
@@ -38,7 +64,7 @@ def report(target, ids, out_dir, dwell, band, crank, min_transmission, rpm, unit
     from report.folder import ReportFolderError, check_report_folder
     from report.linkage_toml import readable_linkages
 
-    names = [t for item in (*ids, *more_ids) for t in item.replace(",", " ").split()]
+    names = [canonical_id(t) for item in (*ids, *more_ids) for t in item.replace(",", " ").split()]
     if not names:
         raise InputError("--candidates: give at least one candidate id")
     out = Path(out_dir)

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from report.escape import script_json, text
+from report.folder import staged_file
 
 __all__ = ["Animation", "Frame", "write_animation"]
 
@@ -49,7 +50,8 @@ def write_animation(animation: Animation, path: str | Path) -> Path:
     if not animation.frames:
         raise ValueError("an animation needs at least one frame")
     text = _html(animation) if path.suffix.lower() == ".html" else _svg(animation, smil=True)
-    path.write_text(text, encoding="utf-8")
+    with staged_file(path) as tmp:  # a killed run leaves the old file or the new one (report/folder.py)
+        tmp.write_text(text, encoding="utf-8")
     return path
 
 

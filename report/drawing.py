@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from report.escape import plot_text
+from report.folder import staged_file
 
 __all__ = ["Sketch", "draw_sketch"]
 
@@ -83,6 +84,7 @@ def draw_sketch(sketch: Sketch, path: str | Path, title: str = "") -> Path:
         warnings.filterwarnings("ignore", message="Tight layout not applied", category=UserWarning)
         fig.tight_layout()
     path = Path(path)
-    fig.savefig(path)
+    with staged_file(path) as tmp:  # a killed run leaves the old file or the new one (report/folder.py)
+        fig.savefig(tmp, format=path.suffix.lstrip(".").lower() or None)
     plt.close(fig)
     return path

@@ -30,12 +30,15 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from report.cycle import CYCLE_COLUMNS, Cycle, cycle_json, sixbar_cycle
+import numpy as np
+
 from report.candidate_json import candidate_json, request_json
+from report.cycle import CYCLE_COLUMNS, Cycle, cycle_json, sixbar_cycle
+from report.escape import terminal
 from synth.candidates import Candidate, Request
 from synth.kinds import OutputKind
 
-__all__ = ["CSV_COLUMNS", "MAX_DWELLS", "candidate_row", "csv_header", "report_json", "safe_stem", "write_report"]
+__all__ = ["CSV_COLUMNS", "MAX_DWELLS", "candidate_row", "csv_cell", "csv_header", "report_json", "safe_stem", "write_report"]
 
 #: Dwells per turn a report has columns for (a double Ball point gives two).
 MAX_DWELLS = 2
@@ -212,15 +215,34 @@ def candidate_row(c: Candidate) -> dict[str, Any]:
     return {k: _finite(v) if isinstance(v, float) else v for k, v in row.items()}
 
 
+#: First characters that make a spreadsheet read a cell as a formula (or a command: DDE).
+_FORMULA_START = ("=", "+", "-", "@", "\t", "\r")
+
+
+def csv_cell(value: Any) -> str:
+    """One CSV cell: ``repr`` of a float (round-trips exactly), ``""`` for None; text that a
+    spreadsheet would evaluate (starting with ``= + - @``, tab or CR: a candidate id read from
+    an atlas is not ours to trust) gets a leading ``'``, which makes it text, and control
+    characters are shown as escapes (:func:`report.escape.terminal`)."""
+    if value is None:
+        return ""
+    if isinstance(value, float):
+        return repr(value)
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    text = str(value)
+    if text.startswith(_FORMULA_START):
+        text = "'" + text
+    return terminal(text)
+
+
 def _csv_text(candidates: Sequence[Candidate]) -> str:
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
     writer.writerow(csv_header())
     for c in candidates:
         row = candidate_row(c)
-        # repr of a float round-trips exactly; None is an empty cell
-        writer.writerow(["" if row[k] is None else (repr(row[k]) if isinstance(row[k], float) else row[k])
-                         for k in csv_header()])
+        writer.writerow([csv_cell(row[k]) for k in csv_header()])
     return buf.getvalue()
 
 
@@ -247,7 +269,7 @@ def _readme(request: Request, stems: Sequence[str], units: str) -> str:
              ("candidates.csv", "one row per candidate (columns below)")]
     files += [(f"NN-ID-{name}.png/.svg", what) for name, what in PLOTS.items()]
     files += [("NN-ID-drawing.svg", "the six-bar at mid-dwell, pivots and link lengths labelled"),
-              ("NN-ID.toml", "the six-bar as a linkage file: dwell analyze linkage NN-ID.toml (see its header)"),
+              ("NN-ID.toml", "the six-bar as a linkage file: dwell analyze linkage NN-ID.toml --limits gives its figures"),
               ("NN-ID-drawing.dxf", "the same geometry for CAD ($INSUNITS from --units), layers:")]
     files += [(f"  {name}", what) for name, (_, what) in LAYERS.items()]
     width = max(len(n) for n, _ in files)
@@ -341,7 +363,7 @@ def write_report(candidates: list[Candidate], request: Request, out_dir: Path, *
             drawing = draw_sixbar(geom, out / f"{stem}-drawing.svg")
             dxf = write_dxf(geom, out / f"{stem}-drawing.dxf")
             toml = out / f"{stem}.toml"
-            toml.write_text(linkage_toml(c, units), encoding="utf-8")
+            toml.write_text(linkage_toml(c, units, band=request.band, dwells=request.dwells), encoding="utf-8")
             files = [p for pf in plots.values() for p in (pf.png, pf.svg)] + [drawing, dxf, toml]
             written += files
             entries.append(PageEntry(c, cyc, geom, {k: pf.svg_text for k, pf in plots.items()},

@@ -16,6 +16,10 @@ folder of their own.
 
 Left-overs of a killed writer (``.NAME.tmp-<pid>``, ``.NAME.old-<pid>`` of a process that no
 longer runs) are removed by the next write into ``NAME``.
+
+A single output file (``dwell analyze ... --plot/--draw/--animate``) is written the same way
+(:func:`staged_file`): into ``.NAME.tmp-<pid>`` beside it, renamed over ``NAME`` when complete,
+so a killed run leaves the previous file or the new one, never a truncated one.
 """
 
 from __future__ import annotations
@@ -28,7 +32,7 @@ import shutil
 from collections.abc import Iterator
 from pathlib import Path
 
-__all__ = ["MARKER", "ReportFolderError", "check_report_folder", "staged_folder"]
+__all__ = ["MARKER", "ReportFolderError", "check_report_folder", "staged_file", "staged_folder"]
 
 #: The file in every report folder that lists the files the report wrote, one per line.
 MARKER = ".dwell-report"
@@ -80,12 +84,39 @@ def _alive(pid: int) -> bool:
     return True
 
 
+def _staging(out: Path, kind: str = "tmp") -> Path:
+    """The sibling ``.NAME.<kind>-<pid>`` a new ``out`` is written into (or an old one set aside)."""
+    return out.with_name(f".{out.name}.{kind}-{os.getpid()}")
+
+
 def _remove_leftovers(out: Path) -> None:
     pattern = re.compile(rf"\.{re.escape(out.name)}\.(tmp|old)-(\d+)")
     for p in out.parent.iterdir():
         m = pattern.fullmatch(p.name)
         if m and int(m.group(2)) != os.getpid() and not _alive(int(m.group(2))):
-            shutil.rmtree(p, ignore_errors=True)
+            if p.is_dir() and not p.is_symlink():
+                shutil.rmtree(p, ignore_errors=True)
+            else:
+                with contextlib.suppress(OSError):
+                    p.unlink()
+
+
+@contextlib.contextmanager
+def staged_file(path: Path) -> Iterator[Path]:
+    """Yield a temporary sibling of the file ``path`` to write; when the block ends without an
+    error it replaces ``path`` in one rename, otherwise it is removed and ``path`` is as it was.
+    The temporary name has no suffix: writers that pick a format by suffix are told it."""
+    path = Path(path).absolute()
+    with contextlib.suppress(OSError):
+        _remove_leftovers(path)
+    tmp = _staging(path)
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
 
 
 def _exchange(a: Path, b: Path) -> bool:
@@ -111,7 +142,7 @@ def staged_folder(out: Path, option: str = "report folder") -> Iterator[Path]:
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         _remove_leftovers(out)
-        tmp = out.with_name(f".{out.name}.tmp-{os.getpid()}")
+        tmp = _staging(out)
         shutil.rmtree(tmp, ignore_errors=True)
         tmp.mkdir()
     except OSError as exc:
@@ -123,7 +154,7 @@ def staged_folder(out: Path, option: str = "report folder") -> Iterator[Path]:
         elif _exchange(tmp, out):
             shutil.rmtree(tmp, ignore_errors=True)  # now the previous report
         else:
-            old = out.with_name(f".{out.name}.old-{os.getpid()}")
+            old = _staging(out, "old")
             os.rename(out, old)
             try:
                 os.rename(tmp, out)

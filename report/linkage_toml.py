@@ -6,9 +6,11 @@ The file names the ground pivots A0 = (0, 0), B0 = (d, 0) and D, the crank A0–
 triangle A–B–P in its own frame (origin A, x-axis along A→B: the coupler point is (u, v)), the
 rocker B0–B and the output dyad: RRR rod P–Q and output rocker D–Q; RPR a block pinned at P
 sliding on the slotted output link pivoted at D. The input is the crank angle; the output the
-output link's angle. The assembly configuration that is the candidate's (its four-bar and dyad
-branches) is found by solving the file at the first crank angle and matching joint positions;
-its number is written in the file's header comment with the command line that reproduces it.
+output link's angle. The file is the candidate: its ``configuration`` key names the assembly
+configuration that is the candidate's (its four-bar and dyad branches), found by solving the
+file at crank angle 0 (the input's ``value``) and matching joint positions, and its ``[output]``
+carries the request's band and number of dwells, so that ``dwell analyze linkage FILE --limits``
+with no other option gives the candidate's swing, dwell interval(s) and transmission angles.
 """
 
 from __future__ import annotations
@@ -35,12 +37,17 @@ def _pair(z: complex) -> str:
     return f"[{_num(z.real)}, {_num(z.imag)}]"
 
 
-def _body(candidate: Candidate, units: str) -> list[str]:
+def _body(candidate: Candidate, units: str, configuration: int | None = None, band: float | None = None,
+          dwells: int = 1) -> list[str]:
     sb = candidate.sixbar
     rrr = sb.dyad.kind == OutputKind.RRR
     lines = [
-        f"name = {_quoted(f'six-bar {candidate.id}')}",
+        f"name = {_quoted(_name(candidate.id))}",
         f"units = {_quoted(units or 'mm')}",
+    ]
+    if configuration is not None:
+        lines.append(f"configuration = {configuration}      # the candidate's assembly, numbered at crank angle 0")
+    lines += [
         "",
         "[ground]",
         "A0 = [0.0, 0.0]",
@@ -86,8 +93,21 @@ def _body(candidate: Candidate, units: str) -> list[str]:
             "angle = 0",
             "",
         ]
-    lines += ["[[inputs]]", 'joint = "A0"', 'link = "crank"', "", "[output]", 'link = "output"']
+    lines += ["[[inputs]]", 'joint = "A0"', 'link = "crank"', "value = 0.0", "", "[output]", 'link = "output"']
+    if band is not None:
+        lines += [f"band = {_num(math.degrees(band))}         # deg: the output band within which it rests",
+                  f"dwells = {int(dwells)}"]
     return lines
+
+
+def _name(candidate_id: str) -> str:
+    """The file's name: ``six-bar <id>``, the id (an atlas's text) with controls escaped and cut
+    to the length a linkage file's name may have."""
+    from kinematics.assur.linkage_file import MAX_NAME
+    from report.escape import terminal
+
+    name = f"six-bar {terminal(candidate_id)}"
+    return name if len(name) <= MAX_NAME else name[:MAX_NAME - 1] + "…"
 
 
 def _quoted(text: str) -> str:
@@ -136,14 +156,16 @@ def readable_linkages(candidates: Sequence[Candidate], units: str = "") -> None:
             raise LinkageFileError(f"candidate {c.id}'s linkage file could not be read back ({exc})") from None
 
 
-def linkage_toml(candidate: Candidate, units: str = "") -> str:
-    """The linkage description of ``candidate`` (its lengths in the user's units), with a
-    header comment saying how to reproduce its figures with ``dwell analyze linkage``."""
-    body = "\n".join(_body(candidate, units)) + "\n"
+def linkage_toml(candidate: Candidate, units: str = "", *, band: float | None = None, dwells: int = 1) -> str:
+    """The linkage description of ``candidate`` (its lengths in the user's units) with its
+    assembly configuration and, given the request's ``band`` (rad) and number of ``dwells``,
+    the output band its dwells are measured in; a header comment gives the figures
+    ``dwell analyze linkage FILE --limits`` reproduces."""
     # The configuration's number does not depend on the scale; matched at crank = 1, where the
     # assembly solver's products of lengths cannot overflow (report.cycle.unit_motion).
     unit = dataclasses.replace(candidate, sixbar=candidate.sixbar.scaled(1.0 / candidate.sixbar.a))
     config = linkage_configuration(unit, "\n".join(_body(unit, units)) + "\n")
+    body = "\n".join(_body(candidate, units, config, band, dwells)) + "\n"
     f = candidate.figures
     dwells = ", ".join("{:.3f}..{:.3f} deg".format(*d.ends_deg()) for d in f.dwells)
     header = [
@@ -152,8 +174,7 @@ def linkage_toml(candidate: Candidate, units: str = "") -> str:
         f"# min transmission: four-bar {math.degrees(f.transmission_fourbar):.3f} deg, "
         + ("output: a slot (90 deg by construction)." if candidate.sixbar.dyad.kind == "RPR"
            else f"output {math.degrees(f.transmission_output):.3f} deg."),
-        "# Reproduce with: dwell analyze linkage THIS_FILE --configuration "
-        f"{config} --from 0 --to 360 --step 1",
+        "# Reproduce with: dwell analyze linkage THIS_FILE --limits",
         "",
     ]
     return "\n".join(header) + body

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from report.escape import plot_text
-
+from report.folder import staged_file
 from report.motion_table import MotionTable
 
 __all__ = ["plot_motion"]
@@ -36,6 +36,7 @@ def plot_motion(table: MotionTable, outputs: list[str], path: str | Path, title:
         axes[0].set_title(plot_text(title), fontsize=10)
     fig.tight_layout()
     path = Path(path)
-    fig.savefig(path, dpi=120)
+    with staged_file(path) as tmp:  # a killed run leaves the old file or the new one (report/folder.py)
+        fig.savefig(tmp, dpi=120, format=path.suffix.lstrip(".").lower() or None)
     plt.close(fig)
     return path

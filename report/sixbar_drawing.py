@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from report.cycle import Cycle, unit_motion
+from report.escape import plot_text
 from report.labels import Box, place_labels
 from report.palette import BLOCK, CURVE, DWELL, GROUND, GUIDE, LINK_COLORS
 from synth.candidates import Candidate
@@ -213,7 +214,7 @@ def draw_sixbar(geom: SixBarGeometry, path: str | Path) -> Path:
         ax.set_xlabel(f"ground: {ground}", fontsize=8)
         ax.set_aspect("equal", adjustable="datalim")
         ax.grid(True, alpha=0.25)
-        ax.set_title(geom.title.replace("$", r"\$"), fontsize=10)  # a user's id is text, not mathtext
+        ax.set_title(plot_text(geom.title), fontsize=10)  # a user's id is text, not mathtext nor controls
         legend = ax.legend(fontsize=7, loc="best", framealpha=0.8)
         fig.tight_layout()
         _place_joint_labels(fig, ax, legend, geom, FigureCanvasAgg(fig))

@@ -15,8 +15,10 @@ from pathlib import Path
 import click
 import numpy as np
 
+from cli.analyze.linkage_limits import cycle_limits, limits_json, limits_text
 from cli.options import (
     INPUT_STEP,
+    Bounded,
     INPUT_VALUE,
     SPEED,
     output_options,
@@ -35,7 +37,6 @@ from kinematics.assur import (
     assemble,
     configurations,
     decompose,
-    limit_positions,
     linkage_from_text,
     linkage_motion,
     loop_closure,
@@ -45,9 +46,12 @@ from kinematics.assur.linkage_file import MAX_CHARS
 from kinematics.status import AssemblyError, Status
 from report.animation import Animation, Frame, write_animation
 from report.drawing import Sketch, draw_sketch
+from report.escape import terminal
 from report.motion_table import Column, MotionTable
 from report.plots import plot_motion
 
+#: An output band in degrees (as `dwell query --band` takes it).
+BAND_DEG = Bounded(1e-4, 180.0, "an output band in degrees", high_open=True)
 #: Default sweep of an angle input [deg] and the number of positions of a slide input's range.
 DEFAULT_STEP_DEG = 30.0
 DEFAULT_SLIDE_POSITIONS = 13
@@ -64,12 +68,18 @@ ANIMATION_POSITIONS = 181
 @click.option("--from", "x_from", type=INPUT_VALUE, default=None, help="First value of the first input [deg or length].")
 @click.option("--to", "x_to", type=INPUT_VALUE, default=None, help="Last value of the first input [deg or length].")
 @click.option("--step", "x_step", type=INPUT_STEP, default=None, help="Step of the first input (default 30 deg, or 1/12 of a slide's range).")
-@click.option("--configuration", type=click.IntRange(1, MAX_CONFIGURATIONS), default=1, show_default=True,
-              help="Assembly configuration to follow, numbered as --all-configurations lists them at the first position.")
+@click.option("--configuration", type=click.IntRange(1, MAX_CONFIGURATIONS), default=None,
+              help="Assembly configuration to follow, numbered as --all-configurations lists them at the first position "
+                   "(default: the file's 'configuration', else 1).")
 @click.option("--all-configurations", "all_configurations", is_flag=True, help="List every assembly configuration at each position.")
 @click.option("--limits", is_flag=True, help="Find the limit positions of the output (where its velocity vanishes).")
 @click.option("--output", "output_name", default=None, metavar="NAME",
               help="Output for --limits and --plot: a link (its angle) or a prismatic pair (its slide). Default: [output] of the file.")
+@click.option("--band", type=BAND_DEG, default=None, metavar="DEG",
+              help="With --limits, also the dwells: crank intervals on which the output angle stays within a band "
+                   "this wide (default: the file's [output] band).")
+@click.option("--dwells", type=click.IntRange(1, 2), default=None,
+              help="Dwells per turn to find with --band: 1, or 2 (the two longest) (default: the file's, else 1).")
 @speed_options
 @click.option("--speed", "slide_speed", type=SPEED, default=1.0, show_default=True,
               help="Speed of a slide input [length/s] (angle inputs use --rpm/--omega).")
@@ -78,7 +88,7 @@ ANIMATION_POSITIONS = 181
               help="Write an animation over the input range to FILE.html (with controls) or FILE.svg.")
 @click.pass_context
 def linkage(ctx, file, input_values, x_from, x_to, x_step, configuration, all_configurations, limits, output_name,
-            rpm, omega, cw, crank_alpha, slide_speed, as_json, plot, draw, units, animate):
+            band, dwells, rpm, omega, cw, crank_alpha, slide_speed, as_json, plot, draw, units, animate):
     """Analyse the planar linkage described in FILE (TOML, or JSON if it ends in .json)."""
     path = Path(file)
     text = readable_text(path, "FILE", 4 * MAX_CHARS)  # UTF-8: up to 4 bytes a character
@@ -122,14 +132,11 @@ def linkage(ctx, file, input_values, x_from, x_to, x_step, configuration, all_co
         _print(table, as_json, f"{mech.name}: every assembly configuration", key="configurations")
         return
 
-    if configuration > len(found):
-        raise AssemblyError(f"{mech.name}: configuration {configuration} does not exist at "
-                            f"{_inputs_text(mech, inputs[0])} (there are {len(found)}; see --all-configurations)")
-    start = found[configuration - 1]
+    configuration, source, start = configuration_start(mech, dec, inputs, found, configuration, file)
     asm = assemble(mech, inputs, start, decomposition=dec)
     _require_assembled(mech, asm, configuration)
     motion = linkage_motion(mech, asm, rates, accels)
-    mechanism.update(configuration=configuration, choice=list(start.choice),
+    mechanism.update(configuration=configuration, configuration_from=source, choice=list(start.choice),
                      input_speed=rate, input_acceleration=accel)
     summary: dict = {
         "loop_closure_max": float(loop_closure(mech, asm).max()),
@@ -137,8 +144,11 @@ def linkage(ctx, file, input_values, x_from, x_to, x_step, configuration, all_co
     }
     lim = None
     if limits:
-        lim = _limits(mech, start, output, inputs, x_from, x_to)
-        summary["limits"] = _limits_json(mech, lim)
+        own = output_name is None and mech.output is not None  # the file's band is its output's
+        lim = cycle_limits(mech, dec, start, output, inputs, x_from, x_to,
+                           np.radians(band) if band is not None else (mech.output.band if own else None),
+                           dwells or (mech.output.dwells if own else 1))
+        summary["limits"] = limits_json(mech, lim)
     table = _motion_table(mech, motion, units, mechanism, summary)
 
     dense = anim = drawing = None
@@ -155,7 +165,7 @@ def linkage(ctx, file, input_values, x_from, x_to, x_step, configuration, all_co
     _print(table, as_json, title)
     if lim is not None and not as_json:
         click.echo("")
-        click.echo(_limits_text(mech, lim, units))
+        click.echo("\n".join(map(terminal, limits_text(mech, lim, units).split("\n"))))
     if dense is not None:
         plot_motion(dense, [c.name for c in dense.columns[1:]], plot, title=title)
         click.echo(f"wrote {plot}", err=True)
@@ -250,6 +260,33 @@ def _inputs_text(mech: Linkage, row) -> str:
         unit = "deg" if mech.inputs[i].kind == "angle" else mech.units
         parts.append(f"input {mech.pairs[mech.inputs[i].pair].joint} = {_input_value(mech, x, i):g} {unit}")
     return ", ".join(parts) or "its only position"
+
+
+def configuration_start(mech: Linkage, dec, inputs: np.ndarray, found: list[Assembly], option: int | None,
+           file: str) -> tuple[int, str, Assembly]:
+    """The configuration to follow, where its number came from, and its pose at the first
+    position: ``--configuration`` (numbered at the first position), else the file's
+    ``configuration`` (numbered at the inputs' ``value``, then followed to the first
+    position), else 1."""
+    if option is not None or mech.configuration is None:
+        number, source = (option, "option") if option is not None else (1, "default")
+        if number > len(found):
+            raise AssemblyError(f"{mech.name}: configuration {number} does not exist at "
+                                f"{_inputs_text(mech, inputs[0])} (there are {len(found)}; see --all-configurations)")
+        return number, source, found[number - 1]
+    number = mech.configuration
+    anchor = np.array([[i.value for i in mech.inputs]], float).reshape(1, len(mech.inputs))
+    listed = found if np.array_equal(anchor, inputs[:1]) else configurations(mech, anchor[0], decomposition=dec)
+    if number > len(listed):
+        raise AssemblyError(f"{file}: 'configuration' is {number} but {mech.name} has {len(listed)} assembly "
+                            f"configuration(s) at {_inputs_text(mech, anchor[0])} (see --all-configurations)")
+    start = listed[number - 1]
+    if not np.array_equal(anchor, inputs[:1]):
+        start = assemble(mech, inputs[:1], start, decomposition=dec)
+        if np.any(start.status & Status.NOT_ASSEMBLABLE):
+            raise AssemblyError(f"{mech.name}: configuration {number} of the file (numbered at "
+                                f"{_inputs_text(mech, anchor[0])}) does not reach {_inputs_text(mech, inputs[0])}")
+    return number, "file", start
 
 
 def _require_assembled(mech: Linkage, asm: Assembly, configuration: int) -> None:
@@ -370,9 +407,9 @@ def _print(table: MotionTable, as_json: bool, title: str, key: str = "positions"
         doc = {"mechanism": doc["mechanism"], key: doc["positions"], "summary": doc["summary"]}
         click.echo(json.dumps(doc, indent=1, allow_nan=False))
         return
-    click.echo(title)
+    click.echo(terminal(title))  # names were refused with control characters; shown escaped anyway
     for k, v in table.mechanism.items():
-        click.echo(f"  {k}: {v}")
+        click.echo(f"  {k}: {terminal(v)}")
     lead = [c for c in table.columns if c.name.startswith(("input", "position", "configuration", "branch", "root"))]
     rest = [c for c in table.columns if c not in lead]
     blocks = {
@@ -383,67 +420,12 @@ def _print(table: MotionTable, as_json: bool, title: str, key: str = "positions"
     for name, cols in blocks.items():
         if cols:
             click.echo(f"\n{name}:")
-            click.echo(MotionTable(table.mechanism, lead + cols).to_text())
+            click.echo("\n".join(map(terminal, MotionTable(table.mechanism, lead + cols).to_text().split("\n"))))
     if table.summary:
         click.echo("")
         for k, v in table.summary.items():
             if k != "limits":
                 click.echo(f"{k}: {v}")
-
-
-# -- limits -------------------------------------------------------------------------------------
-
-
-def _limits(mech: Linkage, start: Assembly, output: Output, inputs, x_from, x_to):
-    """Limit positions over a full turn of an angle input, else over the sweep's range."""
-    first = mech.inputs[0] if mech.inputs else None
-    if first is None:
-        raise AssemblyError("--limits needs an input to vary")
-    if first.kind == "angle" and x_from is None and x_to is None and first.sweep is None:
-        try:
-            return limit_positions(mech, start, output)
-        except AssemblyError as exc:
-            raise AssemblyError(f"{exc}; give --from/--to where it assembles") from None
-    hi = float(inputs[-1, 0])
-    if x_to is not None:
-        hi = float(np.radians(x_to)) if first.kind == "angle" else float(x_to)
-    return limit_positions(mech, start, output, first=float(inputs[0, 0]), last=hi)
-
-
-def _limits_json(mech: Linkage, lim) -> dict:
-    out_unit = "deg" if lim.output.kind == "angle" else mech.units
-    conv = (lambda v: float(np.degrees(v))) if lim.output.kind == "angle" else float  # noqa: E731
-    in_key = "input_deg" if mech.inputs[0].kind == "angle" else f"input_{mech.units}"
-    doc = {
-        "output": lim.output.name,
-        "positions": [{in_key: _input_value(mech, p.input), f"output_{out_unit}": conv(p.output), "kind": p.kind}
-                      for p in lim.positions],
-        ("swing_deg" if lim.output.kind == "angle" else f"stroke_{mech.units}"): conv(lim.stroke),
-        f"output_min_{out_unit}": conv(lim.output_min),
-        f"output_max_{out_unit}": conv(lim.output_max),
-        "full_turn": lim.full_turn,
-    }
-    if lim.time_ratio is not None:
-        doc.update(time_ratio=lim.time_ratio, advance_deg=float(np.degrees(lim.advance)),
-                   return_deg=float(np.degrees(lim.return_)))
-    return doc
-
-
-def _limits_text(mech: Linkage, lim, units: str) -> str:
-    out_unit = "deg" if lim.output.kind == "angle" else units
-    in_unit = "deg" if mech.inputs[0].kind == "angle" else units
-    conv = np.degrees if lim.output.kind == "angle" else (lambda v: v)  # noqa: E731
-    lines = [f"limit positions of {lim.output.name} ({'angle' if lim.output.kind == 'angle' else 'slide'}):"]
-    if not lim.positions:
-        lines.append("  none: the output velocity does not vanish on the range")
-    for p in lim.positions:
-        lines.append(f"  input {_input_value(mech, p.input):.10g} {in_unit}: {p.kind} {float(conv(p.output)):.10g} {out_unit}")
-    word = "swing" if lim.output.kind == "angle" else "stroke"
-    lines.append(f"{word}: {float(conv(lim.stroke)):.10g} {out_unit}")
-    if lim.time_ratio is not None:
-        lines.append(f"time ratio: {lim.time_ratio:.10g} (advance {np.degrees(lim.advance):.6g} deg, "
-                     f"return {np.degrees(lim.return_):.6g} deg of input)")
-    return "\n".join(lines)
 
 
 # -- dense evaluations: plot, drawing, animation -------------------------------------------------

@@ -9,7 +9,7 @@ Typical use::
     motion = linkage_motion(linkage, asm, rates=[omega])    # J·q̇ = E, J·q̈ = C
 """
 
-from kinematics.assur.limits import LimitPosition, OutputLimits, limit_positions, output_series
+from kinematics.assur.limits import LimitPosition, OutputLimits, limit_positions, output_at, output_series
 from kinematics.assur.linkage_file import linkage_from_mapping, linkage_from_text
 from kinematics.assur.model import (
     GROUND,
@@ -30,6 +30,7 @@ from kinematics.assur.positions import (
     loop_closure,
 )
 from kinematics.assur.topology import AssurGroup, Body, Decomposition, decompose
+from kinematics.assur.transmission import TransmissionMinimum, transmission_angles, transmission_minima
 from kinematics.assur.velocity import LinkageMotion, linkage_motion
 
 __all__ = [
@@ -50,6 +51,7 @@ __all__ = [
     "OutputLimits",
     "PrismaticPair",
     "RevolutePair",
+    "TransmissionMinimum",
     "assemble",
     "configurations",
     "decompose",
@@ -58,5 +60,8 @@ __all__ = [
     "linkage_from_text",
     "linkage_motion",
     "loop_closure",
+    "output_at",
     "output_series",
+    "transmission_angles",
+    "transmission_minima",
 ]

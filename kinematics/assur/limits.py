@@ -24,6 +24,7 @@ R. L. Norton, *Design of Machinery*, §3.5 (toggle/limit positions, time ratio).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,11 +32,11 @@ from scipy.optimize import brentq
 
 from kinematics.assur.model import Linkage, Output, PrismaticPair
 from kinematics.assur.positions import Assembly, assemble
-from kinematics.assur.topology import decompose
+from kinematics.assur.topology import Decomposition, decompose
 from kinematics.assur.velocity import LinkageMotion, linkage_motion
 from kinematics.status import AssemblyError, Status
 
-__all__ = ["LimitPosition", "OutputLimits", "limit_positions", "output_series"]
+__all__ = ["LimitPosition", "OutputLimits", "limit_positions", "output_at", "output_series"]
 
 _XTOL = 1e-13
 _RTOL = 4 * np.finfo(float).eps
@@ -86,6 +87,41 @@ def output_series(linkage: Linkage, motion: LinkageMotion, output: Output) -> tu
         return y, motion.omega[:, output.index], motion.alpha[:, output.index]
     col = [i for i, p in enumerate(linkage.pairs) if isinstance(p, PrismaticPair)].index(output.index)
     return motion.s[:, col], motion.ds[:, col], motion.dds[:, col]
+
+
+def output_at(linkage: Linkage, start: Assembly, output: Output, *,
+              decomposition: Decomposition | None = None) -> Callable[[np.ndarray], np.ndarray]:
+    """The exact output y(x) of the configuration of ``start`` as a function of the first
+    input x (rad or length; other inputs at the start's values): an array of any shape →
+    y of the same shape (an angle on any 2π branch, rad; a slide, length). Positions where
+    the configuration does not assemble raise :class:`AssemblyError`.
+
+    Triads are tracked from the start's pose along the inputs in increasing order, so the
+    positions may come in any order.
+    """
+    dec = decompose(linkage) if decomposition is None else decomposition
+
+    def y(x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x, float)
+        flat = x.reshape(-1)
+        order = np.argsort(flat, kind="stable")
+        rows = np.repeat(start.inputs[:1], flat.size, axis=0)
+        rows[:, 0] = flat[order]
+        asm = assemble(linkage, rows, start, decomposition=dec)
+        if np.any(asm.status & Status.NOT_ASSEMBLABLE):
+            bad = float(rows[int(np.argmax((asm.status & Status.NOT_ASSEMBLABLE) != 0)), 0])
+            raise AssemblyError(f"{linkage.name}: this configuration does not assemble at input {_fmt_input(linkage, bad)}")
+        if output.kind == "angle":
+            value = asm.theta[:, output.index]
+        else:
+            pair = linkage.pairs[output.index]
+            U = asm.e[:, pair.guide] * pair.direction
+            value = (np.conj(U) * (asm.point(pair.block, pair.block_point) - asm.point(pair.guide, pair.through))).real
+        out = np.empty_like(flat)
+        out[order] = value
+        return out.reshape(x.shape)
+
+    return y
 
 
 def limit_positions(

@@ -40,6 +40,7 @@ import tomllib
 from collections.abc import Mapping
 from typing import Any
 
+from kinematics.assur.positions import MAX_CONFIGURATIONS
 from kinematics.assur.model import (
     GROUND,
     Input,
@@ -51,13 +52,13 @@ from kinematics.assur.model import (
     RevolutePair,
 )
 
-__all__ = ["MAX_CHARS", "MAX_DEPTH", "MAX_LINKS", "linkage_from_mapping", "linkage_from_text", "nesting_depth"]
+__all__ = ["MAX_CHARS", "MAX_DEPTH", "MAX_LINKS", "MAX_NAME", "plain_text_problem", "linkage_from_mapping", "linkage_from_text", "nesting_depth"]
 
-_TOP_KEYS = {"name", "units", "ground", "links", "prismatic", "inputs", "output"}
+_TOP_KEYS = {"name", "units", "configuration", "ground", "links", "prismatic", "inputs", "output"}
 _LINK_KEYS = {"joints", "length", "points"}
 _PRISMATIC_KEYS = {"name", "guide", "block", "through", "angle", "toward", "block_point", "block_angle"}
 _INPUT_KEYS = {"joint", "link", "relative_to", "value", "range"}
-_OUTPUT_KEYS = {"link", "joint"}
+_OUTPUT_KEYS = {"link", "joint", "band", "dwells"}
 #: Joints closer than this (relative to the linkage size) count as one point.
 _COINCIDENT = 1e-12
 
@@ -143,7 +144,8 @@ def linkage_from_mapping(data: Any) -> Linkage:
         raise LinkageFileError("[ground] must be a table of point = [x, y]")
     if len(ground_raw) > MAX_LINKS:
         raise LinkageFileError(f"[ground] has {len(ground_raw)} points; at most {MAX_LINKS}")
-    links: list[Link] = [Link(GROUND, {str(k): _point(v, f"ground point {k!r}") for k, v in ground_raw.items()})]
+    links: list[Link] = [Link(GROUND, {_text(k, "a ground point's name"): _point(v, f"ground point {k!r}")
+                                       for k, v in ground_raw.items()})]
 
     links_raw = data.get("links", {})
     if not isinstance(links_raw, Mapping) or not links_raw:
@@ -153,7 +155,7 @@ def linkage_from_mapping(data: Any) -> Linkage:
     for lname, spec in links_raw.items():
         if lname == GROUND:
             raise LinkageFileError(f"link name {GROUND!r} is reserved for the fixed link; use [ground]")
-        links.append(_link(str(lname), spec))
+        links.append(_link(_text(lname, "a link's name"), spec))
     index = {link.name: i for i, link in enumerate(links)}
 
     prismatic_raw = _array(data, "prismatic")
@@ -182,7 +184,8 @@ def linkage_from_mapping(data: Any) -> Linkage:
     if len(set(driven)) != len(driven):
         raise LinkageFileError("two inputs drive the same joint")
     output = _output(data.get("output"), links, index, pairs)
-    linkage = Linkage(name, units, tuple(links), pairs, inputs, output)
+    configuration = _configuration(data.get("configuration"))
+    linkage = Linkage(name, units, tuple(links), pairs, inputs, output, configuration)
     _check_dof(linkage)
     return linkage
 
@@ -196,9 +199,37 @@ def _no_unknown_keys(spec: Mapping, allowed: set[str], where: str) -> None:
         raise LinkageFileError(f"{where}: unknown key {unknown[0]!r} (expected one of {', '.join(sorted(allowed))})")
 
 
+#: Most characters of a name (the linkage's, a unit's, a link's, a point's, a pair's): names
+#: are labels, and every drawing and table repeats them.
+MAX_NAME = 200
+
+
+def _unsafe(ch: str) -> bool:
+    """A control character (C0, DEL, C1) or a bidirectional override/isolate (U+202A–202E,
+    U+2066–2069): they would act on a terminal or break XML instead of showing as text."""
+    o = ord(ch)
+    return o < 0x20 or 0x7F <= o <= 0x9F or 0x202A <= o <= 0x202E or 0x2066 <= o <= 0x2069
+
+
+def plain_text_problem(value: str, limit: int = MAX_NAME) -> str | None:
+    """Why ``value`` is not a plain name (too long, or a control character or bidirectional
+    override in it), or None."""
+    if len(value) > limit:
+        return f"has {len(value):,} characters; a name has at most {limit}"
+    bad = next((ch for ch in value if _unsafe(ch)), None)
+    if bad is not None:
+        return f"{_shown(value)} holds the control character U+{ord(bad):04X}; names are plain text"
+    return None
+
+
 def _text(value: Any, where: str) -> str:
+    """A name or label of the file: a string of at most MAX_NAME characters, none of them a
+    control character or a bidirectional override (one line naming the first)."""
     if not isinstance(value, str):
         raise LinkageFileError(f"{where} must be a string, got {_shown(value)}")
+    problem = plain_text_problem(value)
+    if problem:
+        raise LinkageFileError(f"{where} {problem}")
     return value
 
 
@@ -246,6 +277,8 @@ def _link(name: str, spec: Any) -> Link:
             raise LinkageFileError(f"{where}: 'joints' needs 'length' (the distance between them)")
         if not isinstance(joints, list) or len(joints) != 2 or not all(isinstance(j, str) for j in joints):
             raise LinkageFileError(f"{where}: 'joints' must name two joints, got {_shown(joints)}")
+        for j in joints:
+            _text(j, f"{where}: a joint's name")
         if joints[0] == joints[1]:
             raise LinkageFileError(f"{where}: 'joints' names {joints[0]!r} twice")
         length = _number(spec["length"], f"{where} 'length'")
@@ -260,7 +293,7 @@ def _link(name: str, spec: Any) -> Link:
     for pname, value in extra.items():
         if pname in points:
             raise LinkageFileError(f"{where}: point {pname!r} is already placed by 'joints'")
-        points[str(pname)] = _point(value, f"{where} point {pname!r}")
+        points[_text(pname, f"{where}: a point's name")] = _point(value, f"{where} point {pname!r}")
     return Link(name, points)
 
 
@@ -284,6 +317,7 @@ def _prismatic(k: int, spec: Mapping, links: list[Link], index: Mapping[str, int
     where = f"prismatic pair {name!r}" if isinstance(name, str) else f"prismatic pair #{k + 1}"
     if not isinstance(name, str) or not name:
         raise LinkageFileError(f"{where}: 'name' (a string) is required")
+    _text(name, f"prismatic pair #{k + 1} 'name'")
     _no_unknown_keys(spec, _PRISMATIC_KEYS, where)
     for key in ("guide", "block", "through"):
         if key not in spec:
@@ -433,6 +467,16 @@ def _input(k: int, spec: Mapping, links: list[Link], index: Mapping[str, int], p
     return Input(matching[0], "angle", link, rel, rad(value), (rad(sweep[0]), rad(sweep[1])) if sweep else None)
 
 
+def _configuration(value: Any) -> int | None:
+    """The top-level ``configuration``: an integer 1…MAX_CONFIGURATIONS (whether it exists is
+    known only once the linkage is solved at its inputs' values)."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_CONFIGURATIONS:
+        raise LinkageFileError(f"'configuration' must be an integer from 1 to {MAX_CONFIGURATIONS}, got {_shown(value)}")
+    return value
+
+
 def _output(spec: Any, links: list[Link], index: Mapping[str, int], pairs: tuple) -> Output | None:
     if spec is None:
         return None
@@ -445,7 +489,21 @@ def _output(spec: Any, links: list[Link], index: Mapping[str, int], pairs: tuple
         i = _link_ref(spec["link"], index, "[output] 'link'")
         if i == 0:
             raise LinkageFileError("[output]: the ground does not move")
-        return Output("angle", i, links[i].name)
+        band = None
+        if "band" in spec:
+            band = _number(spec["band"], "[output] 'band'")
+            if not 0 < band < 180:
+                raise LinkageFileError(f"[output] 'band' must be between 0 and 180 degrees (exclusive), got {band:g}")
+            band = math.radians(band)
+        dwells = spec.get("dwells", 1)
+        if isinstance(dwells, bool) or dwells not in (1, 2):
+            raise LinkageFileError(f"[output] 'dwells' must be 1 or 2, got {_shown(dwells)}")
+        if "dwells" in spec and band is None:
+            raise LinkageFileError("[output] 'dwells' needs 'band' (the output band within which it rests)")
+        return Output("angle", i, links[i].name, band, int(dwells))
+    for key in ("band", "dwells"):
+        if key in spec:
+            raise LinkageFileError(f"[output] {key!r} applies to a link's angle, not to a prismatic pair's displacement")
     name = spec["joint"]
     for i, pair in enumerate(pairs):
         if isinstance(pair, PrismaticPair) and pair.joint == name:

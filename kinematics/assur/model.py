@@ -116,11 +116,17 @@ class Output:
 
     ``kind == "angle"``: the angle of link ``index`` measured from the ground (rad);
     ``kind == "slide"``: the displacement of prismatic pair ``index`` (length).
+
+    ``band`` (rad, an angle output only) is the total width of the band within which the
+    output counts as at rest: with it the limit positions come with the output's dwells, the
+    ``dwells`` longest disjoint crank intervals (1 or 2) on which it stays within the band.
     """
 
     kind: Literal["angle", "slide"]
     index: int
     name: str
+    band: float | None = None
+    dwells: int = 1
 
 
 @dataclass(frozen=True, slots=True)
@@ -128,7 +134,9 @@ class Linkage:
     """A validated planar linkage (:func:`kinematics.assur.linkage_from_mapping` builds one).
 
     ``links[0]`` is the ground. ``pairs`` lists every lower pair once (a joint shared by k
-    links contributes k − 1 revolute pairs). ``inputs`` are in file order.
+    links contributes k − 1 revolute pairs). ``inputs`` are in file order. ``configuration``
+    (1-based, None: not given) is the assembly configuration the description stands for,
+    numbered as :func:`~kinematics.assur.configurations` lists them at the inputs' ``value``.
     """
 
     name: str
@@ -137,6 +145,7 @@ class Linkage:
     pairs: tuple[Pair, ...]
     inputs: tuple[Input, ...]
     output: Output | None = None
+    configuration: int | None = None
 
     @property
     def dof(self) -> int:

@@ -156,3 +156,101 @@ def test_json_document_from_a_json_file(tmp_path, capsys):
     row = json.loads(out)["positions"][0]
     assert row["s_x_mm"] == pytest.approx(40 * math.cos(math.radians(60)), abs=1e-12)
     assert row["v_x_mm_s"] == pytest.approx(-40 * math.sin(math.radians(60)) * 2 * math.pi, abs=1e-10)
+
+
+# -- the configuration a file stands for; transmission angles and dwells of --limits ------------
+
+
+def _fourbar_text(extra_top: str = "", output: str = "") -> str:
+    """examples/linkages/fourbar.toml with top-level keys added and [output] replaced."""
+    text = (EXAMPLES / "fourbar.toml").read_text()
+    body = text.replace('units = "mm"\n', f'units = "mm"\n{extra_top}')
+    return body.replace('[output]\nlink = "rocker"\n', "[output]\n" + (output or 'link = "rocker"\n'))
+
+
+def test_the_file_configuration_is_followed_and_the_option_overrides_it(tmp_path, capsys):
+    path = tmp_path / "mirror.toml"
+    path.write_text(_fourbar_text("configuration = 2\n"))
+    code, out, err = run(capsys, path, "--json")
+    assert code == 0, err
+    own = json.loads(out)
+    assert own["mechanism"]["configuration"] == 2 and own["mechanism"]["configuration_from"] == "file"
+    code, out, _ = run(capsys, EXAMPLES / "fourbar.toml", "--configuration", "2", "--json")
+    assert json.loads(out)["positions"] == own["positions"]
+    code, out, _ = run(capsys, path, "--configuration", "1", "--json")
+    doc = json.loads(out)
+    assert doc["mechanism"]["configuration_from"] == "option"
+    # the option's configuration 1 puts C on the other side: a different mechanism
+    assert doc["positions"][1]["Cy_mm"] == pytest.approx(-own["positions"][1]["Cy_mm"], abs=1e-9) or \
+        doc["positions"][1]["Cy_mm"] != pytest.approx(own["positions"][1]["Cy_mm"], abs=1e-6)
+    code, out, _ = run(capsys, EXAMPLES / "fourbar.toml", "--json")
+    assert json.loads(out)["mechanism"]["configuration_from"] == "default"
+
+
+def test_the_file_configuration_is_numbered_at_the_inputs_values(tmp_path, capsys):
+    """A triad's configurations are listed by the ternary link's angle, an order that changes
+    with the crank: the file's number is the one at the input's value, followed to the sweep."""
+    path = tmp_path / "class3.toml"
+    path.write_text((EXAMPLES / "class3_sixbar.toml").read_text().replace('units = "mm"\n', 'units = "mm"\nconfiguration = 4\n'))
+    code, out, err = run(capsys, path, "--from", "120", "--to", "180", "--step", "30", "--json")
+    assert code == 0, err
+    rows = json.loads(out)["positions"]
+    code, out, err = run(capsys, EXAMPLES / "class3_sixbar.toml", "--configuration", "4", "--from", "0", "--to", "180",
+                         "--step", "30", "--json")
+    assert code == 0, err
+    followed = json.loads(out)["positions"][4:]
+    assert [r["theta_ternary_deg"] for r in rows] == pytest.approx([r["theta_ternary_deg"] for r in followed], abs=1e-9)
+    # numbered at 120° instead, configuration 4 is another branch of the triad
+    code, out, _ = run(capsys, EXAMPLES / "class3_sixbar.toml", "--configuration", "4", "--from", "120", "--to", "180",
+                       "--step", "30", "--json")
+    other = json.loads(out)["positions"]
+    assert other[0]["theta_ternary_deg"] != pytest.approx(rows[0]["theta_ternary_deg"], abs=1e-3)
+
+
+def test_a_file_configuration_that_does_not_exist_is_one_line(tmp_path, capsys):
+    path = tmp_path / "three.toml"
+    path.write_text(_fourbar_text("configuration = 3\n"))
+    code, out, err = run(capsys, path, "--limits")
+    assert code == 2 and out == ""
+    assert err.count("\n") == 1 and "'configuration' is 3 but Four-bar P204001 has 2 assembly configuration(s)" in err
+    code, out, err = run(capsys, path, "--configuration", "2")  # the option overrides the file
+    assert code == 0, err
+
+
+def test_limits_give_transmission_angles_and_dwells(tmp_path, capsys):
+    """The four-bar's smallest transmission angle against the closed form on a fine grid; the
+    rocker's dwells within a band against a brute-force 0.001° grid."""
+    from kinematics.fourbar import fourbar_motion, transmission_angle
+
+    band = 2.0
+    path = tmp_path / "rest.toml"
+    path.write_text(_fourbar_text(output=f'link = "rocker"\nband = {band}\ndwells = 2\n'))
+    code, out, err = run(capsys, path, "--limits", "--json")
+    assert code == 0, err
+    lim = json.loads(out)["summary"]["limits"]
+    phi = np.radians(np.arange(0, 360, 0.001))
+    m = fourbar_motion(50, 80, 80, 100, phi, 1)
+    (mu,) = lim["transmission"]
+    assert mu["joint"] == "C"
+    assert mu["min_deg"] == pytest.approx(math.degrees(float(np.minimum(transmission_angle(m), np.pi - transmission_angle(m)).min())), abs=1e-6)
+    assert lim["band_deg"] == band and len(lim["dwells"]) == 2
+    psi = np.degrees(np.unwrap(m.gamma))
+    deg = np.degrees(phi)
+    for d in lim["dwells"]:
+        lo, hi = d["interval_deg"]
+        inside = np.mod(deg - lo, 360) <= np.mod(hi - lo, 360)
+        assert np.ptp(psi[inside]) <= band + 1e-9
+        assert d["dwell_deg"] == pytest.approx(np.mod(hi - lo, 360), abs=1e-9)
+        for widen in ((lo - 0.005, hi), (lo, hi + 0.005)):  # the ends are where the band breaks
+            wide = np.mod(deg - widen[0], 360) <= np.mod(widen[1] - widen[0], 360)
+            assert np.ptp(psi[wide]) > band
+    code, out, err = run(capsys, path, "--limits")
+    assert code == 0, err
+    assert f"smallest transmission angle at C: {lim['transmission'][0]['min_deg']:.10g} deg" in out
+    assert f"dwell 2 within a {band:g} deg band: input" in out
+    # --band measures another output; a slide has no band
+    code, out, err = run(capsys, EXAMPLES / "fourbar.toml", "--limits", "--band", str(band), "--dwells", "2", "--json")
+    assert json.loads(out)["summary"]["limits"]["dwells"] == lim["dwells"]
+    code, out, err = run(capsys, EXAMPLES / "shaper.toml", "--limits", "--band", "1", "--json")
+    assert code == 0, err
+    assert json.loads(out)["summary"]["limits"]["dwells_not_measured"] == "the output is a slide (a band is an angle)"

@@ -41,7 +41,7 @@ def commands(url: str, tmp: str) -> dict[str, list[str]]:
         "atlas info": ["atlas", "info", "--db", url],
         "atlas build": ["atlas", "build", "--db", url, "--preset", "demo", "--workers", "1"],
         "query": ["query", "--db", url, "--dwell", "60", "--swing", "30"],
-        "report": ["report", "--db", url, "--candidates", "x", "--out", f"{tmp}/r"],
+        "report": ["report", "--db", url, "--candidates", "1-rpr0.0@20", "--out", f"{tmp}/r"],
         "bench query": ["bench", "query", "--db", url],
         "demo": ["demo", "--db", url, "--out", f"{tmp}/d"],
         "bench faults": ["bench", "faults", "--trials", "1", "--db-kind", "postgresql", "--postgres", url],

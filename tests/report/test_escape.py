@@ -64,8 +64,15 @@ def _hostile_linkage(tmp_path: Path, name: str) -> Path:
 @pytest.mark.parametrize("name", HOSTILE)
 def test_analyze_linkage_animation_and_drawing(tmp_path, capsys, name):
     from cli.main import main
+    from kinematics.assur.linkage_file import MAX_NAME
 
     path = _hostile_linkage(tmp_path, name)
+    if len(name) > MAX_NAME:  # a name is a label: longer ones are refused in one line
+        assert main(["analyze", "linkage", str(path), "--draw", str(tmp_path / "never.svg")]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and f"a name has at most {MAX_NAME}" in err
+        assert not (tmp_path / "never.svg").exists()
+        return
     anim, svg, draw = tmp_path / "a.html", tmp_path / "a.svg", tmp_path / "d.svg"
     code = main(["analyze", "linkage", str(path), "--step", "30", "--animate", str(anim)])
     err = capsys.readouterr().err
