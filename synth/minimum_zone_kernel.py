@@ -5,7 +5,7 @@ linearised about the current geometry, with scalar accumulators and closed-form 
 solves; the band's peak over a window of samples raised to the parabola's vertex; and the
 scalar twin of :func:`synth.minimum_zone.path_deviation`. The numpy form made a dozen passes
 over every row's samples per Lawson iteration and was a fifth of the atlas build
-(docs/speed-and-scale.md §1, §1a). A row's fit does not depend on the other rows of a batch.
+(docs/atlas.md, "Speed"). A row's fit does not depend on the other rows of a batch.
 Units: crank lengths, radians.
 """
 

@@ -348,7 +348,7 @@ def test_help_shows_the_request_defaults_and_ranges(capsys):
 def test_no_match_names_the_failed_constraint_and_the_nearest_six_bar(capsys, atlas_path):
     """An RRR request none of whose fitted six-bars meets it, nor any of its nearest misses
     refined (150°/90°: the nearest rests ~100°, out of the reach's ±20 % box; 150°/30° and
-    150°/60° are reached since sessions 16 and 17): the no-match names the constraint that
+    150°/60° are reached): the no-match names the constraint that
     rejected most, shows the nearest six-bar and a request its figures meet."""
     args = ["query", "--db", atlas_path, "--dwell", "150", "--swing", "90", "--output", "rrr"]
     code, out, err = run(capsys, *args, "--json")
