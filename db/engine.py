@@ -74,6 +74,8 @@ from sqlalchemy.engine import URL, make_url
 from sqlalchemy.exc import ArgumentError, DatabaseError, DBAPIError, OperationalError
 
 from db.schema import APPLICATION, SCHEMA_VERSION, Base, Build, Linkage, Meta, Shard
+from db.sidefiles import (Ownership, journal_verdict, mark_commits, new_atlas_id, page_size, read_page_one,
+                          wal_page_size, wal_verdict)
 
 __all__ = [
     "AtlasError", "atlas_name", "check_url", "damaged", "database_url", "display_target", "open_atlas",
@@ -252,7 +254,7 @@ def open_atlas(target: str, *, create: bool = False, readonly: bool = False) -> 
     if path is not None:
         existing = _check_sqlite_file(path, target, create=create)
         if existing:
-            header = _read_header(path)
+            header = read_page_one(path)
             hot = _check_side_files(path, target, header, readonly=readonly)
             read_only_url = _read_only_url(path, header)
             # Look before touching: a file that turns out not to be an atlas (or a damaged
@@ -270,85 +272,45 @@ def open_atlas(target: str, *, create: bool = False, readonly: bool = False) -> 
                 url = read_only_url
     engine = _engine(url, target, readonly=readonly)
     if engine.dialect.name == "sqlite":
-        _sqlite_pragmas(engine, wal=create and not readonly and not existing)
+        _sqlite_pragmas(engine, wal=create and not readonly and not existing, writer=create and not readonly)
     return _checked(engine, target, create=create and not readonly)
 
 
-#: Magic numbers of a WAL file header (the low bit: checksums in big-endian words).
-_WAL_MAGIC = (0x377F0682, 0x377F0683)
-_WAL_HEADER = 32
-
-
-def _read_header(path: Path) -> bytes:
-    """The 100-byte database header (shorter if the file is: SQLite then says what is wrong)."""
-    try:
-        with path.open("rb") as fh:
-            return fh.read(100)
-    except OSError:
-        return b""
-
-
-def _page_size(header: bytes) -> int | None:
-    if len(header) < 100:
-        return None
-    size = int.from_bytes(header[16:18], "big")
-    return 65536 if size == 1 else size
-
-
-def _wal_checksum(data: bytes, big_endian: bool) -> tuple[int, int]:
-    """SQLite's WAL checksum of ``data`` (a multiple of 8 bytes), as (s0, s1)."""
-    order = "big" if big_endian else "little"
-    s0 = s1 = 0
-    for i in range(0, len(data), 8):
-        s0 = (s0 + int.from_bytes(data[i:i + 4], order) + s1) & 0xFFFFFFFF
-        s1 = (s1 + int.from_bytes(data[i + 4:i + 8], order) + s0) & 0xFFFFFFFF
-    return s0, s1
-
-
-def wal_page_size(wal: Path) -> int | None:
-    """The page size a ``-wal`` file declares, or None if SQLite would ignore the file (too
-    short, wrong magic number or header checksum: then it holds nothing that is applied)."""
-    try:
-        with wal.open("rb") as fh:
-            head = fh.read(_WAL_HEADER)
-    except OSError:
-        return None
-    if len(head) < _WAL_HEADER:
-        return None
-    magic = int.from_bytes(head[0:4], "big")
-    if magic not in _WAL_MAGIC:
-        return None
-    stored = (int.from_bytes(head[24:28], "big"), int.from_bytes(head[28:32], "big"))
-    if _wal_checksum(head[:24], big_endian=bool(magic & 1)) != stored:
-        return None
-    return int.from_bytes(head[8:12], "big")
-
-
-def _check_side_files(path: Path, target: str, header: bytes, *, readonly: bool) -> bool:
-    """Refuse a ``-wal`` that cannot belong to the file and, for readers, an unfinished
-    rollback; True when a rollback journal of a killed write lies beside the file."""
+def _check_side_files(path: Path, target: str, page_one: bytes, *, readonly: bool) -> bool:
+    """Refuse a ``-journal`` or ``-wal`` beside ``path`` that is not proven the atlas's own
+    (:mod:`db.sidefiles`), and, for readers, the atlas's own unfinished rollback; True when the
+    atlas's own rollback journal of a killed write lies beside it (a build rolls it back)."""
     name = display_target(target)
-    wal = path.with_name(path.name + "-wal")
-    page_size = _page_size(header)
-    if wal.exists() and page_size is not None:
-        if header[18] == 1:
-            raise AtlasError(
-                f"{name!r} is a complete atlas (it keeps no write-ahead log) but {wal.name!r} lies beside it, "
-                "which is not its own: move that file away (SQLite would apply it), or restore the atlas"
-            )
-        wal_page = wal_page_size(wal)
-        if wal_page is not None and wal_page != page_size:
-            raise AtlasError(
-                f"{wal.name!r} beside {name!r} is the write-ahead log of another database (page size {wal_page}, "
-                f"the atlas has {page_size}): move that file away (SQLite would apply it), or restore the atlas"
-            )
     journal = path.with_name(path.name + "-journal")
-    hot = journal.exists() and journal.stat().st_size > 0
+    try:
+        file_size = path.stat().st_size
+    except OSError:
+        file_size = 0
+    verdict = journal_verdict(journal, page_one, file_size)
+    if verdict.ownership is Ownership.FOREIGN:
+        raise AtlasError(
+            f"{journal.name!r} beside {name!r} is not the atlas's own rollback journal ({verdict.why}): "
+            "move that file away (SQLite would roll it back into the atlas), or restore the atlas"
+        )
+    hot = verdict.ownership is Ownership.OWN
     if hot and readonly:
         raise AtlasError(
             f"{name!r} has an unfinished write ({journal.name!r} beside it, left by a stopped build): "
             "run dwell atlas build on it to roll it back and resume, or restore the atlas"
         )
+    wal = path.with_name(path.name + "-wal")
+    if wal.exists() and page_size(page_one) is not None:
+        if page_one[18] == 1:
+            raise AtlasError(
+                f"{name!r} is a complete atlas (it keeps no write-ahead log) but {wal.name!r} lies beside it, "
+                "which is not its own: move that file away (SQLite would apply it), or restore the atlas"
+            )
+        verdict = wal_verdict(wal, page_one)
+        if verdict.ownership is Ownership.FOREIGN:
+            raise AtlasError(
+                f"{wal.name!r} beside {name!r} is not the atlas's own write-ahead log ({verdict.why}): "
+                "move that file away (SQLite would apply it), or restore the atlas"
+            )
     return hot
 
 
@@ -370,6 +332,9 @@ def start_writing(engine: Engine) -> None:
         return
     with engine.connect() as conn:
         if str(conn.exec_driver_sql("PRAGMA journal_mode").scalar()).lower() != "wal":
+            cur = conn.connection.dbapi_connection.cursor()
+            _name_atlas(cur)  # an atlas made before ids: named while the file is still in rollback mode
+            cur.close()
             conn.exec_driver_sql("PRAGMA journal_mode=WAL")
 
 
@@ -540,7 +505,7 @@ def _remove_new_side_files(path: Path, before: set[Path]) -> None:
 SQLITE_PAGE_SIZE = 16384
 
 
-def _sqlite_pragmas(engine: Engine, *, wal: bool) -> None:
+def _sqlite_pragmas(engine: Engine, *, wal: bool, writer: bool) -> None:
     @event.listens_for(engine, "connect")
     def _on_connect(dbapi_conn, _record):  # noqa: ANN001 - DBAPI connection
         cur = dbapi_conn.cursor()
@@ -548,11 +513,23 @@ def _sqlite_pragmas(engine: Engine, *, wal: bool) -> None:
         cur.execute("PRAGMA busy_timeout=30000")
         if wal:  # a new file; an existing one changes mode when a build writes (start_writing)
             cur.execute(f"PRAGMA page_size={SQLITE_PAGE_SIZE}")  # before the first table: fixed from then on
+            _name_atlas(cur)  # in rollback mode: the file itself holds the id (db.sidefiles)
             cur.execute("PRAGMA journal_mode=WAL")
         cur.execute("PRAGMA journal_mode")
         if str(cur.fetchone()[0]).lower() == "wal":  # durable in WAL mode, unlike in rollback mode
             cur.execute("PRAGMA synchronous=NORMAL")
         cur.close()
+
+    if writer:
+        mark_commits(engine)
+
+
+def _name_atlas(cur: Any) -> None:
+    """Give the database on ``cur`` its atlas id (:mod:`db.sidefiles`) unless it has one.
+    Call it in rollback-journal mode only: in WAL mode the id would reach the log, not the file."""
+    cur.execute("PRAGMA user_version")
+    if int(cur.fetchone()[0]) == 0:
+        cur.execute(f"PRAGMA user_version={new_atlas_id()}")
 
 
 def _check_or_create_schema(engine: Engine, target: str, *, create: bool, empty_ok: bool = False) -> None:
