@@ -158,7 +158,7 @@ def info(db, as_json, verify):
     from db.engine import damaged, open_atlas
     from db.summary import atlas_summary, format_summary, quick_check, verify_atlas
 
-    engine = open_atlas(db, readonly=True)
+    engine = open_atlas(db, readonly=True, check_structure=False)  # the whole check follows
     try:
         checked = verify_atlas(engine) if verify else None
         broken = None if verify else quick_check(engine)  # --verify runs the full integrity check

@@ -34,6 +34,10 @@ _SQLITE_FILE_PROBLEMS = {
 }
 
 
+#: How pysqlite says a stored text is not UTF-8 (a damaged record; SQLite itself never checks).
+_UNDECODABLE = "Could not decode to UTF-8"
+
+
 def _database_problem(exc: BaseException) -> str | None:
     """The hint for a database error caused by the atlas's file or server, else None."""
     sa_exc = sys.modules.get("sqlalchemy.exc")
@@ -42,6 +46,8 @@ def _database_problem(exc: BaseException) -> str | None:
     if exc.connection_invalidated:
         return "the connection to the database server was lost"
     name = getattr(exc.orig, "sqlite_errorname", None) or ""
+    if not name and _UNDECODABLE in str(exc.orig):  # pysqlite's own error: a text whose bytes are not UTF-8
+        return _SQLITE_FILE_PROBLEMS["SQLITE_CORRUPT"]
     return next((hint for code, hint in _SQLITE_FILE_PROBLEMS.items() if name == code or name.startswith(code + "_")),
                 None)
 
@@ -67,6 +73,8 @@ def user_error_line(exc: BaseException) -> str:
             msg = f"{ctx.command_path}: {msg}"
     elif problem is not None:
         text = str(exc.orig).strip()  # the driver's words, without SQLAlchemy's statement dump
+        if _UNDECODABLE in text:  # not the damaged bytes themselves: they may hold terminal controls
+            text = text.split(" with text ", 1)[0]
         msg = f"atlas database error: {text.splitlines()[0] if text else type(exc.orig).__name__} ({problem})"
     else:
         msg = str(exc)

@@ -110,11 +110,28 @@ def _layout(model: type) -> tuple[bytes, np.dtype, tuple[tuple[str, str, int], .
 
 def _text(values: Sequence[str], width: int) -> NDArray[np.bytes_]:
     """UTF-8 of each text (a few distinct ones: each is encoded once), zero-padded to ``width``."""
+    bad = next((v for v in values if not isinstance(v, str)), None)
+    if bad is not None:  # a damaged record: SQLite keeps whatever type a value has, whatever the column says
+        raise ValueError(f"a {type(bad).__name__} value where a text is stored")
     encoded = {v: v.encode() for v in set(values)}
     if any(len(b) > width for b in encoded.values()):
         longest = max(encoded, key=lambda v: len(encoded[v]))
         raise ValueError(f"text {longest!r} is longer than its column's {width} bytes")
     return np.array([encoded[v] for v in values], dtype=f"S{width}")
+
+
+def _numbers(values: Any, kind: type) -> Any:
+    """``values`` if every one is a number of the column's ``kind`` (None for NULL, an int
+    also in a float column), else ValueError: numpy would read a text "12" as 12."""
+    if isinstance(values, np.ndarray) and values.dtype.kind in ("iuf" if kind is float else "iu"):
+        return values
+    if isinstance(values, np.ndarray) and values.dtype.kind == "f":
+        raise ValueError("a real value where an integer is stored")
+    allowed = (int, float, np.integer, np.floating) if kind is float else (int, np.integer)
+    bad = next((v for v in values if v is not None and (isinstance(v, bool) or not isinstance(v, allowed))), None)
+    if bad is not None:
+        raise ValueError(f"a {type(bad).__name__} value where {'a number' if kind is float else 'an integer'} is stored")
+    return values
 
 
 def _records(model: type, table: TableColumns) -> bytes:
@@ -126,8 +143,11 @@ def _records(model: type, table: TableColumns) -> bytes:
     out = np.zeros(n, dtype)
     for name, kind, width in spec:
         values = table.values[name]
-        value = (rounded_bits(values) if kind == "float" else np.asarray(values, np.int64) if kind == "int"
-                 else _text(values, width))
+        try:
+            value = (rounded_bits(_numbers(values, float)) if kind == "float"
+                     else np.asarray(_numbers(values, int), np.int64) if kind == "int" else _text(values, width))
+        except (TypeError, ValueError, OverflowError) as exc:
+            raise ValueError(f"column {model.__tablename__}.{name}: {exc}") from None
         null = table.nulls.get(name)
         if null is not None:
             value = np.where(null, np.zeros(1, value.dtype), value)
@@ -219,5 +239,9 @@ def _shard_digests(conn: Connection, build_id: int | None) -> dict[int, str]:
                     by_shard.setdefault(index, []).append(row)
             names = [c.name for c in cols]
             for index, rows in by_shard.items():
-                hashers[index].update(_records(model, TableColumns.of_rows(names, rows)))
+                try:
+                    columns = TableColumns.of_rows(names, rows)
+                except (TypeError, ValueError, OverflowError):  # e.g. a blob in a number column
+                    raise ValueError(f"table {model.__tablename__}: a value of the wrong type in shard {index}") from None
+                hashers[index].update(_records(model, columns))
     return {index: h.hexdigest() for index, h in sorted(hashers.items())}

@@ -27,19 +27,17 @@ SQLite journal modes and the files beside an atlas (``-wal``, ``-shm``, ``-journ
   is complete, switches the file to rollback (DELETE) journal mode (:func:`settle_sqlite`):
   a complete atlas is one file with nothing beside it, and readers open it ``mode=ro``
   without creating anything — so it can be read from a read-only folder or medium;
-* SQLite applies any ``-wal`` file it finds beside a database, and a WAL holds no identifier
-  of its database (its salts and checksums only chain its own frames), so ownership cannot be
-  proven from the file. Hence, before anything opens an existing file
-  (:func:`_check_side_files`): a ``-wal`` beside a file in DELETE mode (byte 18 of the header
-  is 1: every complete atlas) is refused — its own WAL was folded in and deleted before the
-  switch; beside a file in WAL mode (a build in progress, or an atlas of an older
-  dwell-atlas) a ``-wal`` is refused when its header's page size differs from the file's
-  (SQLite would read its frames as pages of the wrong size); a ``-wal`` with a bad magic
-  number or header checksum holds nothing SQLite would apply. A WAL-mode atlas in a folder
-  that cannot be written, with no ``-wal`` to apply, is read ``immutable=1`` (nothing to
-  miss, no ``-shm`` needed);
-* a ``-journal`` (rollback journal of a killed write) is rolled back by the next build;
-  read-only commands refuse such a file (they may not write the rollback).
+* SQLite applies any ``-journal`` or ``-wal`` it finds beside a database, and neither names
+  its database. An atlas carries a random id in its header and its builders put page 1 into
+  every transaction, so :mod:`db.sidefiles` can tell the atlas's own side files from another
+  database's before anything opens the file (:func:`_check_side_files`; the threat model is
+  in docs/atlas-files.md): another database's journal or log is refused by every command, a
+  ``-wal`` beside a complete atlas (DELETE mode) always; the atlas's own journal of a killed
+  write is rolled back by the next build, readers refuse it (they may not write). A WAL-mode
+  atlas in a folder that cannot be written, with no ``-wal`` to apply, is read
+  ``immutable=1`` (nothing to miss, no ``-shm`` needed);
+* an existing atlas gets the structure check it can afford on every open
+  (:data:`WHOLE_CHECK_BYTES`).
 
 A refusal changes and creates nothing: the file is only read, by our own code, first.
 """
@@ -49,6 +47,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import tempfile
 from pathlib import Path
 from typing import Any
 from urllib.parse import unquote, unquote_plus
@@ -74,10 +73,12 @@ from sqlalchemy.engine import URL, make_url
 from sqlalchemy.exc import ArgumentError, DatabaseError, DBAPIError, OperationalError
 
 from db.schema import APPLICATION, SCHEMA_VERSION, Base, Build, Linkage, Meta, Shard
+from db.sidefiles import (Ownership, journal_verdict, mark_commits, new_atlas_id, page_size, read_page_one,
+                          wal_page_size, wal_verdict)
 
 __all__ = [
-    "AtlasError", "atlas_name", "check_url", "damaged", "database_url", "display_target", "open_atlas",
-    "scrub", "settle_sqlite", "sqlite_path", "start_writing",
+    "BUILD_STATUSES", "WHOLE_CHECK_BYTES", "AtlasError", "atlas_name", "check_url", "damaged", "database_url",
+    "display_target", "open_atlas", "scrub", "settle_sqlite", "sqlite_path", "start_writing", "structure_check",
 ]
 
 _SQLITE_MAGIC = b"SQLite format 3\x00"
@@ -97,7 +98,11 @@ RECOVER = "restore a copy of the atlas or rebuild it (dwell atlas build --replac
 
 def damaged(target: str, problem: str) -> AtlasError:
     """The one-line error for an atlas whose content is damaged: ``problem`` names what is
-    wrong (e.g. "3 dwell rows name a segment that does not exist")."""
+    wrong (e.g. "3 dwell rows name a segment that does not exist"). A stored text the driver
+    quotes is left out, and control characters are escaped: damaged bytes never reach the terminal."""
+    if "Could not decode to UTF-8" in problem:
+        problem = problem.split(" with text ", 1)[0]
+    problem = "".join(c if c.isprintable() else repr(c)[1:-1] for c in problem)
     return AtlasError(f"atlas {display_target(target)!r} is damaged: {problem}; {RECOVER}")
 
 
@@ -114,10 +119,15 @@ def database_url(target: str) -> str:
     """A SQLAlchemy URL from ``target``: a URL as is, anything else a SQLite file path.
 
     A bare ``postgresql://`` (or ``postgres://``) URL gets the psycopg (3) driver, the one
-    the ``postgres`` extra installs (SQLAlchemy 2.0 would pick psycopg2 for it).
+    the ``postgres`` extra installs (SQLAlchemy 2.0 would pick psycopg2 for it). A path that
+    cannot be resolved (a symlink loop) is one :class:`AtlasError`.
     """
     if "://" not in target:
-        return f"sqlite:///{Path(target).expanduser().resolve()}"
+        try:
+            return f"sqlite:///{Path(target).expanduser().resolve()}"
+        except (RuntimeError, OSError) as exc:  # RuntimeError: Python 3.11's "Symlink loop"
+            why = getattr(exc, "strerror", None) or "a symlink loop"
+            raise AtlasError(f"cannot use {display_target(target)!r} as an atlas path: {why}") from None
     scheme, rest = target.split("://", 1)
     if scheme in ("postgresql", "postgres"):
         return f"postgresql+psycopg://{rest}"
@@ -176,9 +186,46 @@ def _secrets(target: str) -> list[str]:
                     # a raw '&' makes the value's tail other options, which drivers name in
                     # errors: hide those pieces too (not 1-2 characters: that garbles messages)
                     pieces = re.split(r"[&=+\s]", f"{to_end}&{unquote_plus(to_end)}")
-                    found += [value, to_end, *(p for p in pieces if len(p) >= 3)]
+                    # (an option's name stays: it is the tail's key, and the message must name it)
+                    found += [value, to_end, *(p for p in pieces if len(p) >= 3 and p.lower() not in _LIBPQ_KEYS)]
     found += [unquote_plus(v) for v in found] + [unquote(v) for v in found]
     return sorted({v for v in found if v}, key=len, reverse=True)
+
+
+#: libpq's connection keywords (PostgreSQL manual, "Parameter Key Words"): a ``--db`` holding
+#: ``key=value`` pairs with one of these is a libpq connection string, not a file name.
+_LIBPQ_KEYS = frozenset({
+    "host", "hostaddr", "port", "dbname", "user", "password", "passfile", "require_auth", "channel_binding",
+    "connect_timeout", "client_encoding", "options", "application_name", "fallback_application_name", "keepalives",
+    "keepalives_idle", "keepalives_interval", "keepalives_count", "tcp_user_timeout", "replication", "gssencmode",
+    "sslmode", "requiressl", "sslcompression", "sslcert", "sslkey", "sslpassword", "sslcertmode", "sslrootcert",
+    "sslcrl", "sslcrldir", "sslsni", "requirepeer", "ssl_min_protocol_version", "ssl_max_protocol_version",
+    "krbsrvname", "gsslib", "gssdelegation", "service", "target_session_attrs", "load_balance_hosts",
+})
+_KEY = re.compile(r"(?:^|\s)([A-Za-z_]+)\s*=")
+#: Names a URL's scheme starts with (SQLAlchemy's dialects and the usual misspellings of one).
+_DIALECTS = ("postgresql", "postgres", "psql", "pgsql", "sqlite", "mysql", "mariadb", "oracle", "mssql", "cockroachdb")
+#: "scheme:" (one word of two letters or more, a driver after "+") at the start of a value
+#: without "://": a URL with a slash or colon missing.
+_SCHEME_START = re.compile(r"\s*([A-Za-z][A-Za-z0-9.\-]+(?:\+[A-Za-z0-9_.\-]+)?)(:|[;|\\/]+)")
+
+
+def _connection_string_shape(target: str) -> str | None:
+    """What ``target`` looks like when it is neither a path nor a well-formed URL but a
+    connection string or a mistyped URL ("a libpq connection string (keys host, password)",
+    "a URL missing '://' after 'postgresql'"); None for a path or a URL. Names no value."""
+    if "://" in target:
+        return None
+    keys = [k for k in _KEY.findall(target) if k.lower() in _LIBPQ_KEYS]
+    if keys:
+        return f"a libpq connection string (keys {', '.join(dict.fromkeys(k.lower() for k in keys))})"
+    scheme = _SCHEME_START.match(target)
+    dialect = scheme is not None and scheme.group(1).split("+")[0].lower() in _DIALECTS
+    if scheme and (scheme.group(2) == ":" or (dialect and scheme.group(2) != "/")):
+        return f"a URL missing '://' after its scheme {scheme.group(1)!r}"
+    if "@" in target and ":" in target[:target.rfind("@")]:
+        return "a URL without its scheme (user:password@host…)"
+    return None
 
 
 def display_target(target: str) -> str:
@@ -187,9 +234,11 @@ def display_target(target: str) -> str:
     The one masking function: a userinfo password (also one with unescaped ``@ : / # ?``),
     and the value of every query key containing ``password`` (any case: ``password``,
     ``sslpassword``, …) or ``passfile``. A URL whose host part cannot be a host (e.g. a
-    password without ``@``) shows only its scheme. Paths (no ``://``) are shown as given."""
+    password without ``@``) shows only its scheme. A connection string or mistyped URL (see
+    :func:`check_url`) shows only what it looks like. Paths (no ``://``) are shown as given."""
     if "://" not in target:
-        return target
+        shape = _connection_string_shape(target)
+        return target if shape is None else f"<{shape}>"
     scheme, rest = target.split("://", 1)
     if _ambiguous(rest):
         return f"{scheme}://…"
@@ -223,9 +272,11 @@ def scrub(message: str, target: str) -> str:
 
 def sqlite_path(target: str) -> Path | None:
     """The file behind ``target`` if it names an SQLite file (None for other URLs, memory)."""
+    if _connection_string_shape(target) is not None:
+        return None  # refused by check_url, never a file
     try:
         return _sqlite_path(database_url(target))
-    except (ArgumentError, ValueError):  # ValueError: a port that is not a number
+    except (ArgumentError, ValueError, AtlasError):  # ValueError: a port that is not a number
         return None
 
 
@@ -236,23 +287,50 @@ def _sqlite_path(url: str) -> Path | None:
     return Path(u.database)
 
 
-def open_atlas(target: str, *, create: bool = False, readonly: bool = False) -> Engine:
+#: An SQLite atlas up to this size gets SQLite's whole ``PRAGMA quick_check`` whenever it is
+#: opened (the demo atlas, 26 MB: ~0.04 s). A bigger one gets it on its small tables (meta,
+#: build, shard), and every page a command reads is checked as SQLite loads it
+#: (``cell_size_check``): the whole check of the 200 MB ``standard`` atlas takes 3–6 s, a
+#: hundred times its sampled query (docs/atlas-files.md).
+WHOLE_CHECK_BYTES = 64 * 2**20
+#: The tables a big atlas's bounded check covers (a few rows each, read by every command).
+_SMALL_TABLES = ("meta", "build", "shard")
+
+
+def structure_check(engine: Engine, *, whole: bool) -> str | None:
+    """SQLite's ``PRAGMA quick_check`` (page and b-tree structure, no index-to-row matching)
+    of the whole file (``whole``) or of its small tables: None when it passes or the database
+    is not SQLite, else its first complaint."""
+    if engine.dialect.name != "sqlite":
+        return None
+    with engine.connect() as conn:
+        for table in ((None,) if whole else _SMALL_TABLES):
+            rows = [r[0] for r in conn.exec_driver_sql("PRAGMA quick_check(1)" if table is None
+                                                       else f"PRAGMA quick_check({table})")]
+            if rows != ["ok"]:
+                return f"SQLite quick check failed: {rows[0]}"
+    return None
+
+
+def open_atlas(target: str, *, create: bool = False, readonly: bool = False, check_structure: bool = True) -> Engine:
     """Open (or with ``create`` make) the atlas at ``target`` (path or SQLAlchemy URL).
 
     SQLite: foreign keys on, a busy timeout; a new file is made in WAL mode, an existing one
     keeps its journal mode until a build writes (:func:`start_writing`). ``readonly`` opens
     SQLite files read-only (``mode=ro``; ``immutable=1`` for a WAL-mode file in a folder
     that cannot be written and with no ``-wal`` beside it). The files beside an existing
-    atlas are checked before anything opens it (module docstring).
+    atlas are checked before anything opens it (module docstring). An existing SQLite atlas
+    then gets the structure check it can afford (:data:`WHOLE_CHECK_BYTES`) unless
+    ``check_structure`` is False (``atlas info`` runs the whole one itself).
     """
-    url = database_url(target)
     check_url(target)
+    url = database_url(target)
     path = _sqlite_path(url)
     existing = False
     if path is not None:
         existing = _check_sqlite_file(path, target, create=create)
         if existing:
-            header = _read_header(path)
+            header = read_page_one(path)
             hot = _check_side_files(path, target, header, readonly=readonly)
             read_only_url = _read_only_url(path, header)
             # Look before touching: a file that turns out not to be an atlas (or a damaged
@@ -270,85 +348,55 @@ def open_atlas(target: str, *, create: bool = False, readonly: bool = False) -> 
                 url = read_only_url
     engine = _engine(url, target, readonly=readonly)
     if engine.dialect.name == "sqlite":
-        _sqlite_pragmas(engine, wal=create and not readonly and not existing)
-    return _checked(engine, target, create=create and not readonly)
+        _sqlite_pragmas(engine, wal=create and not readonly and not existing, writer=create and not readonly)
+    engine = _checked(engine, target, create=create and not readonly)
+    if existing and check_structure:
+        try:
+            problem = structure_check(engine, whole=path.stat().st_size <= WHOLE_CHECK_BYTES)
+        except (DatabaseError, OSError) as exc:
+            problem = _first_line(exc)
+        if problem:
+            engine.dispose()
+            raise damaged(target, problem)
+    return engine
 
 
-#: Magic numbers of a WAL file header (the low bit: checksums in big-endian words).
-_WAL_MAGIC = (0x377F0682, 0x377F0683)
-_WAL_HEADER = 32
-
-
-def _read_header(path: Path) -> bytes:
-    """The 100-byte database header (shorter if the file is: SQLite then says what is wrong)."""
-    try:
-        with path.open("rb") as fh:
-            return fh.read(100)
-    except OSError:
-        return b""
-
-
-def _page_size(header: bytes) -> int | None:
-    if len(header) < 100:
-        return None
-    size = int.from_bytes(header[16:18], "big")
-    return 65536 if size == 1 else size
-
-
-def _wal_checksum(data: bytes, big_endian: bool) -> tuple[int, int]:
-    """SQLite's WAL checksum of ``data`` (a multiple of 8 bytes), as (s0, s1)."""
-    order = "big" if big_endian else "little"
-    s0 = s1 = 0
-    for i in range(0, len(data), 8):
-        s0 = (s0 + int.from_bytes(data[i:i + 4], order) + s1) & 0xFFFFFFFF
-        s1 = (s1 + int.from_bytes(data[i + 4:i + 8], order) + s0) & 0xFFFFFFFF
-    return s0, s1
-
-
-def wal_page_size(wal: Path) -> int | None:
-    """The page size a ``-wal`` file declares, or None if SQLite would ignore the file (too
-    short, wrong magic number or header checksum: then it holds nothing that is applied)."""
-    try:
-        with wal.open("rb") as fh:
-            head = fh.read(_WAL_HEADER)
-    except OSError:
-        return None
-    if len(head) < _WAL_HEADER:
-        return None
-    magic = int.from_bytes(head[0:4], "big")
-    if magic not in _WAL_MAGIC:
-        return None
-    stored = (int.from_bytes(head[24:28], "big"), int.from_bytes(head[28:32], "big"))
-    if _wal_checksum(head[:24], big_endian=bool(magic & 1)) != stored:
-        return None
-    return int.from_bytes(head[8:12], "big")
-
-
-def _check_side_files(path: Path, target: str, header: bytes, *, readonly: bool) -> bool:
-    """Refuse a ``-wal`` that cannot belong to the file and, for readers, an unfinished
-    rollback; True when a rollback journal of a killed write lies beside the file."""
+def _check_side_files(path: Path, target: str, page_one: bytes, *, readonly: bool) -> bool:
+    """Refuse a ``-journal`` or ``-wal`` beside ``path`` that is not proven the atlas's own
+    (:mod:`db.sidefiles`), and, for readers, the atlas's own unfinished rollback; True when the
+    atlas's own rollback journal of a killed write lies beside it (a build rolls it back)."""
     name = display_target(target)
-    wal = path.with_name(path.name + "-wal")
-    page_size = _page_size(header)
-    if wal.exists() and page_size is not None:
-        if header[18] == 1:
-            raise AtlasError(
-                f"{name!r} is a complete atlas (it keeps no write-ahead log) but {wal.name!r} lies beside it, "
-                "which is not its own: move that file away (SQLite would apply it), or restore the atlas"
-            )
-        wal_page = wal_page_size(wal)
-        if wal_page is not None and wal_page != page_size:
-            raise AtlasError(
-                f"{wal.name!r} beside {name!r} is the write-ahead log of another database (page size {wal_page}, "
-                f"the atlas has {page_size}): move that file away (SQLite would apply it), or restore the atlas"
-            )
     journal = path.with_name(path.name + "-journal")
-    hot = journal.exists() and journal.stat().st_size > 0
+    try:
+        file_size = path.stat().st_size
+    except OSError:
+        file_size = 0
+    verdict = journal_verdict(journal, page_one, file_size)
+    if verdict.ownership is Ownership.FOREIGN:
+        raise AtlasError(
+            f"{journal.name!r} beside {name!r} is not the atlas's own rollback journal ({verdict.why}): "
+            "move that file away (SQLite would roll it back into the atlas), or restore the atlas"
+        )
+    # harmless: SQLite would still have to delete it, which a reader may not
+    hot = verdict.ownership in (Ownership.OWN, Ownership.HARMLESS)
     if hot and readonly:
         raise AtlasError(
             f"{name!r} has an unfinished write ({journal.name!r} beside it, left by a stopped build): "
             "run dwell atlas build on it to roll it back and resume, or restore the atlas"
         )
+    wal = path.with_name(path.name + "-wal")
+    if wal.exists() and page_size(page_one) is not None:
+        if page_one[18] == 1:
+            raise AtlasError(
+                f"{name!r} is a complete atlas (it keeps no write-ahead log) but {wal.name!r} lies beside it, "
+                "which is not its own: move that file away (SQLite would apply it), or restore the atlas"
+            )
+        verdict = wal_verdict(wal, page_one)
+        if verdict.ownership is Ownership.FOREIGN:
+            raise AtlasError(
+                f"{wal.name!r} beside {name!r} is not the atlas's own write-ahead log ({verdict.why}): "
+                "move that file away (SQLite would apply it), or restore the atlas"
+            )
     return hot
 
 
@@ -370,6 +418,9 @@ def start_writing(engine: Engine) -> None:
         return
     with engine.connect() as conn:
         if str(conn.exec_driver_sql("PRAGMA journal_mode").scalar()).lower() != "wal":
+            cur = conn.connection.dbapi_connection.cursor()
+            _name_atlas(cur)  # an atlas made before ids: named while the file is still in rollback mode
+            cur.close()
             conn.exec_driver_sql("PRAGMA journal_mode=WAL")
 
 
@@ -405,6 +456,10 @@ def check_url(target: str) -> URL:
     Refuses a URL whose password SQLAlchemy reads differently from the masking (an unescaped
     ``@`` in it, or a ``?`` before its last ``@``): the rest would become the host name and
     show in the driver's errors, and the connection would go to the wrong server anyway."""
+    shape = _connection_string_shape(target)
+    if shape is not None:
+        raise AtlasError(f"not a database path or URL: {shape}; write a PostgreSQL database as "
+                         "postgresql://USER:PASSWORD@HOST:PORT/DBNAME, an SQLite file as its path")
     try:
         parsed = make_url(database_url(target))
     except (ArgumentError, ValueError):  # ValueError: a port that is not a number
@@ -513,6 +568,12 @@ def _check_sqlite_file(path: Path, target: str, *, create: bool) -> bool:
         raise AtlasError(f"no atlas at {display_target(target)!r} (build one with: dwell atlas build --db {display_target(target)})")
     if not path.parent.is_dir():
         raise AtlasError(f"cannot create {display_target(target)!r}: folder {str(path.parent)!r} does not exist")
+    try:  # SQLite would only say "unable to open database file"; it needs the folder for its side files too
+        with tempfile.TemporaryFile(dir=path.parent):
+            pass
+    except OSError as exc:
+        raise AtlasError(f"cannot create {display_target(target)!r}: folder {str(path.parent)!r} cannot be written "
+                         f"({exc.strerror})") from None
     return False
 
 
@@ -540,19 +601,34 @@ def _remove_new_side_files(path: Path, before: set[Path]) -> None:
 SQLITE_PAGE_SIZE = 16384
 
 
-def _sqlite_pragmas(engine: Engine, *, wal: bool) -> None:
+def _sqlite_pragmas(engine: Engine, *, wal: bool, writer: bool) -> None:
     @event.listens_for(engine, "connect")
     def _on_connect(dbapi_conn, _record):  # noqa: ANN001 - DBAPI connection
         cur = dbapi_conn.cursor()
         cur.execute("PRAGMA foreign_keys=ON")
         cur.execute("PRAGMA busy_timeout=30000")
+        # every page read is checked as it is loaded (cell sizes and offsets): the check of
+        # what a command reads, where the whole file's is too slow (WHOLE_CHECK_BYTES)
+        cur.execute("PRAGMA cell_size_check=ON")
         if wal:  # a new file; an existing one changes mode when a build writes (start_writing)
             cur.execute(f"PRAGMA page_size={SQLITE_PAGE_SIZE}")  # before the first table: fixed from then on
+            _name_atlas(cur)  # in rollback mode: the file itself holds the id (db.sidefiles)
             cur.execute("PRAGMA journal_mode=WAL")
         cur.execute("PRAGMA journal_mode")
         if str(cur.fetchone()[0]).lower() == "wal":  # durable in WAL mode, unlike in rollback mode
             cur.execute("PRAGMA synchronous=NORMAL")
         cur.close()
+
+    if writer:
+        mark_commits(engine)
+
+
+def _name_atlas(cur: Any) -> None:
+    """Give the database on ``cur`` its atlas id (:mod:`db.sidefiles`) unless it has one.
+    Call it in rollback-journal mode only: in WAL mode the id would reach the log, not the file."""
+    cur.execute("PRAGMA user_version")
+    if int(cur.fetchone()[0]) == 0:
+        cur.execute(f"PRAGMA user_version={new_atlas_id()}")
 
 
 def _check_or_create_schema(engine: Engine, target: str, *, create: bool, empty_ok: bool = False) -> None:
@@ -614,11 +690,26 @@ def _check_schema(conn: Connection, tables: set[str], target: str) -> None:
     _check_builds(conn, target)
 
 
+#: The values of ``build.status`` (its CHECK constraint; a damaged file may hold others).
+BUILD_STATUSES = ("building", "complete")
+
+
 def _check_builds(conn: Connection, target: str) -> None:
-    """The linkages belong to a build row: the lowest and highest ``linkage.build_id`` (two
+    """Each build row's status is known and, when complete, it has all its shard rows (one
+    count over the shard table: a deleted shard row would otherwise pass as complete and a
+    build would redo it under a builder lock it no longer holds). The linkages belong to a build row: the lowest and highest ``linkage.build_id`` (two
     index look-ups, whatever the atlas's size) name existing builds. ``atlas info --verify``
     finds every orphan; this catches the usual damage (a build row deleted) on every open,
     where the query would otherwise answer "no six-bar" from an atlas that has them."""
+    shards = dict(conn.execute(select(Shard.build_id, func.count()).group_by(Shard.build_id)).all())
+    for build_id, status, n_shards in conn.execute(select(Build.id, Build.status, Build.n_shards)):
+        if status not in BUILD_STATUSES:
+            raise damaged(target, f"build {build_id} has the unknown status {status!r} (build.status)")
+        if not isinstance(n_shards, int) or n_shards < 1:
+            raise damaged(target, f"build {build_id} records {n_shards!r} shards (build.n_shards)")
+        done = shards.get(build_id, 0)
+        if done > n_shards or (status == "complete" and done != n_shards):
+            raise damaged(target, f"build {build_id} is {status} with {done} of its {n_shards} shard rows")
     lo, hi = conn.execute(select(func.min(Linkage.build_id), func.max(Linkage.build_id))).one()
     if lo is None:
         return
@@ -693,7 +784,9 @@ def _check_json(conn: Connection, target: str) -> None:
     for build_id, text in conn.execute(select(Build.id, Build.spec_json)):
         try:
             stored_spec(text)
-        except SpecError:
+        except SpecError as exc:
+            raise damaged(target, f"the sweep spec of build {build_id} (build.spec_json) is not readable: {exc}") from None
+        except TypeError:  # not a text at all (a damaged record)
             raise damaged(target, f"the sweep spec of build {build_id} (build.spec_json) is not readable") from None
     for build_id, index, text in conn.execute(select(Shard.build_id, Shard.shard_index, Shard.skipped_json)):
         try:

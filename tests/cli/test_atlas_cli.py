@@ -183,7 +183,7 @@ def test_info_json_is_consistent_with_the_database(reference, capsys):
 
     rc, out, err = dwell(capsys, "info", "--db", str(db))
     assert rc == 0 and err == ""
-    assert f"linkages: {doc['linkages']}\n" in out and f"content digest: {digest}" in out
+    assert f"linkages: {doc['linkages']}\n" in out and f"content digest (stored, unchecked; --verify recomputes it): {digest}" in out
     assert f"build 1: complete, {N_SHARDS}/{N_SHARDS} shards" in out
     assert f"storage: {db.stat().st_size / 2**20:.1f} MiB ({db.stat().st_size / doc['linkages'] / 1024:.1f} KiB per linkage)" in out
 
@@ -251,7 +251,7 @@ def _foreign(path: Path) -> None:
     ("text", "is not an SQLite database"),
     ("folder", "is a folder, not an atlas file"),
     ("no-folder", "does not exist"),
-    ("unwritable", "cannot use"),
+    ("unwritable", "cannot be written"),  # said before SQLite's "unable to open database file"
 ])
 @pytest.mark.parametrize("command", ["build", "info"])
 def test_bad_atlas_paths_are_refused_untouched(tmp_path, capsys, case, message, command):
@@ -321,7 +321,7 @@ def test_killed_build_on_postgresql_resumes_to_the_same_content(tmp_path, refere
 
     rc, text_out, err = dwell(capsys, "info", "--db", postgres_url)
     assert rc == 0 and err == ""
-    assert text_out.startswith(f"atlas {shown(postgres_url)}\n") and f"content digest: {reference[1]}" in text_out
+    assert text_out.startswith(f"atlas {shown(postgres_url)}\n") and f"content digest (stored, unchecked; --verify recomputes it): {reference[1]}" in text_out
     rc, again, err = dwell(capsys, "build", "--db", postgres_url, *SMALL)
     assert rc == 0 and again.startswith(f"atlas {shown(postgres_url)} is already complete: ")
     password = make_url(postgres_url).password

@@ -74,10 +74,14 @@ def test_every_command_is_found():
 class World:
     """One example's folder: a small valid atlas, a foreign SQLite file, a text file, …"""
 
-    def __init__(self, folder: Path, atlas: Path, candidate: str):
+    def __init__(self, folder: Path, atlas: Path, candidate: str, hostile: dict[str, bytes] | None = None):
         self.folder = folder
         self.candidate = candidate
         shutil.copyfile(atlas, folder / "atlas.sqlite")
+        for name, data in (hostile or {}).items():  # damaged atlases and side files of other databases
+            (folder / name).write_bytes(data)
+        (folder / "loop.sqlite").symlink_to(folder / "loop2.sqlite")
+        (folder / "loop2.sqlite").symlink_to(folder / "loop.sqlite")
         con = sqlite3.connect(folder / "foreign.sqlite")
         con.execute("create table things(x)")
         con.commit()
@@ -92,9 +96,22 @@ class World:
 DB_VALUES = ["atlas.sqlite", "new.sqlite", "foreign.sqlite", "notes.txt", "empty.sqlite", "sub", "none/a.sqlite",
              "", ":memory:", "sqlite://", "nosuchdialect://x/y", "postgresql://u@127.0.0.1:1/x", "sqlite:///new2.sqlite",
              "/proc/dwell.sqlite", "ätlas.sqlite", "-", "--db"]
+#: What no output may show: the password of the connection strings below.
+SECRET = "S3cret"
+#: ``--db`` values shaped like connection strings (a libpq key/value string, URLs with a typo
+#: in the scheme or none): refused before anything is made, without the password
+CONNECTION_STRINGS = [f"host=127.0.0.1 port=1 user=u password={SECRET} dbname=db",
+                      f"dbname=db password='{SECRET} x'", f"postgresql:/u:{SECRET}@h/db", f"postgres//u:{SECRET}@h/db",
+                      f"postgresql:u:{SECRET}@h/db", f"postgresql+psycopg:/u:{SECRET}@h/db", f"u:{SECRET}@h/db",
+                      f"postgresql;//u:{SECRET}@h/db"]
+#: damaged atlases, and atlases with another database's side file beside them (World)
+HOSTILE_ATLASES = ["journal.sqlite", "wal.sqlite", "numeric-kind.sqlite", "many-samples.sqlite",
+                   "no-shard-row.sqlite", "paused.sqlite"]
+DB_VALUES += [*CONNECTION_STRINGS, *HOSTILE_ATLASES, "loop.sqlite"]
 #: refused by every command that opens an atlas, whatever else the line does (``none/a.sqlite``
 #: is not: ``--out none`` makes its folder): ``dwell demo`` gets one of these, never a build
-BAD_DB_VALUES = ["foreign.sqlite", "notes.txt", "sub", "nosuchdialect://x/y"]
+BAD_DB_VALUES = ["foreign.sqlite", "notes.txt", "sub", "nosuchdialect://x/y", *CONNECTION_STRINGS, *HOSTILE_ATLASES,
+                 "loop.sqlite"]
 PATH_VALUES = ["out.png", "out.svg", "out.html", "out.pdf", "existing.png", "notes.txt", "sub", "sub/x.svg",
                "none/x.png", "", ".", "/proc/dwell.png", "ünïcode.svg", "out", "sub/deeper/out", "-"]
 EDGE_NUMBERS = ["0", "-0", "1", "-1", "2", "0.5", "1e-320", "1e308", "-1e308", "1e999", "nan", "-nan", "NaN", "inf",
@@ -295,8 +312,10 @@ FOLDER = b"<folder>"
 
 
 def snapshot(folder: Path) -> dict[str, bytes]:
-    """Every file (its sha256) and folder under ``folder``, by relative name."""
-    return {str(p.relative_to(folder)): FOLDER if p.is_dir() else hashlib.sha256(p.read_bytes()).digest()
+    """Every file (its sha256), folder and symbolic link (where it points) under ``folder``,
+    by relative name."""
+    return {str(p.relative_to(folder)): (b"<link>" + os.readlink(p).encode() if p.is_symlink() else FOLDER if p.is_dir()
+                                         else hashlib.sha256(p.read_bytes()).digest())
             for p in sorted(folder.rglob("*"))}
 
 
@@ -368,6 +387,7 @@ def run_and_check(world: World, path: tuple[str, ...], argv: list[str]) -> tuple
     shown = f"dwell {' '.join(map(repr, [*path, *argv]))}\nstderr: {stderr[-2000:]}"
     assert crash is None, f"{shown}\n{crash}"
     assert rc in (0, 2) or (rc == 1 and path == ("query",)), f"exit {rc}: {shown}"  # 1: a query found none
+    assert SECRET not in stdout + stderr, f"the password is shown: {shown}"
     assert "Traceback" not in stderr, shown
     after = snapshot(world.folder)
     changed = {n for n in after if before.get(n) != after[n] and not _side_file(n, before, after)}
@@ -387,8 +407,8 @@ def run_and_check(world: World, path: tuple[str, ...], argv: list[str]) -> tuple
 
 
 @pytest.fixture(scope="module")
-def small_atlas(tmp_path_factory) -> tuple[Path, str]:
-    """A small complete atlas and the id of a candidate it answers."""
+def small_atlas(tmp_path_factory) -> tuple[Path, str, dict[str, bytes]]:
+    """A small complete atlas, the id of a candidate it answers, and the World's hostile files."""
     from atlas import SweepSpec
     from atlas.build import build_atlas
     from cli.query import answer, request_from_options
@@ -406,7 +426,84 @@ def small_atlas(tmp_path_factory) -> tuple[Path, str]:
     for side in ("-wal", "-shm"):
         Path(f"{path}{side}").unlink(missing_ok=True)
     assert found.candidates, "the small atlas must answer the base query"
-    return path, found.candidates[0].id
+    return path, found.candidates[0].id, _hostile(path, tmp_path_factory.mktemp("hostile"))
+
+
+def _hostile(atlas: Path, work: Path) -> dict[str, bytes]:
+    """File name → bytes of the World's hostile atlases (:data:`HOSTILE_ATLASES`) and the
+    side files of other databases that lie beside two of them."""
+    from db.engine import SQLITE_PAGE_SIZE
+
+    other = work / "other.sqlite"
+    con = sqlite3.connect(other)
+    con.execute(f"PRAGMA page_size={SQLITE_PAGE_SIZE}")
+    con.execute("create table t (x)")
+    con.executemany("insert into t values (?)", [("x" * 400,)] * 500)
+    con.commit()
+    con.close()
+    # another database's hot journal: its writer killed after changed pages reached the file
+    writer = ("import os, signal, sqlite3, sys\n"
+              "con = sqlite3.connect(sys.argv[1], isolation_level=None)\n"
+              "con.execute('PRAGMA cache_size=1'); con.execute('BEGIN'); con.execute('PRAGMA user_version=9')\n"
+              "con.execute(\"update t set x = 'y' || x\")\n"
+              "os.kill(os.getpid(), signal.SIGKILL)\n")
+    assert subprocess.run([sys.executable, "-c", writer, str(other)]).returncode == -9
+    journal = Path(f"{other}-journal").read_bytes()
+    # another database's write-ahead log with the atlas's page size
+    con = sqlite3.connect(other)
+    con.execute("PRAGMA journal_mode=WAL")
+    con.execute("PRAGMA wal_autocheckpoint=0")
+    con.execute("PRAGMA user_version=9")
+    con.execute("insert into t values ('z')")
+    con.commit()
+    wal = Path(f"{other}-wal").read_bytes()
+    con.close()
+
+    def spoiled(*statements: str, wal_mode: bool = False) -> bytes:
+        copy = work / "copy.sqlite"
+        shutil.copyfile(atlas, copy)
+        con = sqlite3.connect(copy)
+        con.execute("PRAGMA ignore_check_constraints=ON")
+        con.execute("PRAGMA writable_schema=ON")
+        for sql in statements:
+            con.execute(sql)
+        con.commit()
+        if wal_mode:
+            con.execute("PRAGMA journal_mode=WAL")
+        con.close()
+        data = copy.read_bytes()
+        copy.unlink()
+        return data
+
+    kind = ("UPDATE sqlite_master SET sql = replace(sql, 'kind VARCHAR(12)', 'kind INTEGER') WHERE name = 'segment'",)
+    return {
+        "journal.sqlite": atlas.read_bytes(), "journal.sqlite-journal": journal,
+        "wal.sqlite": spoiled("UPDATE build SET status = 'building', content_digest = NULL", "DELETE FROM shard "
+                              "WHERE shard_index = (SELECT max(shard_index) FROM shard)", wal_mode=True),
+        "wal.sqlite-wal": wal,
+        "numeric-kind.sqlite": _numeric_kind(spoiled(*kind), work),
+        "many-samples.sqlite": spoiled("UPDATE build SET spec_json = json_set(spec_json, '$.samples', 'many')"),
+        "no-shard-row.sqlite": spoiled("DELETE FROM shard WHERE shard_index = 0"),
+        "paused.sqlite": spoiled("UPDATE build SET status = 'paused'"),
+    }
+
+
+def _numeric_kind(data: bytes, work: Path) -> bytes:
+    """``data`` (an atlas whose schema declares ``segment.kind`` INTEGER) with one kind stored
+    as an integer, then the declaration put back: what a flipped bit of a record header does."""
+    path = work / "kind.sqlite"
+    path.write_bytes(data)
+    con = sqlite3.connect(path)
+    con.execute("PRAGMA ignore_check_constraints=ON")
+    con.execute("UPDATE segment SET kind = 7 WHERE id = (SELECT min(id) FROM segment)")
+    con.commit()
+    con.execute("PRAGMA writable_schema=ON")
+    con.execute("UPDATE sqlite_master SET sql = replace(sql, 'kind INTEGER', 'kind VARCHAR(12)') WHERE name = 'segment'")
+    con.commit()
+    con.close()
+    data = path.read_bytes()
+    path.unlink()
+    return data
 
 
 @contextlib.contextmanager

@@ -33,6 +33,13 @@ def url_forms(pw: str, tmp: str) -> dict[str, str]:
         "?PassWord= upper case": f"postgresql+psycopg://u@{HOST}?PassWord={enc}",
         "?sslpassword=": f"postgresql+psycopg://u:{enc}@{HOST}?sslpassword={enc}",
         "sqlite URL with ?password=": f"sqlite:///{tmp}/no-folder/missing.sqlite?password={enc}",
+        # not URLs: refused before anything is made, the message shows what they look like only
+        "libpq key/value string": f"host=127.0.0.1 port=1 user=u password={pw} dbname=x",
+        "libpq, password first": f"password={pw} host=127.0.0.1",
+        "one slash after the scheme": f"postgresql:/u:{enc}@{HOST}",
+        "no colon after the scheme": f"postgres//u:{enc}@{HOST}",
+        "a colon only after the scheme": f"postgresql+psycopg:u:{enc}@{HOST}",
+        "no scheme": f"u:{pw}@{HOST}",
     }
 
 
@@ -78,7 +85,70 @@ def test_no_output_line_contains_the_password(capsys, tmp_path, command, pw):
         assert not _leaks(out + err, pw), (form, out + err)
 
 
+def _db_commands() -> dict[str, list[str]]:
+    """Every command of ``dwell`` that takes ``--db`` (found by walking the click group, lazy
+    groups included), with the options it needs to get past its parser."""
+    import click
+
+    from cli.main import dwell
+
+    found: dict[str, list[str]] = {}
+
+    def walk(command: click.Command, path: tuple[str, ...]) -> None:
+        if isinstance(command, click.Group):
+            ctx = click.Context(command)
+            for name in command.list_commands(ctx):
+                walk(command.get_command(ctx, name), (*path, name))
+        elif any("--db" in p.opts for p in command.params if isinstance(p, click.Option)):
+            found[" ".join(path)] = list(path)
+
+    walk(dwell, ())
+    return found
+
+
+#: what each --db command needs besides --db to reach the atlas
+_NEEDS = {"query": ["--dwell", "60", "--swing", "30"], "report": ["--candidates", "x", "--out", "{tmp}/r"],
+          "demo": ["--out", "{tmp}/d"], "atlas build": ["--samples", "8", "--workers", "1"]}
+SHAPES = [f"host=127.0.0.1 port=1 user=u password={'S3cret'} dbname=db", "dbname=db password='S3cret x'",
+          "postgresql:/u:S3cret@h/db", "postgres//u:S3cret@h/db", "postgresql:u:S3cret@h/db",
+          "postgresql+psycopg:/u:S3cret@h/db", "postgresql;//u:S3cret@h/db", "u:S3cret@h/db", "./u:S3cret@h/db"]
+
+
+@pytest.mark.parametrize("command", sorted(_db_commands()))
+def test_connection_string_shapes_are_refused_by_every_db_command(capsys, tmp_path, monkeypatch, command):
+    """A libpq key/value string or a URL with a typo in its scheme is one line, exit 2, that
+    shows no password — and nothing is made (it would be an SQLite file named after it)."""
+    assert {"atlas build", "atlas info", "query", "report", "demo", "bench query"} <= set(_db_commands())
+    monkeypatch.chdir(tmp_path)
+    for shape in SHAPES:
+        argv = [*_db_commands()[command], "--db", shape, *(a.replace("{tmp}", str(tmp_path))
+                                                          for a in _NEEDS.get(command, []))]
+        code = main(argv)
+        out, err = capsys.readouterr()
+        assert code == 2 and len(err.strip().splitlines()) == 1, (shape, out, err)
+        assert "S3cret" not in out + err, (shape, out + err)
+        assert "not a database path or URL" in err, (shape, err)
+        assert list(tmp_path.iterdir()) == [], (shape, list(tmp_path.iterdir()))
+    # the same shapes as bench faults' --postgres
+    for shape in SHAPES:
+        code = main(["bench", "faults", "--trials", "1", "--db-kind", "postgresql", "--postgres", shape])
+        out, err = capsys.readouterr()
+        assert code == 2 and "S3cret" not in out + err and len(err.strip().splitlines()) == 1, (shape, err)
+
+
+def test_an_option_after_a_query_password_is_named_in_the_drivers_message(capsys):
+    pytest.importorskip("psycopg")
+    code = main(["atlas", "info", "--db", "postgresql://u@127.0.0.1:1/db?password=S3cret&connect_timeout=abc"])
+    _, err = capsys.readouterr()
+    assert code == 2 and "S3cret" not in err and "connect_timeout" in err, err
+
+
 @pytest.mark.parametrize(("url", "shown"), [
+    ("host=h password=S3cret dbname=db", "<a libpq connection string (keys host, password, dbname)>"),
+    ("postgresql:/u:S3cret@h/db", "<a URL missing '://' after its scheme 'postgresql'>"),
+    ("u:S3cret@h/db", "<a URL without its scheme (user:password@host…)>"),
+    ("out//atlas.sqlite", "out//atlas.sqlite"),
+    ("postgres/atlas.sqlite", "postgres/atlas.sqlite"),
     ("postgresql+psycopg://u:s3cr@t@h:5/db", "postgresql+psycopg://u:***@h:5/db"),
     ("postgresql+psycopg://u:a/b#c@h/db", "postgresql+psycopg://u:***@h/db"),
     ("postgresql+psycopg://u:a/b#c?d@h/db", "postgresql+psycopg://…"),  # or a query password with "@"?

@@ -482,7 +482,7 @@ def test_a_wal_of_another_page_size_beside_a_wal_mode_atlas_is_refused(tmp_path)
     assert path.read_bytes()[18] == 2
     path.with_name("a.sqlite-wal").write_bytes(_wal_of_another_database(tmp_path, 1024))
     before = _files(folder)
-    with pytest.raises(AtlasError, match=rf"write-ahead log of another database \(page size 1024, the atlas has {SQLITE_PAGE_SIZE}\)"):
+    with pytest.raises(AtlasError, match=rf"not the atlas's own write-ahead log \(another database's: page size 1024, the atlas has {SQLITE_PAGE_SIZE}\)"):
         open_atlas(str(path), readonly=True)
     assert _files(folder) == before
 

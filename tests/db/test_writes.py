@@ -361,8 +361,9 @@ def test_verify_passes_a_whole_atlas_and_names_a_changed_value_and_orphans(engin
         first = conn.execute(select(func.max(Dwell.segment_id))).scalar_one()
         conn.execute(update(Dwell).where(Dwell.segment_id == first).values(x=Dwell.x + 1e-6))  # above the digest's 40 bits
     bad = verify_atlas(engine)
-    assert len(bad.problems) == 1 and "do not give its stored content digest" in bad.problems[0]
-    assert bad.problems[0].endswith("shards whose rows changed: 1)")
+    # the shard whose rows changed (against its shard row's digest), then the build's digest
+    assert len(bad.problems) == 2 and "the rows of shard(s) 1 do not give the digest stored" in bad.problems[0]
+    assert "do not give its stored content digest" in bad.problems[1]
 
 
 def test_a_build_row_deleted_is_one_line_not_a_collision(engine):

@@ -47,6 +47,18 @@ if _delay > 0:
         time.sleep(_delay)
         return _compute(*args, **kwargs)
     _shard.compute_shard = _slow
+_after = int(os.environ.get("DWELL_TEST_KILL_AFTER_SHARDS") or 0)
+if _after > 0:
+    import signal
+    import db.writes as _writes  # atlas.build imports it from here when it runs
+    _write = _writes.write_shard
+    _written = []
+    def _write_then_die(*args, **kwargs):
+        _write(*args, **kwargs)
+        _written.append(1)
+        if len(_written) >= _after:  # committed, in the -wal, not yet folded into the file
+            os.killpg(0, signal.SIGKILL)
+    _writes.write_shard = _write_then_die
 if os.environ.get("DWELL_TEST_KILL_IN_SCHEMA"):
     import signal
     import db.engine as _engine
@@ -58,8 +70,10 @@ if os.environ.get("DWELL_TEST_KILL_IN_SCHEMA"):
 '''
 
 
-def spawn(folder: Path, target: str, *extra: str, delay: float = 0.0, kill_in_schema: bool = False) -> subprocess.Popen:
-    """``dwell atlas build --db TARGET SMALL EXTRA`` in a session of its own (one process group)."""
+def spawn(folder: Path, target: str, *extra: str, delay: float = 0.0, kill_in_schema: bool = False,
+          kill_after_shards: int = 0) -> subprocess.Popen:
+    """``dwell atlas build --db TARGET SMALL EXTRA`` in a session of its own (one process group);
+    ``kill_after_shards``: the builder SIGKILLs its group right after that many shard commits."""
     hook = folder / "hook"
     hook.mkdir(exist_ok=True)
     (hook / "sitecustomize.py").write_text(HOOK)
@@ -68,6 +82,8 @@ def spawn(folder: Path, target: str, *extra: str, delay: float = 0.0, kill_in_sc
     env.pop("DWELL_ATLAS", None)
     if kill_in_schema:
         env["DWELL_TEST_KILL_IN_SCHEMA"] = "1"
+    if kill_after_shards:
+        env["DWELL_TEST_KILL_AFTER_SHARDS"] = str(kill_after_shards)
     return subprocess.Popen([*DWELL, "atlas", "build", "--db", target, *SMALL, "--no-progress", *extra], cwd=folder,
                             env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
 

@@ -51,7 +51,7 @@ def test_a_second_builder_is_refused_and_the_first_completes(tmp_path, capsys, r
 
 @needs_proc
 def test_readers_are_not_blocked_while_a_build_writes(tmp_path, capsys, reference, atlas_url):
-    build = spawn(tmp_path, atlas_url, "--workers", "1", delay=0.5)
+    build = spawn(tmp_path, atlas_url, "--workers", "1", delay=2.0)  # room for a few reads on a busy machine
     wait_for_shards(atlas_url, build, 1)
     latency: dict[str, list[float]] = {"info": [], "query": []}
     progress = []

@@ -146,6 +146,18 @@ def _content(path: Path) -> str | None:
             p.unlink()
 
 
+def _quick_check(path: Path) -> str:
+    """SQLite's read-only ``quick_check`` of ``path``: "ok" or its first complaint."""
+    try:
+        con = sqlite3.connect(f"file:{path}?mode=ro", uri=True)
+        try:
+            return con.execute("PRAGMA quick_check(1)").fetchone()[0]
+        finally:
+            con.close()
+    except sqlite3.Error as exc:
+        return str(exc)
+
+
 #: (case → verify's exit status, content changed) — filled by the bit-flip cases, summed at the end
 FLIPS: dict[str, tuple[int, bool]] = {}
 
@@ -157,12 +169,13 @@ def test_a_damaged_atlas_is_refused_in_one_line_untouched(tmp_path, capsys, refe
     db = folder / "atlas.sqlite"
     shutil.copyfile(reference.path, db)
     CASES[case](db)
-    changed = None
+    changed = malformed = None
     if case.startswith("bit-flip"):
         work = tmp_path / "work"
         work.mkdir()
         shutil.copyfile(db, work / "atlas.sqlite")
         changed = _content(work / "atlas.sqlite") != reference.digest
+        malformed = _quick_check(work / "atlas.sqlite") != "ok"
     out_dir = tmp_path / "out"
     out_dir.mkdir()  # the report's folder is fine: the atlas is what gets refused
     for name, argv in COMMANDS.items():
@@ -176,6 +189,8 @@ def test_a_damaged_atlas_is_refused_in_one_line_untouched(tmp_path, capsys, refe
         if rc == 2:
             assert err.startswith("dwell: error: ") and err.count("\n") == 1, (name, err)
             assert snapshot(folder) == before, (name, "files changed on the way to an error")
+        if malformed:  # every command runs the structure check a small atlas can afford
+            assert rc == 2 and "damaged" in err, (name, "answered from an atlas whose structure check fails", err)
         if name == "verify" and changed is not None:
             FLIPS[case] = (rc, changed)
             if changed:
@@ -198,3 +213,103 @@ def test_bit_flip_tally(capsys):
         print(f"\nbit flips: {len(flips)}; content changed: {changed}; --verify refused {refused_changed}/{changed} "
               f"of those, {refused}/{len(flips)} in all")
     assert refused_changed == changed
+
+
+# ---------------------------------------------------------------------------------------------
+# Damage a plain read may miss: each command's answer, with the whole structure check (a small
+# atlas) and with the bounded one of a big atlas (WHOLE_CHECK_BYTES = 0)
+# ---------------------------------------------------------------------------------------------
+
+
+def _unchecked(path: Path, *statements: str) -> None:
+    """``statements`` with CHECK constraints off: damage a bit flip could do."""
+    _sql(path, "PRAGMA ignore_check_constraints=ON", *statements)
+
+
+def _numeric_kind(path: Path) -> None:
+    """An integer stored in the text column ``segment.kind`` (what one flipped bit in a record
+    header does): the column declared INTEGER for the update, then as it was."""
+    con = sqlite3.connect(path)
+    sql = con.execute("SELECT sql FROM sqlite_master WHERE name = 'segment'").fetchone()[0]
+    con.execute("PRAGMA writable_schema=ON")
+    con.execute("UPDATE sqlite_master SET sql = ? WHERE name = 'segment'", (sql.replace("kind VARCHAR(12)", "kind INTEGER", 1),))
+    con.commit()
+    con.close()
+    con = sqlite3.connect(path)
+    con.execute("PRAGMA ignore_check_constraints=ON")
+    con.execute("UPDATE segment SET kind = 7 WHERE id = (SELECT min(id) FROM segment)")
+    con.commit()
+    con.execute("PRAGMA writable_schema=ON")
+    con.execute("UPDATE sqlite_master SET sql = ? WHERE name = 'segment'", (sql,))
+    con.commit()
+    con.close()
+    assert sqlite3.connect(path).execute("SELECT count(*) FROM segment WHERE typeof(kind) = 'integer'").fetchone() == (1,)
+
+
+ALL = frozenset(COMMANDS)
+#: case → (spoil, the commands that must refuse it with either check, the words of --verify's refusal)
+SUBTLE = {
+    "numeric-segment-kind": (_numeric_kind, {"verify"}, "segment.kind"),
+    "invalid-utf8-segment-kind": (lambda p: _unchecked(
+        p, "UPDATE segment SET kind = CAST(x'fffe1b5b32' AS TEXT) WHERE id = (SELECT min(id) FROM segment)"),
+        {"info", "verify"}, "Could not decode to UTF-8"),
+    "deleted-shard-row": (lambda p: _sql(p, "DELETE FROM shard WHERE shard_index = 1"), ALL,
+                          "build 1 is complete with"),
+    "spec-samples-many": (lambda p: _sql(p, "UPDATE build SET spec_json = json_set(spec_json, '$.samples', 'many')"),
+                          ALL, "samples is 'many'"),
+    "spec-samples-1e308": (lambda p: _sql(p, "UPDATE build SET spec_json = json_set(spec_json, '$.samples', 1e308)"),
+                           ALL, "samples is 1e+308"),
+    "spec-tolerance-text": (lambda p: _sql(p, "UPDATE build SET spec_json = json_set(spec_json, '$.tolerances[0]', 'x')"),
+                            ALL, "tolerances is 'x'"),
+    "unknown-build-status": (lambda p: _unchecked(p, "UPDATE build SET status = 'paused'"), ALL,
+                             "unknown status 'paused'"),
+    "altered-shard-digest": (lambda p: _sql(p, f"UPDATE shard SET digest = '{'0' * 64}' WHERE shard_index = 2"),
+                             {"verify"}, "rows of shard(s) 2 do not give the digest stored"),
+    "orphaned-dwell-rows": (lambda p: _sql(p, "DELETE FROM segment WHERE id % 2 = 0"), {"verify", "query"},
+                            "dwell row(s) name a segment that does not exist"),
+}
+
+
+@pytest.mark.parametrize("whole", [True, False], ids=["whole-check", "bounded-check"])
+@pytest.mark.parametrize("case", SUBTLE)
+def test_damage_a_plain_read_may_miss_is_refused_where_it_matters(tmp_path, capsys, reference, monkeypatch, case,
+                                                                  whole):
+    import db.engine
+
+    if not whole:
+        monkeypatch.setattr(db.engine, "WHOLE_CHECK_BYTES", 0)
+    spoil, refusers, words = SUBTLE[case]
+    folder = tmp_path / "atlas"
+    folder.mkdir()
+    db_path = folder / "atlas.sqlite"
+    shutil.copyfile(reference.path, db_path)
+    spoil(db_path)
+    out_dir = tmp_path / "out"
+    out_dir.mkdir()
+    for name, argv in COMMANDS.items():
+        extra = ["--out", str(out_dir / name)] if name == "report" else []
+        if name == "report":
+            argv = ["report", "--candidates", reference.candidate]
+        before = snapshot(folder)
+        rc, out, err = run(capsys, *argv, "--db", str(db_path), *extra)
+        assert rc in (0, 2) and "Traceback" not in err, (name, rc, err)
+        assert err.isprintable() or err.endswith("\n") and err[:-1].isprintable(), (name, err)  # no raw bytes
+        if rc == 2:
+            assert err.startswith("dwell: error: ") and err.count("\n") == 1, (name, err)
+            assert snapshot(folder) == before, (name, "files changed on the way to an error")
+        if name in refusers:
+            assert rc == 2 and "damaged" in err, (name, err)
+        if name == "verify":
+            assert words in err, err
+        if name == "build" and rc == 2:
+            assert "another builder" not in err and "taken over" not in err, err
+
+
+def test_a_symlink_loop_as_db_is_one_line(tmp_path, capsys):
+    loop = tmp_path / "loop.sqlite"
+    loop.symlink_to(tmp_path / "other.sqlite")
+    (tmp_path / "other.sqlite").symlink_to(loop)
+    for argv in (["atlas", "info"], ["atlas", "info", "--verify"], ["query", *QUERY], ["atlas", "build", *SMALL]):
+        rc, out, err = run(capsys, *argv, "--db", str(loop))
+        assert rc == 2 and out == "" and err.count("\n") == 1 and "symlink loop" in err, (argv, err)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["loop.sqlite", "other.sqlite"]
