@@ -597,7 +597,7 @@ def _remove_new_side_files(path: Path, before: set[Path]) -> None:
 #: The page size of a new SQLite atlas (bytes). 16 KiB rather than SQLite's 4 KiB: a build
 #: writes and sorts millions of ~130-byte dwell rows, and a quarter as many pages to split,
 #: log and check took the single writer from 2 430 to ~3 000 linkages/s (``dwell bench atlas
-#: --ingest``); the query is as fast, the file 1 % smaller (docs/speed-and-scale.md §1c).
+#: --ingest``); the query is as fast, the file 1 % smaller (docs/atlas.md, "Speed").
 SQLITE_PAGE_SIZE = 16384
 
 
