@@ -51,6 +51,9 @@ KNOWN_PRIVATE_IMPORTS: frozenset[tuple[str, str, str]] = frozenset({
     ("tests.synth.test_batched_cma", "synth.refine", "_descend"),
     ("tests.synth.test_band_windows", "synth.output_range", "_vertex_bounds"),
     ("tests.synth.test_pair_search", "synth.output_range", "_pair_search"),
+    ("tests.synth.measure_double_population", "synth.query", "_paths"),
+    ("tests.synth.test_query_any", "synth.query", "_scaled_figures"),
+    ("tests.synth.test_query_any", "synth.query", "_total"),
 })
 
 

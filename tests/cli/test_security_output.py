@@ -107,7 +107,7 @@ def _db_commands() -> dict[str, list[str]]:
 
 
 #: what each --db command needs besides --db to reach the atlas
-_NEEDS = {"query": ["--dwell", "60", "--swing", "30"], "report": ["--candidates", "x", "--out", "{tmp}/r"],
+_NEEDS = {"query": ["--dwell", "60", "--swing", "30"], "report": ["--candidates", "1-rpr0.1@20", "--out", "{tmp}/r"],
           "demo": ["--out", "{tmp}/d"], "atlas build": ["--samples", "8", "--workers", "1"]}
 SHAPES = [f"host=127.0.0.1 port=1 user=u password={'S3cret'} dbname=db", "dbname=db password='S3cret x'",
           "postgresql:/u:S3cret@h/db", "postgres//u:S3cret@h/db", "postgresql:u:S3cret@h/db",

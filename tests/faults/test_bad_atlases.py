@@ -154,7 +154,7 @@ def immutable(tmp_path):
     _chattr("-i", *flagged)
 
 
-def _unfinished(path: Path) -> None:
+def unfinished(path: Path) -> None:
     """Make the atlas at ``path`` look killed before its last shard (what a resume completes)."""
     con = sqlite3.connect(path)
     last = N_SHARDS - 1
@@ -173,7 +173,7 @@ def test_a_read_only_atlas_is_read_but_not_written(tmp_path, capsys, reference, 
     folder.mkdir()
     db = folder / "atlas.sqlite"
     shutil.copyfile(reference.path, db)
-    _unfinished(db)
+    unfinished(db)
     immutable(db)
     digest = hashlib.sha256(db.read_bytes()).hexdigest()
 
@@ -189,7 +189,7 @@ def test_a_read_only_atlas_is_read_but_not_written(tmp_path, capsys, reference, 
     assert {p.name for p in folder.iterdir()} <= {db.name, f"{db.name}-wal", f"{db.name}-shm"}
 
 
-def _wal_mode(path: Path) -> None:
+def wal_mode(path: Path) -> None:
     """Switch a copy to WAL mode, as an atlas being built (or made by an older dwell-atlas) is."""
     con = sqlite3.connect(path)
     assert con.execute("PRAGMA journal_mode=WAL").fetchone()[0] == "wal"
@@ -204,7 +204,7 @@ def test_an_atlas_in_a_read_only_folder_is_read_untouched(tmp_path, capsys, refe
     db = folder / "atlas.sqlite"
     shutil.copyfile(reference.path, db)
     if mode == "wal":
-        _wal_mode(db)
+        wal_mode(db)
     assert db.read_bytes()[18] == {"delete": 1, "wal": 2}[mode]  # a complete build ends in DELETE mode
     immutable(db, folder)
     before = snapshot(folder)

@@ -1,7 +1,7 @@
 """Measurement behind docs/linkage-files.md ("The configuration a file stands for"; not a test:
 run by hand on a built atlas).
 
-    .venv/bin/python tests/report/measure_linkage_round_trip.py ATLAS [TOP] [--cli]
+    PYTHONPATH=tests .venv/bin/python tests/report/measure_linkage_round_trip.py ATLAS [TOP] [--cli]
 
 Every cell of the coverage grid (:func:`cli.bench.coverage.cells`: RPR, RRR, double dwells),
 answered as ``dwell bench coverage`` answers it (``--top TOP``, default 10, refined); every
@@ -22,9 +22,7 @@ import tempfile
 import time
 from pathlib import Path
 
-sys.path.append(str(Path(__file__).resolve().parents[1]))  # tests/: linkage_checks
-
-from linkage_checks import Agreement, round_trip  # noqa: E402
+from linkage_checks import Agreement, round_trip  # tests/, on PYTHONPATH
 
 
 def _cli_agreement(candidates, request, agreement: Agreement) -> None:

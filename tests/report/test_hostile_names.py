@@ -111,7 +111,7 @@ def test_a_hostile_candidate_id_in_every_report_file(tmp_path, candidates, cid):
     import dataclasses
 
     import ezdxf
-    from report_cases import REQUEST
+    from harness.report_cases import REQUEST
 
     from report.export import write_report
 

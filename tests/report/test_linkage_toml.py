@@ -44,7 +44,7 @@ def test_the_same_description_in_json_is_the_candidate_too(report_dir, tmp_path,
 def test_the_file_names_the_configuration_band_and_dwells(report_dir, double_report_dir, candidates):
     """The keys that make the file the candidate (that the configuration key matters —
     numbers other than 1 — is held by tests/report/test_linkage_round_trip.py)."""
-    from report_cases import REQUEST, REQUEST2
+    from harness.report_cases import REQUEST, REQUEST2
 
     seen = set()
     for folder, request in ((report_dir[0], REQUEST), (double_report_dir[0], REQUEST2)):
