@@ -53,9 +53,22 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as exc:
         if not is_user_error(exc):
             raise
-        click.echo(f"dwell: error: {user_error_line(exc)}", err=True)
+        click.echo(f"dwell: error: {_secrets_hidden(user_error_line(exc), argv)}", err=True)
         return 2
     return rv if isinstance(rv, int) and not isinstance(rv, bool) else 0
+
+
+def _secrets_hidden(line: str, argv: list[str] | None) -> str:
+    """``line`` with every argument that :func:`db.engine.display_target` would mask (a URL's
+    password, a connection string) shown masked: click's usage errors echo arguments as typed
+    ("Got unexpected extra arguments (--db host=… password=…)"), wherever they stood."""
+    from db.engine import display_target
+
+    for arg in sorted(set(sys.argv[1:] if argv is None else argv), key=len, reverse=True):
+        shown = display_target(arg) if isinstance(arg, str) else arg
+        if shown != arg and arg in line:
+            line = line.replace(arg, shown)
+    return line
 
 
 if __name__ == "__main__":

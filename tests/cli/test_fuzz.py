@@ -611,6 +611,11 @@ FOUND = [
     (["report", "--db", "atlas.sqlite", "--candidates", "{candidate}", "--out", "report", "--crank", "1e100"], None),
     # the rhombus's Ball-point track lies on a line: every piece overlapped every other (40 GB)
     (["curvature", "--a", "1", "--b", "1", "--c", "1", "--d", "1", "--phi", "10", "--double-ball"], None),
+    # click's "unexpected extra arguments" echoed a connection string's password as typed
+    (["demo", "--", "--db", "host=127.0.0.1 port=1 user=u password=S3cret dbname=db"],
+     "Got unexpected extra arguments (--db <a libpq connection string"),
+    (["query", "--db", "atlas.sqlite", "--dwell", "40", "--swing", "20", "extra", "postgresql://u:S3cret@h/db"],
+     "Got unexpected extra arguments (extra postgresql://u:***@h/db)"),
 ]
 
 
