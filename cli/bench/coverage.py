@@ -27,7 +27,7 @@ import click
 
 from atlas.pool import default_workers
 from cli.atlas import db_option
-from cli.options import writable_file
+from cli.options import Bounded, writable_file
 from cli.query import batch_map, workers_option
 
 SINGLE_DWELLS = (10, 20, 30, 45, 60, 75, 90, 105, 120, 150, 180)
@@ -129,7 +129,8 @@ def summary(rows: list[dict]) -> dict:
 @click.option("--complete", is_flag=True,
               help="Answer every cell with the complete search (`dwell query --complete`, unrefined, all its "
                    "six-bars kept) and report, per cell, the share of them the default sampled query finds.")
-@click.option("--dwell", "dwells", type=float, multiple=True,
+@click.option("--dwell", "dwells", type=Bounded(0.0, 360.0, "a dwell in degrees", low_open=True, high_open=True),
+              multiple=True,
               help="Only the grid's rows of this dwell (degrees; repeat for several; default: every row).")
 @workers_option
 @click.option("--json", "as_json", is_flag=True, help="JSON on stdout instead of a table.")

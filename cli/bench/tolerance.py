@@ -18,6 +18,7 @@ import time
 import click
 import numpy as np
 
+from cli.options import Bounded
 from synth.sixbar import OutputDyad, SixBar
 
 #: (name, six-bar, requested dwell in degrees)
@@ -32,7 +33,7 @@ TARGET_S = 0.005
 
 @click.command("tolerance")
 @click.option("--draws", default=256, show_default=True, type=click.IntRange(16, 4096), help="Six-bars drawn per candidate.")
-@click.option("--tolerance", default=0.05 / 40, show_default=True, type=click.FloatRange(0.0, 0.1),
+@click.option("--tolerance", default=0.05 / 40, show_default=True, type=Bounded(0.0, 0.1, "a tolerance in cranks"),
               help="Tolerance in cranks.")
 @click.option("--repeat", default=5, show_default=True, type=click.IntRange(1, 100), help="Timed runs (best is kept).")
 @click.option("--seeds", default=5, show_default=True, type=click.IntRange(1, 50),

