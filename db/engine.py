@@ -203,6 +203,8 @@ _LIBPQ_KEYS = frozenset({
     "krbsrvname", "gsslib", "gssdelegation", "service", "target_session_attrs", "load_balance_hosts",
 })
 _KEY = re.compile(r"(?:^|\s)([A-Za-z_]+)\s*=")
+#: A URL's scheme (RFC 3986: a letter, then letters, digits, "+", ".", "-").
+_SCHEME = re.compile(r"[A-Za-z][A-Za-z0-9+.\-]*")
 #: Names a URL's scheme starts with (SQLAlchemy's dialects and the usual misspellings of one).
 _DIALECTS = ("postgresql", "postgres", "psql", "pgsql", "sqlite", "mysql", "mariadb", "oracle", "mssql", "cockroachdb")
 #: "scheme:" (one word of two letters or more, a driver after "+") at the start of a value
@@ -213,8 +215,10 @@ _SCHEME_START = re.compile(r"\s*([A-Za-z][A-Za-z0-9.\-]+(?:\+[A-Za-z0-9_.\-]+)?)
 def _connection_string_shape(target: str) -> str | None:
     """What ``target`` looks like when it is neither a path nor a well-formed URL but a
     connection string or a mistyped URL ("a libpq connection string (keys host, password)",
-    "a URL missing '://' after 'postgresql'"); None for a path or a URL. Names no value."""
-    if "://" in target:
+    "a URL missing '://' after 'postgresql'"); None for a path or a URL. Names no value. A
+    "://" counts as a URL's only after a scheme (letters, digits, ``+ . -``): a password may
+    hold it ("password=3://")."""
+    if "://" in target and _SCHEME.fullmatch(target.split("://", 1)[0]):
         return None
     keys = [k for k in _KEY.findall(target) if k.lower() in _LIBPQ_KEYS]
     if keys:
@@ -236,9 +240,11 @@ def display_target(target: str) -> str:
     ``sslpassword``, …) or ``passfile``. A URL whose host part cannot be a host (e.g. a
     password without ``@``) shows only its scheme. A connection string or mistyped URL (see
     :func:`check_url`) shows only what it looks like. Paths (no ``://``) are shown as given."""
+    shape = _connection_string_shape(target)
+    if shape is not None:
+        return f"<{shape}>"
     if "://" not in target:
-        shape = _connection_string_shape(target)
-        return target if shape is None else f"<{shape}>"
+        return target
     scheme, rest = target.split("://", 1)
     if _ambiguous(rest):
         return f"{scheme}://…"

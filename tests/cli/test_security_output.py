@@ -75,6 +75,7 @@ def _leaks(output: str, pw: str) -> list[str]:
 @example(pw="@3333")  # bench faults: its own engine took the tail for the host (found by hypothesis)
 @example(pw="&3333=3")  # the driver names the option a raw "&" makes (found by hypothesis)
 @example(pw="&+3333=3")  # ... after decoding "+" (found by hypothesis)
+@example(pw="3://")  # a libpq string whose password holds "://" was taken for a URL (found by hypothesis)
 def test_no_output_line_contains_the_password(capsys, tmp_path, command, pw):
     tmp = str(tmp_path)
     for form, url in url_forms(pw, tmp).items():
