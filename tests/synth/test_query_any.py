@@ -69,7 +69,7 @@ def test_any_is_the_best_top_of_the_union_of_rpr_and_rrr(answered):
         mixed += kinds == {"RPR", "RRR"}
         cut += len(rpr.candidates) + len(rrr.candidates) > request.top
     # the union is taken for real: answers of both kinds, and unions cut to --top
-    assert mixed >= 5 and cut >= 4
+    assert mixed >= 4 and cut >= 4  # 4 mixed with the plate counted in the link ratio
 
 
 def test_the_best_of_both_keeps_what_each_answer_counted(answered):
