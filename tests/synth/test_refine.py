@@ -221,7 +221,7 @@ def test_what_a_query_shows_as_refined_is_no_worse_than_before(source):
     """End to end: every returned six-bar that shows a "before" (refined, or its pivot moved)
     which met the request itself is no worse on any objective of the ranking than it."""
     for kw in (dict(dwell=45 * DEG, swing=40 * DEG, output="rpr"), dict(dwell=60 * DEG, swing=30 * DEG, output="rpr"),
-               dict(dwell=50 * DEG, dwell_tol=5 * DEG, dwells=2, output="rpr")):
+               dict(dwell=50 * DEG, dwell_tol=5 * DEG, dwells=2, swing=12 * DEG, swing_tol=2 * DEG, output="rpr")):
         request = Request(**kw)
         for c in answer(request, source).candidates:
             if c.refined_from is not None and meets(request, c.refined_from):
