@@ -12,6 +12,7 @@ an atlas in WAL mode with no ``-wal`` beside it ``immutable=1``. Those tests ski
 from __future__ import annotations
 
 import hashlib
+import json
 import shutil
 import sqlite3
 import subprocess

@@ -20,6 +20,9 @@ from linkage_checks import Agreement, round_trip
 #: The small atlas: the demo sweep on fewer samples (fewer linkages), and the six-bars kept per cell.
 SAMPLES = 384
 TOP = 7
+#: Double dwells (dwell °, swing °) at the demo's swing tolerance (±2°), beside the grid's ±5°-dwell
+#: row: the grid's swings of 20° and 45° are out of this small atlas's reach for two rests.
+DEMO_DOUBLES = ((50, 12), (60, 12), (60, 6))
 
 
 @pytest.fixture(scope="module")
@@ -37,8 +40,15 @@ def grid_answers(tmp_path_factory):
     engine = open_atlas(path, readonly=True)
     try:
         source = AtlasSource(engine)
+        from cli.bench.coverage import DOUBLE_TOL, Cell
+        from cli.query import request_from_options
+
         grid = cells()
         requests = [cell.request(TOP, refine=False, complete=True) for cell in grid]
+        for dwell, swing in DEMO_DOUBLES:
+            grid.append(Cell("double", dwell, swing))
+            requests.append(request_from_options(dwell, DOUBLE_TOL, swing, 2, "rpr", 2, top=TOP, refine=False,
+                                                 complete=True))
         groups: dict[tuple, list[int]] = {}
         for k, request in enumerate(requests):
             groups.setdefault(fit_key(request), []).append(k)  # the cells of one walk of the atlas

@@ -81,8 +81,8 @@ def screens(draw):
     rrr = None
     if draw(st.booleans()):
         rrr = (rng.uniform(0.5, 8, n), rng.uniform(0.3, 8, n), rng.choice([-1.0, 1.0], n))
-    dwells = draw(st.sampled_from([1, 2]))  # a double dwell asks no swing
-    swing = None if dwells == 2 else draw(st.floats(math.radians(5), math.radians(120)))
+    dwells = draw(st.sampled_from([1, 2]))  # a double dwell names its swing too
+    swing = draw(st.floats(math.radians(5), math.radians(120)))
     dwell = draw(st.floats(math.radians(5), math.radians(170 if dwells == 1 else 120)))
     request = Request(dwell=dwell, dwell_tol=draw(st.floats(math.radians(0.5), math.radians(10))), swing=swing,
                       swing_tol=draw(st.floats(math.radians(0.1), math.radians(60))), dwells=dwells,
