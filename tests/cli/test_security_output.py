@@ -287,7 +287,7 @@ def test_killed_report_leaves_the_old_or_the_new_report(tmp_path, small_atlas):
     old = _digest(out)
     rng = random.Random(17)
     outcomes = {"old": 0, "new": 0}
-    for _ in range(int(os.environ.get("DWELL_KILL_TRIALS", "6"))):
+    for _ in range(int(os.environ.get("DWELL_KILL_TRIALS", "4"))):
         subprocess.run(report(old_args, out), check=True, capture_output=True)  # back to the old report
         proc = subprocess.Popen(report(new_args, out), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         time.sleep(rng.uniform(0.3, 1.3) * full)
@@ -301,7 +301,7 @@ def test_killed_report_leaves_the_old_or_the_new_report(tmp_path, small_atlas):
         assert kind is not None, ("neither the old nor the new report", sorted(now))
         assert all((out / name).stat().st_size > 0 for name in now)
         outcomes[kind] += 1
-    assert sum(outcomes.values()) == int(os.environ.get("DWELL_KILL_TRIALS", "6")), outcomes
+    assert sum(outcomes.values()) == int(os.environ.get("DWELL_KILL_TRIALS", "4")), outcomes
     print("kill trials:", outcomes)
 
 
