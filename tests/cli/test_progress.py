@@ -51,7 +51,7 @@ class _Terminal(io.StringIO):
 
 def test_a_terminal_gets_a_line_only_past_a_second(monkeypatch):
     """A part that ends within DELAY draws nothing; one that runs past it draws its name and
-    count (tqdm), and the line is closed when the part ends."""
+    count (tqdm), and the line is wiped when the part ends (the results print on a clean line)."""
     term = _Terminal()
     monkeypatch.setattr(sys, "stderr", term)
     with Progress("report") as shown:
@@ -65,7 +65,8 @@ def test_a_terminal_gets_a_line_only_past_a_second(monkeypatch):
         time.sleep(DELAY + 0.6)
         feed(2, 3)
     drawn = term.getvalue()
-    assert "writing the report" in drawn and "2/3" in drawn and drawn.endswith("\n")
+    assert "writing the report" in drawn and "2/3" in drawn
+    assert drawn.endswith("\r") and drawn.rstrip("\r").rsplit("\r", 1)[-1].strip() == ""  # wiped at the end
 
 
 def test_status_lines_of_a_log(monkeypatch):
