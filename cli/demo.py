@@ -15,6 +15,7 @@ from pathlib import Path
 import click
 
 from cli.options import probe_folder
+from cli.progress import Progress
 
 #: The demo's requests, as the ``dwell query`` options a user would type.
 DEMO_REQUESTS = {
@@ -38,12 +39,6 @@ TOP = 3
 @click.option("--workers", type=click.IntRange(1, 256), default=None, help="Build processes [default: all CPUs].")
 def demo(out_dir: str, target: str | None, workers: int | None) -> None:
     """Build the demo atlas, answer an RRR, an RPR and a double-dwell request, write reports."""
-    from atlas.build import build_atlas
-    from atlas.sweep import PRESETS
-    from cli.progress import BuildBar
-    from cli.query import answer, no_match_message, request_from_options, table
-    from db.engine import display_target, open_atlas
-    from report.export import write_report
     from report.folder import check_report_folder
 
     out = Path(out_dir)
@@ -55,11 +50,27 @@ def demo(out_dir: str, target: str | None, workers: int | None) -> None:
     made = [p for p in (out, *out.parents) if not p.exists()]  # what mkdir makes, innermost first
     out.mkdir(parents=True, exist_ok=True)
     target = target or str(out / "demo-atlas.sqlite")
+    # on a terminal a line once a part runs past a second; in a log a status line every 10 s
+    with Progress("demo", log=True) as progress:
+        _demo(out, made, target, workers, progress)
+
+
+def _demo(out: Path, made: list[Path], target: str, workers: int | None, progress: Progress) -> None:
+    """Build the atlas ``target``, answer the requests, write their reports under ``out``
+    (``made``: the folders made for it, removed if the build is refused)."""
+    from atlas.build import build_atlas
+    from atlas.sweep import PRESETS
+    from cli.progress import BuildBar
+    from cli.query import answer, no_match_message, request_from_options, table
+    from cli.shown_ids import remember_shown
+    from db.engine import display_target, open_atlas
+    from report.export import write_report
+
     start = time.perf_counter()
     shown = display_target(target)  # command lines below never show a URL's password
     click.echo(f"$ dwell atlas build --db {shown} --preset demo")
     try:
-        with BuildBar() as bar:  # on stderr if it is a terminal
+        with BuildBar(progress=progress) as bar:
             summary = build_atlas(target, PRESETS["demo"], workers=workers or os.cpu_count() or 1, on_shard=bar)
     except BaseException:
         # a refused --db (or Ctrl-C before the first shard) leaves no empty folders behind
@@ -84,17 +95,22 @@ def demo(out_dir: str, target: str | None, workers: int | None) -> None:
             request = request_from_options(o["dwell"], o["dwell_tol"], o["swing"], o["swing_tol"], o["output"],
                                            o["dwells"], o["dwell_tolerance"], o["crank"], o["min_transmission"],
                                            o["max_link_ratio"], o["top"])
+            progress.stage(f"answering the {name} request")
             result = answer(engine, request)
             if not result.candidates:
                 click.echo(no_match_message(result))
                 continue
+            progress.stage("")  # the terminal's line ends before the table
             click.echo(table(result))
+            remember_shown(result.candidates)
             best = result.candidates[0]
             dwell = " and ".join(f"{math.degrees(d.angle):.2f}°" for d in best.figures.dwells[: request.dwells])
             click.echo(f"best: {best.id}: {best.sixbar.dyad.kind} output, dwell {dwell}, "
                        f"swing {math.degrees(best.figures.swing):.2f}°")
             folder = out / name
-            write_report(result.candidates, request, folder, option="--out")
+            write_report(result.candidates, request, folder, option="--out",
+                         on_candidate=progress.counter(f"writing the {name} report", "candidates"))
+            progress.stage("")
             written.append(folder / "index.html")
     finally:
         engine.dispose()

@@ -20,6 +20,7 @@ from atlas.pool import default_workers
 from cli.errors import InputError
 from cli.options import LENGTH, RPM, Bounded, Count, units_option
 from report.candidate_json import candidate_json, request_json
+from report.query_table import legend_lines, short_table
 from synth.candidates import OUTPUTS, Request
 from synth.kinds import OutputKind
 from synth.query import SAMPLES, QueryResult, RebuildError
@@ -36,19 +37,22 @@ def default_deg(name: str) -> float:
 
 
 def answer(engine, request: Request, *, progress: bool | None = False, workers: int = 1) -> QueryResult:
-    """:func:`synth.query.answer` on the atlas behind ``engine``; a complete search draws its
-    progress bar on stderr with ``progress`` (None: if stderr is a terminal) and runs its
-    batches on ``workers`` processes (the sampled query runs in this one)."""
+    """:func:`synth.query.answer` on the atlas behind ``engine``; with ``progress`` (None: if
+    stderr is a terminal) a line on stderr once it runs past a second (a complete search's
+    rows as a bar; not a terminal: a complete search's status every 10 s, :mod:`cli.progress`).
+    A complete search runs its batches on ``workers`` processes (the sampled query in this one)."""
     from atlas.malloc import raise_malloc_thresholds
-    from cli.progress import SearchBar
+    from cli.progress import Progress, SearchBar
     from db.queries import AtlasSource
     from synth.query import answer as answer_
 
     # a query's temporaries are a few MB, as a shard's: kept in the heap rather than mapped
     # and zero-filled afresh by every call (atlas.malloc)
     raise_malloc_thresholds()
-    with SearchBar(progress) as bar:
-        result = answer_(request, AtlasSource(engine), on_progress=bar, map_batches=batch_map(workers))
+    with Progress("query", terminal=progress, log=progress is None and request.complete) as shown:
+        shown.stage("answering the request")
+        result = answer_(request, AtlasSource(engine), on_progress=SearchBar(progress=shown),
+                         map_batches=batch_map(workers))
     _settle_heap()
     return result
 
@@ -187,14 +191,17 @@ def _rad(x: float | None) -> float | None:
     return None if x is None else math.radians(x)
 
 
-def table(result: QueryResult, units: str = "") -> str:
-    """The ranked candidates as a text table (lengths in the user's unit ``units``), with a
-    legend line."""
+def table(result: QueryResult, units: str = "", *, wide: bool = False) -> str:
+    """The ranked candidates as a text table (lengths in the user's unit ``units``) with its
+    legend: the default's 120 columns (:func:`report.query_table.short_table`), or with
+    ``wide`` every column and the full ids."""
     req = result.request
     head = (f"{len(result.candidates)} six-bar(s) for {req.dwells} dwell(s) of {math.degrees(req.dwell):g}° ± "
             f"{math.degrees(req.dwell_tol):g}°" + ("" if req.swing is None else f", swing {math.degrees(req.swing):g}°")
             + f" (output band {math.degrees(req.band):g}°; {_searched(result)}, {result.simulated} simulated"
             + _refined_note(result) + ")")
+    if not wide:
+        return short_table(result.candidates, req, head, units)
     lines = [head]
     width = max([26] + [len(c.id) for c in result.candidates])
     tol = f" {'tol dev °':>9}" if req.tolerance > 0 else ""
@@ -218,15 +225,20 @@ def table(result: QueryResult, units: str = "") -> str:
             f"{math.degrees(f.transmission_fourbar):>6.1f} {mu_out:>6} "
             f"{f.link_ratio:>6.2f} {arm:>7} {clear:>7} {accel:>9}  {_refined_text(c, req):<28} {_sixbar_text(sb)}"
         )
-    tol_note = (f"tol dev: 95th percentile of dev over 256 six-bars made within ±{req.tolerance:g} "
-                f"{units or 'your unit'} of each length and pivot coordinate, the ranking's deviation (fails: more "
-                f"than 5 % of them do not assemble); " if req.tolerance > 0 else "")
-    lines.append(f"dev: output deviation over the requested dwell; {tol_note}μ4, μout: smallest transmission angles "
-                 f"(four-bar, output dyad; a slotted rocker's is 90°); arm: slider to slot pivot (RPR); clear: "
-                 f"smallest clearance to a fixed pivot; α: peak output acceleration at {req.rpm:g} rpm; refined: the dwell "
-                 f"and dev before → after refinement (-: kept as retrieved; an id after ~ holds the refined dimensions); six-bar: "
-                 f"a b c d (crank, coupler, rocker, ground), P = coupler point (u, v) in the coupler frame, D = output "
-                 f"pivot, RRR rocker L and rod ρ; lengths in {units or 'your unit'} (crank = {req.crank:g})")
+    unit = units or "your unit"
+    legend = [("dev", "output deviation over the requested dwell")]
+    if req.tolerance > 0:
+        legend.append(("tol dev", f"95th percentile of dev over 256 six-bars made within ±{req.tolerance:g} {unit} "
+                                  "of each length and pivot coordinate, the ranking's deviation (fails: more than 5 % "
+                                  "of them do not assemble)"))
+    legend += [("μ4, μout", "smallest transmission angles (four-bar, output dyad; a slotted rocker's is 90°)"),
+               ("arm", "slider to slot pivot (RPR)"), ("clear", "smallest clearance to a fixed pivot"),
+               ("α", f"peak output acceleration at {req.rpm:g} rpm"),
+               ("refined", "the dwell and dev before → after refinement (-: kept as retrieved; an id after ~ holds "
+                           "the refined dimensions)"),
+               ("six-bar", f"a b c d (crank, coupler, rocker, ground), P = coupler point (u, v) in the coupler frame, "
+                           f"D = output pivot, RRR rocker L and rod ρ; lengths in {unit} (crank = {req.crank:g})")]
+    lines += legend_lines(legend)
     return "\n".join(lines)
 
 
@@ -397,12 +409,14 @@ FOUND, NONE_FOUND, BAD_INPUT = 0, 1, 2
                    "seconds to minutes, with a progress bar) instead of the segments nearest the request.")
 @workers_option
 @click.option("--json", "as_json", is_flag=True, help="JSON on stdout instead of a table.")
+@click.option("--wide", is_flag=True, help="Every column of the table and the full ids (the default table fits 120 "
+                                           "columns and shows short ids, which dwell report also takes).")
 @click.option("--report", "report_dir", type=click.Path(file_okay=False), default=None,
               help="Also write the report of the candidates to this folder.")
 @units_option
 def query(target, dwell, dwell_tol, swing, step, swing_tol, output, dwells, band, crank, min_transmission,
           max_link_ratio, top, min_arm, min_clearance, tolerance, rpm, max_accel, refine, complete, workers, as_json,
-          report_dir, units):
+          wide, report_dir, units):
     """Ranked six-bars for a requested dwell and swing (docs/query.md)."""
     request = request_from_options(dwell, dwell_tol, swing, swing_tol, output.lower(), dwells, band, crank,
                                    min_transmission, max_link_ratio, top, min_arm=min_arm, min_clearance=min_clearance,
@@ -433,14 +447,22 @@ def query(target, dwell, dwell_tol, swing, step, swing_tol, output, dwells, band
             doc["no_match"] = no_match_json(result, units)
         click.echo(json.dumps(doc, indent=2, allow_nan=False))
     elif result.candidates:
-        click.echo(table(result, units))
+        click.echo(table(result, units, wide=wide))
+        if not wide:
+            from cli.shown_ids import remember_shown
+
+            remember_shown(result.candidates)
     if not result.candidates:
         click.echo(f"dwell: {no_match_message(result)}", err=True)
         click.get_current_context().exit(NONE_FOUND)  # a script tells "none" from "some" (as grep)
     if report_dir is not None and result.candidates:
         from report.export import write_report
 
-        written = write_report(result.candidates, request, Path(report_dir), units=units)
+        from cli.progress import Progress
+
+        with Progress("query") as shown:  # a line on a terminal once it runs past a second
+            written = write_report(result.candidates, request, Path(report_dir), units=units,
+                                   on_candidate=shown.counter("writing the report", "candidates"))
         click.echo(f"report: {len(written)} files in {report_dir}", err=True)
 
 

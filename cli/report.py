@@ -22,10 +22,13 @@ _ID = re.compile(r"[0-9]+-(rpr|rrr|dbl)[0-9]+\.[0-9]+@(free|[0-9]+(\.[0-9]+)?([e
 
 
 def canonical_id(text: str) -> str:
-    """``text`` as the id ``dwell query`` would print for the same six-bar; an id in any other
-    spelling is refused in one line (the report shows and files ids: they must be the query's)."""
+    """``text`` as the id ``dwell query`` would print for the same six-bar: a full id, or the
+    one a short id stands for (:func:`cli.shown_ids.resolve`); an id in any other spelling is
+    refused in one line (the report shows and files ids: they must be the query's)."""
+    from cli.shown_ids import resolve
     from synth.candidates import REFINED_MARK, candidate_id, parse_candidate_id
 
+    text = resolve(text) or text
     if len(text) > 200 or not _ID.fullmatch(text):
         raise InputError(f"--candidates: {terminal(repr(text[:80]))} is not a candidate id as `dwell query` prints "
                          "them (e.g. 1234500007-rrr0.1@30)")
@@ -42,7 +45,7 @@ def canonical_id(text: str) -> str:
 @click.option("--db", "target", required=True, envvar="DWELL_ATLAS", show_envvar=True, metavar="PATH|URL",
               help="Atlas: SQLite file path or SQLAlchemy URL.")
 @click.option("--candidates", "ids", required=True, multiple=True,
-              help="Candidate id(s) from `dwell query` (repeat the option or separate with spaces).")
+              help="Candidate id(s) from `dwell query`, full or short (repeat the option or separate with spaces).")
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False), help="Folder for the report.")
 @click.option("--dwell", type=DWELL_DEG, default=None, help="Requested dwell (°) for the output deviation window.")
 @click.option("--band", type=BAND_DEG, default=0.1, show_default=True,
@@ -56,13 +59,8 @@ def canonical_id(text: str) -> str:
 @click.argument("more_ids", nargs=-1)
 def report(target, ids, out_dir, dwell, band, crank, min_transmission, rpm, units, more_ids):
     """Write JSON, CSV, plots, drawings, DXF and an animated HTML page for the candidates."""
-    from cli.query import rebuild, request_from_options
-    from db.engine import damaged, open_atlas
-    from db.summary import quick_check
-    from kinematics.assur import LinkageFileError
-    from report.export import write_report
+    from cli.query import request_from_options
     from report.folder import ReportFolderError, check_report_folder
-    from report.linkage_toml import readable_linkages
 
     names = [canonical_id(t) for item in (*ids, *more_ids) for t in item.replace(",", " ").split()]
     if not names:
@@ -80,6 +78,27 @@ def report(target, ids, out_dir, dwell, band, crank, min_transmission, rpm, unit
     # the deviation window: the requested dwell, or the rebuilt six-bar's own dwell
     request = request_from_options(dwell if dwell is not None else 60.0, 2.0, 30.0, 0.5, "any", 1, band,
                                    crank, min_transmission, 1e12, len(names), rpm=rpm)
+    from cli.progress import Progress
+
+    with Progress("report") as shown:  # a line on a terminal once it runs past a second
+        candidates, written = _report(target, names, request, out, units, crank, shown)
+    for c in candidates:
+        dw = " and ".join(f"{math.degrees(d.angle):.2f}°" for d in c.figures.dwells)
+        click.echo(f"{c.rank}. {c.id}: {c.sixbar.dyad.kind}, dwell {dw}, swing {math.degrees(c.figures.swing):.2f}°")
+    click.echo(f"wrote {len(written)} files to {out.resolve()} (open index.html)")
+
+
+def _report(target, names: list[str], request, out: Path, units: str, crank: float, shown) -> tuple[list, list[Path]]:
+    """The candidates ``names`` rebuilt from the atlas ``target`` and the files of their report
+    written into ``out``, the progress shown on ``shown`` (:class:`cli.progress.Progress`)."""
+    from cli.query import rebuild
+    from db.engine import damaged, open_atlas
+    from db.summary import quick_check
+    from kinematics.assur import LinkageFileError
+    from report.export import write_report
+    from report.linkage_toml import readable_linkages
+
+    shown.stage("rebuilding the candidates")
     engine = open_atlas(target, readonly=True)
     try:
         # a report reads a few rows, which may all lie outside a damaged stretch of the file:
@@ -95,8 +114,6 @@ def report(target, ids, out_dir, dwell, band, crank, min_transmission, rpm, unit
         readable_linkages(candidates, units)
     except LinkageFileError as exc:
         raise InputError(f"--crank {crank:g}: {exc}; use a smaller --crank") from None
-    written = write_report(candidates, request, out, option="--out", units=units)  # all files or none (report/folder.py)
-    for c in candidates:
-        dw = " and ".join(f"{math.degrees(d.angle):.2f}°" for d in c.figures.dwells)
-        click.echo(f"{c.rank}. {c.id}: {c.sixbar.dyad.kind}, dwell {dw}, swing {math.degrees(c.figures.swing):.2f}°")
-    click.echo(f"wrote {len(written)} files to {out.resolve()} (open index.html)")
+    written = write_report(candidates, request, out, option="--out", units=units,  # all files or none (report/folder.py)
+                           on_candidate=shown.counter("writing the report", "candidates"))
+    return candidates, written

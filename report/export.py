@@ -26,7 +26,7 @@ import io
 import json
 import math
 import re
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -292,7 +292,8 @@ def _readme(request: Request, stems: Sequence[str], units: str) -> str:
 
 
 def write_report(candidates: list[Candidate], request: Request, out_dir: Path, *,
-                 step_deg: float = 1.0, option: str = "report folder", units: str = "") -> list[Path]:
+                 step_deg: float = 1.0, option: str = "report folder", units: str = "",
+                 on_candidate: Callable[[int, int], None] | None = None) -> list[Path]:
     """Write the report of ``candidates`` (ranked, in the user's units) for ``request`` into
     ``out_dir``: written into a temporary sibling folder that replaces ``out_dir`` when
     complete (:func:`report.folder.staged_folder`; a folder holding files the tool did not
@@ -312,6 +313,9 @@ def write_report(candidates: list[Candidate], request: Request, out_dir: Path, *
     units : str
         Name of the candidates' length unit (``""`` unitless): drawing labels and the DXF's
         ``$INSUNITS``.
+    on_candidate : callable, optional
+        ``on_candidate(done, total)`` after each candidate's files (its plots take most of a
+        report's time), for a progress display.
 
     Returns
     -------
@@ -368,8 +372,10 @@ def write_report(candidates: list[Candidate], request: Request, out_dir: Path, *
             written += files
             entries.append(PageEntry(c, cyc, geom, {k: pf.svg_text for k, pf in plots.items()},
                                      [p.name for p in files]))
+            if on_candidate is not None:
+                on_candidate(len(entries), len(candidates))
         page = out / "index.html"
-        page.write_text(render_page(request, entries), encoding="utf-8")
+        page.write_text(render_page(request, entries, units=units), encoding="utf-8")
         written.append(page)
         (out / MARKER).write_text("\n".join(p.name for p in written) + "\n", encoding="utf-8")
     return [final / p.name for p in written]

@@ -64,6 +64,11 @@ def _num(x: float, digits: int = 6) -> str:
     return f"{x:.{digits}g}"
 
 
+def _length(x: float, units: str, digits: int = 6) -> str:
+    """A length with its unit's name (``12.5 in``; the bare number without one)."""
+    return f"{_num(x, digits)} {units}" if units else _num(x, digits)
+
+
 _json_script = script_json
 
 
@@ -257,7 +262,7 @@ def _strip_svg(entry: PageEntry, data: dict) -> str:
 # --------------------------------------------------------------------------------------------
 
 
-def _request_line(request: Request) -> str:
+def _request_line(request: Request, units: str = "") -> str:
     r = request
     swing = ("swing free" if r.swing is None
              else f"swing {_num(math.degrees(r.swing))}° ± {_num(math.degrees(r.swing_tol))}°")
@@ -266,7 +271,8 @@ def _request_line(request: Request) -> str:
              swing,
              f"output {r.output}",
              f"dwell band {_num(math.degrees(r.band))}°",
-             f"crank {_num(r.crank)}",
+             f"crank {_length(r.crank, units)}",
+             *((f"manufacturing tolerance ±{_length(r.tolerance, units)}",) if r.tolerance > 0 else ()),
              f"transmission ≥ {_num(math.degrees(r.min_transmission))}°",
              f"link ratio ≤ {_num(r.max_link_ratio)}",
              f"slider arm ≥ {_num(r.min_arm)} cranks · clearance ≥ {_num(r.min_clearance)} cranks"]
@@ -278,11 +284,11 @@ def _dwells_text(c: Candidate) -> str:
     return "; ".join(f"{math.degrees(d.angle):.2f}°" for d in f.dwells) or "–"
 
 
-def _summary_table(entries: list[PageEntry]) -> str:
+def _summary_table(entries: list[PageEntry], units: str = "") -> str:
     # the toleranced deviation (--tolerance) beside the nominal one, where it was worked out
     toleranced = any(e.candidate.toleranced_deviation is not None for e in entries)
     head = ("rank", "id", "output", "dwell(s)", "deviation", *(("toleranced deviation",) if toleranced else ()),
-            "swing", "μ four-bar", "μ output", "link ratio", "footprint")
+            "swing", "μ four-bar", "μ output", "link ratio", f"footprint ({units}²)" if units else "footprint")
     rows = []
     for e in entries:
         c, f = e.candidate, e.candidate.figures
@@ -300,23 +306,26 @@ def _summary_table(entries: list[PageEntry]) -> str:
             + "</tr></thead><tbody>" + "\n".join(rows) + "</tbody></table>")
 
 
-def _dimensions_table(entry: PageEntry, rpm: float) -> str:
-    """Every dimension and figure of one candidate (lengths in the user's unit; the output's
-    peak rates at ``rpm``)."""
+def _dimensions_table(entry: PageEntry, rpm: float, units: str = "") -> str:
+    """Every dimension and figure of one candidate (lengths in the user's unit ``units``, named
+    beside each; the output's peak rates at ``rpm``)."""
     c = entry.candidate
     sb, f, dy = c.sixbar, c.figures, c.sixbar.dyad
 
     def xy(z: complex) -> str:
-        return f"({_num(z.real)}, {_num(z.imag)})"
+        return f"({_num(z.real)}, {_num(z.imag)}){f' {units}' if units else ''}"
+
+    def ln(x: float, digits: int = 6) -> str:
+        return _length(x, units, digits)
 
     rows: list[tuple[str, str]] = [
-        ("crank a (A0–A)", _num(sb.a)), ("coupler b (A–B)", _num(sb.b)), ("rocker c (B0–B)", _num(sb.c)),
-        ("ground d (A0–B0)", _num(sb.d)), ("four-bar branch", f"{sb.branch:+d}"),
+        ("crank a (A0–A)", ln(sb.a)), ("coupler b (A–B)", ln(sb.b)), ("rocker c (B0–B)", ln(sb.c)),
+        ("ground d (A0–B0)", ln(sb.d)), ("four-bar branch", f"{sb.branch:+d}"),
         ("coupler point (u, v), coupler frame", xy(sb.coupler_point)),
         ("output dyad", dy.kind), ("output pivot D", xy(dy.pivot)),
     ]
     if dy.kind == OutputKind.RRR:
-        rows += [("output rocker L (D–Q)", _num(dy.rocker)), ("rod ρ (P–Q)", _num(dy.rod)),
+        rows += [("output rocker L (D–Q)", ln(dy.rocker)), ("rod ρ (P–Q)", ln(dy.rod)),
                  ("dyad branch", f"{dy.branch:+d}")]
         if c.dwell_position is not None:
             rows.append(("Q at rest (dwell)", xy(c.dwell_position)))
@@ -339,14 +348,15 @@ def _dimensions_table(entry: PageEntry, rpm: float) -> str:
              ("min transmission, four-bar", f"{math.degrees(f.transmission_fourbar):.2f}°"),
              ("min transmission, output", "slot (90° by construction)" if dy.kind == "RPR"
               else f"{math.degrees(f.transmission_output):.2f}°"),
-             ("link ratio", _num(f.link_ratio, 4)), ("footprint (hull area)", _num(f.footprint, 5))]
+             ("link ratio", _num(f.link_ratio, 4)),
+             ("footprint (hull area)", f"{_num(f.footprint, 5)}{f' {units}²' if units else ''}")]
     if f.build is not None:
         b = f.build
         if b.arm is not None:
-            rows += [("slider to slot pivot, smallest (torque arm)", _num(b.arm)),
-                     ("slot length used, |P − D|", f"{_num(b.slot[0])} … {_num(b.slot[1])}")]
+            rows += [("slider to slot pivot, smallest (torque arm)", ln(b.arm)),
+                     ("slot length used, |P − D|", f"{_num(b.slot[0])} … {ln(b.slot[1])}")]
         speed, accel, jerk = b.dynamics(rpm)
-        rows += [("clearance to the fixed pivots", f"{_num(b.clearance)} ({b.clearance_between})"),
+        rows += [("clearance to the fixed pivots", f"{ln(b.clearance)} ({b.clearance_between})"),
                  (f"output peak speed / acceleration / jerk at {_num(rpm)} rpm",
                   f"{_num(speed, 4)} rad/s · {_num(accel, 4)} rad/s² · {_num(jerk, 4)} rad/s³")]
     rows.append(("segment", str(int(c.segment_id))))
@@ -359,7 +369,7 @@ def _dimensions_table(entry: PageEntry, rpm: float) -> str:
 # --------------------------------------------------------------------------------------------
 
 
-def _candidate_section(entry: PageEntry, rpm: float) -> str:
+def _candidate_section(entry: PageEntry, rpm: float, units: str = "") -> str:
     c = entry.candidate
     rank = int(c.rank)
     sid = f"cand-{rank}"
@@ -383,7 +393,7 @@ def _candidate_section(entry: PageEntry, rpm: float) -> str:
 </div>
 {_strip_svg(entry, data)}
 </div>
-<div class="dims">{_dimensions_table(entry, rpm)}</div>
+<div class="dims">{_dimensions_table(entry, rpm, units)}</div>
 </div>
 <details class="plots" open><summary>Plots</summary>
 <div class="plot-row">{plots}</div>
@@ -636,9 +646,12 @@ _MAIN_JS = """
 
 
 def render_page(request: Request, entries: list[PageEntry], *,
-                title: str = "Dwell Atlas — candidate six-bars") -> str:
-    """The whole page as one string (UTF-8 text, no external resources)."""
-    sections = "\n".join(_candidate_section(e, request.rpm) for e in entries)
+                title: str = "Dwell Atlas — candidate six-bars", units: str = "") -> str:
+    """The whole page as one string (UTF-8 text, no external resources); ``units`` names the
+    length unit beside every length ('': the request's unit, unnamed)."""
+    sections = "\n".join(_candidate_section(e, request.rpm, units) for e in entries)
+    unit_note = (f"Lengths in {_esc(units)} (crank = {_esc(_length(request.crank, units))})" if units
+                 else f"Lengths in the request's unit (crank = {_esc(_num(request.crank))})")
     return f"""<!DOCTYPE html>
 <html lang="en">
 <head>
@@ -651,11 +664,11 @@ def render_page(request: Request, entries: list[PageEntry], *,
 <body>
 <header>
 <h1>{_esc(title)}</h1>
-<p class="request">Request: {_request_line(request)}</p>
+<p class="request">Request: {_request_line(request, units)}</p>
 </header>
-{_summary_table(entries)}
+{_summary_table(entries, units)}
 {sections}
-<footer class="files">Lengths in the request's unit (crank = {_esc(_num(request.crank))}); angles in degrees;
+<footer class="files">{unit_note}; angles in degrees;
 fixed frame A0 = (0, 0), B0 = (d, 0). Every figure comes from the exact simulation of the six-bar.</footer>
 <script>{_MAIN_JS}</script>
 </body>

@@ -132,18 +132,23 @@ def sixbar_geometry(candidate: Candidate, cycle: Cycle, phi: float | None = None
     D = sb.dyad.pivot
     fixed = {"A0": 0j, "B0": complex(sb.d, 0.0), "D": D}
     joints = {"A": A, "B": B, "P": P}
+    u = f" {units}" if units else ""  # every length label names its unit
+
+    def length(x: float) -> str:
+        return f"{_fmt(x)}{u}"
+
     links = [
-        Link("crank", f"crank a = {_fmt(sb.a)}", [0j, A], sb.a),
-        Link("coupler", f"coupler b = {_fmt(sb.b)}, |AP| = {_fmt(abs(P - A))}, |BP| = {_fmt(abs(P - B))}",
+        Link("crank", f"crank a = {length(sb.a)}", [0j, A], sb.a),
+        Link("coupler", f"coupler b = {length(sb.b)}, |AP| = {length(abs(P - A))}, |BP| = {length(abs(P - B))}",
              [A, B, P, A], sb.b),
-        Link("rocker", f"rocker c = {_fmt(sb.c)}", [complex(sb.d, 0.0), B], sb.c),
+        Link("rocker", f"rocker c = {length(sb.c)}", [complex(sb.d, 0.0), B], sb.c),
     ]
     stretches = [cycle.P[run] for run in _runs(cycle.dwelling & cycle.assembled)]
     if sb.dyad.kind == OutputKind.RRR:
         Q = complex(m.moving_pivot[0]) * scale
         joints["Q"] = Q
-        links += [Link("rod", f"rod ρ = {_fmt(sb.dyad.rod)}", [P, Q], sb.dyad.rod),
-                  Link("output", f"output rocker L = {_fmt(sb.dyad.rocker)}", [D, Q], sb.dyad.rocker)]
+        links += [Link("rod", f"rod ρ = {length(sb.dyad.rod)}", [P, Q], sb.dyad.rod),
+                  Link("output", f"output rocker L = {length(sb.dyad.rocker)}", [D, Q], sb.dyad.rocker)]
         rest = candidate.dwell_position
         if rest is None:  # the arc's centre: where Q stands at mid-dwell
             rest = complex(unit_motion(sb, np.array([_mid_dwell(f)]))[0].moving_pivot[0]) * scale
@@ -151,7 +156,7 @@ def sixbar_geometry(candidate: Candidate, cycle: Cycle, phi: float | None = None
     else:
         reach = float(np.max(np.abs(cycle.P[cycle.assembled] - D))) if cycle.assembled.any() else abs(P - D)
         slot = D + SLOT_MARGIN * reach * np.exp(1j * psi)
-        links.append(Link("output", f"slotted rocker (reach {_fmt(reach)})", [D, complex(slot)], None))
+        links.append(Link("output", f"slotted rocker (reach {length(reach)})", [D, complex(slot)], None))
         mid = _mid_dwell(f)
         psi_mid = float(unit_motion(sb, np.array([mid]))[0].psi[0])
         guide = ("line", D, complex(np.exp(1j * psi_mid)))
@@ -198,7 +203,7 @@ def draw_sixbar(geom: SixBarGeometry, path: str | Path) -> Path:
             color = LINK_COLORS[link.name]
             if link.name == "coupler":
                 ax.add_patch(Polygon(np.c_[pts.real, pts.imag], closed=True, alpha=0.2, color=color))
-            ax.plot(pts.real, pts.imag, lw=3, color=color, solid_capstyle="round", label=link.label)
+            ax.plot(pts.real, pts.imag, lw=3, color=color, solid_capstyle="round", label=plot_text(link.label))
         if geom.kind == OutputKind.RPR:
             P = geom.joints["P"]
             rect = Rectangle((P.real - 1.5 * size, P.imag - size), 3 * size, 2 * size, alpha=0.6, color=BLOCK)
@@ -210,8 +215,9 @@ def draw_sixbar(geom: SixBarGeometry, path: str | Path) -> Path:
             ax.add_patch(Circle((x, y), 0.45 * size, facecolor="white", edgecolor="black", zorder=5))
         for z in geom.joints.values():
             ax.add_patch(Circle((z.real, z.imag), 0.4 * size, facecolor="white", edgecolor="black", zorder=5))
-        ground = ", ".join(f"{name} = {_fmt(v)}" for name, v in geom.ground)
-        ax.set_xlabel(f"ground: {ground}", fontsize=8)
+        unit = f" {geom.units}" if geom.units else ""
+        ground = ", ".join(f"{name} = {_fmt(v)}{unit}" for name, v in geom.ground)
+        ax.set_xlabel(plot_text(f"ground: {ground}"), fontsize=8)  # the unit's name is the user's text
         ax.set_aspect("equal", adjustable="datalim")
         ax.grid(True, alpha=0.25)
         ax.set_title(plot_text(geom.title), fontsize=10)  # a user's id is text, not mathtext nor controls

@@ -131,6 +131,9 @@ def coupler_figure(candidate: Candidate, cycle: Cycle, geom: SixBarGeometry):
                     fontsize=9)
     ax.set_aspect("equal", adjustable="datalim")
     ax.grid(True, alpha=0.3)
+    if geom.units:  # the coordinates are lengths: their unit on both axes
+        ax.set_xlabel(plot_text(f"x [{geom.units}]"))
+        ax.set_ylabel(plot_text(f"y [{geom.units}]"))
     ax.set_title(f"{_title(candidate)} — coupler curve", fontsize=10)
     ax.legend(fontsize=8, loc="best")
     fig.tight_layout()

@@ -36,6 +36,13 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         items[:] = [item for item in items if not item.get_closest_marker("timing")]
 
 
+@pytest.fixture(autouse=True)
+def _shown_ids_file(tmp_path_factory, monkeypatch):
+    """The ids the query's tables show are kept in a file of the user's cache folder
+    (cli/shown_ids.py): the tests keep theirs in a folder of their own, never in $HOME."""
+    monkeypatch.setenv("DWELL_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "dwell-cache"))
+
+
 CASES_FILE = Path(__file__).resolve().parents[1] / "docs" / "cases" / "classic_mechanisms.json"
 
 
