@@ -22,6 +22,7 @@ from synth.band_search import (
     tightest_band,
 )
 from synth.candidates import Request
+from synth.query import answer
 
 RPR_60 = Request(dwell=math.radians(60.0), swing=math.radians(30.0), output="rpr", refine=False)
 
@@ -86,6 +87,16 @@ def test_search_matches_a_scan_of_the_atlas(source, request_):
     failed_below = [p.band for p in probes if p.band < band]
     assert failed_below and band / max(failed_below) <= RESOLUTION
     assert all(p.met < need for p in probes if p.band < band)
+
+
+@pytest.mark.parametrize("band_deg", [0.1, 0.01, 0.0001])
+def test_a_probe_counts_what_the_query_answers(source, band_deg):
+    """A probe (which skips the no-match's stored-dwell look-up) counts the six-bars the
+    unrefined query itself returns at that band, cut to min(top, 3)."""
+    request = dataclasses.replace(RPR_60, output="any", band=math.radians(band_deg))
+    full = answer(request, source)
+    assert probe(request, source, request.band).met == min(len(full.candidates), needed(request))
+    assert band_deg != 0.0001 or (not full.candidates and full.nearest != (None, None))
 
 
 def test_answer_at_the_band_reached(source):
