@@ -7,6 +7,8 @@ import dataclasses
 import math
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from synth.band_search import (
     FLOOR,
@@ -112,3 +114,29 @@ def test_answer_at_the_band_reached(source):
         assert abs(math.degrees(here) - 60.0) <= 2.0 + 1e-9
         assert ref and ref[0] > here + math.radians(5.0)  # a 0.1° band holds far more than 0.01°
     assert REFERENCE_BAND == math.radians(0.1)
+
+
+@settings(max_examples=200, deadline=None)
+@given(islands=st.lists(st.tuples(st.floats(-4.0, -1.0), st.floats(0.0, 1.5)), max_size=4),
+       top=st.integers(1, 5))
+def test_the_rule_on_any_counts(islands, top):
+    """Counts made of islands [10^x, 10^(x+w)] (degrees) where enough six-bars meet: the band
+    found meets; no ladder rung tighter than it does; a failing probe lies within a factor
+    RESOLUTION below it; with no island the search says none."""
+    request = dataclasses.replace(RPR_60, top=top)
+    need = needed(request)
+
+    def met(b: float) -> int:
+        return need if any(10**x <= b <= 10 ** (x + w) for x, w in islands) else need - 1
+
+    count, _ = _counts(met)
+    band, probes = tightest_band(request, count)
+    rungs = [float(r) for r in ladder(request.band, FLOOR)]
+    if band is None:
+        assert all(met(math.degrees(r)) < need for r in rungs)
+        return
+    assert met(math.degrees(band)) >= need
+    assert all(met(math.degrees(r)) < need for r in rungs if r < band * (1 - 1e-9))
+    below = [p.band for p in probes if p.band < band]
+    assert not below or band / max(below) <= RESOLUTION * (1 + 1e-9)
+    assert below or band == pytest.approx(FLOOR)
