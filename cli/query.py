@@ -394,7 +394,9 @@ DWELL_TOL_DEG = Bounded(0.0, 360.0, "a dwell error in degrees", high_open=True)
 SWING_DEG = Bounded(0.01, 180.0, "a swing in degrees", high_open=True)
 SWING_TOL_DEG = Bounded(0.0, 180.0, "a swing error in degrees", high_open=True)
 STEP_DEG = Bounded(0.01, 180.0, "a turn between two rests in degrees", high_open=True)
-BAND_DEG = BandOrAuto(1e-4, 180.0, "an output band in degrees", high_open=True)
+BAND_DEG = Bounded(1e-4, 180.0, "an output band in degrees", high_open=True)
+#: ``dwell query --band``: the same, or auto (synth.band_search); ``dwell report`` takes a number.
+BAND_OR_AUTO = BandOrAuto(BAND_DEG.min, BAND_DEG.max, BAND_DEG.what, high_open=True)
 #: Transmission angles the RRR fit accepts (degrees): from 0.001° (5e-324° became 0 rad, which
 #: the fit refuses; found by tests/cli/test_option_ranges.py) to below 90°.
 TRANSMISSION_RANGE = Bounded(0.001, 90.0, "a transmission angle in degrees", high_open=True)
@@ -429,7 +431,7 @@ FOUND, NONE_FOUND, BAD_INPUT = 0, 1, 2
               show_default=True, help="Output dyad.")
 @click.option("--dwells", type=Count(1, 2, "dwells per turn"), default=_DEFAULTS["dwells"], show_default=True,
               help="Dwells per turn: 1, or 2 (double Ball point, RPR).")
-@click.option("--band", type=BAND_DEG, default=default_deg("band"), show_default=True,
+@click.option("--band", type=BAND_OR_AUTO, default=default_deg("band"), show_default=True,
               help="Total width (°) of the output band that counts as a dwell (not --dwell-tol, the error "
                    "allowed on the dwell angle); auto: the tightest band (down to 1e-4°) at which at least "
                    "min(--top, 3) six-bars meet the request (docs/query.md).")
