@@ -17,10 +17,12 @@ from kinematics.timing import crank_speed
 
 __all__ = [
     "ANGLE_DEG",
+    "AUTO",
     "COORDINATE",
     "LENGTH",
     "SEED",
     "STEP_DEG",
+    "BandOrAuto",
     "Bounded",
     "Count",
     "crank_angle_options",
@@ -75,6 +77,29 @@ class Bounded(click.FloatRange):
             self.fail(f"must be 0 or at least {sys.float_info.min:.3g} in magnitude ({self.what}), got {number:g}",
                       param, ctx)
         return number
+
+
+#: The value of an option that takes a number or lets the program search for it (``--band auto``).
+AUTO = "auto"
+
+
+class BandOrAuto(Bounded):
+    """An output band in degrees (a :class:`Bounded` number) or ``auto``: the tightest band
+    the request can be met at, searched for (``synth.band_search``). Anything else is one
+    line naming both forms, exit 2."""
+
+    def get_metavar(self, param, ctx=None) -> str:
+        return "DEG|auto"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, str) and value.strip().lower() == AUTO:
+            return AUTO
+        if isinstance(value, str):
+            try:
+                float(value)
+            except ValueError:
+                self.fail(f"must be a number of degrees or 'auto' ({self.what}), got {value[:40]!r}", param, ctx)
+        return super().convert(value, param, ctx)
 
 
 class Count(click.IntRange):

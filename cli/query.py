@@ -15,17 +15,18 @@ import math
 from pathlib import Path
 
 import click
+from click.core import ParameterSource
 
 from atlas.pool import default_workers
 from cli.errors import InputError
-from cli.options import LENGTH, RPM, Bounded, Count, units_option
+from cli.options import AUTO, LENGTH, RPM, BandOrAuto, Bounded, Count, units_option
 from report.candidate_json import candidate_json, request_json
 from report.query_table import legend_lines, short_table
 from synth.candidates import OUTPUTS, Request
 from synth.kinds import OutputKind
 from synth.query import SAMPLES, QueryResult, RebuildError
 
-__all__ = ["BAD_INPUT", "FOUND", "NONE_FOUND", "answer", "no_match_json", "no_match_message", "query", "rebuild",
+__all__ = ["BAD_INPUT", "FOUND", "NONE_FOUND", "answer", "answer_tightest", "band_search_json", "no_match_json", "no_match_message", "query", "rebuild",
            "request_from_options", "table"]
 
 _DEFAULTS = {f.name: f.default for f in dataclasses.fields(Request)}
@@ -242,6 +243,68 @@ def table(result: QueryResult, units: str = "", *, wide: bool = False) -> str:
     return "\n".join(lines)
 
 
+def answer_tightest(engine, request: Request, *, workers: int = 1):
+    """:func:`synth.band_search.answer_tightest` on the atlas behind ``engine``: the band
+    searched with sampled probes, the request answered at the band reached as :func:`answer`
+    answers it (a complete search with its progress bar and ``workers``)."""
+    from db.queries import AtlasSource
+    from synth.band_search import answer_tightest as answer_tightest_
+
+    return answer_tightest_(request, AtlasSource(engine),
+                            answer_at=lambda r: answer(engine, r, progress=None, workers=workers))
+
+
+def tighter_band(engine, result: QueryResult):
+    """:func:`synth.band_search.tighter_band` for the request of ``result`` (one sampled probe)."""
+    from db.queries import AtlasSource
+    from synth.band_search import tighter_band as tighter_band_
+
+    return tighter_band_(result.request, AtlasSource(engine))
+
+
+def band_search_json(searched) -> dict:
+    """``band_search`` of ``--json`` with ``--band auto``: the band reached (°), whether a probe
+    met the request there (false: the request's own band, unsearched), the probes (band °,
+    six-bars met) and per candidate its dwells at the band reached and at the reference band."""
+    from synth.band_search import REFERENCE_BAND
+
+    req = searched.result.request
+    return {"band_deg": math.degrees(searched.band), "settled": searched.settled,
+            "reference_band_deg": math.degrees(REFERENCE_BAND),
+            "probes": [{"band_deg": math.degrees(p.band), "met": p.met} for p in searched.probes],
+            "candidates": [{"id": c.id, "dwell_deg": [math.degrees(d.angle) for d in c.figures.dwells[: req.dwells]],
+                            "reference_dwell_deg": [math.degrees(x) for x in ref]}
+                           for c, ref in zip(searched.result.candidates, searched.reference_dwells)]}
+
+
+def band_search_text(searched) -> str:
+    """The lines under the table with ``--band auto``: the band reached and how, then each
+    candidate's dwell at that band and at the reference band."""
+    from synth.band_search import REFERENCE_BAND, needed
+
+    req = searched.result.request
+    ref = f"{math.degrees(REFERENCE_BAND):g}°"
+    if searched.settled:
+        head = (f"band auto: {math.degrees(searched.band):.3g}°, the tightest at which {needed(req)} six-bars of the "
+                f"sample meet the request unrefined ({len(searched.probes)} probes)")
+    else:
+        head = (f"band auto: no band down to 1e-4° holds {needed(req)} six-bars of the unrefined sample; "
+                f"answered at {math.degrees(searched.band):g}° ({len(searched.probes)} probes)")
+    lines = [head]
+    for c, dwells in zip(searched.result.candidates, searched.reference_dwells):
+        here = "/".join(f"{math.degrees(d.angle):.2f}°" for d in c.figures.dwells[: req.dwells])
+        there = "/".join(f"{math.degrees(x):.2f}°" for x in dwells) or "none"
+        lines.append(f"  {c.rank:>3} dwell {here} at {math.degrees(req.band):.3g}°, {there} at {ref}")
+    return "\n".join(lines)
+
+
+def tighter_text(tighter, request: Request) -> str:
+    """The one line a query at the default band adds when a tighter band also answers it."""
+    return (f"dwell: a stiller rest exists: {tighter.met} six-bars also meet the request within a "
+            f"{math.degrees(tighter.band):g}° band (--band {math.degrees(tighter.band):g}, or --band auto "
+            f"for the tightest)")
+
+
 #: How a no-match names each constraint (synth.query.CONSTRAINTS).
 _CONSTRAINT_NAMES = {"assembly": "assembly (toggles, revolves or misses a dwell)", "dwell": "dwell angle",
                      "swing": "swing", "step": "step between the rests (--step)", "transmission": "transmission angle", "link_ratio": "link ratio",
@@ -344,6 +407,8 @@ SWING_DEG = Bounded(0.01, 180.0, "a swing in degrees", high_open=True)
 SWING_TOL_DEG = Bounded(0.0, 180.0, "a swing error in degrees", high_open=True)
 STEP_DEG = Bounded(0.01, 180.0, "a turn between two rests in degrees", high_open=True)
 BAND_DEG = Bounded(1e-4, 180.0, "an output band in degrees", high_open=True)
+#: ``dwell query --band``: the same, or auto (synth.band_search); ``dwell report`` takes a number.
+BAND_OR_AUTO = BandOrAuto(BAND_DEG.min, BAND_DEG.max, BAND_DEG.what, high_open=True)
 #: Transmission angles the RRR fit accepts (degrees): from 0.001° (5e-324° became 0 rad, which
 #: the fit refuses; found by tests/cli/test_option_ranges.py) to below 90°.
 TRANSMISSION_RANGE = Bounded(0.001, 90.0, "a transmission angle in degrees", high_open=True)
@@ -378,9 +443,10 @@ FOUND, NONE_FOUND, BAD_INPUT = 0, 1, 2
               show_default=True, help="Output dyad.")
 @click.option("--dwells", type=Count(1, 2, "dwells per turn"), default=_DEFAULTS["dwells"], show_default=True,
               help="Dwells per turn: 1, or 2 (double Ball point, RPR).")
-@click.option("--band", type=BAND_DEG, default=default_deg("band"), show_default=True,
+@click.option("--band", type=BAND_OR_AUTO, default=default_deg("band"), show_default=True,
               help="Total width (°) of the output band that counts as a dwell (not --dwell-tol, the error "
-                   "allowed on the dwell angle).")
+                   "allowed on the dwell angle); auto: the tightest band (down to 1e-4°) at which at least "
+                   "min(--top, 3) six-bars meet the request (docs/query.md).")
 @click.option("--crank", type=LENGTH, default=_DEFAULTS["crank"], show_default=True,
               help="Crank length (your unit).")
 @click.option("--min-transmission", type=TRANSMISSION_RANGE, default=default_deg("min_transmission"),
@@ -418,7 +484,8 @@ def query(target, dwell, dwell_tol, swing, step, swing_tol, output, dwells, band
           max_link_ratio, top, min_arm, min_clearance, tolerance, rpm, max_accel, refine, complete, workers, as_json,
           wide, report_dir, units):
     """Ranked six-bars for a requested dwell and swing (docs/query.md)."""
-    request = request_from_options(dwell, dwell_tol, swing, swing_tol, output.lower(), dwells, band, crank,
+    auto = band == AUTO
+    request = request_from_options(dwell, dwell_tol, swing, swing_tol, output.lower(), dwells, None if auto else band, crank,
                                    min_transmission, max_link_ratio, top, min_arm=min_arm, min_clearance=min_clearance,
                                    rpm=rpm, max_accel=max_accel, step=step, refine=refine, complete=complete,
                                    tolerance=tolerance)
@@ -428,7 +495,15 @@ def query(target, dwell, dwell_tol, swing, step, swing_tol, output, dwells, band
 
     engine = open_atlas(target, readonly=True)
     try:
-        result = answer(engine, request, progress=None, workers=workers or default_workers())
+        if auto:
+            searched = answer_tightest(engine, request, workers=workers or default_workers())
+            result = searched.result
+        else:
+            searched = None
+            result = answer(engine, request, progress=None, workers=workers or default_workers())
+        # no --band given: one cheap probe names a stiller rest the atlas holds (docs/query.md)
+        tighter = (tighter_band(engine, result) if searched is None and result.candidates and
+                   click.get_current_context().get_parameter_source("band") is ParameterSource.DEFAULT else None)
     finally:
         engine.dispose()
     if report_dir is not None:
@@ -439,10 +514,15 @@ def query(target, dwell, dwell_tol, swing, step, swing_tol, output, dwells, band
             readable_linkages(result.candidates, units)
         except LinkageFileError as exc:
             raise InputError(f"--crank {crank:g}: {exc}; use a smaller --crank (or no --report)") from None
+    request = result.request  # with --band auto, at the band reached
     if as_json:
         doc = {"request": request_json(request, units),
                "candidates": [candidate_json(c, request.rpm, units) for c in result.candidates],
                "refinement": refinement_json(result)}
+        if searched is not None:
+            doc["band_search"] = band_search_json(searched)
+        if tighter is not None:
+            doc["tighter_band_deg"] = math.degrees(tighter.band)
         if not result.candidates:
             doc["no_match"] = no_match_json(result, units)
         click.echo(json.dumps(doc, indent=2, allow_nan=False))
@@ -452,6 +532,10 @@ def query(target, dwell, dwell_tol, swing, step, swing_tol, output, dwells, band
             from cli.shown_ids import remember_shown
 
             remember_shown(result.candidates)
+        if searched is not None:
+            click.echo(band_search_text(searched))
+    if tighter is not None and not as_json:
+        click.echo(tighter_text(tighter, request), err=True)
     if not result.candidates:
         click.echo(f"dwell: {no_match_message(result)}", err=True)
         click.get_current_context().exit(NONE_FOUND)  # a script tells "none" from "some" (as grep)

@@ -568,3 +568,51 @@ def test_tolerance_adds_a_column_and_ranks_by_it(atlas_path, capsys):
     code, out, err = run(capsys, *args, "--json")
     assert all(c["toleranced_deviation_deg"] is None for c in json.loads(out)["candidates"])
     assert run(capsys, *args, "--tolerance", "-0.05")[0] == 2
+
+
+@pytest.mark.parametrize("value, message", [
+    ("fine", "a number of degrees or 'auto'"), ("auto2", "a number of degrees or 'auto'"),
+    ("nan", "finite"), ("1e-5", "0.0001 <= x < 180"), ("180", "0.0001 <= x < 180"), ("", "'auto'"),
+])
+def test_bad_band_values_are_refused(capsys, tmp_path, value, message):
+    """--band takes degrees or auto; anything else is one line naming the option, exit 2,
+    before the atlas is opened (the path does not exist)."""
+    code, out, err = run(capsys, "query", "--db", str(tmp_path / "none.sqlite"), "--dwell", "60", "--swing", "30",
+                         "--band", value)
+    assert code == 2 and out == ""
+    assert len(err.strip().splitlines()) == 1 and "--band" in err and message in err
+
+
+def test_band_auto_json_carries_the_band_reached(capsys, atlas_path):
+    """--band auto: the request in the document is at the band reached, which the band search
+    names with its probes; each candidate's dwell is within the request there and longer at
+    the 0.1° reference band. The table says the band on its own line under the legend."""
+    args = ("query", "--db", atlas_path, "--dwell", "60", "--swing", "30", "--output", "rpr", "--top", "3",
+            "--no-refine", "--band", "auto")
+    code, out, err = run(capsys, *args, "--json")
+    assert code == 0, err
+    doc = json.loads(out)
+    search = doc["band_search"]
+    assert search["settled"] and search["band_deg"] == pytest.approx(doc["request"]["band_deg"]) and search["band_deg"] < 0.02
+    assert search["reference_band_deg"] == pytest.approx(0.1)
+    met = [p for p in search["probes"] if p["band_deg"] == search["band_deg"]]
+    assert met and met[0]["met"] >= 3
+    assert [c["id"] for c in search["candidates"]] == [c["id"] for c in doc["candidates"]]
+    for c in search["candidates"]:
+        assert abs(c["dwell_deg"][0] - 60.0) <= 2.0 + 1e-9 and c["reference_dwell_deg"][0] > c["dwell_deg"][0]
+    code, out, err = run(capsys, *args)
+    assert code == 0, err
+    assert f"band auto: {search['band_deg']:.3g}°, the tightest" in out
+
+
+def test_default_band_names_a_tighter_band(capsys, atlas_path):
+    """Without --band, a request that a 0.01° band also answers (3 six-bars of the unrefined
+    sample) gets one line on stderr naming it; with --band given, none."""
+    args = ("query", "--db", atlas_path, "--dwell", "45", "--swing", "40", "--output", "rpr", "--top", "3",
+            "--no-refine")
+    code, out, err = run(capsys, *args)
+    assert code == 0 and err.count("\n") == 1 and "within a 0.01° band (--band 0.01" in err
+    code, _, err = run(capsys, *args, "--json")
+    assert code == 0 and json.loads(_)["tighter_band_deg"] == pytest.approx(0.01)
+    code, out, err = run(capsys, *args, "--band", "0.1")
+    assert code == 0 and err == ""
