@@ -36,7 +36,7 @@ from db.rows import length_ceil_milli, line_points, transmission_floor_cdeg
 from db.schema import Dwell, Linkage, Segment, stored_dwell_angle
 from db.spec import last_spec, tolerances
 from synth.kinds import SegmentKind
-from synth.query import DwellWindow
+from synth.query.contract import DwellWindow
 from synth.segment_rows import SegmentBatch, SegmentRow
 
 #: Segment ids bound in one statement of :func:`select_segments`.

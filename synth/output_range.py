@@ -29,7 +29,8 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from kinematics.loop import parabola_vertex
+from kinematics.loop import parabola_vertex, wrap_angle
+from synth.sixbar import ExactOutput
 from synth.types import F64
 
 __all__ = [
@@ -97,11 +98,6 @@ def rests_separated(gap: ArrayLike, leave: ArrayLike, tol: ArrayLike) -> NDArray
     gap, leave = np.asarray(gap, float), np.asarray(leave, float)
     tol = np.asarray(tol, float)[..., None]
     return np.all((gap >= REST_GAP) & (leave >= tol), axis=-1)
-
-
-def wrap_angle(x):
-    """x folded into [−π, π)."""
-    return np.mod(np.asarray(x) + math.pi, _TWO_PI) - math.pi
 
 
 def grid_step(phi: ArrayLike) -> tuple[float, float, int]:
@@ -477,8 +473,6 @@ def _compiled_rows(psi_at, R: int) -> NDArray[np.int64] | None:
     """For six-bars' exact ψ (:class:`synth.sixbar.ExactOutput`, which the compiled refinement
     evaluates pointwise) whose batch the R rows repeat in order (each six-bar's rows
     together), the six-bar of each row; else None (the numpy stages call ``psi_at``)."""
-    from synth.sixbar import ExactOutput  # the mechanism's module imports this one
-
     if not isinstance(psi_at, ExactOutput):
         return None
     N = psi_at.params.shape[0]

@@ -60,6 +60,7 @@ from synth.candidates import Request, dimension_vector, objectives, round_dimens
 from synth.figures import SixBarFigures, link_ratios, sixbar_figures
 from synth.kinds import OutputKind
 from synth.output_range import output_deviation
+from synth.query.evaluate import meets
 from synth.sixbar import SixBar, SixBars, crank_grid, simulate
 
 __all__ = ["PARAMETERS", "Refinement", "better_or_equal", "refine"]
@@ -165,8 +166,6 @@ def _bounds(request: Request, before: Sequence[SixBarFigures]) -> np.ndarray:
     that trades them for deviation would be refused by the check (:func:`better_or_equal`).
     For a miss, the request's: half the dwell tolerance, its minimum transmission, its
     ``max_accel``, ``_BAND_MARGIN``."""
-    from synth.query import meets  # (the query imports this module)
-
     w = 2 * math.pi * request.rpm / 60
     cap = math.inf if request.max_accel is None else request.max_accel / (w * w)
     out = np.empty((len(before), 4))
@@ -328,8 +327,6 @@ def refine(request: Request, sixbars: Sequence[SixBar], before: Sequence[SixBarF
     -------
     list of Refinement, one per six-bar, in order.
     """
-    from synth.query import meets  # (the query imports this module)
-
     if len(sixbars) != len(before):
         raise ValueError("refine needs the figures of every six-bar")
     if not (0 < radius < 0.5) or iterations < 0 or population < 2:

@@ -33,7 +33,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from kinematics.fourbar import FourBarMotion, fourbar_motion
-from kinematics.loop import circle_intersection, transmission_fold
+from kinematics.loop import circle_intersection, transmission_fold, wrap_angle
 from kinematics.status import (
     AssemblyError,
     Status,
@@ -41,7 +41,6 @@ from kinematics.status import (
     raise_on_flags,
 )
 from synth.kinds import OutputKind
-from synth.output_range import wrap_angle
 from synth.types import C128, F64
 
 __all__ = [

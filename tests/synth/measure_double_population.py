@@ -13,7 +13,7 @@ from db.engine import open_atlas
 from db.queries import AtlasSource
 from synth.dyad import rpr_double
 from synth.output_range import dwell_intervals
-from synth.query import _paths, FIT_SAMPLES
+from synth.query import coupler_paths, FIT_SAMPLES
 from synth.sixbar import crank_grid
 
 db, level = sys.argv[1], int(sys.argv[2])
@@ -30,7 +30,7 @@ for batch in src.scan_segments("double_line", level, min_transmission=math.radia
     ok = found.found
     rows = two[ok]
     D = found.pivot[ok]
-    P = _paths(batch, phi)[rows]
+    P = coupler_paths(batch, phi)[rows]
     psi = np.unwrap(np.angle(P - D[:, None]), axis=1)
     rock = np.abs(psi[:, -1] - psi[:, 0]) < math.pi
     psi, D = psi[rock], D[rock]

@@ -84,7 +84,7 @@ def test_the_key_predicts_the_rrr_dwell_the_stored_dwell_does_not(source, swing_
     for level, tolerance in source.tolerance_levels():
         rows, keys = _arc_rows(source, level)
         fits = Q.fit(request, rows[::2], "arc")  # every other row: ~750 six-bars are plenty
-        figures = Q._figures(request, [f.sixbar() for f in fits], footprint=False)
+        figures = Q.figures_of(request, [f.sixbar() for f in fits], footprint=False)
         dwell = np.array([fig.dwells[0].angle if fig.dwells else 0.0 for fig in figures])
         rocks = dwell > 0
         assert np.count_nonzero(rocks) > 400

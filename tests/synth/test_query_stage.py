@@ -187,9 +187,11 @@ def test_no_match_diagnosis_by_bounds_is_the_full_diagnosis(source, monkeypatch)
     as the full diagnosis (every fitted six-bar's exact figures) — on ≥ 20 requests nothing in
     the sample meets — while most six-bars are never refined."""
     import synth.query as q
+    from synth.query import diagnosis, evaluate, pipeline, refinement
 
     refined_rows, fitted_rows, refined_rows_single, cases = 0, 0, 0, 0
-    real_figures = q._figures
+    real_figures = evaluate.figures_of
+    users = (evaluate, diagnosis, refinement)  # the modules that compute figures
 
     def counting(request, sixbars, footprint=True):
         nonlocal refined_rows
@@ -197,14 +199,17 @@ def test_no_match_diagnosis_by_bounds_is_the_full_diagnosis(source, monkeypatch)
         return real_figures(request, sixbars, footprint=footprint)
 
     for request in _no_match_requests():
-        monkeypatch.setattr(q, "_figures", counting)
+        for module in users:
+            monkeypatch.setattr(module, "figures_of", counting)
         refined_rows = 0
         fast = q.answer(request, source)
         refined_fast = refined_rows
-        monkeypatch.setattr(q, "_figures", real_figures)
+        for module in users:
+            monkeypatch.setattr(module, "figures_of", real_figures)
         if fast.no_match is None:
             continue
-        monkeypatch.setattr(q, "diagnose_by_bounds", lambda r, f, k=None: q.diagnose(r, f, q._misses(r, f, k)))
+        monkeypatch.setattr(pipeline, "diagnose_by_bounds",
+                            lambda r, f, k=None: diagnosis.diagnose(r, f, diagnosis.misses_of(r, f, k)))
         full = q.answer(request, source)
         monkeypatch.undo()
         a, b = fast.no_match, full.no_match
@@ -413,7 +418,7 @@ def test_a_sparse_answer_is_the_same_every_time(source):
 def test_nearest_misses_are_refined_a_round_at_a_time_until_enough_meet(monkeypatch, met_per_round, wanted, rounds):
     """The nearest misses go to refinement MISSES at a time, nearest first, and a second
     round runs only while fewer than ``wanted`` distinct six-bars meet the request."""
-    import synth.query as Q
+    import synth.query.refinement as Q
 
     pool = [_fake_candidate(i) for i in range(2 * Q.MISSES + 5)]
     monkeypatch.setattr(Q, "miss_pool", lambda request, misses, taken, n: (pool[:n], [None] * min(n, len(pool))))
@@ -424,8 +429,8 @@ def test_nearest_misses_are_refined_a_round_at_a_time_until_enough_meet(monkeypa
         k = met_per_round[len(calls) - 1]
         return [dataclasses.replace(c, refined_from=() if j < k else None) for j, c in enumerate(part)], k
 
-    monkeypatch.setattr(Q, "_refined", refined)
-    met, tried, better = Q._refined_misses(Request(dwell=60 * DEG, swing=30 * DEG), [], set(), wanted)
+    monkeypatch.setattr(Q, "refined_candidates", refined)
+    met, tried, better = Q.refined_misses(Request(dwell=60 * DEG, swing=30 * DEG), [], set(), wanted)
     assert len(calls) == rounds and tried == rounds * Q.MISSES and better == sum(met_per_round[:rounds])
     assert calls == [[c.id for c in pool[r * Q.MISSES:(r + 1) * Q.MISSES]] for r in range(rounds)]  # nearest first
     assert [c.id for c in met] == [c.id for r in range(rounds) for c in pool[r * Q.MISSES:r * Q.MISSES + met_per_round[r]]]
