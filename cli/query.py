@@ -20,9 +20,9 @@ from atlas.pool import default_workers
 from cli.errors import InputError
 from cli.options import LENGTH, RPM, Bounded, Count, units_option
 from report.candidate_json import candidate_json, request_json
-from synth.candidates import OUTPUTS, Request
 from synth.kinds import OutputKind
 from synth.query import SAMPLES, QueryResult, RebuildError
+from synth.query.candidates import OUTPUTS, Request
 
 __all__ = ["BAD_INPUT", "FOUND", "NONE_FOUND", "answer", "no_match_json", "no_match_message", "query", "rebuild",
            "request_from_options", "table"]

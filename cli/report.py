@@ -24,7 +24,7 @@ _ID = re.compile(r"[0-9]+-(rpr|rrr|dbl)[0-9]+\.[0-9]+@(free|[0-9]+(\.[0-9]+)?([e
 def canonical_id(text: str) -> str:
     """``text`` as the id ``dwell query`` would print for the same six-bar; an id in any other
     spelling is refused in one line (the report shows and files ids: they must be the query's)."""
-    from synth.candidates import REFINED_MARK, candidate_id, parse_candidate_id
+    from synth.query.candidates import REFINED_MARK, candidate_id, parse_candidate_id
 
     if len(text) > 200 or not _ID.fullmatch(text):
         raise InputError(f"--candidates: {terminal(repr(text[:80]))} is not a candidate id as `dwell query` prints "

@@ -4,8 +4,8 @@ the vertex of a sampled extreme and the folded transmission angle.
 
 One source of truth for each formula and one set of thresholds: the four-bar
 (:mod:`kinematics.fourbar`), the Assur dyads (:mod:`kinematics.assur.dyads`), the six-bar
-simulation (:mod:`synth.sixbar`), the dyad fits (:mod:`synth.dyad`) and the segment search
-(:mod:`synth.segments`) all call these kernels.
+simulation (:mod:`synth.mechanism.sixbar`), the dyad fits (:mod:`synth.mechanism.dyad`) and the segment search
+(:mod:`synth.segment_search.segments`) all call these kernels.
 
 Points and directions are complex numbers (x + iy), angles radians. Every kernel broadcasts
 its inputs and never returns NaN/inf: degenerate geometry carries a

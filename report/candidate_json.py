@@ -15,9 +15,9 @@ from __future__ import annotations
 import math
 
 from report.motion_table import unit_key
-from synth.candidates import Candidate, Request
-from synth.figures import SixBarFigures
-from synth.sixbar import OutputDyad, SixBar
+from synth.mechanism.figures import SixBarFigures
+from synth.mechanism.sixbar import OutputDyad, SixBar
+from synth.query.candidates import Candidate, Request
 
 __all__ = ["candidate_json", "length_key", "request_json", "sixbar_from_json"]
 

@@ -16,9 +16,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinematics.status import Status
-from synth.figures import SixBarFigures
 from synth.kinds import OutputKind
-from synth.sixbar import SixBar, crank_grid, simulate
+from synth.mechanism.figures import SixBarFigures
+from synth.mechanism.sixbar import SixBar, crank_grid, simulate
 
 __all__ = ["CYCLE_COLUMNS", "Cycle", "cycle_json", "dwell_mask", "sixbar_cycle", "unit_motion"]
 

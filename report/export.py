@@ -35,8 +35,8 @@ import numpy as np
 from report.candidate_json import candidate_json, request_json
 from report.cycle import CYCLE_COLUMNS, Cycle, cycle_json, sixbar_cycle
 from report.escape import terminal
-from synth.candidates import Candidate, Request
 from synth.kinds import OutputKind
+from synth.query.candidates import Candidate, Request
 
 __all__ = ["CSV_COLUMNS", "MAX_DWELLS", "candidate_row", "csv_cell", "csv_header", "report_json", "safe_stem", "write_report"]
 

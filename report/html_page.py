@@ -34,8 +34,8 @@ from report.cycle import Cycle
 from report.escape import script_json, text
 from report.palette import BLOCK, CURVE, DWELL, LINK_COLORS
 from report.sixbar_drawing import SLOT_MARGIN, SixBarGeometry
-from synth.candidates import Candidate, Request
 from synth.kinds import OutputKind
+from synth.query.candidates import Candidate, Request
 
 __all__ = ["PageEntry", "inline_svg", "render_page"]
 

@@ -41,7 +41,7 @@ SEGMENT_KINDS: tuple[SegmentKind, ...] = tuple(SegmentKind)
 
 
 class OutputKind(enum.StrEnum):
-    """The output dyad of a six-bar (:class:`synth.sixbar.OutputDyad`, the JSON ``type``).
+    """The output dyad of a six-bar (:class:`synth.mechanism.sixbar.OutputDyad`, the JSON ``type``).
 
     ``RPR``: slotted rocker driven by the coupler point; ``RRR``: rod and rocker.
     """

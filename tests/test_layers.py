@@ -42,9 +42,9 @@ KNOWN_CYCLES: frozenset[frozenset[str]] = frozenset()
 #: (importing module, imported module, private name) left in files under redesign by others
 #: (the query, its refinement, the six-bar's figures and output range). Only shrinks.
 KNOWN_PRIVATE_IMPORTS: frozenset[tuple[str, str, str]] = frozenset({
-    ("tests.synth.test_batched_cma", "synth.refine", "_descend"),
-    ("tests.synth.test_band_windows", "synth.output_range", "_vertex_bounds"),
-    ("tests.synth.test_pair_search", "synth.output_range", "_pair_search"),
+    ("tests.synth.test_batched_cma", "synth.query.refine", "_descend"),
+    ("tests.synth.test_band_windows", "synth.mechanism.output_range", "_vertex_bounds"),
+    ("tests.synth.test_pair_search", "synth.mechanism.output_range", "_pair_search"),
 })
 
 
@@ -115,7 +115,7 @@ def test_the_scan_sees_the_product_and_its_function_level_imports():
     assert len(PRODUCT) > 100 and {layer(m) for m in PRODUCT} == set(LAYERS)
     assert len(TEST_FILES) > 50
     nested = {(i.importer, target(i)) for i in PRODUCT_IMPORTS}
-    assert ("synth.sixbar", "synth.sixbar_kernel") in nested
+    assert ("synth.mechanism.sixbar", "synth.mechanism.sixbar_kernel") in nested
     assert all(any(a in c and b in c and a != b for a, b in nested) for c in KNOWN_CYCLES)
 
 

@@ -96,8 +96,8 @@ def rests(items: Sequence[tuple[Linkage, Decomposition, Assembly, Output]], band
     output), the ``count`` longest disjoint crank intervals of one turn from the start on
     which the output stays within ``band`` (rad). One dwell search for all items (the exact
     output of each row evaluated by its own solver)."""
-    from synth.output_range import crank_degrees, dwell_intervals  # numba: imported when asked for
-    from synth.sixbar import crank_grid
+    from synth.mechanism.output_range import crank_degrees, dwell_intervals  # numba: imported when asked for
+    from synth.mechanism.sixbar import crank_grid
 
     if not items:
         return []

@@ -27,7 +27,7 @@ from cli.options import SEED
 from cli.bench.kinematics import MIN_POSITIONS_PER_RUN, best_time, random_linkages, check_positions, sizes_option
 from cli.bench.plain import sixbar_rrr_positions
 from synth import parallel_rows
-from synth.sixbar import SixBars, simulate_numpy, simulate
+from synth.mechanism.sixbar import SixBars, simulate_numpy, simulate
 
 #: Peak memory of simulate(order=0) per position (bytes; 229 measured with tracemalloc).
 SIXBAR_BYTES_PER_POSITION = 300

@@ -19,7 +19,7 @@ import click
 import numpy as np
 
 from cli.options import Bounded
-from synth.sixbar import OutputDyad, SixBar
+from synth.mechanism.sixbar import OutputDyad, SixBar
 
 #: (name, six-bar, requested dwell in degrees)
 SIXBARS = (
@@ -40,8 +40,8 @@ TARGET_S = 0.005
               help="Seeds whose percentiles give the estimate's spread.")
 def tolerance(draws: int, tolerance: float, repeat: int, seeds: int) -> None:
     """Cost per candidate of the toleranced deviation, and its spread over seeds (JSON)."""
-    from synth.figures import sixbar_figures
-    from synth.tolerance import SEED, toleranced_deviation
+    from synth.mechanism.figures import sixbar_figures
+    from synth.mechanism.tolerance import SEED, toleranced_deviation
 
     results = []
     for name, sb, dwell_deg in SIXBARS:

@@ -1,21 +1,21 @@
-"""The synthesis query as a library stage: a :class:`~synth.candidates.Request` in, ranked
+"""The synthesis query as a library stage: a :class:`~synth.query.candidates.Request` in, ranked
 six-bars out (pure: no click, no ORM, no I/O — segments are read through a
 :class:`SegmentSource`, which ``db.queries.AtlasSource`` implements over an engine).
 
 Pipeline (:func:`answer`): the segments whose stored dwell (an arc's dwell key) lies near the
 request (:meth:`SegmentSource.select_segments`) → output dyads fitted to every segment in one
-batch per kind (``synth.dyad``: RPR on straight segments, RPR at the lines' intersection for
+batch per kind (``synth.mechanism.dyad``: RPR on straight segments, RPR at the lines' intersection for
 double Ball points, RRR on arcs) → a necessary screen on the crank grid
-(:func:`~synth.candidates.screen`) → the full figures of the survivors from the exact
-simulation (:func:`~synth.figures.sixbar_figures`) → the six-bars that meet the request →
-ranked (:func:`~synth.candidates.rank`), one per segment and output type and one of a mirror
+(:func:`~synth.query.candidates.screen`) → the full figures of the survivors from the exact
+simulation (:func:`~synth.mechanism.figures.sixbar_figures`) → the six-bars that meet the request →
+ranked (:func:`~synth.query.candidates.rank`), one per segment and output type and one of a mirror
 pair → with ``request.refine``, the top ones refined by a local optimisation with exact
-simulation in the loop (:func:`synth.refine.refine`) and ranked again. Lengths are
+simulation in the loop (:func:`synth.query.refine.refine`) and ranked again. Lengths are
 crank-normalised until the end, then scaled to ``request.crank``. ``--output any`` (one dwell)
 runs the pipeline once as RPR and once as RRR and ranks the union of the two answers.
 
 That pipeline runs on a sample of the atlas (:func:`select`: per level, the stored rows
-nearest a target — a line's dwell, an arc's dwell key, :mod:`synth.dwell_key` — a budget;
+nearest a target — a line's dwell, an arc's dwell key, :mod:`synth.segment_search.dwell_key` — a budget;
 a sparse answer samples wider, moves the fits' pivots, then reads deeper along the arcs).
 With ``request.complete`` it runs instead on every stored segment at every level
 (:func:`search`), pruned only by conditions no meeting six-bar can fail, the prescreen (:func:`prescreen`) among them: the complete answer.
@@ -43,7 +43,7 @@ Modules, one step each (each imports only those above it):
   :func:`meets`, :func:`violations`);
 * :mod:`~synth.query.diagnosis` — why nothing met a request (:func:`diagnose`,
   :func:`diagnose_by_bounds`);
-* :mod:`~synth.query.refinement` — the hand-off to :mod:`synth.refine` (the top, the near misses);
+* :mod:`~synth.query.refinement` — the hand-off to :mod:`synth.query.refine` (the top, the near misses);
 * :mod:`~synth.query.complete` — the complete search (:func:`search`, :func:`search_many`);
 * :mod:`~synth.query.pipeline` — :func:`answer`: the steps above over one answer's state
   (:class:`~synth.query.pipeline.Answering`);
@@ -52,7 +52,7 @@ Modules, one step each (each imports only those above it):
 
 # The names the product and its tests use, from the modules that define them (``__all__``:
 # what ``synth`` re-exports).
-from synth.candidates import REFINED_MARK, Candidate, Request, rank
+from synth.query.candidates import REFINED_MARK, Candidate, Request, rank
 from synth.query.complete import BATCH, SearchCount, fit_key, search, search_batch, search_many
 from synth.query.contract import ALL_ROWS, BatchMap, DwellWindow, SegmentSource
 from synth.query.diagnosis import diagnose, diagnose_by_bounds, misses_of
@@ -72,8 +72,8 @@ from synth.query.pipeline import DEEPER, DEEPER_KINDS, FILL, RESEAT_BATCH, RESEA
 from synth.query.rebuilding import rebuild
 from synth.query.refinement import MISS_ROUNDS, MISSES, miss_pool, no_worse_than_fits, refined_misses
 from synth.query.result import CONSTRAINTS, NoMatch, QueryResult, RebuildError
+from synth.query.segment_rows import SegmentRow
 from synth.query.windows import PER_LEVEL, REACHES, kinds_for, select
-from synth.segment_rows import SegmentRow
 
 __all__ = [
     "CONSTRAINTS",

@@ -8,12 +8,12 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-from synth.candidates import Candidate, Request
+from synth.query.candidates import Candidate, Request
 from synth.query.contract import BatchMap, SegmentSource
 from synth.query.evaluate import simulate
 from synth.query.fitting import fit_arrays, fits_of, prescreen
+from synth.query.segment_rows import SegmentRow
 from synth.query.windows import kinds_for
-from synth.segment_rows import SegmentRow
 
 
 #: (segment, level) rows the complete search reads, fits and simulates at a time.
@@ -67,7 +67,7 @@ def search(request: Request, source: SegmentSource, *,
     an arc; double: the pivot at the two lines' intersection). Nothing is left out by a
     budget: the rows are only pruned by conditions no six-bar meeting the request can fail —
     the four-bar's transmission angle and link lengths (stored per linkage), the arc's radius
-    as the rod, then :func:`prescreen` and :func:`synth.candidates.screen` on exact samples.
+    as the rod, then :func:`prescreen` and :func:`synth.query.candidates.screen` on exact samples.
     The atlas is read in batches of ``BATCH`` rows per kind and level, each evaluated by
     :func:`search_batch` through ``map_batches`` (default: in this process, in order; the
     answer does not depend on the order); ``on_progress(rows done, rows in all)`` after each."""

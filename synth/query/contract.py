@@ -1,6 +1,6 @@
 """What the query reads, and the one part of it ``db/`` needs: the :class:`SegmentSource`
 protocol an atlas implements (``db.queries.AtlasSource``) and the :class:`DwellWindow` it is
-asked for. The request itself is :class:`synth.candidates.Request`, re-exported here.
+asked for. The request itself is :class:`synth.query.candidates.Request`, re-exported here.
 """
 
 from __future__ import annotations
@@ -9,9 +9,9 @@ from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
-from synth.candidates import Request
 from synth.kinds import SegmentKind
-from synth.segment_rows import SegmentBatch, SegmentRow
+from synth.query.candidates import Request
+from synth.query.segment_rows import SegmentBatch, SegmentRow
 
 __all__ = ["ALL_ROWS", "BatchMap", "DwellWindow", "Request", "SegmentBatch", "SegmentRow", "SegmentSource"]
 
@@ -20,7 +20,7 @@ __all__ = ["ALL_ROWS", "BatchMap", "DwellWindow", "Request", "SegmentBatch", "Se
 class DwellWindow:
     """Stored rows wanted: at tolerance ``level`` (None: any level), with a dwell key in [low,
     high], the ``limit`` closest to ``target``. A line's dwell key is its dwell angle (rad), an
-    arc's the dwell angle × its excursion^¼ (:mod:`synth.dwell_key`)."""
+    arc's the dwell angle × its excursion^¼ (:mod:`synth.segment_search.dwell_key`)."""
 
     level: int | None
     low: float

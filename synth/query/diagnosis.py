@@ -11,10 +11,10 @@ import dataclasses
 import math
 from collections.abc import Sequence
 
-from synth.candidates import Request
-from synth.figures import SixBarFigures, figures_with_dwell_bounds, footprints
 from synth.kinds import SegmentKind
-from synth.output_range import Dwell
+from synth.mechanism.figures import SixBarFigures, figures_with_dwell_bounds, footprints
+from synth.mechanism.output_range import Dwell
+from synth.query.candidates import Request
 from synth.query.contract import SegmentSource
 from synth.query.evaluate import (
     SAMPLES,
@@ -25,10 +25,10 @@ from synth.query.evaluate import (
     total_excess,
     violations,
 )
+from synth.mechanism.sixbar import SixBars
 from synth.query.fitting import Fitted
 from synth.query.result import CONSTRAINTS, NoMatch
 from synth.query.windows import select
-from synth.sixbar import SixBars
 
 
 def _loosened(request: Request, f: SixBarFigures) -> Request:
@@ -164,8 +164,8 @@ def diagnose_by_bounds(request: Request, fitted: Sequence[Fitted],
     six-bars whose dwell decides something (single dwells; a double dwell is diagnosed by
     :func:`diagnose`).
 
-    Every figure but the dwell is computed as :func:`~synth.figures.sixbar_figures` does; the
-    dwell's angle is bounded from the grid (:func:`~synth.figures.figures_with_dwell_bounds`),
+    Every figure but the dwell is computed as :func:`~synth.mechanism.figures.sixbar_figures` does; the
+    dwell's angle is bounded from the grid (:func:`~synth.mechanism.figures.figures_with_dwell_bounds`),
     which bounds its excess (convex in the angle: least at the requested dwell). A six-bar
     gets its exact figures when the bounds leave open whether it misses the dwell, or when
     its least possible total excess is not above the smallest total known to be reachable —

@@ -1,7 +1,7 @@
 """A fitted six-bar's exact figures and the request's test of them: :func:`simulate` (the
 screen, then the full figures), :func:`meets` and :func:`violations` (how far each constraint
 is missed), and what a candidate is made of (:func:`candidate_of`, :func:`distinct`,
-:func:`toleranced`). :mod:`synth.refine` takes :func:`meets` from here.
+:func:`toleranced`). :mod:`synth.query.refine` takes :func:`meets` from here.
 """
 
 from __future__ import annotations
@@ -12,13 +12,13 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from synth.candidates import Candidate, Request, candidate_id, screen
-from synth.figures import SixBarFigures, footprints, sixbar_figures
 from synth.kinds import OutputKind
+from synth.mechanism.figures import SixBarFigures, footprints, sixbar_figures
+from synth.mechanism.sixbar import SixBar, SixBars
+from synth.mechanism.sixbar import simulate as simulate_motion
+from synth.query.candidates import Candidate, Request, candidate_id, screen
 from synth.query.fitting import Fitted
 from synth.query.result import CONSTRAINTS
-from synth.sixbar import SixBar, SixBars
-from synth.sixbar import simulate as simulate_motion
 
 
 #: Crank samples of the exact simulation (0.5°); the figures refine beyond it.
@@ -55,7 +55,7 @@ def violations(request: Request, f: SixBarFigures) -> dict[str, float]:
 
 def _missing_dwell(request: Request, f: SixBarFigures) -> bool:
     """Fewer dwells than ``request`` asks for, two rests counting as two only with motion
-    between them (:meth:`~synth.figures.SixBarFigures.rests_apart` at the swing tolerance)."""
+    between them (:meth:`~synth.mechanism.figures.SixBarFigures.rests_apart` at the swing tolerance)."""
     if len(f.dwells) < request.dwells:
         return True
     return request.dwells == 2 and not f.rests_apart(request.swing_tol)
@@ -168,11 +168,11 @@ def rest_position(sixbar: SixBar, f: SixBarFigures) -> complex | None:
 
 def toleranced(request: Request, candidates: list[Candidate]) -> list[Candidate]:
     """With ``request.tolerance``: each candidate with its toleranced deviation
-    (:func:`synth.tolerance.toleranced_deviation` over the middles of its dwells, the request's
+    (:func:`synth.mechanism.tolerance.toleranced_deviation` over the middles of its dwells, the request's
     dwell length), worked out afresh (a refined six-bar is another six-bar); else as they are."""
     if request.tolerance <= 0:
         return candidates
-    from synth.tolerance import toleranced_deviation
+    from synth.mechanism.tolerance import toleranced_deviation
 
     out = []
     for c in candidates:

@@ -11,10 +11,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from synth.candidates import Request, dwell_runs, round_dimensions
 from synth.kinds import OutputKind, OutputTag, SegmentKind
-from synth.segment_rows import SegmentBatch, SegmentRow
-from synth.sixbar import OutputDyad, SixBar, crank_grid
+from synth.mechanism.sixbar import OutputDyad, SixBar, crank_grid
+from synth.query.candidates import Request, dwell_runs, round_dimensions
+from synth.query.segment_rows import SegmentBatch, SegmentRow
 
 
 #: Crank samples of the path the dyads are fitted to (1°): a fitted swing is within ~0.01° of
@@ -28,7 +28,6 @@ RESEAT_PER_FIT = 1
 #: Pivots screened at a time by :func:`reseat` (n × samples temporaries), and its coarse
 #: screen's sample step (every 4th of the fit's 1° grid).
 _BLOCK = 8192
-
 _COARSE = 4
 
 
@@ -98,7 +97,7 @@ def fit_arrays(request: Request, rows: Sequence[SegmentRow], kind: SegmentKind |
                ) -> tuple[FitArrays, np.ndarray]:
     """The dyads found for ``rows`` (all of kind ``kind``; a :class:`SegmentBatch` or a list of
     rows) and the rows' coupler-point paths on the fit's crank grid."""
-    from synth.dyad import fit_rpr, fit_rrr, rpr_double
+    from synth.mechanism.dyad import fit_rpr, fit_rrr, rpr_double
 
     kind = SegmentKind(kind)  # a stored row's kind is its string
     phi = crank_grid(FIT_SAMPLES)
@@ -148,7 +147,7 @@ def prescreen(request: Request, found: FitArrays, paths: np.ndarray) -> np.ndarr
     output angle on that grid in closed form (RPR: the slot's direction P − D; RRR: the
     rocker's, Q from the loop's circle intersection), then tests no six-bar meeting the
     request can fail: it assembles at every sample (RRR), and its sampled output angle passes
-    :func:`synth.candidates.output_may_meet` (swing, and the dwell in runs of samples within
+    :func:`synth.query.candidates.output_may_meet` (swing, and the dwell in runs of samples within
     the band). The angles are measured from the direction of the stretch's line point (RPR) or
     arc centre (RRR) seen from D, and unwrapped along the turn."""
     if not found.index.size:
@@ -173,23 +172,23 @@ def _output_screen(request: Request, P: np.ndarray, D: np.ndarray, rest: np.ndar
     """:func:`prescreen`'s tests for coupler points ``P`` (n, M) on the fit's crank grid,
     output pivots ``D`` and references ``rest`` (n, 1): a slot's angle (``rrr`` None) or, with
     ``rrr`` = (rod, rocker, branch), the rocker's, Q from the loop's circle intersection, which
-    must assemble at every sample; then :func:`synth.candidates.output_may_meet`'s tests.
-    Compiled, one pass per dyad (:mod:`synth.prescreen_kernel`). Shape (n,)."""
-    from synth.prescreen_kernel import screen_outputs  # numba: imported on first use
+    must assemble at every sample; then :func:`synth.query.candidates.output_may_meet`'s tests.
+    Compiled, one pass per dyad (:mod:`synth.query.prescreen_kernel`). Shape (n,)."""
+    from synth.query.prescreen_kernel import screen_outputs  # numba: imported on first use
 
     shortest, longest = dwell_runs(request, P.shape[-1])
     return screen_outputs(P, D, rest, rrr, request.swing, request.swing_tol, request.band, shortest, longest)
 
 
 def reseat(request: Request, fitted: Sequence[Fitted]) -> list[Fitted]:
-    """Every fit's output pivot moved off the fitted one (:func:`synth.dyad.pivots_around`:
+    """Every fit's output pivot moved off the fitted one (:func:`synth.mechanism.dyad.pivots_around`:
     an RPR's slot pivot off its line, a double line's off the lines' crossing, an RRR's rocker
     pivot with its rocker and rod kept), the moved six-bars that pass :func:`prescreen`, at
     most ``RESEAT_PER_FIT`` per fit (the nearest pivots first). The fit puts the pivot where the
     stretch is seen straight on (or the rest at the arc's centre); a shorter dwell than that
     gives wants another — the rest then creeps — and the atlas yields every pivot
     (docs/complete-query.md §1). Their ids carry the dimensions."""
-    from synth.dyad import pivots_around
+    from synth.mechanism.dyad import pivots_around
 
     if not fitted:
         return []
@@ -228,7 +227,7 @@ def reseat(request: Request, fitted: Sequence[Fitted]) -> list[Fitted]:
 
 
 def _as_stored(fitted: Fitted) -> Fitted:
-    """``fitted`` with the dimensions its id will hold (:func:`~synth.candidates.round_dimensions`),
+    """``fitted`` with the dimensions its id will hold (:func:`~synth.query.candidates.round_dimensions`),
     so that its figures are the ones a rebuild from the id gives."""
     sb = round_dimensions(fitted.sixbar())
     row = dataclasses.replace(fitted.row, b=sb.b, c=sb.c, d=sb.d, u=sb.u, v=sb.v)

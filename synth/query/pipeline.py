@@ -13,9 +13,9 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from synth.candidates import REFINED_MARK, Candidate, Request, rank
-from synth.figures import SixBarFigures
 from synth.kinds import OutputTag, SegmentKind
+from synth.mechanism.figures import SixBarFigures
+from synth.query.candidates import REFINED_MARK, Candidate, Request, rank
 from synth.query.complete import SearchCount, search
 from synth.query.contract import BatchMap, SegmentSource
 from synth.query.diagnosis import diagnose, diagnose_by_bounds, either_no_match, misses_of, unfitted_reach
@@ -23,8 +23,8 @@ from synth.query.evaluate import candidate_of, distinct, meets, screened_figures
 from synth.query.fitting import Fitted, fit, fit_arrays, fits_of, prescreen, reseat
 from synth.query.refinement import no_worse_than_fits, refined_candidates, refined_misses, with_origins
 from synth.query.result import NoMatch, QueryResult
+from synth.query.segment_rows import SegmentRow
 from synth.query.windows import PER_LEVEL, kinds_for, select
-from synth.segment_rows import SegmentRow
 
 
 #: An answer with fewer candidates than this (or than ``--top``) is topped up from the
@@ -36,7 +36,7 @@ FILL = 3
 WIDER = 3
 
 #: Last, if still sparse after the moved pivots, this many times PER_LEVEL segments per level
-#: of the kinds in DEEPER_KINDS: arcs (RRR), whose dwell key ranks them (``synth.dwell_key``)
+#: of the kinds in DEEPER_KINDS: arcs (RRR), whose dwell key ranks them (``synth.segment_search.dwell_key``)
 #: — the longest rests (150° at swings of 20°–30° on ``standard``) lie a few hundred rows
 #: deep —, and double lines, whose rests the stored dwell predicts less well (two rests of 90°
 #: on ``standard``: 1 six-bar from the narrower samples, 3 with this read). Single lines are
@@ -66,7 +66,7 @@ def answer(request: Request, source: SegmentSource, *,
     ``--output any`` with one dwell is the best of both output types: the request answered as
     RPR and as RRR, each through the whole pipeline (its sparse-answer steps and refinement
     sized for ``request.top``), then the union of the two answers ranked once
-    (:func:`~synth.candidates.rank`) and cut to ``request.top`` (:func:`_best_of_both`)."""
+    (:func:`~synth.query.candidates.rank`) and cut to ``request.top`` (:func:`_best_of_both`)."""
     if request.output == "any" and request.dwells == 1:
         return _best_of_both(request, source, on_progress=on_progress, map_batches=map_batches, searched=searched)
     return _answer_one(request, source, on_progress=on_progress, map_batches=map_batches, searched=searched).result
@@ -88,7 +88,7 @@ def _best_of_both(request: Request, source: SegmentSource, *,
                   map_batches: BatchMap | None,
                   searched: tuple[list[Candidate], SearchCount] | None) -> QueryResult:
     """``request`` (``output="any"``, one dwell) answered as RPR and as RRR, then the best
-    ``request.top`` of the union of the two answers by :func:`~synth.candidates.rank` (Pareto
+    ``request.top`` of the union of the two answers by :func:`~synth.query.candidates.rank` (Pareto
     layer, score, id, over the union: a six-bar's layer depends on what it is ranked with).
     The two answers share no six-bar (their dyads differ), so :func:`distinct` keeps the
     union whole. Times, counts and refinements add up; with nothing in either, the no-match

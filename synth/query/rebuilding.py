@@ -7,13 +7,13 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Sequence
 
-from synth.candidates import Candidate, Request, candidate_dimensions, parse_candidate_id
 from synth.kinds import OutputTag
+from synth.mechanism.sixbar import SixBar
+from synth.query.candidates import Candidate, Request, candidate_dimensions, parse_candidate_id
 from synth.query.contract import SegmentSource
 from synth.query.evaluate import candidate_of, figures_of, rest_position, scaled_figures
 from synth.query.fitting import fit
 from synth.query.result import RebuildError
-from synth.sixbar import SixBar
 
 
 def rebuild(ids: Sequence[str], source: SegmentSource, request: Request) -> list[Candidate]:

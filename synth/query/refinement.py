@@ -1,4 +1,4 @@
-"""The query's hand-off to :mod:`synth.refine`: the top candidates refined toward the request
+"""The query's hand-off to :mod:`synth.query.refine`: the top candidates refined toward the request
 (:func:`refined_candidates`), the nearest misses refined to meet it (:func:`miss_pool`,
 :func:`refined_misses`), and the reseated six-bars kept only where no worse than their fit
 (:func:`no_worse_than_fits`, :func:`with_origins`).
@@ -10,11 +10,11 @@ import dataclasses
 import math
 from collections.abc import Sequence
 
-from synth.candidates import REFINED_MARK, Candidate, Request, candidate_id, with_dimensions
-from synth.figures import SixBarFigures
+from synth.mechanism.figures import SixBarFigures
+from synth.query.candidates import REFINED_MARK, Candidate, Request, candidate_id, with_dimensions
 from synth.query.evaluate import candidate_of, distinct, figures_of, rest_position, scaled_figures
 from synth.query.fitting import Fitted
-from synth.refine import better_or_equal, refine
+from synth.query.refine import better_or_equal, refine
 
 
 #: Nearest misses refined toward a request that fewer than FILL six-bars met, this many at a
@@ -27,7 +27,7 @@ MISS_ROUNDS = 2
 def no_worse_than_fits(request: Request, moved: list[Candidate], answered: list[Candidate]) -> list[Candidate]:
     """The ``moved`` six-bars (:func:`reseat`) that may stand for their fit: a moved pivot is a
     change of the fit it was moved from (its ``refined_from``), kept only if no worse on every
-    objective of the ranking (:func:`synth.refine.better_or_equal`) where that fit met the
+    objective of the ranking (:func:`synth.query.refine.better_or_equal`) where that fit met the
     request itself (it is then among the ``answered``); beside a fit that missed, it is new."""
     met = {c.id: c.figures for c in answered}
     return [c for c in moved
@@ -56,7 +56,7 @@ def with_origins(request: Request, found: list[Candidate], fitted: Sequence[Fitt
 def refined_candidates(request: Request, candidates: Sequence[Candidate],
                        before: Sequence[SixBarFigures] | None = None, *, reach: bool = False
                        ) -> tuple[list[Candidate], int]:
-    """``candidates`` (the user's units) refined toward ``request`` (:func:`synth.refine.refine`,
+    """``candidates`` (the user's units) refined toward ``request`` (:func:`synth.query.refine.refine`,
     its reach for near misses): the refined ones with their new id, six-bar and figures and
     ``refined_from``, the others as they were; and how many were refined. ``before``: their
     figures crank-normalised, if at hand."""

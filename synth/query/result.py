@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from synth.candidates import Candidate, Request
+from synth.query.candidates import Candidate, Request
 
 
 #: The request's constraints, in the order a no-match names them (see :func:`violations`).

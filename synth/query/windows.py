@@ -8,11 +8,11 @@ from __future__ import annotations
 import itertools
 import math
 
-from synth.candidates import Request
-from synth.dwell_key import arc_key_target
 from synth.kinds import OutputTag, SegmentKind
+from synth.query.candidates import Request
 from synth.query.contract import DwellWindow, SegmentSource
-from synth.segment_rows import SegmentRow
+from synth.query.segment_rows import SegmentRow
+from synth.segment_search.dwell_key import arc_key_target
 
 
 #: Segments taken from the atlas per kind and tolerance level, closest to that level's target first.
@@ -69,7 +69,7 @@ def _line_windows(source: SegmentSource, request: Request, per_level: int) -> li
 
 def _arc_windows(source: SegmentSource, request: Request, per_level: int) -> list[DwellWindow]:
     """Dwell keys of arcs worth fitting: per level, the keys nearest the one that predicts the
-    requested dwell at the requested swing and band (:func:`synth.dwell_key.arc_key_target`;
+    requested dwell at the requested swing and band (:func:`synth.segment_search.dwell_key.arc_key_target`;
     the rocker is implied by the swing, so no reaches are guessed), as many as
     :func:`_line_windows` takes per level, within a factor of 2 of it."""
     windows = []

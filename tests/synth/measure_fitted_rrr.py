@@ -28,9 +28,9 @@ import numpy as np
 from cli.query import request_from_options
 from db.engine import open_atlas
 from db.queries import AtlasSource
-from synth import dyad as fits
 from synth import query
-from synth.sixbar import crank_grid
+from synth.mechanism import dyad as fits
+from synth.mechanism.sixbar import crank_grid
 
 DEG = math.pi / 180
 BATCH = 4000

@@ -1,6 +1,6 @@
 """``--output any`` with one dwell is the best of both output types (``synth.query.answer``):
 its answer is the best ``--top`` of the union of the RPR and RRR answers to the same request,
-ranked once by :func:`synth.candidates.rank` (Pareto layer over the union, score, id)."""
+ranked once by :func:`synth.query.candidates.rank` (Pareto layer over the union, score, id)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import math
 
 import pytest
 
-from synth.candidates import Request, rank
 from synth.query import CONSTRAINTS, scaled_figures, total_excess, answer, violations
+from synth.query.candidates import Request, rank
 
 DEG = math.pi / 180
 
@@ -129,9 +129,9 @@ def test_the_constraint_in_the_way_is_the_best_figure_of_the_six_bars_missing_it
     """A no-match's ``reach``: the constraint that the nearest six-bar missing a single one
     misses, and the best figure on it of every fitted six-bar missing it alone (recomputed
     here from every fit's own figures)."""
-    from synth.figures import sixbar_figures
+    from synth.mechanism.figures import sixbar_figures
+    from synth.mechanism.sixbar import SixBars
     from synth.query import SAMPLES, diagnose, fit, select
-    from synth.sixbar import SixBars
 
     request = Request(dwell=dwell * DEG, swing=swing * DEG, output=output, dwell_tol=(0.0 if dwell == 60 else 2) * DEG,
                       min_transmission=45 * DEG)

@@ -19,7 +19,7 @@ import math
 import pytest
 
 from synth import query as Q
-from synth.candidates import Request
+from synth.query.candidates import Request
 
 #: The small atlas of these tests: the demo sweep on 64 Sobol samples.
 SAMPLES = 64

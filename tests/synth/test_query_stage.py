@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from synth.candidates import Request, screen
+from synth.query.candidates import Request, screen
 from synth.query import (
     CONSTRAINTS,
     DEEPER,
@@ -26,9 +26,9 @@ from synth.query import (
     select,
     violations,
 )
-from synth.figures import sixbar_figures
-from synth.sixbar import SixBars
-from synth.sixbar import simulate as simulate_motion
+from synth.mechanism.figures import sixbar_figures
+from synth.mechanism.sixbar import SixBars
+from synth.mechanism.sixbar import simulate as simulate_motion
 
 DEG = math.pi / 180
 
@@ -236,8 +236,8 @@ def test_dwell_angle_bounds_hold_the_refined_dwell(source):
     ``sixbar_figures`` refines on the exact path, for every acceptable six-bar the query fits
     to a spread of requests, and is narrow: 3.5 grid steps wide on average, at most 4 for 95 % of
     them (wider where ψ bends sharply between samples)."""
-    from synth.output_range import dwell_angle_bounds
-    from synth.sixbar import crank_grid, simulate
+    from synth.mechanism.output_range import dwell_angle_bounds
+    from synth.mechanism.sixbar import crank_grid, simulate
 
     sixbars = _fitted_sixbars(source, 10**6)
     assert len(sixbars) >= 300
@@ -282,7 +282,7 @@ def test_dwell_ends_and_deviation_window_agree_with_a_brute_force_grid(source):
     over a window around the dwell is the brute-force minimum over its placements."""
     from scipy.ndimage import maximum_filter1d, minimum_filter1d
 
-    from synth.sixbar import simulate
+    from synth.mechanism.sixbar import simulate
 
     sixbars = _fitted_sixbars(source, 220)
     assert len(sixbars) >= 200
@@ -335,7 +335,7 @@ def test_dwell_ends_and_deviation_window_agree_with_a_brute_force_grid(source):
 def test_pivots_around_a_fitted_pivot_are_at_the_stated_distances_nearest_first():
     """``pivots_around``: ``AROUND_STEPS`` × the reach (at least ``AROUND_MIN_REACH``),
     ``AROUND_DIRECTIONS`` evenly turned each."""
-    from synth.dyad import AROUND_DIRECTIONS, AROUND_MIN_REACH, AROUND_STEPS, pivots_around
+    from synth.mechanism.dyad import AROUND_DIRECTIONS, AROUND_MIN_REACH, AROUND_STEPS, pivots_around
 
     X = np.array([1 + 2j, 0.1 + 0j])
     got = pivots_around(X, np.array([4.0, 0.1]))
@@ -438,8 +438,8 @@ def test_nearest_misses_are_refined_a_round_at_a_time_until_enough_meet(monkeypa
 
 def _fake_candidate(i: int):
     """A candidate of its own segment and four-bar (no two are mirror twins)."""
+    from synth.mechanism.sixbar import OutputDyad, SixBar
     from synth.query import Candidate
-    from synth.sixbar import OutputDyad, SixBar
 
     sixbar = SixBar(1.0, 2.0 + 0.01 * i, 3.0, 3.5, 1, 0.8, -0.6, OutputDyad.rpr(2 - 3j))
     return Candidate(id=f"{i}-rpr0.0@10", segment_id=i, sixbar=sixbar, figures=None, rank=0)

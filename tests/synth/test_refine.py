@@ -1,4 +1,4 @@
-"""Exact refinement (synth/refine.py) on a small built atlas: every refined six-bar meets the
+"""Exact refinement (synth/query/refine.py) on a small built atlas: every refined six-bar meets the
 request on its own exact simulation and is better than what it was refined from; a request
 the atlas misses is answered; refined ids hold their six-bar exactly."""
 
@@ -12,7 +12,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from synth.candidates import (
+from synth.query.candidates import (
     Request,
     candidate_dimensions,
     candidate_id,
@@ -22,10 +22,10 @@ from synth.candidates import (
     parse_candidate_id,
     round_dimensions,
 )
+from synth.mechanism.figures import sixbar_figures
+from synth.mechanism.sixbar import OutputDyad, SixBar
 from synth.query import FILL, answer, meets, rebuild
-from synth.refine import better_or_equal, refine
-from synth.figures import sixbar_figures
-from synth.sixbar import OutputDyad, SixBar
+from synth.query.refine import better_or_equal, refine
 
 DEG = math.pi / 180
 
