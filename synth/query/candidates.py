@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from synth.kinds import OutputTag
+from synth.kinds import OutputKind, OutputTag
 from synth.mechanism.buildability import clearances
 from synth.mechanism.figures import SixBarFigures, link_ratios
 from synth.mechanism.sixbar import OutputDyad, SixBar, SixBars, crank_grid, simulate
@@ -259,7 +259,7 @@ def parse_candidate_id(text: str) -> tuple[int, str, int, int, float | None]:
         if swing is not None and not (0 < swing < math.pi):
             raise ValueError
         dims = candidate_dimensions(text)
-        if dims is not None and (dims.dyad.kind == "RRR") != (output == "rrr"):
+        if dims is not None and (dims.dyad.kind == OutputKind.RRR) != (output == OutputTag.RRR):
             raise ValueError
         return int(seg), output, slot, level, swing
     except ValueError:
@@ -283,7 +283,7 @@ def encode_dimensions(sixbar: SixBar) -> str:
     float32 — 39 characters for an RPR, 50 for an RRR. The six-bar is rounded to float32 (about
     7 significant digits): :func:`round_dimensions` gives what the text holds."""
     dy = sixbar.dyad
-    rrr = dy.kind == "RRR"
+    rrr = dy.kind == OutputKind.RRR
     flags = (_FLAG_BRANCH * (sixbar.branch == -1) | _FLAG_DYAD_BRANCH * (dy.branch == -1) | _FLAG_RRR * rrr)
     values = dimension_vector(sixbar)[: 9 if rrr else 7]
     raw = struct.pack(f">B{len(values)}f", flags, *values)

@@ -159,7 +159,7 @@ def prescreen(request: Request, found: FitArrays, paths: np.ndarray) -> np.ndarr
 
 def _reference(f: Fitted) -> complex:
     """Where the output angle is measured towards: an RRR's rest, else the stretch's line point."""
-    return f.rest if f.rest is not None else complex(f.row.parts[0][2], f.row.parts[0][3])
+    return f.rest if f.rest is not None else f.row.parts[0].point
 
 
 def _rrr_links(fitted: Sequence[Fitted]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -195,7 +195,7 @@ def reseat(request: Request, fitted: Sequence[Fitted]) -> list[Fitted]:
     paths = coupler_paths([f.row for f in fitted], crank_grid(FIT_SAMPLES))
     rest = np.array([_reference(f) for f in fitted])
     reach = np.array([f.dyad.rocker if f.dyad.kind == OutputKind.RRR else
-                      np.mean([abs(f.dyad.pivot - complex(p[2], p[3])) for p in f.row.parts]) for f in fitted])
+                      np.mean([abs(f.dyad.pivot - p.point) for p in f.row.parts]) for f in fitted])
     pivots = pivots_around(np.array([f.dyad.pivot for f in fitted]), reach)  # (n, K)
     rrr = np.array([f.dyad.kind == OutputKind.RRR for f in fitted])
     links = _rrr_links(fitted)  # every fit's (an RPR's are unused), read once

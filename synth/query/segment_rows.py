@@ -12,13 +12,30 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["SegmentBatch", "SegmentRow"]
+__all__ = ["Part", "SegmentBatch", "SegmentRow"]
 
-Part = tuple[float, float, float, float, float | None, float | None]
+
+class Part(NamedTuple):
+    """One stretch of a stored segment at one level (a double line has two): its crank interval
+    (rad), its line point or arc centre (crank lengths), a line's direction (rad) or an arc's
+    radius (crank lengths; None for the other kind). A tuple: positional reads still work."""
+
+    start: float
+    end: float
+    x: float
+    y: float
+    direction: float | None
+    radius: float | None
+
+    @property
+    def point(self) -> complex:
+        """The line point or arc centre as x + iy."""
+        return complex(self.x, self.y)
 
 
 def _complex(x: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.complex128]:
@@ -44,13 +61,13 @@ class SegmentRow:
     u: float
     v: float
     phi_gen: float
-    #: per part: (phi_start, phi_end, x, y, direction or None, radius or None)
+    #: per stretch: a :class:`Part` (start, end, x, y, direction or None, radius or None)
     parts: tuple[Part, ...]
     fourbar_transmission_min: float
 
 
 #: A part's columns in a :class:`SegmentBatch`, in :data:`Part` order.
-_PART_FIELDS = ("start", "end", "x", "y", "direction", "radius")
+_PART_FIELDS = Part._fields
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -107,7 +124,7 @@ class SegmentBatch(Sequence[SegmentRow]):
         parts = [p[lo:hi].tolist() for p in self.parts]
         out = []
         for k, (sid, level, tol, b, c, d, branch, u, v, phi_gen, mu, n_parts) in enumerate(zip(*columns)):
-            spelled = tuple((s, e, x, y, None if dr != dr else dr, None if r != r else r)  # x != x: NaN
+            spelled = tuple(Part(s, e, x, y, None if dr != dr else dr, None if r != r else r)  # x != x: NaN
                             for s, e, x, y, dr, r in (part[k] for part in parts[:n_parts]))
             out.append(SegmentRow(sid, self.kind, level, tol, b, c, d, branch, u, v, phi_gen, spelled, mu))
         return out
