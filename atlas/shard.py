@@ -18,7 +18,7 @@ from db.packed import PACKING, PackedShard, pack
 from db.rows import TableColumns, linkage_columns, segment_columns
 from kinematics.fourbar import fourbar_motion
 from kinematics.loop import transmission_fold
-from synth.segments import SegmentSearch, find_segments
+from synth.segment_search.segments import SegmentSearch, find_segments
 
 __all__ = ["ShardResult", "compute_shard", "handed_over"]
 

@@ -17,11 +17,11 @@ import numpy as np
 from cli.options import ANGLE_DEG, fourbar_options, writable_file
 from kinematics.fourbar import GrashofType, crank_range, fourbar_motion, grashof_type
 from kinematics.status import Status, describe_status, reason
-from synth.ball import ball_point
-from synth.double_ball import double_ball_points
-from synth.inflection import inflection_circle
-from synth.line_scan import line_scan
-from synth.pole import pole
+from synth.curvature.ball import ball_point
+from synth.curvature.double_ball import double_ball_points
+from synth.curvature.inflection import inflection_circle
+from synth.curvature.line_scan import line_scan
+from synth.curvature.pole import pole
 from synth.types import INVALID
 
 #: Rays of the dense fan drawn by ``--plot`` (the circle-point and centre-point curves).

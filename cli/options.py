@@ -85,7 +85,7 @@ AUTO = "auto"
 
 class BandOrAuto(Bounded):
     """An output band in degrees (a :class:`Bounded` number) or ``auto``: the tightest band
-    the request can be met at, searched for (``synth.band_search``). Anything else is one
+    the request can be met at, searched for (``synth.query.band_search``). Anything else is one
     line naming both forms, exit 2."""
 
     def get_metavar(self, param, ctx=None) -> str:

@@ -1,6 +1,6 @@
 """``dwell query``: ranked six-bars for a requested dwell, from an atlas.
 
-Options → :class:`~synth.candidates.Request` → :func:`synth.query.answer` (the library stage,
+Options → :class:`~synth.query.candidates.Request` → :func:`synth.query.answer` (the library stage,
 reading the atlas through ``db.queries.AtlasSource``) → a table (``synth``'s figures, in
 degrees) or JSON. The defaults shown in ``--help`` are the fields of ``Request``.
 """
@@ -22,9 +22,9 @@ from cli.errors import InputError
 from cli.options import AUTO, LENGTH, RPM, BandOrAuto, Bounded, Count, units_option
 from report.candidate_json import candidate_json, request_json
 from report.query_table import legend_lines, short_table
-from synth.candidates import OUTPUTS, Request
 from synth.kinds import OutputKind
 from synth.query import SAMPLES, QueryResult, RebuildError
+from synth.query.candidates import OUTPUTS, Request
 
 __all__ = ["BAD_INPUT", "FOUND", "NONE_FOUND", "answer", "answer_tightest", "band_search_json", "no_match_json", "no_match_message", "query", "rebuild",
            "request_from_options", "table"]
@@ -244,20 +244,20 @@ def table(result: QueryResult, units: str = "", *, wide: bool = False) -> str:
 
 
 def answer_tightest(engine, request: Request, *, workers: int = 1):
-    """:func:`synth.band_search.answer_tightest` on the atlas behind ``engine``: the band
+    """:func:`synth.query.band_search.answer_tightest` on the atlas behind ``engine``: the band
     searched with sampled probes, the request answered at the band reached as :func:`answer`
     answers it (a complete search with its progress bar and ``workers``)."""
     from db.queries import AtlasSource
-    from synth.band_search import answer_tightest as answer_tightest_
+    from synth.query.band_search import answer_tightest as answer_tightest_
 
     return answer_tightest_(request, AtlasSource(engine),
                             answer_at=lambda r: answer(engine, r, progress=None, workers=workers))
 
 
 def tighter_band(engine, result: QueryResult):
-    """:func:`synth.band_search.tighter_band` for the request of ``result`` (one sampled probe)."""
+    """:func:`synth.query.band_search.tighter_band` for the request of ``result`` (one sampled probe)."""
     from db.queries import AtlasSource
-    from synth.band_search import tighter_band as tighter_band_
+    from synth.query.band_search import tighter_band as tighter_band_
 
     return tighter_band_(result.request, AtlasSource(engine))
 
@@ -266,7 +266,7 @@ def band_search_json(searched) -> dict:
     """``band_search`` of ``--json`` with ``--band auto``: the band reached (°), whether a probe
     met the request there (false: the request's own band, unsearched), the probes (band °,
     six-bars met) and per candidate its dwells at the band reached and at the reference band."""
-    from synth.band_search import REFERENCE_BAND
+    from synth.query.band_search import REFERENCE_BAND
 
     req = searched.result.request
     return {"band_deg": math.degrees(searched.band), "settled": searched.settled,
@@ -280,7 +280,7 @@ def band_search_json(searched) -> dict:
 def band_search_text(searched) -> str:
     """The lines under the table with ``--band auto``: the band reached and how, then each
     candidate's dwell at that band and at the reference band."""
-    from synth.band_search import REFERENCE_BAND, needed
+    from synth.query.band_search import REFERENCE_BAND, needed
 
     req = searched.result.request
     ref = f"{math.degrees(REFERENCE_BAND):g}°"
@@ -399,7 +399,7 @@ def no_match_json(result: QueryResult, units: str = "mm") -> dict:
 
 
 #: The request's values on the command line (degrees unless said): their ranges, shown in
-#: --help. synth.candidates.Request checks the same meaning again for library callers; the
+#: --help. synth.query.candidates.Request checks the same meaning again for library callers; the
 #: floors here keep a value meaningful (a 1e-320° swing is no mechanism) and the numerics quiet.
 DWELL_DEG = Bounded(0.0, 360.0, "a dwell in degrees", low_open=True, high_open=True)
 DWELL_TOL_DEG = Bounded(0.0, 360.0, "a dwell error in degrees", high_open=True)
@@ -407,7 +407,7 @@ SWING_DEG = Bounded(0.01, 180.0, "a swing in degrees", high_open=True)
 SWING_TOL_DEG = Bounded(0.0, 180.0, "a swing error in degrees", high_open=True)
 STEP_DEG = Bounded(0.01, 180.0, "a turn between two rests in degrees", high_open=True)
 BAND_DEG = Bounded(1e-4, 180.0, "an output band in degrees", high_open=True)
-#: ``dwell query --band``: the same, or auto (synth.band_search); ``dwell report`` takes a number.
+#: ``dwell query --band``: the same, or auto (synth.query.band_search); ``dwell report`` takes a number.
 BAND_OR_AUTO = BandOrAuto(BAND_DEG.min, BAND_DEG.max, BAND_DEG.what, high_open=True)
 #: Transmission angles the RRR fit accepts (degrees): from 0.001° (5e-324° became 0 rad, which
 #: the fit refuses; found by tests/cli/test_option_ranges.py) to below 90°.

@@ -2,7 +2,7 @@
 :class:`synth.query.SegmentSource` of an atlas.
 
 Short walks of the ``dwell`` table's key (kind, level, dwell_key, segment_id) outwards from
-each wanted key (a line's dwell angle, an arc's dwell key: :mod:`synth.dwell_key`), filtered
+each wanted key (a line's dwell angle, an arc's dwell key: :mod:`synth.segment_search.dwell_key`), filtered
 on the linkage's constraints inside the walk (the table is the index: every column the
 query needs comes with the walked row), then one read of the chosen segments and their linkages by primary key; for the complete search, a keyset walk of
 the same key through every row of one kind and level. Units as stored: crank lengths,
@@ -36,8 +36,8 @@ from db.rows import length_ceil_milli, line_points, transmission_floor_cdeg
 from db.schema import Dwell, Linkage, Segment, stored_dwell_angle
 from db.spec import last_spec, tolerances
 from synth.kinds import SegmentKind
-from synth.query import DwellWindow
-from synth.segment_rows import SegmentBatch, SegmentRow
+from synth.query.contract import DwellWindow
+from synth.query.segment_rows import SegmentBatch, SegmentRow
 
 #: Segment ids bound in one statement of :func:`select_segments`.
 IN_CHUNK = 5000

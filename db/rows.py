@@ -1,6 +1,6 @@
 """The atlas's row format and row ids: what a shard's arrays become in the database.
 
-``synth`` measures segments as arrays (:class:`synth.segments.FoundSegments`), ``atlas.shard``
+``synth`` measures segments as arrays (:class:`synth.segment_search.segments.FoundSegments`), ``atlas.shard``
 computes a shard; this module alone decides how they are stored (the columns of
 :mod:`db.schema`) and how rows are named. Ids are deterministic, so the content of an atlas does
 not depend on the worker count, the order in which shards finish, or how often a build was
@@ -10,7 +10,7 @@ interrupted and resumed:
 * segment id = linkage id · :data:`SEGMENTS_PER_LINKAGE` + ordinal of the segment in its linkage
 * a dwell row is named by (segment id, level); its key in the table is (kind code, level,
   dwell key, segment id), the query's walk order (:class:`db.schema.Dwell`): a line's dwell
-  key is its dwell angle, an arc's its dwell angle × excursion^¼ (:mod:`synth.dwell_key`)
+  key is its dwell angle, an arc's its dwell angle × excursion^¼ (:mod:`synth.segment_search.dwell_key`)
 
 A table's rows stay columns (:class:`TableColumns`: an array per column, a mask where it is
 NULL) from the shard to the packing and the digest; :meth:`TableColumns.rows` spells them out as
@@ -30,9 +30,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from synth.dwell_key import arc_dwell_key
 from synth.kinds import SEGMENT_KINDS, SegmentKind
-from synth.segments import FoundSegments
+from synth.segment_search.dwell_key import arc_dwell_key
+from synth.segment_search.segments import FoundSegments
 
 __all__ = ["SEGMENTS_PER_LINKAGE", "TableColumns", "length_ceil_milli", "line_offset", "line_offsets", "line_point",
            "line_points", "linkage_columns", "linkage_id", "linkage_ids", "segment_columns", "transmission_floor_cdeg"]
@@ -199,7 +199,7 @@ def segment_columns(found: FoundSegments, linkages: TableColumns) -> tuple[Table
 
     Rows come segment by segment, a segment's dwell rows level by level. The figures are
     worked out for all rows at once (:func:`_stretches`), each to the same float as
-    :func:`line_offset` and :func:`synth.dwell_key.arc_dwell_key` give it for one row."""
+    :func:`line_offset` and :func:`synth.segment_search.dwell_key.arc_dwell_key` give it for one row."""
     code = found.kind
     double = code == SegmentKind.DOUBLE_LINE.code
     owner = found.linkage

@@ -36,7 +36,7 @@ __all__ = ["SCHEMA_VERSION", "APPLICATION", "Base", "Meta", "Build", "Shard", "L
 #: per linkage on ``standard``); each shard row holds its shard's digest, and the content digest
 #: is defined over them (``db.digest``); shards append their dwell rows to ``dwell_staging``,
 #: moved into ``dwell`` in key order when the build completes. 5: arc rows are keyed by their dwell
-#: key (the stored dwell × the path's excursion from the circle^¼, :mod:`synth.dwell_key`), which
+#: key (the stored dwell × the path's excursion from the circle^¼, :mod:`synth.segment_search.dwell_key`), which
 #: orders them by the RRR dwell they predict; their dwell angle moves to a column of its own. 6:
 #: the shard digest (``shard.digest``, and so ``build.content_digest``) is defined over binary
 #: records of the rows, floats rounded to 40 bits, instead of their ``%.12g`` text (``db.digest``):
@@ -208,7 +208,7 @@ class Dwell(Base):
     :data:`synth.kinds.SEGMENT_KINDS` code, ``level``, ``dwell_key``, ``segment_id``) is the
     walk's order. A line's (and a double line's) ``dwell_key`` is its dwell angle and its
     ``dwell_angle`` is NULL (no second copy); an arc's ``dwell_key`` is its dwell angle ×
-    ``excursion``^¼ (:func:`synth.dwell_key.arc_dwell_key`), the order of the RRR dwells it
+    ``excursion``^¼ (:func:`synth.segment_search.dwell_key.arc_dwell_key`), the order of the RRR dwells it
     predicts, and ``dwell_angle`` holds the angle itself. On SQLite (``WITHOUT ROWID``) the row
     lives in that b-tree, so a walked row costs no second look-up. The linkage's constraint figures ride along for the walk's
     filters as conservative integers: the smallest folded transmission angle floored to

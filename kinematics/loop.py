@@ -4,8 +4,8 @@ the vertex of a sampled extreme and the folded transmission angle.
 
 One source of truth for each formula and one set of thresholds: the four-bar
 (:mod:`kinematics.fourbar`), the Assur dyads (:mod:`kinematics.assur.dyads`), the six-bar
-simulation (:mod:`synth.sixbar`), the dyad fits (:mod:`synth.dyad`) and the segment search
-(:mod:`synth.segments`) all call these kernels.
+simulation (:mod:`synth.mechanism.sixbar`), the dyad fits (:mod:`synth.mechanism.dyad`) and the segment search
+(:mod:`synth.segment_search.segments`) all call these kernels.
 
 Points and directions are complex numbers (x + iy), angles radians. Every kernel broadcasts
 its inputs and never returns NaN/inf: degenerate geometry carries a
@@ -14,6 +14,7 @@ its inputs and never returns NaN/inf: degenerate geometry carries a
 
 from __future__ import annotations
 
+import math
 from contextlib import nullcontext
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -36,6 +37,7 @@ __all__ = [
     "parabola_vertex",
     "sampled_extreme",
     "transmission_fold",
+    "wrap_angle",
 ]
 
 F64 = NDArray[np.float64]
@@ -381,3 +383,8 @@ def transmission_fold(relative: ArrayLike) -> F64:
     rel = np.asarray(relative, dtype=np.complex128)
     mu = np.arccos(np.clip(rel.real, -1.0, 1.0))
     return np.minimum(mu, np.pi - mu)
+
+
+def wrap_angle(x):
+    """x folded into [−π, π) (rad)."""
+    return np.mod(np.asarray(x) + math.pi, 2.0 * math.pi) - math.pi

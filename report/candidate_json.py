@@ -15,9 +15,9 @@ from __future__ import annotations
 import math
 
 from report.motion_table import unit_key
-from synth.candidates import Candidate, Request
-from synth.figures import SixBarFigures
-from synth.sixbar import OutputDyad, SixBar
+from synth.mechanism.figures import SixBarFigures
+from synth.mechanism.sixbar import OutputDyad, SixBar
+from synth.query.candidates import Candidate, Request
 
 __all__ = ["candidate_json", "length_key", "request_json", "sixbar_from_json"]
 
@@ -91,7 +91,7 @@ def candidate_json(c: Candidate, rpm: float = 60.0, units: str = "mm") -> dict:
         "output": output,
         "dwells": dwells,
         # with --tolerance: the 95th percentile of the output deviation over six-bars made
-        # within it (synth.tolerance); null without one or where too many of them do not assemble
+        # within it (synth.mechanism.tolerance); null without one or where too many of them do not assemble
         "toleranced_deviation_deg": None if c.toleranced_deviation is None else math.degrees(c.toleranced_deviation),
         "swing_deg": math.degrees(f.swing),
         "step_deg": None if f.step is None else math.degrees(f.step),

@@ -16,9 +16,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from kinematics.status import Status
-from synth.figures import SixBarFigures
 from synth.kinds import OutputKind
-from synth.sixbar import SixBar, crank_grid, simulate
+from synth.mechanism.figures import SixBarFigures
+from synth.mechanism.sixbar import SixBar, crank_grid, simulate
 
 __all__ = ["CYCLE_COLUMNS", "Cycle", "cycle_json", "dwell_mask", "sixbar_cycle", "unit_motion"]
 
@@ -109,7 +109,7 @@ def dwell_mask(phi: F64, figures: SixBarFigures) -> NDArray[np.bool_]:
 
 
 def unit_motion(sixbar: SixBar, phi: np.ndarray, order: int = 0):
-    """:func:`synth.sixbar.simulate` of ``sixbar`` scaled to crank = 1, and the crank length
+    """:func:`synth.mechanism.sixbar.simulate` of ``sixbar`` scaled to crank = 1, and the crank length
     its positions are to be multiplied by (angles and ratios are the same at any scale).
     Written when the loop's Heron product overflowed beyond ~1e75 (`dwell report --crank 1e100`
     wrote NaN; found by a random-seed run). The kernel now scales that product itself
@@ -122,7 +122,7 @@ def sixbar_cycle(sixbar: SixBar, figures: SixBarFigures, *, step_deg: float = 1.
     """Simulate ``sixbar`` over one turn at ``step_deg`` crank steps (a divisor of 360°).
 
     ``figures`` supplies the dwell intervals for :attr:`Cycle.dwelling`; every value comes from
-    :func:`synth.sixbar.simulate` (order 2), nothing is interpolated.
+    :func:`synth.mechanism.sixbar.simulate` (order 2), nothing is interpolated.
     """
     samples = 360.0 / float(step_deg)
     if not (math.isfinite(samples) and abs(samples - round(samples)) < 1e-9 and round(samples) >= 8):

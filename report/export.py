@@ -3,7 +3,7 @@ self-contained HTML page, written into a folder.
 
 :func:`write_report` is pure of the database: the candidates already carry their six-bar in the
 user's units, its figures from the exact simulation, rank and id. Every number written comes
-from that six-bar's exact simulation (:func:`synth.sixbar.simulate`); no file holds NaN or inf
+from that six-bar's exact simulation (:func:`synth.mechanism.sixbar.simulate`); no file holds NaN or inf
 (JSON has ``null`` where a value does not exist, the CSV an empty cell).
 
 Files (``NN`` the rank, zero-padded; ``ID`` the candidate id made filesystem-safe):
@@ -35,8 +35,8 @@ import numpy as np
 from report.candidate_json import candidate_json, request_json
 from report.cycle import CYCLE_COLUMNS, Cycle, cycle_json, sixbar_cycle
 from report.escape import terminal
-from synth.candidates import Candidate, Request
 from synth.kinds import OutputKind
+from synth.query.candidates import Candidate, Request
 
 __all__ = ["CSV_COLUMNS", "MAX_DWELLS", "candidate_row", "csv_cell", "csv_header", "report_json", "safe_stem", "write_report"]
 

@@ -34,8 +34,8 @@ from report.cycle import Cycle
 from report.escape import script_json, text
 from report.palette import BLOCK, CURVE, DWELL, LINK_COLORS
 from report.sixbar_drawing import SLOT_MARGIN, SixBarGeometry
-from synth.candidates import Candidate, Request
 from synth.kinds import OutputKind
+from synth.query.candidates import Candidate, Request
 
 __all__ = ["PageEntry", "inline_svg", "render_page"]
 
@@ -336,7 +336,7 @@ def _dimensions_table(entry: PageEntry, rpm: float, units: str = "") -> str:
         span = f"{math.degrees(d.angle):.3f}° over φ = {start:.2f}° … {end:.2f}°"
         rows.append((f"dwell {k + 1}", span + dev))
     if c.refined_from is not None:
-        # exact refinement (synth/refine.py): the retrieved six-bar's figures, for comparison
+        # exact refinement (synth/query/refine.py): the retrieved six-bar's figures, for comparison
         g = c.refined_from
         dwells = " / ".join(f"{math.degrees(d.angle):.3f}°" for d in g.dwells)
         dev = f" · deviation {math.degrees(max(g.deviations)):.4f}°" if g.deviations else ""

@@ -21,9 +21,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from synth.candidates import Candidate
 from synth.kinds import OutputKind
-from synth.sixbar import simulate
+from synth.mechanism.sixbar import simulate
+from synth.query.candidates import Candidate
 
 __all__ = ["linkage_configuration", "linkage_toml", "readable_linkages"]
 

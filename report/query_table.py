@@ -13,7 +13,7 @@ import textwrap
 from collections.abc import Sequence
 
 from report.short_id import short_id
-from synth.candidates import Candidate, Request
+from synth.query.candidates import Candidate, Request
 from synth.kinds import OutputKind
 
 __all__ = ["WIDTH", "fit_lines", "legend_lines", "short_table"]

@@ -19,8 +19,8 @@ from report.cycle import Cycle, unit_motion
 from report.escape import plot_text
 from report.labels import Box, place_labels
 from report.palette import BLOCK, CURVE, DWELL, GROUND, GUIDE, LINK_COLORS
-from synth.candidates import Candidate
 from synth.kinds import OutputKind
+from synth.query.candidates import Candidate
 
 __all__ = ["Link", "SixBarGeometry", "draw_sixbar", "guide_path", "sixbar_geometry"]
 

@@ -19,8 +19,8 @@ import numpy as np
 from report.cycle import Cycle
 from report.escape import plot_text
 from report.sixbar_drawing import SixBarGeometry, guide_path
-from synth.candidates import Candidate
 from synth.kinds import OutputKind
+from synth.query.candidates import Candidate
 
 __all__ = ["PLOTS", "PlotFiles", "coupler_figure", "motion_figure", "plot_candidate", "save_figure",
            "transmission_figure"]

@@ -28,13 +28,20 @@ class SegmentKind(enum.StrEnum):
         """Small-integer code in the search's arrays: the position in :data:`SEGMENT_KINDS`."""
         return SEGMENT_KINDS.index(self)
 
+    @property
+    def output(self) -> OutputTag:
+        """The output of the six-bars fitted to a segment of this kind: a line's slotted rocker
+        (RPR), an arc's rod and rocker (RRR), a double line's slotted rocker at the lines'
+        intersection (DOUBLE_RPR)."""
+        return {SegmentKind.LINE: OutputTag.RPR, SegmentKind.ARC: OutputTag.RRR}.get(self, OutputTag.DOUBLE_RPR)
+
 
 #: Segment kinds in their canonical order (the order of ``SegmentKind.code``).
 SEGMENT_KINDS: tuple[SegmentKind, ...] = tuple(SegmentKind)
 
 
 class OutputKind(enum.StrEnum):
-    """The output dyad of a six-bar (:class:`synth.sixbar.OutputDyad`, the JSON ``type``).
+    """The output dyad of a six-bar (:class:`synth.mechanism.sixbar.OutputDyad`, the JSON ``type``).
 
     ``RPR``: slotted rocker driven by the coupler point; ``RRR``: rod and rocker.
     """

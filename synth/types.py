@@ -17,7 +17,7 @@ F64 = NDArray[np.float64]
 C128 = NDArray[np.complex128]
 U16 = NDArray[np.uint16]
 
-#: Distances beyond ``FAR`` × linkage size count as infinite (see ``synth.pole``'s notes).
+#: Distances beyond ``FAR`` × linkage size count as infinite (see ``synth.curvature.pole``'s notes).
 FAR = 1e6
 #: Condition number L/(min(b, c)·|sin(θ − γ)|) above which an instant is ``ILL_CONDITIONED``.
 MAX_CONDITION = 100.0

@@ -114,8 +114,8 @@ def round_trip(candidates: Sequence, request, units: str = "mm", agreement: Agre
     from kinematics.assur import configurations, decompose, linkage_from_text, output_at, transmission_minima
     from report.candidate_json import candidate_json
     from report.linkage_toml import linkage_toml
-    from synth.output_range import output_swing
-    from synth.sixbar import crank_grid
+    from synth.mechanism.output_range import output_swing
+    from synth.mechanism.sixbar import crank_grid
 
     agreement = Agreement() if agreement is None else agreement
     if not candidates:

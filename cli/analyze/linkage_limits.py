@@ -3,7 +3,7 @@ its cycle — limit positions, swing (or stroke) and time ratio; the smallest tr
 of every RRR dyad; and, given an output band, the dwells: the longest crank interval(s) on which
 the output stays within the band.
 
-The dwells are measured as ``dwell query`` measures a six-bar's (:func:`synth.output_range.dwell_intervals`
+The dwells are measured as ``dwell query`` measures a six-bar's (:func:`synth.mechanism.output_range.dwell_intervals`
 on the query's 0.5° grid, ends refined on the exact path), but on the output of the Assur-group
 solver (:func:`kinematics.assur.output_at`), so that a report's linkage file reproduces the
 candidate's dwell ends (to well under 0.01°) from an independent solution of the mechanism.
@@ -30,7 +30,7 @@ from kinematics.assur import (
 )
 from kinematics.status import AssemblyError
 
-#: Crank samples of the dwell search: the query's grid (synth.figures' default), so that a
+#: Crank samples of the dwell search: the query's grid (synth.mechanism.figures' default), so that a
 #: candidate's dwell ends are found again by the same refinement from the same samples.
 DWELL_SAMPLES = 720
 
@@ -96,8 +96,8 @@ def rests(items: Sequence[tuple[Linkage, Decomposition, Assembly, Output]], band
     output), the ``count`` longest disjoint crank intervals of one turn from the start on
     which the output stays within ``band`` (rad). One dwell search for all items (the exact
     output of each row evaluated by its own solver)."""
-    from synth.output_range import crank_degrees, dwell_intervals  # numba: imported when asked for
-    from synth.sixbar import crank_grid
+    from synth.mechanism.output_range import crank_degrees, dwell_intervals  # numba: imported when asked for
+    from synth.mechanism.sixbar import crank_grid
 
     if not items:
         return []

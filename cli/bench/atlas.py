@@ -38,8 +38,8 @@ from cli.options import RAYS, SEARCH_STEP_DEG, writable_file
 from db.rows import linkage_columns, segment_columns
 from kinematics.fourbar import fourbar_motion
 from synth.kinds import SEGMENT_KINDS, SegmentKind
-from synth.minimum_zone import path_deviation
-from synth.segments import SegmentSearch, find_segments
+from synth.segment_search.minimum_zone import path_deviation
+from synth.segment_search.segments import SegmentSearch, find_segments
 
 DEFAULT_RESOLUTIONS = "4:18,3:24,2:36,1.5:48"
 FLOOR = 400.0  # linkages/s on 2 cores at the standard resolution, writes and digest included (issue #16)

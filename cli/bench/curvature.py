@@ -23,11 +23,11 @@ from cli.options import SEED
 from cli.bench import reference
 from cli.budget import check_memory, check_time
 from kinematics.fourbar import fourbar_motion
-from synth.ball import ball_point
-from synth.double_ball import double_ball_points
-from synth.inflection import inflection_circle
-from synth.line_scan import line_scan
-from synth.pole import pole
+from synth.curvature.ball import ball_point
+from synth.curvature.double_ball import double_ball_points
+from synth.curvature.inflection import inflection_circle
+from synth.curvature.line_scan import line_scan
+from synth.curvature.pole import pole
 
 STAGES = ("fourbar_motion", "pole", "inflection_circle", "ball_point", "line_scan")
 FLOOR = 500_000

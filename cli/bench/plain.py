@@ -3,7 +3,7 @@
 The textbook law-of-cosines positions, written the way anyone would write them in numpy (no
 status flags, no derivatives, no guard against a loop that cannot close), so that a benchmark
 can print "our figure ÷ plain numpy in the same run" — a ratio that means the same on any
-machine. Not used by the product: :mod:`kinematics.fourbar` and :mod:`synth.sixbar` are the
+machine. Not used by the product: :mod:`kinematics.fourbar` and :mod:`synth.mechanism.sixbar` are the
 one implementation of each formula.
 
 Conventions as the product's (README *Conventions*): A0 = 0, B0 = d, branch +1 puts B left

@@ -2,9 +2,9 @@
 a plain numpy closed form timed in the same run (:mod:`cli.bench.plain`), so the figure means
 the same on any machine; the two are checked to agree (largest |Δψ|) before either is timed.
 
-Issue 16's floors: the product's exact simulation (:func:`synth.sixbar.simulate`, order 0:
+Issue 16's floors: the product's exact simulation (:func:`synth.mechanism.sixbar.simulate`, order 0:
 positions, status flags, transmission angles, continuous ψ — the compiled kernel of
-:mod:`synth.sixbar_kernel`) at N = 10 000 × 360 should reach at least the plain closed form's
+:mod:`synth.mechanism.sixbar_kernel`) at N = 10 000 × 360 should reach at least the plain closed form's
 rate (ratio ≥ 1), and at N = 1 twice pylinkage's. The numpy path it replaced at order 0 (still
 the reference, and the path of derivative orders 1–2) is timed beside it.
 
@@ -27,7 +27,7 @@ from cli.options import SEED
 from cli.bench.kinematics import MIN_POSITIONS_PER_RUN, best_time, random_linkages, check_positions, sizes_option
 from cli.bench.plain import sixbar_rrr_positions
 from synth import parallel_rows
-from synth.sixbar import SixBars, simulate_numpy, simulate
+from synth.mechanism.sixbar import SixBars, simulate_numpy, simulate
 
 #: Peak memory of simulate(order=0) per position (bytes; 229 measured with tracemalloc).
 SIXBAR_BYTES_PER_POSITION = 300
@@ -113,7 +113,7 @@ def sixbar(sizes: str, angles: int, repeat: int, seed: int) -> None:
                    err=True)
     doc = {
         "benchmark": "sixbar",
-        "what": "four-bar + RRR dyad positions: synth.sixbar.simulate(order=0) (compiled kernel; status flags, "
+        "what": "four-bar + RRR dyad positions: synth.mechanism.sixbar.simulate(order=0) (compiled kernel; status flags, "
                 "transmission angles, continuous psi) against the plain numpy law-of-cosines closed form "
                 "(cli/bench/plain.py); numpy_path_*: the same simulation on the numpy reference path",
         "angles_per_sixbar": angles,

@@ -34,10 +34,10 @@ from cli.bench import reference
 from cli.bench.curvature import crank_rockers
 from kinematics.fourbar import fourbar_motion
 from kinematics.status import AssemblyError, Status
-from synth.ball import ball_point
-from synth.inflection import euler_savary, inflection_circle
-from synth.line_scan import line_scan
-from synth.pole import pole
+from synth.curvature.ball import ball_point
+from synth.curvature.inflection import euler_savary, inflection_circle
+from synth.curvature.line_scan import line_scan
+from synth.curvature.pole import pole
 
 FAMILIES = ("random_ratios", "change_point", "near_toggle", "near_translation", "crank_rocker")
 #: Cases per evaluation batch (an exception is then retried case by case to count it).

@@ -1,5 +1,5 @@
 """``dwell bench tolerance``: the cost of a candidate's toleranced deviation
-(:func:`synth.tolerance.toleranced_deviation`: ``--draws`` six-bars made within the tolerance,
+(:func:`synth.mechanism.tolerance.toleranced_deviation`: ``--draws`` six-bars made within the tolerance,
 simulated and measured as one batch) per candidate, beside how far its 95th percentile moves
 with the seed of the draws (the estimate's own error).
 
@@ -19,7 +19,7 @@ import click
 import numpy as np
 
 from cli.options import Bounded
-from synth.sixbar import OutputDyad, SixBar
+from synth.mechanism.sixbar import OutputDyad, SixBar
 
 #: (name, six-bar, requested dwell in degrees)
 SIXBARS = (
@@ -40,8 +40,8 @@ TARGET_S = 0.005
               help="Seeds whose percentiles give the estimate's spread.")
 def tolerance(draws: int, tolerance: float, repeat: int, seeds: int) -> None:
     """Cost per candidate of the toleranced deviation, and its spread over seeds (JSON)."""
-    from synth.figures import sixbar_figures
-    from synth.tolerance import SEED, toleranced_deviation
+    from synth.mechanism.figures import sixbar_figures
+    from synth.mechanism.tolerance import SEED, toleranced_deviation
 
     results = []
     for name, sb, dwell_deg in SIXBARS:
@@ -69,7 +69,7 @@ def tolerance(draws: int, tolerance: float, repeat: int, seeds: int) -> None:
                    + ("fails" if value is None else f"{math.degrees(value):.4f}°") + " toleranced", err=True)
     doc = {
         "benchmark": "tolerance",
-        "what": "synth.tolerance.toleranced_deviation: the 95th percentile of the output deviation over six-bars "
+        "what": "synth.mechanism.tolerance.toleranced_deviation: the 95th percentile of the output deviation over six-bars "
                 "made within +-tolerance of every length and fixed-pivot coordinate, simulated as one batch; "
                 "spread: max - min of that percentile over seeds",
         "draws": draws,

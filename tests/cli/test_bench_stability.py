@@ -13,9 +13,9 @@ import pytest
 from cli.bench.stability import FAMILIES, evaluate_cases, make_cases, stability_summary
 from kinematics.status import Status
 from synth import line_scan
-from synth.line_scan import ACCURACY
+from synth.curvature.line_scan import ACCURACY
 
-line_scan_module = importlib.import_module("synth.line_scan")
+line_scan_module = importlib.import_module("synth.curvature.line_scan")
 
 
 @pytest.fixture(scope="module")

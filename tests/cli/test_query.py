@@ -17,7 +17,7 @@ from atlas.build import build_atlas
 from atlas.sweep import PRESETS
 from cli.main import main
 from report.candidate_json import sixbar_from_json
-from synth.sixbar import simulate
+from synth.mechanism.sixbar import simulate
 
 from harness.plain_sixbar import reference_psi
 
@@ -330,7 +330,7 @@ def test_bench_query_reports_latency_and_answers(atlas_path, capsys, tmp_path):
 
 def test_help_shows_the_request_defaults_and_ranges(capsys):
     """The defaults in --help are the fields of Request (one definition), in degrees."""
-    from synth.candidates import Request
+    from synth.query.candidates import Request
 
     code, out, _ = run(capsys, "query", "--help")
     assert code == 0
@@ -515,7 +515,7 @@ def test_no_refine_gives_the_retrieved_six_bars(capsys, atlas_path):
             assert c["dwells"][0]["output_deviation_deg"] == before
         else:
             assert c["refinement"]["before"]["output_deviation_deg"] == pytest.approx(before, abs=1e-12)
-            # no worse on any objective of the ranking, better on one (synth.refine.better_or_equal)
+            # no worse on any objective of the ranking, better on one (synth.query.refine.better_or_equal)
             assert c["dwells"][0]["output_deviation_deg"] <= before
     doc = json.loads(out)["refinement"]
     assert doc["from_nearest_misses"] is False and doc["sixbars_refined"] == len(plain) and doc["near_misses_met"] == 0
@@ -533,7 +533,7 @@ def test_the_first_answer_freezes_the_long_lived_objects_once(atlas_path, monkey
 
     import cli.query as cq
     from db.engine import open_atlas
-    from synth.candidates import Request
+    from synth.query.candidates import Request
 
     monkeypatch.setattr(cq, "_heap_settled", False)
     gc.unfreeze()

@@ -20,7 +20,7 @@ from db.engine import AtlasError
 from db.queries import AtlasSource, scan_segments, segment_row, select_segments
 from db.rows import length_ceil_milli, line_offset, line_point, line_points, transmission_floor_cdeg
 from db.writes import finish_build, write_shard
-from synth.query import DwellWindow
+from synth.query.contract import DwellWindow
 
 angles = st.floats(0.0, math.pi / 2, allow_nan=False)
 lengths = st.floats(1e-3, 1e3, allow_nan=False)

@@ -18,9 +18,9 @@ import atlas.shard
 from atlas.sweep import PRESETS
 from db.rows import (SEGMENTS_PER_LINKAGE, TableColumns, length_ceil_milli, line_offset, linkage_columns,
                      segment_columns, transmission_floor_cdeg)
-from synth.dwell_key import arc_dwell_key
 from synth.kinds import SEGMENT_KINDS, SegmentKind
-from synth.segments import SegmentSearch, find_segments
+from synth.segment_search.dwell_key import arc_dwell_key
+from synth.segment_search.segments import SegmentSearch, find_segments
 
 
 @pytest.fixture(scope="module")

@@ -17,7 +17,7 @@ from db.rows import SEGMENTS_PER_LINKAGE, TableColumns, length_ceil_milli, linka
 from db.schema import Dwell
 from db.writes import finish_build, write_shard
 from synth.kinds import SEGMENT_KINDS, SegmentKind
-from synth.query import ALL_ROWS, DwellWindow
+from synth.query.contract import ALL_ROWS, DwellWindow
 
 KINDS = tuple(str(k) for k in SEGMENT_KINDS)
 #: Dwell keys and window targets on a grid of sixteenths: keys and distances tie exactly.

@@ -9,7 +9,7 @@ import math
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from synth.sixbar import SixBar
+    from synth.mechanism.sixbar import SixBar
 
 
 def circle_meet(c1: complex, r1: float, c2: complex, r2: float, left: bool) -> complex | None:

@@ -11,10 +11,10 @@ import numpy as np
 
 from kinematics.fourbar import fourbar_motion
 from synth import ball_point, double_ball_points, line_scan, pole
-from synth.candidates import Candidate, Request
-from synth.dyad import fit_rpr, fit_rrr, rpr_double
-from synth.figures import sixbar_figures
-from synth.sixbar import SixBar, crank_grid
+from synth.mechanism.dyad import fit_rpr, fit_rrr, rpr_double
+from synth.mechanism.figures import sixbar_figures
+from synth.mechanism.sixbar import SixBar, crank_grid
+from synth.query.candidates import Candidate, Request
 
 DEG = math.pi / 180
 PHI = crank_grid(720)

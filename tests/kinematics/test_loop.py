@@ -68,8 +68,8 @@ def test_circle_intersection_is_quiet_and_finite_at_every_scale(r, l1, l2):
     """At any distance and radii the command line accepts, the closing point is computed
     without a floating-point warning (they reach the user's terminal), every value is finite,
     a loop that clearly cannot close is flagged and one that clearly can is not; the compiled
-    scalar form (``synth.sixbar_kernel.closing_point``) gives the same angles and status."""
-    from synth.sixbar_kernel import closing_point
+    scalar form (``synth.mechanism.sixbar_kernel.closing_point``) gives the same angles and status."""
+    from synth.mechanism.sixbar_kernel import closing_point
 
     with warnings.catch_warnings():
         warnings.simplefilter("error")
@@ -92,7 +92,7 @@ def test_a_loop_whose_centres_nearly_meet_is_the_same_at_every_scale(scale):
     """Centres 1e-9 of the links apart: at 1e-150, 1/(2·l1·r) overflowed (NaN angles at status
     OK from the compiled kernel, nulls from `dwell analyze fourbar`). Solved in units of the
     links, the angles are those of the loop at unit scale, the height and rate factors scaled."""
-    from synth.sixbar_kernel import closing_point
+    from synth.mechanism.sixbar_kernel import closing_point
 
     R = np.array([2e-9 + 0j, 3e-9 + 1e-9j])
     unit = circle_intersection(R, 1.0, 1.0 + 1e-9, 1.0)

@@ -12,7 +12,7 @@ from harness.report_cases import (
     single_dwell_candidates,
 )
 
-from synth.candidates import Candidate
+from synth.query.candidates import Candidate
 
 
 @pytest.fixture(scope="session")

@@ -24,8 +24,8 @@ from report.export import (
     safe_stem,
     write_report,
 )
-from synth.figures import sixbar_figures
-from synth.sixbar import simulate
+from synth.mechanism.figures import sixbar_figures
+from synth.mechanism.sixbar import simulate
 
 DEG = math.pi / 180
 PER_CANDIDATE = ("motion.png", "motion.svg", "coupler.png", "coupler.svg", "transmission.png", "transmission.svg",

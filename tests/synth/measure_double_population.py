@@ -1,7 +1,7 @@
 """The atlas's double Ball point population (docs/query-double-dwell.md, coverage): every double
 line with both stretches at a tolerance level, slot pivot at the lines' crossing (the query's
-fit, :func:`synth.dyad.rpr_double`), its output on the fit's 1° grid: the swing and the two
-separated rests (band 0.1°, separation 0.5°, :func:`synth.output_range.dwell_intervals` on
+fit, :func:`synth.mechanism.dyad.rpr_double`), its output on the fit's 1° grid: the swing and the two
+separated rests (band 0.1°, separation 0.5°, :func:`synth.mechanism.output_range.dwell_intervals` on
 the grid, ends to ±1°). Per swing S ± tol: how many have both rests within d ± 5° for each
 dwell d of the coverage grid, and the longest shorter rest there.
 
@@ -11,10 +11,10 @@ import json, math, sys
 import numpy as np
 from db.engine import open_atlas
 from db.queries import AtlasSource
-from synth.dyad import rpr_double
-from synth.output_range import dwell_intervals
-from synth.query import _paths, FIT_SAMPLES
-from synth.sixbar import crank_grid
+from synth.mechanism.dyad import rpr_double
+from synth.mechanism.output_range import dwell_intervals
+from synth.mechanism.sixbar import crank_grid
+from synth.query import coupler_paths, FIT_SAMPLES
 
 db, level = sys.argv[1], int(sys.argv[2])
 src = AtlasSource(open_atlas(db, readonly=True))
@@ -30,7 +30,7 @@ for batch in src.scan_segments("double_line", level, min_transmission=math.radia
     ok = found.found
     rows = two[ok]
     D = found.pivot[ok]
-    P = _paths(batch, phi)[rows]
+    P = coupler_paths(batch, phi)[rows]
     psi = np.unwrap(np.angle(P - D[:, None]), axis=1)
     rock = np.abs(psi[:, -1] - psi[:, 0]) < math.pi
     psi, D = psi[rock], D[rock]

@@ -8,8 +8,8 @@ import sys
 def necessity(count, seed=2026):
     import math, time, sys, numpy as np
     import test_dwell_bounds as T  # this folder is sys.path[0] when the script runs
-    from synth.dwell_bounds import dwell_bound, path_tolerance, deviation_profile, PROFILE_LEVELS
-    from synth.segments import find_segments
+    from synth.segment_search.dwell_bounds import dwell_bound, path_tolerance, deviation_profile, PROFILE_LEVELS
+    from synth.segment_search.segments import find_segments
     rng = np.random.default_rng(seed)
     viol = {"rpr": 0, "rrr": 0}; n = {"rpr": 0, "rrr": 0}; else_ = 0
     ratio = {k: {"rpr": [], "rrr": []} for k in (17, 9, 5, 3)}
@@ -36,8 +36,8 @@ def necessity(count, seed=2026):
 
 def levels():
     import math, time, numpy as np
-    from synth.segments import find_segments, SegmentSearch
-    from synth.dwell_bounds import deviation_profile, dwell_bound, path_tolerance, curve_extent
+    from synth.segment_search.dwell_bounds import deviation_profile, dwell_bound, path_tolerance, curve_extent
+    from synth.segment_search.segments import find_segments, SegmentSearch
     rng = np.random.default_rng(7)
     fine = np.logspace(-5, -1, 33)
     prof = []; cost = {}
@@ -72,8 +72,8 @@ def levels():
 
 def stored():
     import math, time, numpy as np
-    from synth.segments import find_segments, SegmentSearch
-    from synth.dwell_bounds import deviation_profile
+    from synth.segment_search.dwell_bounds import deviation_profile
+    from synth.segment_search.segments import find_segments, SegmentSearch
     rng = np.random.default_rng(11)
     B = []
     while len(B) < 40:
@@ -105,8 +105,8 @@ def staircase(count=20):
     """Cost per segment of the batched staircase profile (9 levels) on every segment of
     ``count`` random linkages, per kind, at 1° and 2°."""
     import math, time, numpy as np
-    from synth.segments import find_segments, SegmentSearch
-    from synth.dwell_bounds import deviation_profiles
+    from synth.segment_search.dwell_bounds import deviation_profiles
+    from synth.segment_search.segments import find_segments, SegmentSearch
     rng = np.random.default_rng(5)
     B = []
     while len(B) < count:

@@ -28,9 +28,9 @@ import numpy as np
 from cli.query import request_from_options
 from db.engine import open_atlas
 from db.queries import AtlasSource
-from synth import dyad as fits
 from synth import query
-from synth.sixbar import crank_grid
+from synth.mechanism import dyad as fits
+from synth.mechanism.sixbar import crank_grid
 
 DEG = math.pi / 180
 BATCH = 4000
@@ -58,10 +58,10 @@ def own_circle(source, swing_deg: float) -> None:
     rows = [r for level, _ in source.tolerance_levels() for batch in _rows(source, request, level, rng) for r in batch]
     fitted = query.fit(request, rows, "arc")
     phi = crank_grid(SAMPLES)
-    path = query._paths([f.row for f in fitted], phi)
+    path = query.coupler_paths([f.row for f in fitted], phi)
     r = np.abs(path - np.array([f.rest for f in fitted])[:, None]) - np.array([f.dyad.rod for f in fitted])[:, None]
     rocker = np.array([f.dyad.rocker for f in fitted])
-    figures = query._figures(request, [f.sixbar() for f in fitted], footprint=False)
+    figures = query.figures_of(request, [f.sixbar() for f in fitted], footprint=False)
     through, elsewhere, ratio_L = [], [], []
     for k, f in enumerate(figures):
         if not f.dwells or not f.acceptable:
@@ -97,7 +97,7 @@ def coarse_scan(source, swing_deg: float = 30.0) -> None:
         rows = next(_rows(source, request, level))
         part = [np.array([r.parts[0][i] for r in rows]) for i in (0, 1, 2, 3, 5)]
         start, end, x, y, radius = part
-        lead, z, (C0, rho, s0, s1, target) = fits._rows(query._paths(rows, phi), x + 1j * y, radius, start, end,
+        lead, z, (C0, rho, s0, s1, target) = fits._rows(query.coupler_paths(rows, phi), x + 1j * y, radius, start, end,
                                                          request.swing)
         phi0, h, m = fits.grid_step(phi)
         mask, mid = fits._dwell_mask(phi0, h, m, s0, s1), fits._mid_sample(phi0, h, m, s0, s1)

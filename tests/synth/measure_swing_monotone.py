@@ -8,7 +8,7 @@ swings and bracket the dwell at S between its neighbours — sound only if the d
 monotone in the swing. For ROWS_PER_LEVEL rows drawn (seeded) from the first 40 000 of every
 level of ATLAS (line: RPR, arc: RRR; the query's defaults: band 0.1°, μ ≥ 30°, link ratio ≤ 10),
 the query's own fits (:func:`synth.query.fit`) at swings 10°, 12.5° … 90°, each simulated
-(:func:`synth.query._figures`): per (row, slot) the dwell as a function of the swing (acceptable
+(:func:`synth.query.figures_of`): per (row, slot) the dwell as a function of the swing (acceptable
 six-bars that meet the swing to 0.5°). Printed: how many series rise as the swing grows, the
 largest rises (and whether the longest band interval holds the stretch's middle at both
 swings), and the share of series a bracket of the two grid swings around S (widened by a
@@ -28,7 +28,7 @@ import numpy as np
 from cli.query import request_from_options
 from db.engine import open_atlas
 from db.queries import AtlasSource
-from synth.query import _figures, fit
+from synth.query import figures_of, fit
 
 DEG = math.pi / 180
 SWINGS = np.arange(10.0, 90.1, 2.5)
@@ -55,7 +55,7 @@ def dwell_series(path: str, kind: str, per_level: int) -> dict[tuple, dict[float
     for swing in SWINGS:
         request = dataclasses.replace(base, swing=float(swing) * DEG)
         fits = fit(request, rows, kind)
-        for f, g in zip(fits, _figures(request, [f.sixbar() for f in fits], footprint=False) if fits else []):
+        for f, g in zip(fits, figures_of(request, [f.sixbar() for f in fits], footprint=False) if fits else []):
             if g.acceptable and g.dwells and abs(g.swing - request.swing) < 0.5 * DEG:
                 d = g.dwells[0]
                 mid = 0.5 * (f.row.parts[0][0] + f.row.parts[0][1])

@@ -48,11 +48,11 @@ from mp_fourbar import (
 )
 
 from kinematics.fourbar import GrashofType, fourbar_motion, grashof_type
-from synth.ball import ball_point, ball_point_offset_rate
-from synth.double_ball import double_ball_points, theta4
-from synth.inflection import inflection_circle
-from synth.line_scan import line_scan
-from synth.pole import pole
+from synth.curvature.ball import ball_point, ball_point_offset_rate
+from synth.curvature.double_ball import double_ball_points, theta4
+from synth.curvature.inflection import inflection_circle
+from synth.curvature.line_scan import line_scan
+from synth.curvature.pole import pole
 
 LIMIT = 1e-9
 N_CASES = 200

@@ -1,4 +1,4 @@
-"""The band search of ``--band auto`` (``synth.band_search``): the search rule on made-up
+"""The band search of ``--band auto`` (``synth.query.band_search``): the search rule on made-up
 counts, then on the small demo atlas against a brute-force scan of the ladder's bands."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from synth.band_search import (
+from synth.query.band_search import (
     FLOOR,
     LADDER,
     MEET,
@@ -23,7 +23,7 @@ from synth.band_search import (
     probe,
     tightest_band,
 )
-from synth.candidates import Request
+from synth.query.candidates import Request
 from synth.query import answer
 
 RPR_60 = Request(dwell=math.radians(60.0), swing=math.radians(30.0), output="rpr", refine=False)

@@ -1,4 +1,4 @@
-"""The compiled longest-window pass (``synth.band_windows``) against an exhaustive search: for
+"""The compiled longest-window pass (``synth.mechanism.band_windows``) against an exhaustive search: for
 every start, every window length, the spread taken directly — the same lengths and the same
 extremes, bit for bit (max and min round nothing), on random walks, on plateaus of equal
 values (ties in the queues), on any samples hypothesis draws, and on the output angles of
@@ -11,8 +11,8 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from synth.band_windows import longest_windows
-from synth.output_range import _vertex_bounds
+from synth.mechanism.band_windows import longest_windows
+from synth.mechanism.output_range import _vertex_bounds
 
 
 def exhaustive(upper, lower, band, m):
@@ -69,7 +69,7 @@ def test_whole_turn_and_zero_band():
 def test_six_bar_outputs():
     """The outputs of six-bars with one and with two dwells (RPR and RRR)."""
     from harness.report_cases import double_dwell_candidates, single_dwell_candidates
-    from synth.sixbar import SixBars, crank_grid, simulate
+    from synth.mechanism.sixbar import SixBars, crank_grid, simulate
 
     sixbars = SixBars.from_sixbars([c.sixbar for c in single_dwell_candidates() + double_dwell_candidates()])
     psi = simulate(sixbars, crank_grid(72), order=0).psi

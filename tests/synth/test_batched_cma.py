@@ -1,4 +1,4 @@
-"""The batched CMA-ES (synth/batched_cma.py): it solves what an isotropic step size cannot —
+"""The batched CMA-ES (synth/query/batched_cma.py): it solves what an isotropic step size cannot —
 ill-conditioned, rotated quadratics — for many problems at once, each problem's run
 independent of the others, inside its box."""
 
@@ -9,7 +9,7 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from synth.batched_cma import cma_es
+from synth.query.batched_cma import cma_es
 
 
 def _ellipsoids(K: int, n: int, condition: float, seed: int):
@@ -47,9 +47,9 @@ def test_rotated_ill_conditioned_quadratics_are_solved_in_a_batch():
 
 
 def test_an_isotropic_strategy_stalls_where_it_does_not():
-    """The reason for CMA-ES: at condition 1e6 the (1 + λ) polish of synth.refine with the same
+    """The reason for CMA-ES: at condition 1e6 the (1 + λ) polish of synth.query.refine with the same
     number of evaluations ends far above the minimum; CMA-ES reaches it."""
-    from synth.refine import _descend
+    from synth.query.refine import _descend
 
     K, n = 4, 9
     evaluate, _ = _ellipsoids(K, n, 1e6, seed=2)

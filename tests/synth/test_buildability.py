@@ -1,4 +1,4 @@
-"""Buildability figures (synth.buildability) against independent checks: the spectral ψ‴
+"""Buildability figures (synth.mechanism.buildability) against independent checks: the spectral ψ‴
 against a closed form and central differences of ψ″, the torque arm and the clearance against
 a brute-force walk of every pair on a 10x finer crank grid, the dynamics' scaling with speed."""
 
@@ -9,9 +9,9 @@ import math
 import numpy as np
 import pytest
 
-from synth.buildability import buildability, output_rates
-from synth.figures import sixbar_figures
-from synth.sixbar import SixBars, crank_grid, simulate
+from synth.mechanism.buildability import buildability, output_rates
+from synth.mechanism.figures import sixbar_figures
+from synth.mechanism.sixbar import SixBars, crank_grid, simulate
 
 from harness.report_cases import double_dwell_candidates, single_dwell_candidates
 
@@ -89,10 +89,10 @@ def test_arm_and_clearance_against_a_fine_brute_force(sixbars):
 
 @pytest.mark.parametrize("every", [1, 4])
 def test_every_pair_on_the_samples_is_its_distance_written_out(sixbars, every):
-    """The compiled clearances (synth.clearance_kernel) against each pair's numpy distance on
+    """The compiled clearances (synth.mechanism.clearance_kernel) against each pair's numpy distance on
     the same samples: to rounding, and the pair they name sets the smallest of them."""
-    from synth.buildability import CLEARANCE_PAIRS, clearances
-    from synth.clearance_kernel import pair_clearances
+    from synth.mechanism.buildability import CLEARANCE_PAIRS, clearances
+    from synth.mechanism.clearance_kernel import pair_clearances
 
     phi = crank_grid(720)
     batch = SixBars.from_sixbars(sixbars)
@@ -116,7 +116,7 @@ def test_every_pair_on_the_samples_is_its_distance_written_out(sixbars, every):
 
 def test_joint_a_to_b0_closed_form():
     """A runs on the circle |A| = a, B0 is d from its centre: their clearance is d − a."""
-    from synth.sixbar import OutputDyad, SixBar
+    from synth.mechanism.sixbar import OutputDyad, SixBar
 
     sb = SixBar(1.0, 3.0, 2.5, 3.0, 1, 1.0, 1.0, OutputDyad.rrr(complex(1.5, 30.0), 5.0, 30.0, 1))
     phi = crank_grid(720)

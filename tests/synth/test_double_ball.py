@@ -120,7 +120,7 @@ def test_a_kite_track_standing_still_gives_no_crossing_seeds(kite, monkeypatch):
     """A kite (a = b, c = d) parks its Ball-point track on one spot, moving by rounding noise:
     those samples are not usable, so the crossing search gets no noise seeds (it got 1.3-3.7
     million, 15-30 s and ~3 GB, before) and finds no double Ball point there."""
-    import synth.double_ball as module
+    import synth.curvature.double_ball as module
 
     seeds = []
     crossings = module._crossings

@@ -12,10 +12,10 @@ import pytest
 import shapely
 from test_accuracy import crank_rockers
 
-import synth.double_ball as module
+import synth.curvature.double_ball as module
 from kinematics.fourbar import fourbar_motion
-from synth.ball import ball_point_offset_rate
-from synth.pole import loop_condition
+from synth.curvature.ball import ball_point_offset_rate
+from synth.curvature.pole import loop_condition
 from synth.types import MAX_CONDITION
 
 TWO_PI = 2 * np.pi

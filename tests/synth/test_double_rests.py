@@ -1,6 +1,6 @@
 """Two dwells are two rests with motion between them (issue #41): the dwell finder
-(:func:`synth.output_range.dwell_intervals`, ``count=2``) reports a second dwell only if it is
-separated from the first by :func:`synth.output_range.rests_separated` — the crank turns ≥ 5°
+(:func:`synth.mechanism.output_range.dwell_intervals`, ``count=2``) reports a second dwell only if it is
+separated from the first by :func:`synth.mechanism.output_range.rests_separated` — the crank turns ≥ 5°
 and the output leaves both rests' bands by ≥ the swing tolerance between them, each way
 round — and the query holds its answers to the same rule."""
 
@@ -13,8 +13,8 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from synth.output_range import REST_GAP, dwell_intervals, rests_separated
-from synth.sixbar import crank_grid
+from synth.mechanism.output_range import REST_GAP, dwell_intervals, rests_separated
+from synth.mechanism.sixbar import crank_grid
 
 DEG = math.pi / 180
 TWO_PI = 2 * math.pi
@@ -148,9 +148,9 @@ SPLIT_ID = "138000012-dbl0.2@free~AT_Xd2dABzmBQCcZlEAk2VjACAjUQHKuJ8ESP6o"
 
 
 def test_the_demo_atlas_split_rest_is_not_two_dwells():
-    from synth.candidates import candidate_dimensions
-    from synth.figures import sixbar_figures
-    from synth.sixbar import simulate
+    from synth.mechanism.figures import sixbar_figures
+    from synth.mechanism.sixbar import simulate
+    from synth.query.candidates import candidate_dimensions
 
     sb = candidate_dimensions(SPLIT_ID)
     f = sixbar_figures(sb, band=BAND, dwell_length=30 * DEG, dwells=2, leave=LEAVE)
@@ -166,7 +166,7 @@ def test_the_demo_atlas_split_rest_is_not_two_dwells():
 def _check_two_rests(sb, f, tol):
     """The rule on an independent 0.01° walk of the exact simulation of ``sb`` (crank-normalised
     six-bar with figures ``f``), each way round between its two dwells."""
-    from synth.sixbar import simulate
+    from synth.mechanism.sixbar import simulate
 
     a, b = f.dwells[:2]
     for (s, e), other in (((a.start, a.end), b), ((b.start, b.end), a)):
@@ -181,8 +181,8 @@ def _check_two_rests(sb, f, tol):
 def test_the_query_answers_two_rests(source):
     """Every double-dwell answer of a query on the test atlas has two rests by the rule, checked
     on an independent simulation at the request's swing tolerance."""
-    from synth.candidates import Request
     from synth.query import answer
+    from synth.query.candidates import Request
 
     request = Request(dwell=40 * DEG, dwell_tol=15 * DEG, swing=21.8 * DEG, swing_tol=2 * DEG, output="rpr", dwells=2,
                       min_transmission=20 * DEG, max_link_ratio=30, refine=False)

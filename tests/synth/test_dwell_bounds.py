@@ -1,9 +1,9 @@
-"""The dwell and swing bounds of synth.dwell_bounds are necessary: no real six-bar beats them.
+"""The dwell and swing bounds of synth.segment_search.dwell_bounds are necessary: no real six-bar beats them.
 
 Six-bars are built as the query builds them (segments of real linkages from
-``synth.segments.find_segments``, output dyads from ``synth.dyad``) and simulated exactly
-(``synth.figures.sixbar_figures``); the bound uses the six-bar's own link ratio as the limit
-(the tightest limit it meets; the coupler plate's sides counted, synth.link_ratio) and the
+``synth.segment_search.segments.find_segments``, output dyads from ``synth.mechanism.dyad``) and simulated exactly
+(``synth.mechanism.figures.sixbar_figures``); the bound uses the six-bar's own link ratio as the limit
+(the tightest limit it meets; the coupler plate's sides counted, synth.mechanism.link_ratio) and the
 shortest link its segment fixes (the plate's included), so a violation would be a six-bar the
 query could wrongly prune.
 """
@@ -17,7 +17,7 @@ import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from synth.dwell_bounds import (
+from synth.segment_search.dwell_bounds import (
     curve_extent,
     deviation_profile,
     deviation_profiles,
@@ -28,11 +28,11 @@ from synth.dwell_bounds import (
     rpr_min_swing,
     rrr_min_swing,
 )
-from synth.dyad import fit_rpr, fit_rrr
-from synth.figures import sixbar_figures
-from synth.link_ratio import segment_shortest
-from synth.segments import SegmentSearch, find_segments
-from synth.sixbar import SixBar, crank_grid
+from synth.mechanism.dyad import fit_rpr, fit_rrr
+from synth.mechanism.figures import sixbar_figures
+from synth.mechanism.link_ratio import segment_shortest
+from synth.mechanism.sixbar import SixBar, crank_grid
+from synth.segment_search.segments import SegmentSearch, find_segments
 
 #: Grid of the profile in these tests (coarser than the default: the suite stays fast).
 STEP = math.radians(2.0)

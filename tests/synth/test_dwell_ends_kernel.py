@@ -1,5 +1,5 @@
-"""The compiled refinements on the exact path (:mod:`synth.dwell_ends_kernel`) against the numpy
-stages they replace (:func:`synth.output_range._refine_candidates` and ``_refine_window``, run
+"""The compiled refinements on the exact path (:mod:`synth.mechanism.dwell_ends_kernel`) against the numpy
+stages they replace (:func:`synth.mechanism.output_range._refine_candidates` and ``_refine_window``, run
 when ψ comes from a plain callable): the same dwell ends and deviation windows on random
 six-bars and on six-bars with real dwells, and the rows of a repeated batch mapped to their
 six-bars."""
@@ -12,8 +12,8 @@ import numpy as np
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from synth.output_range import dwell_intervals, output_deviation, output_swing
-from synth.sixbar import ExactOutput, OutputDyad, SixBar, SixBars, crank_grid, simulate
+from synth.mechanism.output_range import dwell_intervals, output_deviation, output_swing
+from synth.mechanism.sixbar import ExactOutput, OutputDyad, SixBar, SixBars, crank_grid, simulate
 from test_sixbar import sixbar_strategy  # tests/synth: any six-bar
 
 DEG = math.pi / 180

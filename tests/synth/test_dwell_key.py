@@ -1,4 +1,4 @@
-"""The arc's dwell key (``synth.dwell_key``): its closed forms, what the atlas stores, and that
+"""The arc's dwell key (``synth.segment_search.dwell_key``): its closed forms, what the atlas stores, and that
 it orders arcs by the RRR dwell they give far better than the stored dwell does."""
 
 from __future__ import annotations
@@ -15,9 +15,9 @@ from sqlalchemy import select as sql_select
 from db.schema import Dwell
 from kinematics.fourbar import fourbar_motion
 from synth import query as Q
-from synth.candidates import Request
-from synth.dwell_key import arc_dwell_key, arc_key_target, predicted_rrr_dwell
 from synth.kinds import SegmentKind
+from synth.query.candidates import Request
+from synth.segment_search.dwell_key import arc_dwell_key, arc_key_target, predicted_rrr_dwell
 
 DEG = math.pi / 180
 
@@ -84,7 +84,7 @@ def test_the_key_predicts_the_rrr_dwell_the_stored_dwell_does_not(source, swing_
     for level, tolerance in source.tolerance_levels():
         rows, keys = _arc_rows(source, level)
         fits = Q.fit(request, rows[::2], "arc")  # every other row: ~750 six-bars are plenty
-        figures = Q._figures(request, [f.sixbar() for f in fits], footprint=False)
+        figures = Q.figures_of(request, [f.sixbar() for f in fits], footprint=False)
         dwell = np.array([fig.dwells[0].angle if fig.dwells else 0.0 for fig in figures])
         rocks = dwell > 0
         assert np.count_nonzero(rocks) > 400

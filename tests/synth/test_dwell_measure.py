@@ -1,10 +1,10 @@
-"""The compiled dwell measurement (synth.dwell_measure) on paths with known answers.
+"""The compiled dwell measurement (synth.segment_search.dwell_measure) on paths with known answers.
 
 A path is handed to the kernel as the crank pin's track ``A`` with e^{iθ} = 0, so any sampled
 curve can be measured. On y = x⁴ the minimum-zone line over [−L, L] is y = L⁴/2, so the longest
 stretch within a band of half-width ε is L = (2ε)^¼ — 2^¼ ≈ 1.19 times the osculating line's
 ε^¼: the fits must find it. Every returned run is checked against the array deviation
-(:func:`synth.minimum_zone.path_deviation`), and a candidate's result must not depend on the
+(:func:`synth.segment_search.minimum_zone.path_deviation`), and a candidate's result must not depend on the
 batch it is measured in.
 """
 
@@ -12,9 +12,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from synth.dwell_measure import measure_dwells
 from synth.kinds import SegmentKind
-from synth.minimum_zone import path_deviation
+from synth.segment_search.dwell_measure import measure_dwells
+from synth.segment_search.minimum_zone import path_deviation
 
 LINE, ARC = SegmentKind.LINE.code, SegmentKind.ARC.code
 MF = 2000

@@ -15,9 +15,9 @@ from hypothesis import strategies as st
 from kinematics.fourbar import fourbar_motion
 from kinematics.status import Status
 from synth import ball_point, double_ball_points, line_scan, pole
-from synth.dyad import SWING_TOL, fit_rpr, fit_rrr, rpr_double
-from synth.figures import sixbar_figures
-from synth.sixbar import SixBar, crank_grid, simulate
+from synth.mechanism.dyad import SWING_TOL, fit_rpr, fit_rrr, rpr_double
+from synth.mechanism.figures import sixbar_figures
+from synth.mechanism.sixbar import SixBar, crank_grid, simulate
 
 DEG = math.pi / 180
 PHI = crank_grid(720)
@@ -231,7 +231,7 @@ def test_rrr_batch_equals_single_fits():
 def test_rrr_fitted_in_blocks_is_bit_for_bit_the_whole_batch(monkeypatch):
     """fit_rrr works through large batches in blocks of rows (cache blocking): the same
     numbers, in the same (2-D) shape, as in one block."""
-    import synth.dyad as dyad
+    import synth.mechanism.dyad as dyad
 
     segs = [(_circle_segment(*fb, alpha), fb[-1]) for fb, alpha in RRR_CASES]
     C0 = np.array([s[0][0] for s in segs] * 2).reshape(2, 4)
@@ -306,7 +306,7 @@ def _numpy_estimate(terms, alpha, target, ratio):
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_compiled_rrr_ranking_is_the_numpy_expressions_bit_for_bit(seed):
-    from synth.dyad import RrrTerms
+    from synth.mechanism.dyad import RrrTerms
 
     rng = np.random.default_rng(seed)
     R, S, J = 40, 120, 24
@@ -352,7 +352,7 @@ def _check_swing(swing, reference, u):
 def _numpy_swing(w, e, rho, branch, u):
     """The RRR swing S(u) and ∂S/∂u as numpy expressions over (dyads, samples) — the loop by
     :func:`circle_intersection`, the extremes by :func:`sampled_extreme`: the reference of the
-    compiled :func:`synth.dyad_kernel.rrr_swing`."""
+    compiled :func:`synth.mechanism.dyad_kernel.rrr_swing`."""
     from kinematics.loop import circle_intersection, sampled_extreme
 
     L = 1.0 / u[:, None]
@@ -377,7 +377,7 @@ def test_compiled_rrr_swing_is_the_numpy_loop_and_its_derivative(seed):
     """The compiled swing equals the numpy evaluation (to rounding: numpy's arctan2 and complex
     products may use other instructions) and its derivative a central difference; dyads
     whose loop cannot close at some sample, or whose rocker revolves, are invalid in both."""
-    from synth.dyad_kernel import rrr_swing
+    from synth.mechanism.dyad_kernel import rrr_swing
 
     rng = np.random.default_rng(seed)
     N, M = 60, 1440
@@ -397,7 +397,7 @@ def test_compiled_rrr_swing_is_the_numpy_loop_and_its_derivative(seed):
 def _numpy_rpr_swing(t_s, n_s, side, t_end, u):
     """The RPR swing S(u) and ∂S/∂u as numpy expressions over (dyads, samples): the slot's
     angle by ``arctan2``, its extremes by :func:`sampled_extreme` — the reference of the
-    compiled :func:`synth.dyad_kernel.rpr_swing`."""
+    compiled :func:`synth.mechanism.dyad_kernel.rpr_swing`."""
     from kinematics.loop import sampled_extreme
 
     sg = side[:, None]
@@ -420,7 +420,7 @@ def test_compiled_rpr_swing_is_the_numpy_angle_and_its_derivative(seed):
     """As for the RRR: the compiled RPR swing equals the numpy evaluation to rounding, slots
     whose path crosses the angle's cut beyond D are invalid in both, and ∂S/∂u matches
     central differences."""
-    from synth.dyad_kernel import rpr_swing
+    from synth.mechanism.dyad_kernel import rpr_swing
 
     rng = np.random.default_rng(seed)
     N, M = 80, 1440
@@ -442,9 +442,9 @@ def test_compiled_rpr_swing_is_the_numpy_angle_and_its_derivative(seed):
 def _numpy_rtsafe(F, lo, hi, u0, target, active, check_far):
     """The safeguarded Newton (Numerical Recipes' ``rtsafe``) vectorised over dyads with numpy,
     ``F(rows, u) -> (S, dS/du, invalid)`` evaluating only the dyads still iterating: the
-    reference of the compiled :func:`synth.dyad_kernel.solve_rrr` and ``solve_rpr`` (the form
+    reference of the compiled :func:`synth.mechanism.dyad_kernel.solve_rrr` and ``solve_rpr`` (the form
     the fits used before, kept here)."""
-    from synth.dyad import SWING_MAX_ITER
+    from synth.mechanism.dyad import SWING_MAX_ITER
 
     lo, hi, target = lo.astype(float).copy(), hi.astype(float).copy(), target.astype(float)
     active = active.copy()
@@ -483,8 +483,8 @@ def test_compiled_newton_is_the_numpy_rtsafe_bit_for_bit(seed, kind):
     some dyads inactive, with and without the far-end check; and a root found has S(u) within
     SWING_TOL of the target."""
     from synth import parallel_rows
-    from synth.dyad import SWING_MAX_ITER
-    from synth.dyad_kernel import rpr_swing, rrr_swing, solve_rpr, solve_rrr
+    from synth.mechanism.dyad import SWING_MAX_ITER
+    from synth.mechanism.dyad_kernel import rpr_swing, rrr_swing, solve_rpr, solve_rrr
 
     rng = np.random.default_rng(seed)
     N, M = 90, 360
@@ -528,7 +528,7 @@ def test_compiled_newton_is_the_numpy_rtsafe_bit_for_bit(seed, kind):
 
 
 def test_pseudo_angle_orders_directions_as_atan2_signed_zeros_and_cut_included():
-    from synth.dyad_kernel import pseudo_angle
+    from synth.mechanism.dyad_kernel import pseudo_angle
 
     rng = np.random.default_rng(5)
     angles = np.concatenate([rng.uniform(-np.pi, np.pi, 400), np.linspace(-np.pi, np.pi, 17)])

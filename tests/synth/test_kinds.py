@@ -4,9 +4,9 @@ import pytest
 from sqlalchemy import CheckConstraint
 
 from db.schema import Segment
-from synth.candidates import candidate_id, parse_candidate_id
 from synth.kinds import SEGMENT_KINDS, OutputKind, OutputTag, SegmentKind
-from synth.sixbar import OutputDyad
+from synth.mechanism.sixbar import OutputDyad
+from synth.query.candidates import candidate_id, parse_candidate_id
 
 
 def test_segment_kinds_keep_their_stored_spelling_and_codes():

@@ -1,4 +1,4 @@
-"""The link ratio (synth.link_ratio) as the figures, the screen and the refinement use it:
+"""The link ratio (synth.mechanism.link_ratio) as the figures, the screen and the refinement use it:
 longest over shortest of every link, the coupler plate's sides included, against the links
 written out one by one."""
 
@@ -11,9 +11,9 @@ import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from synth.figures import link_ratios, sixbar_figures
-from synth.link_ratio import SHORTEST_FLOOR, link_ratio, segment_link_ratio, segment_shortest
-from synth.sixbar import OutputDyad, SixBar, SixBars, crank_grid, simulate
+from synth.mechanism.figures import link_ratios, sixbar_figures
+from synth.mechanism.link_ratio import SHORTEST_FLOOR, link_ratio, segment_link_ratio, segment_shortest
+from synth.mechanism.sixbar import OutputDyad, SixBar, SixBars, crank_grid, simulate
 
 #: A crank-rocker (Grashof, crank shortest) with a coupler point on the plate.
 FOURBAR = dict(a=1.0, b=3.0, c=2.5, d=3.0, branch=1)

@@ -1,4 +1,4 @@
-"""The compiled minimum-zone fit and band peak (synth.minimum_zone_kernel), against independent forms.
+"""The compiled minimum-zone fit and band peak (synth.segment_search.minimum_zone_kernel), against independent forms.
 
 Lawson's iteration is held to an exact linear program (scipy.optimize.linprog) of the same
 Chebyshev problem; the fit to a closed form (the minimax line of a parabola); the scalar
@@ -17,8 +17,8 @@ from scipy.optimize import linprog
 
 from kinematics.loop import parabola_vertex
 from synth.kinds import SegmentKind
-from synth.minimum_zone import minimum_zone_fit, path_deviation
-from synth.minimum_zone_kernel import lawson, deviation_at, window_peak
+from synth.segment_search.minimum_zone import minimum_zone_fit, path_deviation
+from synth.segment_search.minimum_zone_kernel import lawson, deviation_at, window_peak
 
 LINE, ARC = SegmentKind.LINE.code, SegmentKind.ARC.code
 K = 21

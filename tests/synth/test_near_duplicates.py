@@ -1,4 +1,4 @@
-"""Near-duplicate segments (synth.near_duplicates) against the pairwise definition spelled out.
+"""Near-duplicate segments (synth.segment_search.near_duplicates) against the pairwise definition spelled out.
 
 The reference builds the whole duplicate matrix of a group (coupler points within the reach,
 intervals — a turn apart too — overlapping by more than half the shorter) and keeps greedily,
@@ -12,7 +12,7 @@ import numpy as np
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from synth.near_duplicates import duplicates
+from synth.segment_search.near_duplicates import duplicates
 
 
 def _reference(uv, start, end, dwell, bounds, reach):

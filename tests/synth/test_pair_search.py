@@ -1,4 +1,4 @@
-"""The compiled pair search of the dwell refinement (:mod:`synth.pair_search`) against the
+"""The compiled pair search of the dwell refinement (:mod:`synth.mechanism.pair_search`) against the
 numpy expressions it replaced, kept here as the reference: the same pairs and figures, bit
 for bit, on random and on tied point sets."""
 
@@ -8,7 +8,7 @@ import numpy as np
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from synth.output_range import _pair_search
+from synth.mechanism.output_range import _pair_search
 
 
 def _numpy_pair_search(left_at, lv, right_at, rv, hi_in, lo_in, band):

@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from synth import parallel_rows
-from synth.sixbar import PIN_ON_PIVOT_EPS, kernel_inputs, crank_grid, simulate
+from synth.mechanism.sixbar import PIN_ON_PIVOT_EPS, kernel_inputs, crank_grid, simulate
 
 from test_sixbar_kernel import random_batch  # tests/synth: mixed RPR/RRR six-bars, some not assembling
 
@@ -66,7 +66,7 @@ def test_an_error_in_a_block_is_raised_once_every_block_is_done(threads):
 
 @pytest.mark.parametrize("order", [0, 2])
 def test_six_bar_motion_the_same_on_any_number_of_threads(threads, order):
-    from synth.sixbar_kernel import output_angles
+    from synth.mechanism.sixbar_kernel import output_angles
 
     batch = random_batch(300, seed=3)
     params, rpr = kernel_inputs(batch)
@@ -84,9 +84,9 @@ def test_six_bar_motion_the_same_on_any_number_of_threads(threads, order):
 
 
 def test_clearances_band_windows_and_vertex_bounds_the_same_on_any_number_of_threads(threads):
-    from synth.band_windows import longest_windows
-    from synth.buildability import clearances
-    from synth.sample_ranges import vertex_bounds
+    from synth.mechanism.band_windows import longest_windows
+    from synth.mechanism.buildability import clearances
+    from synth.mechanism.sample_ranges import vertex_bounds
 
     batch = random_batch(200, seed=5)
     motion = simulate(batch, crank_grid(720), order=0)

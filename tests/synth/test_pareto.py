@@ -1,4 +1,4 @@
-"""Pareto layers (synth.pareto) against peeling spelled out: layer 0 the points nothing
+"""Pareto layers (synth.query.pareto) against peeling spelled out: layer 0 the points nothing
 dominates, then the front of the rest, and so on."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from synth.pareto import pareto_layers
+from synth.query.pareto import pareto_layers
 
 
 def _peeled(obj: np.ndarray) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""The compiled prescreen (:mod:`synth.prescreen_kernel`) against the numpy expressions it
+"""The compiled prescreen (:mod:`synth.query.prescreen_kernel`) against the numpy expressions it
 replaced (kept here as the reference): on coupler curves of random four-bars, with slot and
 rocker pivots anywhere, the same decisions wherever every tested quantity is more than 1e-9
 from its threshold (a scalar ``atan2`` may round the last bit otherwise than numpy's)."""
@@ -14,9 +14,9 @@ from hypothesis import strategies as st
 from kinematics.fourbar import fourbar_motion
 from kinematics.loop import circle_intersection
 from kinematics.status import Status
-from synth.candidates import Request, dwell_runs, output_may_meet
-from synth.prescreen_kernel import screen_outputs
-from synth.sixbar import crank_grid
+from synth.mechanism.sixbar import crank_grid
+from synth.query.candidates import Request, dwell_runs, output_may_meet
+from synth.query.prescreen_kernel import screen_outputs
 
 MARGIN = 1e-9
 

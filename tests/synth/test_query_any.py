@@ -1,6 +1,6 @@
 """``--output any`` with one dwell is the best of both output types (``synth.query.answer``):
 its answer is the best ``--top`` of the union of the RPR and RRR answers to the same request,
-ranked once by :func:`synth.candidates.rank` (Pareto layer over the union, score, id)."""
+ranked once by :func:`synth.query.candidates.rank` (Pareto layer over the union, score, id)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import math
 
 import pytest
 
-from synth.candidates import Request, rank
-from synth.query import CONSTRAINTS, _scaled_figures, _total, answer, violations
+from synth.query import CONSTRAINTS, scaled_figures, total_excess, answer, violations
+from synth.query.candidates import Request, rank
 
 DEG = math.pi / 180
 
@@ -117,7 +117,7 @@ def test_a_no_match_of_any_is_both_diagnoses_in_one(source):
     assert a.rejected == {k: b.rejected[k] + c.rejected[k] for k in CONSTRAINTS}
 
     def total(nm):
-        return _total(violations(request, _scaled_figures(nm.nearest.figures, 1 / request.crank)))
+        return total_excess(violations(request, scaled_figures(nm.nearest.figures, 1 / request.crank)))
 
     nearer = min((b, c), key=total)
     assert a.nearest.id == nearer.nearest.id
@@ -129,9 +129,9 @@ def test_the_constraint_in_the_way_is_the_best_figure_of_the_six_bars_missing_it
     """A no-match's ``reach``: the constraint that the nearest six-bar missing a single one
     misses, and the best figure on it of every fitted six-bar missing it alone (recomputed
     here from every fit's own figures)."""
-    from synth.figures import sixbar_figures
+    from synth.mechanism.figures import sixbar_figures
+    from synth.mechanism.sixbar import SixBars
     from synth.query import SAMPLES, diagnose, fit, select
-    from synth.sixbar import SixBars
 
     request = Request(dwell=dwell * DEG, swing=swing * DEG, output=output, dwell_tol=(0.0 if dwell == 60 else 2) * DEG,
                       min_transmission=45 * DEG)
@@ -141,7 +141,7 @@ def test_the_constraint_in_the_way_is_the_best_figure_of_the_six_bars_missing_it
     figures = sixbar_figures(SixBars.from_sixbars([f.sixbar() for f in fits]), band=request.band,
                              dwell_length=request.dwell, dwells=1, samples=SAMPLES, footprint=False)
     excess = [violations(request, f) for f in figures]
-    alone = [(next(k for k, x in e.items() if x > 0), f, _total(e)) for e, f in zip(excess, figures)
+    alone = [(next(k for k, x in e.items() if x > 0), f, total_excess(e)) for e, f in zip(excess, figures)
              if not e["assembly"] and sum(x > 0 for x in e.values()) == 1]
     reach = diagnose(request, fits).reach
     if not alone:

@@ -19,7 +19,7 @@ import math
 import pytest
 
 from synth import query as Q
-from synth.candidates import Request
+from synth.query.candidates import Request
 
 #: The small atlas of these tests: the demo sweep on 64 Sobol samples.
 SAMPLES = 64
@@ -63,12 +63,12 @@ def _every_fit(source, request: Request) -> list:
             rows = source.select_segments((kind,), [Q.DwellWindow(level, 0.0, 1e300, 0.0, Q.ALL_ROWS)],
                                           min_transmission=0.0, max_length=1e300, min_radius_ratio=0.0)
             fitted = Q.fit(request, rows, kind)
-            out += zip(fitted, Q._figures(request, [f.sixbar() for f in fitted], footprint=False))
+            out += zip(fitted, Q.figures_of(request, [f.sixbar() for f in fitted], footprint=False))
     return out
 
 
 def _meeting(request: Request, every: list) -> set[str]:
-    return {Q._candidate(request, f, fig).id for f, fig in every if Q.meets(request, fig)}
+    return {Q.candidate_of(request, f, fig).id for f, fig in every if Q.meets(request, fig)}
 
 
 @pytest.fixture(scope="module")
@@ -96,8 +96,8 @@ def test_the_query_ranks_the_complete_set(atlas, reference):
     request = dataclasses.replace(FAMILIES["rpr"], dwell=math.radians(50.0), top=1000, complete=True)
     met = [f for f, fig in reference["rpr"] if Q.meets(request, fig)]
     # the ranking reads the footprint, which the reference's figures leave out
-    figures = Q._figures(request, [f.sixbar() for f in met])
-    expected = [c.id for c in Q._distinct(Q.rank(request, [Q._candidate(request, f, fig) for f, fig in zip(met, figures)]))]
+    figures = Q.figures_of(request, [f.sixbar() for f in met])
+    expected = [c.id for c in Q.distinct(Q.rank(request, [Q.candidate_of(request, f, fig) for f, fig in zip(met, figures)]))]
     result = Q.answer(request, atlas)
     assert expected and [c.id for c in result.candidates] == expected
     assert [c.rank for c in result.candidates] == list(range(1, len(expected) + 1))

@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from synth.candidates import Request, screen
+from synth.query.candidates import Request, screen
 from synth.query import (
     CONSTRAINTS,
     DEEPER,
@@ -26,9 +26,9 @@ from synth.query import (
     select,
     violations,
 )
-from synth.figures import sixbar_figures
-from synth.sixbar import SixBars
-from synth.sixbar import simulate as simulate_motion
+from synth.mechanism.figures import sixbar_figures
+from synth.mechanism.sixbar import SixBars
+from synth.mechanism.sixbar import simulate as simulate_motion
 
 DEG = math.pi / 180
 
@@ -187,9 +187,11 @@ def test_no_match_diagnosis_by_bounds_is_the_full_diagnosis(source, monkeypatch)
     as the full diagnosis (every fitted six-bar's exact figures) — on ≥ 20 requests nothing in
     the sample meets — while most six-bars are never refined."""
     import synth.query as q
+    from synth.query import diagnosis, evaluate, pipeline, refinement
 
     refined_rows, fitted_rows, refined_rows_single, cases = 0, 0, 0, 0
-    real_figures = q._figures
+    real_figures = evaluate.figures_of
+    users = (evaluate, diagnosis, refinement)  # the modules that compute figures
 
     def counting(request, sixbars, footprint=True):
         nonlocal refined_rows
@@ -197,14 +199,17 @@ def test_no_match_diagnosis_by_bounds_is_the_full_diagnosis(source, monkeypatch)
         return real_figures(request, sixbars, footprint=footprint)
 
     for request in _no_match_requests():
-        monkeypatch.setattr(q, "_figures", counting)
+        for module in users:
+            monkeypatch.setattr(module, "figures_of", counting)
         refined_rows = 0
         fast = q.answer(request, source)
         refined_fast = refined_rows
-        monkeypatch.setattr(q, "_figures", real_figures)
+        for module in users:
+            monkeypatch.setattr(module, "figures_of", real_figures)
         if fast.no_match is None:
             continue
-        monkeypatch.setattr(q, "diagnose_by_bounds", lambda r, f, k=None: q.diagnose(r, f, q._misses(r, f, k)))
+        monkeypatch.setattr(pipeline, "diagnose_by_bounds",
+                            lambda r, f, k=None: diagnosis.diagnose(r, f, diagnosis.misses_of(r, f, k)))
         full = q.answer(request, source)
         monkeypatch.undo()
         a, b = fast.no_match, full.no_match
@@ -231,8 +236,8 @@ def test_dwell_angle_bounds_hold_the_refined_dwell(source):
     ``sixbar_figures`` refines on the exact path, for every acceptable six-bar the query fits
     to a spread of requests, and is narrow: 3.5 grid steps wide on average, at most 4 for 95 % of
     them (wider where ψ bends sharply between samples)."""
-    from synth.output_range import dwell_angle_bounds
-    from synth.sixbar import crank_grid, simulate
+    from synth.mechanism.output_range import dwell_angle_bounds
+    from synth.mechanism.sixbar import crank_grid, simulate
 
     sixbars = _fitted_sixbars(source, 10**6)
     assert len(sixbars) >= 300
@@ -277,7 +282,7 @@ def test_dwell_ends_and_deviation_window_agree_with_a_brute_force_grid(source):
     over a window around the dwell is the brute-force minimum over its placements."""
     from scipy.ndimage import maximum_filter1d, minimum_filter1d
 
-    from synth.sixbar import simulate
+    from synth.mechanism.sixbar import simulate
 
     sixbars = _fitted_sixbars(source, 220)
     assert len(sixbars) >= 200
@@ -330,7 +335,7 @@ def test_dwell_ends_and_deviation_window_agree_with_a_brute_force_grid(source):
 def test_pivots_around_a_fitted_pivot_are_at_the_stated_distances_nearest_first():
     """``pivots_around``: ``AROUND_STEPS`` × the reach (at least ``AROUND_MIN_REACH``),
     ``AROUND_DIRECTIONS`` evenly turned each."""
-    from synth.dyad import AROUND_DIRECTIONS, AROUND_MIN_REACH, AROUND_STEPS, pivots_around
+    from synth.mechanism.dyad import AROUND_DIRECTIONS, AROUND_MIN_REACH, AROUND_STEPS, pivots_around
 
     X = np.array([1 + 2j, 0.1 + 0j])
     got = pivots_around(X, np.array([4.0, 0.1]))
@@ -413,7 +418,7 @@ def test_a_sparse_answer_is_the_same_every_time(source):
 def test_nearest_misses_are_refined_a_round_at_a_time_until_enough_meet(monkeypatch, met_per_round, wanted, rounds):
     """The nearest misses go to refinement MISSES at a time, nearest first, and a second
     round runs only while fewer than ``wanted`` distinct six-bars meet the request."""
-    import synth.query as Q
+    import synth.query.refinement as Q
 
     pool = [_fake_candidate(i) for i in range(2 * Q.MISSES + 5)]
     monkeypatch.setattr(Q, "miss_pool", lambda request, misses, taken, n: (pool[:n], [None] * min(n, len(pool))))
@@ -424,8 +429,8 @@ def test_nearest_misses_are_refined_a_round_at_a_time_until_enough_meet(monkeypa
         k = met_per_round[len(calls) - 1]
         return [dataclasses.replace(c, refined_from=() if j < k else None) for j, c in enumerate(part)], k
 
-    monkeypatch.setattr(Q, "_refined", refined)
-    met, tried, better = Q._refined_misses(Request(dwell=60 * DEG, swing=30 * DEG), [], set(), wanted)
+    monkeypatch.setattr(Q, "refined_candidates", refined)
+    met, tried, better = Q.refined_misses(Request(dwell=60 * DEG, swing=30 * DEG), [], set(), wanted)
     assert len(calls) == rounds and tried == rounds * Q.MISSES and better == sum(met_per_round[:rounds])
     assert calls == [[c.id for c in pool[r * Q.MISSES:(r + 1) * Q.MISSES]] for r in range(rounds)]  # nearest first
     assert [c.id for c in met] == [c.id for r in range(rounds) for c in pool[r * Q.MISSES:r * Q.MISSES + met_per_round[r]]]
@@ -433,8 +438,8 @@ def test_nearest_misses_are_refined_a_round_at_a_time_until_enough_meet(monkeypa
 
 def _fake_candidate(i: int):
     """A candidate of its own segment and four-bar (no two are mirror twins)."""
+    from synth.mechanism.sixbar import OutputDyad, SixBar
     from synth.query import Candidate
-    from synth.sixbar import OutputDyad, SixBar
 
     sixbar = SixBar(1.0, 2.0 + 0.01 * i, 3.0, 3.5, 1, 0.8, -0.6, OutputDyad.rpr(2 - 3j))
     return Candidate(id=f"{i}-rpr0.0@10", segment_id=i, sixbar=sixbar, figures=None, rank=0)

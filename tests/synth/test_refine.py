@@ -1,4 +1,4 @@
-"""Exact refinement (synth/refine.py) on a small built atlas: every refined six-bar meets the
+"""Exact refinement (synth/query/refine.py) on a small built atlas: every refined six-bar meets the
 request on its own exact simulation and is better than what it was refined from; a request
 the atlas misses is answered; refined ids hold their six-bar exactly."""
 
@@ -12,7 +12,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from synth.candidates import (
+from synth.query.candidates import (
     Request,
     candidate_dimensions,
     candidate_id,
@@ -22,10 +22,10 @@ from synth.candidates import (
     parse_candidate_id,
     round_dimensions,
 )
+from synth.mechanism.figures import sixbar_figures
+from synth.mechanism.sixbar import OutputDyad, SixBar
 from synth.query import FILL, answer, meets, rebuild
-from synth.refine import better_or_equal, refine
-from synth.figures import sixbar_figures
-from synth.sixbar import OutputDyad, SixBar
+from synth.query.refine import better_or_equal, refine
 
 DEG = math.pi / 180
 
@@ -117,10 +117,10 @@ def _nearest_misses(request: Request, source, n: int) -> tuple[list, list]:
     """The ``n`` nearest distinct misses of ``request`` among the arcs a sparse answer reads
     (its deepest sample), picked as the query picks them (:func:`synth.query.miss_pool`), as
     six-bars and their figures (crank-normalised)."""
-    from synth.query import DEEPER, PER_LEVEL, _misses, fit, miss_pool, select
+    from synth.query import DEEPER, PER_LEVEL, misses_of, fit, miss_pool, select
 
     fits = fit(request, select(source, request, ("arc",), DEEPER * PER_LEVEL), "arc")
-    pool, figures = miss_pool(request, [m for m in _misses(request, fits) if m[0] > 0], set(), n)
+    pool, figures = miss_pool(request, [m for m in misses_of(request, fits) if m[0] > 0], set(), n)
     return [c.sixbar for c in pool], figures
 
 
@@ -204,7 +204,7 @@ def test_a_moved_pivot_stands_for_a_fit_that_met_only_if_no_worse(retrieved):
     request with a deviation of 0.0884°, the six-bar with its slot pivot moved (a shorter
     dwell error, a larger deviation, 0.0965°) ranked above it and was shown as "0.088 → 0.096".
     A moved six-bar now stands beside its fit only if it is no worse on every objective."""
-    from synth.query import REFINED_MARK, _no_worse_than_fits
+    from synth.query import REFINED_MARK, no_worse_than_fits
 
     request, fit_ = next((r, c) for r, c in retrieved if c.figures.deviations)
     dims = round_dimensions(fit_.sixbar)
@@ -212,9 +212,9 @@ def test_a_moved_pivot_stands_for_a_fit_that_met_only_if_no_worse(retrieved):
     better = dataclasses.replace(fit_.figures, deviations=tuple(x * 0.9 for x in fit_.figures.deviations))
     moved = [dataclasses.replace(fit_, id=f"{fit_.id}{REFINED_MARK}{encode_dimensions(dims)}", figures=f,
                                  refined_from=fit_.figures) for f in (worse_dev, better)]
-    assert _no_worse_than_fits(request, moved, [fit_]) == [moved[1]]
+    assert no_worse_than_fits(request, moved, [fit_]) == [moved[1]]
     # beside a fit that did not meet the request (not answered), a moved six-bar is new
-    assert _no_worse_than_fits(request, moved, []) == moved
+    assert no_worse_than_fits(request, moved, []) == moved
 
 
 def test_what_a_query_shows_as_refined_is_no_worse_than_before(source):

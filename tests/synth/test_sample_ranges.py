@@ -1,4 +1,4 @@
-"""The compiled range extremes (:mod:`synth.sample_ranges`) against numpy's max and min of
+"""The compiled range extremes (:mod:`synth.mechanism.sample_ranges`) against numpy's max and min of
 each range read on its own: the same floats, ranges off the samples ±inf, any query shape."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from synth.sample_ranges import range_extremes, sliding_extremes
+from synth.mechanism.sample_ranges import range_extremes, sliding_extremes
 
 
 def _reference(upper, lower, start, count):
@@ -85,7 +85,7 @@ def _numpy_vertex_bounds(E):
 @settings(max_examples=40, deadline=None)
 @given(rows=st.integers(1, 4), samples=st.integers(3, 60), seed=st.integers(0, 2**32 - 1))
 def test_vertex_bounds_are_the_numpy_expressions_bit_for_bit(rows, samples, seed):
-    from synth.sample_ranges import vertex_bounds
+    from synth.mechanism.sample_ranges import vertex_bounds
 
     rng = np.random.default_rng(seed)
     t = np.linspace(0, 4 * np.pi, samples)

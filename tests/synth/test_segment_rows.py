@@ -1,4 +1,4 @@
-"""A batch of segment rows as columns (synth.segment_rows.SegmentBatch) spells out the rows it
+"""A batch of segment rows as columns (synth.query.segment_rows.SegmentBatch) spells out the rows it
 was made of: every value, bit for bit, None where a part has no direction or radius."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import pytest
 from hypothesis import example, given
 from hypothesis import strategies as st
 
-from synth.segment_rows import SegmentBatch, SegmentRow
+from synth.query.segment_rows import SegmentBatch, SegmentRow
 
 finite = st.floats(-1e6, 1e6, allow_nan=False)
 

@@ -2,7 +2,7 @@
 
 The independent checks march along the exact coupler path in 0.05° steps from the middle of a
 stored interval until it leaves the stored band, then bisect 40 times — no code shared with
-``synth.segments`` except the four-bar position itself. The minimum-zone claim is checked
+``synth.segment_search.segments`` except the four-bar position itself. The minimum-zone claim is checked
 against an exact linear program (scipy.optimize.linprog) over the stored interval.
 """
 
@@ -19,7 +19,7 @@ from kinematics.fourbar import fourbar_motion
 from synth import ball_point, pole
 from synth.kinds import SEGMENT_KINDS, SegmentKind
 from db.rows import linkage_columns, segment_columns
-from synth.segments import SegmentSearch, find_segments
+from synth.segment_search.segments import SegmentSearch, find_segments
 
 SPEC = PRESETS["demo"]
 N = 6
@@ -242,7 +242,7 @@ def test_one_straight_stretch_seen_twice_is_no_double_line():
     osculating lines 0° apart met "somewhere" by rounding. They are one stretch, not a double
     Ball point (the loop kernel's 1e-9 parallel test let 64 of them into the standard atlas)."""
     from atlas.sweep import PRESETS
-    from synth.segments import DOUBLE_LINE_MIN_SIN
+    from synth.segment_search.segments import DOUBLE_LINE_MIN_SIN
 
     search = SegmentSearch.from_spec(PRESETS["standard"])
     found = find_segments(np.array([4.490699319525161]), np.array([3.1460127548771815]),

@@ -16,10 +16,10 @@ from scipy.optimize import brentq
 from kinematics.fourbar import fourbar_motion
 from kinematics.status import AssemblyError, Status
 from synth import ball_point, line_scan, pole
-from synth.dyad import fit_rrr
-from synth.figures import sixbar_figures
-from synth.output_range import dwell_intervals, output_deviation, output_swing
-from synth.sixbar import OutputDyad, SixBar, SixBars, crank_grid, simulate
+from synth.mechanism.dyad import fit_rrr
+from synth.mechanism.figures import sixbar_figures
+from synth.mechanism.output_range import dwell_intervals, output_deviation, output_swing
+from synth.mechanism.sixbar import OutputDyad, SixBar, SixBars, crank_grid, simulate
 
 from harness.plain_sixbar import reference_psi
 
@@ -313,7 +313,7 @@ def test_one_drifting_rest_is_not_two_dwells():
     next to the first, which refinement on the exact path slides back into the first. Found by
     the query's refined near misses (the same interval reported as both dwells of a "double
     dwell", step 0): the second dwell is not found, the first is the rest itself."""
-    from synth.candidates import candidate_dimensions
+    from synth.query.candidates import candidate_dimensions
 
     sb = candidate_dimensions("26600020-dbl0.0@free~AUBV0QtAbVtfQD58GECTNV2_qdBMPcBOQ8CfRgM")
     f = sixbar_figures(sb, band=math.radians(0.1), dwell_length=math.radians(50), dwells=2)

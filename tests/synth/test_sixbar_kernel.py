@@ -1,5 +1,5 @@
-"""The compiled six-bar kernel (``synth.sixbar_kernel``, what ``simulate`` runs) against the
-numpy reference path (``synth.sixbar.simulate_numpy``, itself checked against an independent
+"""The compiled six-bar kernel (``synth.mechanism.sixbar_kernel``, what ``simulate`` runs) against the
+numpy reference path (``synth.mechanism.sixbar.simulate_numpy``, itself checked against an independent
 per-angle solution and central differences in ``test_sixbar.py``), at derivative orders 0, 1
 and 2: the same statuses and, where the dyad is well conditioned, the same positions, angles
 and derivatives to ~1e-11 — on mechanisms with
@@ -18,7 +18,7 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from kinematics.status import AssemblyError, Status
-from synth.sixbar import OutputDyad, SixBar, SixBars, simulate_numpy, crank_grid, output_angle, simulate
+from synth.mechanism.sixbar import OutputDyad, SixBar, SixBars, simulate_numpy, crank_grid, output_angle, simulate
 
 from test_sixbar import sixbar_strategy  # tests/synth: any six-bar
 

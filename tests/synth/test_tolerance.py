@@ -1,4 +1,4 @@
-"""synth.tolerance: the toleranced output deviation, held to a plain loop over the same draws."""
+"""synth.mechanism.tolerance: the toleranced output deviation, held to a plain loop over the same draws."""
 
 from __future__ import annotations
 
@@ -7,11 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from synth.candidates import Candidate, Request, rank
-from synth.figures import sixbar_figures
-from synth.output_range import output_deviation
-from synth.sixbar import ExactOutput, OutputDyad, SixBar, crank_grid, simulate
-from synth.tolerance import DRAWS, PERCENTILE, deviation_draws, perturbed, toleranced_deviation, unit_draws
+from synth.mechanism.figures import sixbar_figures
+from synth.mechanism.output_range import output_deviation
+from synth.mechanism.sixbar import ExactOutput, OutputDyad, SixBar, crank_grid, simulate
+from synth.mechanism.tolerance import DRAWS, PERCENTILE, deviation_draws, perturbed, toleranced_deviation, unit_draws
+from synth.query.candidates import Candidate, Request, rank
 
 # the demo's best RRR 60°/30° six-bar (crank 1) and an RPR 45°/40° one
 RRR = SixBar(1.0, 3.542, 2.49, 3.938, 1, 3.645, -0.321, OutputDyad.rrr(complex(4.219, -0.5853), 0.4984, 2.807, 1))
@@ -49,7 +49,7 @@ def _brute_force(sb: SixBar, tol: float, centres: list[float], length: float, dr
         worst = 0.0
         for c in centres:
             c_draw = (c - beta - phi[0]) % (2 * math.pi) + phi[0]
-            from synth.sixbar import SixBars
+            from synth.mechanism.sixbar import SixBars
 
             dev, _ = output_deviation(phi, m.psi, c_draw, length, psi_at=ExactOutput(SixBars.from_sixbars([one])),
                                       dpsi1=m.dpsi[0])

@@ -1,0 +1,182 @@
+"""A fitted six-bar's exact figures and the request's test of them: :func:`simulate` (the
+screen, then the full figures), :func:`meets` and :func:`violations` (how far each constraint
+is missed), and what a candidate is made of (:func:`candidate_of`, :func:`distinct`,
+:func:`toleranced`). :mod:`synth.query.refine` takes :func:`meets` from here.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from synth.kinds import OutputKind
+from synth.mechanism.figures import SixBarFigures, footprints, sixbar_figures
+from synth.mechanism.sixbar import SixBar, SixBars
+from synth.mechanism.sixbar import simulate as simulate_motion
+from synth.query.candidates import Candidate, Request, candidate_id, screen
+from synth.query.fitting import Fitted
+from synth.query.result import CONSTRAINTS
+
+
+#: Crank samples of the exact simulation (0.5°); the figures refine beyond it.
+SAMPLES = 720
+
+
+def violations(request: Request, f: SixBarFigures) -> dict[str, float]:
+    """How far the figures ``f`` (crank-normalised) miss each constraint of ``request``: 0 where
+    met. ``assembly`` is 1 for a six-bar that does not assemble over the turn, toggles or
+    revolves, or has fewer dwells than asked — two rests not separated by the swing tolerance
+    are one (:func:`_missing_dwell`) — (then nothing else is measured); the angles'
+    excesses in degrees; the link ratio's in percent of the limit."""
+    out = dict.fromkeys(CONSTRAINTS, 0.0)
+    if not f.acceptable or _missing_dwell(request, f):
+        out["assembly"] = 1.0
+        return out
+    out["dwell"] = max(dwell_excess(request, d.angle) for d in f.dwells[: request.dwells])
+    if request.swing is not None:
+        out["swing"] = max(0.0, math.degrees(abs(f.swing - request.swing) - request.swing_tol))
+    if request.step is not None:
+        out["step"] = max(0.0, math.degrees(abs(f.step - request.step) - request.swing_tol))
+    out["transmission"] = max(0.0, math.degrees(request.min_transmission
+                                                - min(f.transmission_fourbar, f.transmission_output)))
+    out["link_ratio"] = max(0.0, 100.0 * (f.link_ratio / request.max_link_ratio - 1.0))
+    b = f.build
+    if b is not None:
+        # shortfalls in crank lengths (the figures are crank-normalised), excess in rad/s²
+        out["arm"] = 0.0 if b.arm is None else max(0.0, request.min_arm - b.arm)
+        out["clearance"] = max(0.0, request.min_clearance - b.clearance)
+        if request.max_accel is not None:
+            out["acceleration"] = max(0.0, b.dynamics(request.rpm)[1] - request.max_accel)
+    return out
+
+
+def _missing_dwell(request: Request, f: SixBarFigures) -> bool:
+    """Fewer dwells than ``request`` asks for, two rests counting as two only with motion
+    between them (:meth:`~synth.mechanism.figures.SixBarFigures.rests_apart` at the swing tolerance)."""
+    if len(f.dwells) < request.dwells:
+        return True
+    return request.dwells == 2 and not f.rests_apart(request.swing_tol)
+
+
+def dwell_excess(request: Request, angle: float) -> float:
+    """How far (°) a dwell of ``angle`` (rad) is outside the request's dwell ± tolerance."""
+    return max(0.0, math.degrees(abs(angle - request.dwell) - request.dwell_tol))
+
+
+def meets(request: Request, f: SixBarFigures) -> bool:
+    """Whether the figures ``f`` (crank-normalised) meet ``request`` and its constraints."""
+    if not f.acceptable or _missing_dwell(request, f):
+        return False
+    if any(abs(d.angle - request.dwell) > request.dwell_tol for d in f.dwells[: request.dwells]):
+        return False
+    if request.swing is not None and abs(f.swing - request.swing) > request.swing_tol:
+        return False
+    if request.step is not None and abs(f.step - request.step) > request.swing_tol:
+        return False
+    if min(f.transmission_fourbar, f.transmission_output) < request.min_transmission:
+        return False
+    b = f.build
+    if b is not None:
+        if (b.arm is not None and b.arm < request.min_arm) or b.clearance < request.min_clearance:
+            return False
+        if request.max_accel is not None and b.dynamics(request.rpm)[1] > request.max_accel:
+            return False
+    return f.link_ratio <= request.max_link_ratio
+
+
+def total_excess(excess: dict[str, float]) -> float:
+    """How far a six-bar is from meeting a request: the sum of its excesses (inf if it does not
+    assemble)."""
+    return math.inf if excess["assembly"] else sum(excess.values())
+
+
+def scaled_figures(f: SixBarFigures, scale: float) -> SixBarFigures:
+    return dataclasses.replace(f, footprint=f.footprint * scale**2, bounds=tuple(x * scale for x in f.bounds),
+                               build=None if f.build is None else f.build.scaled(scale))
+
+
+def candidate_of(request: Request, fitted: Fitted, f: SixBarFigures) -> Candidate:
+    r = fitted.row
+    return Candidate(
+        id=candidate_id(r.segment_id, fitted.output, fitted.slot, r.level, request.swing,
+                        fitted.sixbar() if fitted.moved else None),
+        segment_id=r.segment_id,
+        sixbar=fitted.sixbar().scaled(request.crank),
+        figures=scaled_figures(f, request.crank),
+        dwell_position=None if fitted.rest is None else fitted.rest * request.crank,
+    )
+
+
+def figures_of(request: Request, sixbars: list[SixBar], *, footprint: bool = True) -> list[SixBarFigures]:
+    return sixbar_figures(SixBars.from_sixbars(sixbars), band=request.band, dwell_length=request.dwell,
+                          dwells=request.dwells, samples=SAMPLES, footprint=footprint, leave=request.swing_tol)
+
+
+def simulate(request: Request, fitted: Sequence[Fitted]) -> tuple[list[Candidate], int]:
+    """The candidates among ``fitted`` that meet ``request`` (unranked), and how many six-bars
+    were simulated."""
+    screened, n = screened_figures(request, fitted)
+    return [candidate_of(request, f, fig) for f, fig in screened if meets(request, fig)], n
+
+
+def screened_figures(request: Request, fitted: Sequence[Fitted]) -> tuple[list[tuple[Fitted, SixBarFigures]], int]:
+    """The six-bars among ``fitted`` that pass the screen, with their full figures (the
+    footprint, a ranking figure, only for those that meet ``request``; 0 for the others), and
+    how many six-bars were simulated (screened)."""
+    if not fitted:
+        return [], 0
+    sixbars = [f.sixbar() for f in fitted]
+    # the full figures only for six-bars that pass the (necessary) test on the crank grid
+    passed = screen(request, SixBars.from_sixbars(sixbars), SAMPLES)
+    kept = [(f, sb) for f, sb, p in zip(fitted, sixbars, passed) if p]
+    if not kept:
+        return [], len(passed)
+    figures = figures_of(request, [sb for _, sb in kept], footprint=False)
+    meeting = [k for k, fig in enumerate(figures) if meets(request, fig)]
+    if meeting:  # the same positions as the figures' own simulation: the same areas
+        areas = footprints(SixBars.from_sixbars([kept[k][1] for k in meeting]), SAMPLES)
+        for k, area in zip(meeting, areas):
+            figures[k] = dataclasses.replace(figures[k], footprint=float(area))
+    return [(f, fig) for (f, _), fig in zip(kept, figures)], len(passed)
+
+
+def distinct(ranked: Sequence[Candidate]) -> list[Candidate]:
+    """One six-bar per segment and output type (the best-ranked), and one of a mirror pair: the
+    two assembly branches of a four-bar are mirror images with the same figures."""
+    seen: set = set()
+    unique = []
+    for c in ranked:
+        sb = c.sixbar
+        mirror = (round(sb.b, 9), round(sb.c, 9), round(sb.d, 9), sb.dyad.kind, round(sb.u, 3), round(abs(sb.v), 3))
+        key = (c.segment_id, sb.dyad.kind)  # a segment's six-bars have one output (its kind's)
+        if key not in seen and mirror not in seen:
+            seen.update((key, mirror))
+            unique.append(c)
+    return unique
+
+
+def rest_position(sixbar: SixBar, f: SixBarFigures) -> complex | None:
+    """RRR: the moving pivot Q at the middle of the first dwell (None for an RPR)."""
+    if sixbar.dyad.kind != OutputKind.RRR or not f.dwells:
+        return None
+    d = f.dwells[0]
+    return complex(simulate_motion(sixbar, np.array([0.5 * (d.start + d.end)]), order=0).moving_pivot[0])
+
+
+def toleranced(request: Request, candidates: list[Candidate]) -> list[Candidate]:
+    """With ``request.tolerance``: each candidate with its toleranced deviation
+    (:func:`synth.mechanism.tolerance.toleranced_deviation` over the middles of its dwells, the request's
+    dwell length), worked out afresh (a refined six-bar is another six-bar); else as they are."""
+    if request.tolerance <= 0:
+        return candidates
+    from synth.mechanism.tolerance import toleranced_deviation
+
+    out = []
+    for c in candidates:
+        centres = [0.5 * (d.start + d.end) for d in c.figures.dwells[: request.dwells]]
+        value = toleranced_deviation(c.sixbar, request.tolerance, centres, request.dwell) if centres else None
+        out.append(dataclasses.replace(c, toleranced_deviation=value))
+    return out

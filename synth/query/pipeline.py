@@ -1,0 +1,355 @@
+""":func:`answer`: a request through the steps of the package, over one :class:`Answering`
+state (the rows read, the fits, the figures already computed, the clock): the sample, sampled
+wider, the moved pivots and the deeper read while the answer is sparse, ranking, refinement,
+the near misses and the diagnosis. ``--output any`` with one dwell is the best of both
+output types (:func:`_best_of_both`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from synth.kinds import OutputTag, SegmentKind
+from synth.mechanism.figures import SixBarFigures
+from synth.query.candidates import REFINED_MARK, Candidate, Request, rank
+from synth.query.complete import SearchCount, search
+from synth.query.contract import BatchMap, SegmentSource
+from synth.query.diagnosis import diagnose, diagnose_by_bounds, either_no_match, misses_of, unfitted_reach
+from synth.query.evaluate import candidate_of, distinct, meets, screened_figures, toleranced
+from synth.query.fitting import Fitted, fit, fit_arrays, fits_of, prescreen, reseat
+from synth.query.refinement import no_worse_than_fits, refined_candidates, refined_misses, with_origins
+from synth.query.result import NoMatch, QueryResult
+from synth.query.segment_rows import SegmentRow
+from synth.query.windows import PER_LEVEL, kinds_for, select
+
+
+#: An answer with fewer candidates than this (or than ``--top``) is topped up from the
+#: nearest misses, refined to meet the request (with refinement on).
+FILL = 3
+
+#: With refinement on, a sparse answer (fewer than FILL six-bars) samples again, this many
+#: times wider (the no-refinement query keeps PER_LEVEL).
+WIDER = 3
+
+#: Last, if still sparse after the moved pivots, this many times PER_LEVEL segments per level
+#: of the kinds in DEEPER_KINDS: arcs (RRR), whose dwell key ranks them (``synth.segment_search.dwell_key``)
+#: — the longest rests (150° at swings of 20°–30° on ``standard``) lie a few hundred rows
+#: deep —, and double lines, whose rests the stored dwell predicts less well (two rests of 90°
+#: on ``standard``: 1 six-bar from the narrower samples, 3 with this read). Single lines are
+#: not read deeper: their sparse answers (150° at a 90° swing) are filled from refined near
+#: misses, which a deeper read would stop at 3 (FILL) where they reach 10.
+DEEPER = 10
+
+DEEPER_KINDS = (SegmentKind.ARC, SegmentKind.DOUBLE_LINE)
+
+#: A creeping rest is shorter than the fitted one: the segments the sample would take for
+#: these multiples of the requested dwell are moved too.
+RESEAT_LONGER = (2.0, 4.0)
+
+#: Moved six-bars simulated at a time; the reseat stops once --top segments are answered.
+RESEAT_BATCH = 128
+
+
+def answer(request: Request, source: SegmentSource, *,
+           on_progress: Callable[[int, int], None] | None = None,
+           map_batches: BatchMap | None = None,
+           searched: tuple[list[Candidate], SearchCount] | None = None) -> QueryResult:
+    """Ranked candidates for ``request`` from ``source`` (a pure read): from the sample of
+    segments :func:`select` takes, or with ``request.complete`` from every six-bar the atlas
+    yields (:func:`search`, which reports ``on_progress`` and runs its batches through
+    ``map_batches``; or ``searched``, its result for this request from :func:`search_many`).
+
+    ``--output any`` with one dwell is the best of both output types: the request answered as
+    RPR and as RRR, each through the whole pipeline (its sparse-answer steps and refinement
+    sized for ``request.top``), then the union of the two answers ranked once
+    (:func:`~synth.query.candidates.rank`) and cut to ``request.top`` (:func:`_best_of_both`)."""
+    if request.output == "any" and request.dwells == 1:
+        return _best_of_both(request, source, on_progress=on_progress, map_batches=map_batches, searched=searched)
+    return _answer_one(request, source, on_progress=on_progress, map_batches=map_batches, searched=searched).result
+
+
+@dataclass(frozen=True, slots=True)
+class _Answered:
+    """One output type's answer and which of its candidates are refined near misses (FILL)
+    and six-bars with a moved output pivot (by id): what :func:`_best_of_both` recounts for
+    the candidates that stay in the union's top."""
+
+    result: QueryResult
+    misses: frozenset[str]
+    reseated: frozenset[str]
+
+
+def _best_of_both(request: Request, source: SegmentSource, *,
+                  on_progress: Callable[[int, int], None] | None,
+                  map_batches: BatchMap | None,
+                  searched: tuple[list[Candidate], SearchCount] | None) -> QueryResult:
+    """``request`` (``output="any"``, one dwell) answered as RPR and as RRR, then the best
+    ``request.top`` of the union of the two answers by :func:`~synth.query.candidates.rank` (Pareto
+    layer, score, id, over the union: a six-bar's layer depends on what it is ranked with).
+    The two answers share no six-bar (their dyads differ), so :func:`distinct` keeps the
+    union whole. Times, counts and refinements add up; with nothing in either, the no-match
+    is the two diagnoses in one (:func:`either_no_match`). ``searched`` (a complete search
+    of both kinds, :func:`search_many`) is split by output type; its counts go to the RPR
+    part, so that the sums are the search's own."""
+    parts = []
+    for output in (OutputTag.RPR, OutputTag.RRR):
+        mine = None
+        if searched is not None:
+            found, count = searched
+            met = [c for c in found if c.sixbar.dyad.kind == output.dyad]
+            mine = (met, dataclasses.replace(count, met=len(met)) if output == OutputTag.RPR
+                    else SearchCount(met=len(met)))
+        parts.append(_answer_one(dataclasses.replace(request, output=output.value), source, on_progress=on_progress,
+                                 map_batches=map_batches, searched=mine))
+    t = time.perf_counter()
+    top = rank(request, [c for p in parts for c in p.result.candidates])[: request.top]
+    clock: dict[str, float] = {}
+    for p in parts:
+        for k, v in p.result.seconds.items():
+            clock[k] = clock.get(k, 0.0) + v
+    clock["rank"] = clock.get("rank", 0.0) + time.perf_counter() - t
+    results = [p.result for p in parts]
+    no_match = None if top else either_no_match(request, [r.no_match for r in results])
+    below = [r.nearest[0] for r in results if r.nearest[0] is not None]
+    above = [r.nearest[1] for r in results if r.nearest[1] is not None]
+    nearest = (None, None) if top else (max(below, default=None), min(above, default=None))
+    ids = {c.id for c in top}
+    return QueryResult(request, top, sum(r.considered for r in results), sum(r.simulated for r in results),
+                       nearest, clock, no_match,
+                       (sum(r.refined[0] for r in results), sum(r.refined[1] for r in results)),
+                       from_misses=bool(top) and all(r.from_misses or not r.candidates for r in results),
+                       misses_met=sum(len(p.misses & ids) for p in parts),
+                       reseated=sum(len(p.reseated & ids) for p in parts))
+
+
+@dataclass(slots=True)
+class Answering:
+    """What the steps of one output type's answer share while it runs (mutable; never returned).
+
+    Attributes
+    ----------
+    request, source, kinds :
+        The request, where its segments are read, and the segment kinds it draws on.
+    clock : dict
+        Seconds per stage (``select``, ``fit``, ``simulate``, ``reseat``, ``search``, ``rank``,
+        ``refine``), summed over the steps.
+    rows : list of SegmentRow
+        Every row the sample read (narrow, wider and deeper), each (segment, level) once.
+    fitted : list of Fitted
+        Every fit of those rows, past the prescreen or not: a no-match is diagnosed and the near
+        misses are refined from them.
+    known : dict
+        The full figures (no footprint) of every screened fit, by :attr:`Fitted.key`: a
+        diagnosis reuses them.
+    longer_fits : list of Fitted
+        Fits to rests ``RESEAT_LONGER[0]`` times the requested dwell (:func:`_moved_pivots`),
+        refined as near misses with the others.
+    moved_ids : set of str
+        Ids of the fits whose answer is a six-bar with a moved output pivot.
+    simulated : int
+        Six-bars simulated (screened).
+    """
+
+    request: Request
+    source: SegmentSource
+    kinds: tuple[SegmentKind, ...]
+    clock: dict[str, float] = field(default_factory=dict)
+    rows: list[SegmentRow] = field(default_factory=list)
+    fitted: list[Fitted] = field(default_factory=list)
+    known: dict[tuple, SixBarFigures] = field(default_factory=dict)
+    longer_fits: list[Fitted] = field(default_factory=list)
+    moved_ids: set[str] = field(default_factory=set)
+    simulated: int = 0
+
+    def add_time(self, stage: str, since: float) -> None:
+        """Seconds from ``since`` (:func:`time.perf_counter`) to now added to ``stage``."""
+        self.clock[stage] = self.clock.get(stage, 0.0) + time.perf_counter() - since
+
+    def read(self) -> set[tuple[int, int]]:
+        """(segment, level) of every row read so far."""
+        return {(r.segment_id, r.level) for r in self.rows}
+
+
+def _sampled(state: Answering, per_level: int = PER_LEVEL, kinds: tuple[SegmentKind, ...] | None = None
+             ) -> list[Fitted]:
+    """The sample's rows and fits added to ``state`` (all of them are what a no-match is
+    diagnosed and refined from); a wider sample adds the rows the narrower one did not have.
+    Returns the new fits past the prescreen."""
+    request, kinds = state.request, state.kinds if kinds is None else kinds
+    t = time.perf_counter()
+    had = state.read()
+    new = [r for r in select(state.source, request, kinds, per_level) if (r.segment_id, r.level) not in had]
+    state.rows = [*state.rows, *new]
+    state.add_time("select", t)
+    t = time.perf_counter()
+    passed = []
+    for kind in kinds:
+        of_kind = [r for r in new if r.kind == kind]
+        found, paths = fit_arrays(request, of_kind, kind)
+        fits = fits_of(of_kind, found)  # every fit: a no-match is diagnosed and refined from them
+        state.fitted.extend(fits)
+        passed += [f for f, k in zip(fits, prescreen(request, found, paths)) if k]
+    state.add_time("fit", t)
+    return passed
+
+
+def _meeting(state: Answering, fits: list[Fitted]) -> list[Candidate]:
+    """The candidates among ``fits`` (simulated), their figures kept in ``state.known`` for a
+    diagnosis (without the footprint, as the misses' own figures)."""
+    t = time.perf_counter()
+    screened, n = screened_figures(state.request, fits)
+    state.simulated += n
+    state.known.update({f.key: dataclasses.replace(fig, footprint=0.0) for f, fig in screened})
+    state.add_time("simulate", t)
+    return [candidate_of(state.request, f, fig) for f, fig in screened if meets(state.request, fig)]
+
+
+def _moved_pivots(state: Answering, answered: list[Candidate]) -> list[Candidate]:
+    """The six-bars with the output pivot moved off the fitted one (:func:`reseat`) that meet
+    the request: of the sample's fits, then of the segments whose fitted rests are longer than
+    the request (``RESEAT_LONGER``), ``RESEAT_BATCH`` at a time, until --top segments
+    (``answered`` and these) have one."""
+    request = state.request
+    found: list[Candidate] = []
+    had = state.read()
+    origins = list(state.fitted)
+    for k in (1.0, *RESEAT_LONGER):
+        t = time.perf_counter()
+        if k > 1:
+            if request.dwells * k * request.dwell >= 2 * math.pi:
+                break
+            longer = [r for r in select(state.source, dataclasses.replace(request, dwell=k * request.dwell),
+                                        state.kinds, WIDER * PER_LEVEL) if (r.segment_id, r.level) not in had]
+            had |= {(r.segment_id, r.level) for r in longer}
+            origins = [f for kind in state.kinds for f in fit(request, [r for r in longer if r.kind == kind], kind)]
+            if k == RESEAT_LONGER[0]:
+                state.longer_fits.extend(origins)
+        moved = reseat(request, origins)
+        state.add_time("reseat", t)
+        for b in range(0, len(moved), RESEAT_BATCH):  # the fits nearest the request first
+            met = _meeting(state, moved[b : b + RESEAT_BATCH])
+            t = time.perf_counter()
+            found += with_origins(request, met, origins, state.known)
+            state.add_time("reseat", t)
+            if len(distinct([*answered, *found])) >= request.top:
+                return found
+    return found
+
+
+def _from_sample(state: Answering) -> list[Candidate]:
+    """The candidates of the sample: a sparse answer (fewer than FILL) samples wider, is filled
+    towards --top with the fits' pivots moved (short rests), and if still sparse reads deeper
+    along the arcs' keys (long rests) and the double lines' dwells."""
+    request = state.request
+    candidates = _meeting(state, _sampled(state))
+    sparse = request.refine and len(distinct(candidates)) < min(FILL, request.top)
+    if sparse:
+        candidates += _meeting(state, _sampled(state, WIDER * PER_LEVEL))
+    if sparse and len(distinct(candidates)) < request.top:
+        found = no_worse_than_fits(request, _moved_pivots(state, candidates), candidates)
+        state.moved_ids = {c.id.split(REFINED_MARK)[0] for c in found} - {c.id for c in candidates}
+        candidates += found
+    deep = tuple(k for k in state.kinds if k in DEEPER_KINDS)
+    if sparse and deep and len(distinct(candidates)) < min(FILL, request.top):
+        candidates += _meeting(state, _sampled(state, DEEPER * PER_LEVEL, deep))
+    return candidates
+
+
+def _ranked(request: Request, candidates: list[Candidate]) -> list[Candidate]:
+    """The best ``request.top`` distinct ``candidates``, numbered from 1."""
+    ranked = distinct(rank(request, candidates))[: request.top]
+    return [dataclasses.replace(c, rank=i + 1) for i, c in enumerate(ranked)]
+
+
+@dataclass(frozen=True, slots=True)
+class _Filled:
+    """The top after the near misses were refined toward the request (:func:`_fill_from_misses`)."""
+
+    top: list[Candidate]
+    refined: tuple[int, int]
+    miss_ids: frozenset[str]
+    no_match: NoMatch | None
+
+
+def _fill_from_misses(state: Answering, top: list[Candidate], refined: tuple[int, int]) -> _Filled:
+    """An answer with fewer than FILL (or --top) candidates topped up from the nearest misses
+    refined to meet the request; with nothing met, the diagnosis of the misses."""
+    request = state.request
+    no_match = None
+    miss_ids: frozenset[str] = frozenset()
+    if request.complete and not state.fitted:
+        _sampled(state)  # too little in the whole atlas: the sample's near misses are refined
+    t = time.perf_counter()
+    misses = misses_of(request, state.fitted, state.known)  # all of the fits, nearest first
+    if not top:
+        no_match = diagnose(request, state.fitted, misses)
+    # the diagnosis simulates the fits the screen dropped: simulation time of this answer
+    state.add_time("simulate", t)
+    if state.longer_fits:
+        # a short rest's own sample can hold no fit (RRR 10° on ``standard``: the arcs
+        # whose stored rests predict it are all near-toggle four-bars, transmission < 10°,
+        # as the atlas keeps rests ≥ 20° at its widest tolerance); the fits to rests twice
+        # as long miss it by a few degrees and are refined toward it with the others
+        misses = sorted([*misses, *misses_of(request, state.longer_fits, state.known)], key=lambda m: m[0])
+    t = time.perf_counter()
+    found, tried, better = refined_misses(request, misses, {c.id.split(REFINED_MARK)[0] for c in top},
+                                          min(FILL, request.top) - len(top))
+    if found:
+        top = _ranked(request, [*top, *toleranced(request, found)])
+        miss_ids = frozenset(c.id for c in found) & {c.id for c in top}
+        no_match = None
+    state.add_time("refine", t)
+    return _Filled(top, (refined[0] + tried, refined[1] + better), miss_ids, no_match)
+
+
+def _answer_one(request: Request, source: SegmentSource, *,
+                on_progress: Callable[[int, int], None] | None = None,
+                map_batches: BatchMap | None = None,
+                searched: tuple[list[Candidate], SearchCount] | None = None) -> _Answered:
+    """:func:`answer` for one output type (or a double dwell): candidates (the complete
+    search's or the sample's), ranked, the top refined, filled from the near misses while
+    sparse, and diagnosed when empty."""
+    t = time.perf_counter()
+    state = Answering(request, source, kinds_for(request))
+    if request.complete:
+        candidates, count = (searched if searched is not None else
+                             search(request, source, on_progress=on_progress, map_batches=map_batches))
+        state.clock["search"] = time.perf_counter() - t
+        considered, state.simulated = count.rows, count.simulated
+    else:
+        candidates = _from_sample(state)
+        considered = len({r.segment_id for r in state.rows})
+    t = time.perf_counter()
+    top = _ranked(request, toleranced(request, candidates))
+    state.add_time("rank", t)
+    met_in_atlas = bool(top)
+    refined = (0, 0)
+    if top and request.refine:
+        t = time.perf_counter()
+        top, better = refined_candidates(request, top)
+        top = rank(request, toleranced(request, top))
+        refined = (len(top), better)
+        state.add_time("refine", t)
+    filled = _Filled(top, refined, frozenset(), None)
+    if request.refine and len(top) < min(FILL, request.top):
+        filled = _fill_from_misses(state, top, refined)
+    top, no_match = filled.top, filled.no_match
+    nearest: tuple[float | None, float | None] = (None, None)
+    if not top:
+        if no_match is None:
+            if request.complete and not state.fitted:
+                _sampled(state)  # nothing in the whole atlas: diagnose the sample's near misses
+            t = time.perf_counter()
+            no_match = diagnose_by_bounds(request, state.fitted, state.known)
+            state.add_time("simulate", t)
+        if not no_match.fitted:  # no six-bar to show: the stored dwells the atlas has instead
+            nearest = source.nearest_dwell_angles(state.kinds, request.dwell)
+            no_match = dataclasses.replace(no_match, reach=unfitted_reach(request, source, state.kinds))
+    reseated = frozenset(c.id for c in top if c.id.split(REFINED_MARK)[0] in state.moved_ids)
+    return _Answered(QueryResult(request, top, considered, state.simulated, nearest, state.clock, no_match,
+                                 filled.refined, from_misses=bool(top) and not met_in_atlas,
+                                 misses_met=len(filled.miss_ids), reseated=len(reseated)), filled.miss_ids, reseated)
