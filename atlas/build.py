@@ -122,8 +122,15 @@ def run_shards(
         for index in indices:
             yield _shard.compute_shard(spec, index, sweep)
         return
-    yield from pool_map(_compute_in_worker, indices, min(workers, len(indices)), initializer=_init_worker,
-                        initargs=(spec, sweep), preload=("atlas.build",), tick=tick)
+    yield from pool_map(
+        _compute_in_worker,
+        indices,
+        min(workers, len(indices)),
+        initializer=_init_worker,
+        initargs=(spec, sweep),
+        preload=("atlas.build",),
+        tick=tick,
+    )
 
 
 # ---------------------------------------------------------------------------- the writer
@@ -237,8 +244,13 @@ def build_atlas(
         raise
     try:
         handle = open_build(
-            engine, target=target, spec_json=spec.to_json(), spec_digest=spec.digest,
-            n_shards=n_shards, lock=lock, replace=replace,
+            engine,
+            target=target,
+            spec_json=spec.to_json(),
+            spec_digest=spec.digest,
+            n_shards=n_shards,
+            lock=lock,
+            replace=replace,
         )
     except BaseException:
         # not removed even if this call created the file: on a new atlas this only fails when
@@ -272,8 +284,10 @@ def build_atlas(
                 segments += result.n_segments
                 report(ShardDone(result.shard_index, n, computed, total, segments, len(per_shard)))
         except KeyboardInterrupt:
-            note(f"interrupted: {len(handle.done) + written} of {n_shards} shards are stored; "
-                 "run the same command again to resume")
+            note(
+                f"interrupted: {len(handle.done) + written} of {n_shards} shards are stored; "
+                "run the same command again to resume"
+            )
             raise
         finally:
             close = getattr(results, "close", None)
@@ -286,8 +300,10 @@ def build_atlas(
                 raise RuntimeError(f"build {handle.build_id}: shards missing after the run: {sorted(per_shard)[:10]}")
         linkages, segs, dwells = row_counts(engine, handle.build_id)
         if complete and not settle_sqlite(engine):
-            note("the atlas stays in WAL mode (another process had it open); "
-                 "run the same command again to fold its write-ahead log in")
+            note(
+                "the atlas stays in WAL mode (another process had it open); "
+                "run the same command again to fold its write-ahead log in"
+            )
         return BuildSummary(
             target=display_target(target),  # printed by line(): a URL's password is not
             build_id=handle.build_id,

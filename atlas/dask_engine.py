@@ -119,8 +119,9 @@ class DaskRunner:
     The ``workers`` argument of :meth:`__call__` is ignored: the cluster's workers decide.
     """
 
-    def __init__(self, client: Client, *, in_flight: int | None = None,
-                 log: Callable[[str], None] | None = None) -> None:
+    def __init__(
+        self, client: Client, *, in_flight: int | None = None, log: Callable[[str], None] | None = None
+    ) -> None:
         if in_flight is not None and in_flight < 1:
             raise ValueError(f"in_flight must be >= 1, got {in_flight}")
         self.client = client
@@ -129,8 +130,9 @@ class DaskRunner:
         self._owns_client = False
 
     @classmethod
-    def connect(cls, address: str, *, in_flight: int | None = None,
-                log: Callable[[str], None] | None = None) -> DaskRunner:
+    def connect(
+        cls, address: str, *, in_flight: int | None = None, log: Callable[[str], None] | None = None
+    ) -> DaskRunner:
         """Connect to the scheduler at ``address`` (``tcp://host:8786``; a bare ``host:port``
         means tcp). The wait is dask's ``distributed.comm.timeouts.connect`` (30 s unless
         configured, e.g. ``DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT=5s``).
@@ -241,8 +243,9 @@ class DaskRunner:
                 waited = 0.0
             time.sleep(1.0)
             waited += 1.0
-        self._log(f"dask: {len(threads)} worker(s), {sum(threads.values())} thread(s) "
-                  f"at {self.client.scheduler.address}")
+        self._log(
+            f"dask: {len(threads)} worker(s), {sum(threads.values())} thread(s) at {self.client.scheduler.address}"
+        )
 
     def _next_batch(self, done: as_completed, beat: Callable[[], None], ctrl_c: _DeferredInterrupt) -> list[Future]:
         """The futures finished since the last call, at least one; ticks while waiting, raises
@@ -252,8 +255,10 @@ class DaskRunner:
         while not done.has_ready():
             ctrl_c.check()
             if self.client.status in ("closing", "closed"):
-                raise ClusterError("lost the connection to the dask scheduler; "
-                                   "the shards written so far are kept: run the same command again to resume")
+                raise ClusterError(
+                    "lost the connection to the dask scheduler; "
+                    "the shards written so far are kept: run the same command again to resume"
+                )
             if time.monotonic() - since >= _build.TICK_SECONDS:
                 beat()
                 since = time.monotonic()
@@ -341,8 +346,12 @@ def _result_of(future: Future) -> ShardResult | PackedShard:
     try:
         return future.result()
     except CancelledError as exc:
-        raise ClusterError(f"shard {index} was cancelled on the cluster ({exc}); "
-                           "the shards written so far are kept: run the same command again to resume") from None
+        raise ClusterError(
+            f"shard {index} was cancelled on the cluster ({exc}); "
+            "the shards written so far are kept: run the same command again to resume"
+        ) from None
     except KilledWorker as exc:
-        raise ClusterError(f"shard {index} failed on the cluster: {exc}; "
-                           "the shards written so far are kept: run the same command again to resume") from None
+        raise ClusterError(
+            f"shard {index} failed on the cluster: {exc}; "
+            "the shards written so far are kept: run the same command again to resume"
+        ) from None

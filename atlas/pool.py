@@ -95,9 +95,16 @@ def _stop(executor: ProcessPoolExecutor) -> None:
         results._writer.close()
 
 
-def pool_map(fn: Callable[[T], R], items: Iterable[T], workers: int, *,
-             initializer: Callable[..., None] | None = None, initargs: tuple[Any, ...] = (),
-             preload: Sequence[str] = (), tick: Callable[[], None] | None = None) -> Iterator[R]:
+def pool_map(
+    fn: Callable[[T], R],
+    items: Iterable[T],
+    workers: int,
+    *,
+    initializer: Callable[..., None] | None = None,
+    initargs: tuple[Any, ...] = (),
+    preload: Sequence[str] = (),
+    tick: Callable[[], None] | None = None,
+) -> Iterator[R]:
     """``fn(item)`` for every item, on ``workers`` processes, yielded in completion order
     with at most ``2 · workers`` items in flight. ``fn`` and the items must pickle (``fn`` a
     module-level function); ``initializer(*initargs)`` runs once in each worker. ``tick`` is
@@ -107,8 +114,12 @@ def pool_map(fn: Callable[[T], R], items: Iterable[T], workers: int, *,
     ctx = _mp_context(preload)
     # only the driver ever holds the sending end: it closes when the driver dies, however
     lifeline_r, lifeline_w = ctx.Pipe(duplex=False)
-    executor = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker,
-                                   initargs=(lifeline_r, initializer, initargs, workers))
+    executor = ProcessPoolExecutor(
+        max_workers=workers,
+        mp_context=ctx,
+        initializer=_init_worker,
+        initargs=(lifeline_r, initializer, initargs, workers),
+    )
     pending: set[Future] = set()
     clean = False
     try:

@@ -86,7 +86,9 @@ def compute_shard(spec: SweepSpec, shard_index: int, linkages: SweepLinkages | N
     keep = ok_link
     if not keep.all():  # a crank-rocker closes over the whole turn; anything else is not stored
         skipped["linkage does not assemble over the whole turn"] += int(np.count_nonzero(~keep))
-    links = linkage_columns(shard_index, sweep_index[keep], b[keep], c[keep], d[keep], br[keep], grashof[keep], mu[keep])
+    links = linkage_columns(
+        shard_index, sweep_index[keep], b[keep], c[keep], d[keep], br[keep], grashof[keep], mu[keep]
+    )
     found = find_segments(b[keep], c[keep], d[keep], br[keep], SegmentSearch.from_spec(spec))
     skipped.update(found.skipped)
     segments, dwells = segment_columns(found, links)

@@ -91,21 +91,31 @@ class SweepSpec:
         for field in ("b", "c", "d"):
             lo, hi = getattr(self, field)
             if not (math.isfinite(lo) and math.isfinite(hi) and PROPORTION_RANGE[0] <= lo <= hi <= PROPORTION_RANGE[1]):
-                raise SweepSpecError(f"range {field} must satisfy {PROPORTION_RANGE[0]:g} <= low <= high <= "
-                                     f"{PROPORTION_RANGE[1]:g} (crank = 1), got ({lo:g}, {hi:g})")
+                raise SweepSpecError(
+                    f"range {field} must satisfy {PROPORTION_RANGE[0]:g} <= low <= high <= "
+                    f"{PROPORTION_RANGE[1]:g} (crank = 1), got ({lo:g}, {hi:g})"
+                )
         if not SAMPLES_RANGE[0] <= self.samples <= SAMPLES_RANGE[1]:
             raise SweepSpecError(f"samples must be between 1 and 2^31, got {self.samples}")
         if self.seed < 0:  # numpy's seed sequence takes non-negative integers only
             raise SweepSpecError(f"seed must be >= 0, got {self.seed}")
-        if not self.branches or any(b not in (1, -1) for b in self.branches) or len(set(self.branches)) != len(self.branches):
+        if (
+            not self.branches
+            or any(b not in (1, -1) for b in self.branches)
+            or len(set(self.branches)) != len(self.branches)
+        ):
             raise SweepSpecError(f"branches must be distinct values from (1, -1), got {self.branches}")
         if not CRANK_STEP_RANGE_DEG[0] <= self.crank_step_deg <= CRANK_STEP_RANGE_DEG[1]:
-            raise SweepSpecError(f"crank_step_deg must be in [{CRANK_STEP_RANGE_DEG[0]:g}, {CRANK_STEP_RANGE_DEG[1]:g}], "
-                                 f"got {self.crank_step_deg:g}")
+            raise SweepSpecError(
+                f"crank_step_deg must be in [{CRANK_STEP_RANGE_DEG[0]:g}, {CRANK_STEP_RANGE_DEG[1]:g}], "
+                f"got {self.crank_step_deg:g}"
+            )
         if not RAYS_RANGE[0] <= self.rays <= RAYS_RANGE[1]:
             raise SweepSpecError(f"rays must be between 1 and 3600, got {self.rays}")
         if not self.tolerances or any(not (TOLERANCE_RANGE[0] <= t < TOLERANCE_RANGE[1]) for t in self.tolerances):
-            raise SweepSpecError(f"tolerances must be in [{TOLERANCE_RANGE[0]:g}, 1) crank lengths, got {self.tolerances}")
+            raise SweepSpecError(
+                f"tolerances must be in [{TOLERANCE_RANGE[0]:g}, 1) crank lengths, got {self.tolerances}"
+            )
         if list(self.tolerances) != sorted(self.tolerances):
             raise SweepSpecError("tolerances must be in increasing order")
         if len(self.tolerances) > MAX_TOLERANCE_LEVELS:
@@ -145,8 +155,9 @@ class SweepSpec:
 #: Named sweeps. ``demo`` builds in seconds; ``standard`` holds ≥ 20 000 linkages;
 #: ``large`` ≥ 1 000 000 (a cluster or a long night).
 PRESETS: dict[str, SweepSpec] = {
-    "demo": SweepSpec(name="demo", b=(1.5, 4.5), c=(1.5, 4.5), d=(1.5, 4.5), samples=1024, crank_step_deg=3.0, rays=24,
-                      shard_size=32),
+    "demo": SweepSpec(
+        name="demo", b=(1.5, 4.5), c=(1.5, 4.5), d=(1.5, 4.5), samples=1024, crank_step_deg=3.0, rays=24, shard_size=32
+    ),
     "standard": SweepSpec(name="standard", samples=2**15, crank_step_deg=2.0, rays=36, shard_size=128),
     "large": SweepSpec(name="large", samples=2**21, crank_step_deg=2.0, rays=36, shard_size=256),
 }

@@ -24,7 +24,13 @@ DEFAULT_DB = "atlas.sqlite"
 
 
 db_option = click.option(
-    "--db", "db", default=DEFAULT_DB, show_default=True, envvar="DWELL_ATLAS", show_envvar=True, metavar="PATH|URL",
+    "--db",
+    "db",
+    default=DEFAULT_DB,
+    show_default=True,
+    envvar="DWELL_ATLAS",
+    show_envvar=True,
+    metavar="PATH|URL",
     help="The atlas: an SQLite file or an SQLAlchemy URL.",
 )
 
@@ -68,35 +74,113 @@ def parse_tolerances(text: str | None) -> tuple[float, ...] | None:
 
 @atlas.command("build")
 @db_option
-@click.option("--preset", type=click.Choice(sorted(PRESETS)), default="demo", show_default=True,
-              help="Named sweep: demo (seconds), standard (~20 000 linkages), large (> 1 000 000).")
-@click.option("--samples", type=Count(*SAMPLES_RANGE, "Sobol points"), default=None,
-              help="Sobol points drawn, before the crank-rocker filter.")
+@click.option(
+    "--preset",
+    type=click.Choice(sorted(PRESETS)),
+    default="demo",
+    show_default=True,
+    help="Named sweep: demo (seconds), standard (~20 000 linkages), large (> 1 000 000).",
+)
+@click.option(
+    "--samples",
+    type=Count(*SAMPLES_RANGE, "Sobol points"),
+    default=None,
+    help="Sobol points drawn, before the crank-rocker filter.",
+)
 @click.option("--seed", type=SEED, default=None, help="Scrambling seed of the sweep.")
-@click.option("--b", "b_range", nargs=2, type=PROPORTION, default=None, metavar="LOW HIGH", help="Coupler length range (crank = 1).")
-@click.option("--c", "c_range", nargs=2, type=PROPORTION, default=None, metavar="LOW HIGH", help="Rocker length range (crank = 1).")
-@click.option("--d", "d_range", nargs=2, type=PROPORTION, default=None, metavar="LOW HIGH", help="Ground length range (crank = 1).")
-@click.option("--crank-step", type=SEARCH_STEP_DEG, default=None, metavar="DEG", help="Crank-angle step of the candidate search.")
+@click.option(
+    "--b",
+    "b_range",
+    nargs=2,
+    type=PROPORTION,
+    default=None,
+    metavar="LOW HIGH",
+    help="Coupler length range (crank = 1).",
+)
+@click.option(
+    "--c",
+    "c_range",
+    nargs=2,
+    type=PROPORTION,
+    default=None,
+    metavar="LOW HIGH",
+    help="Rocker length range (crank = 1).",
+)
+@click.option(
+    "--d",
+    "d_range",
+    nargs=2,
+    type=PROPORTION,
+    default=None,
+    metavar="LOW HIGH",
+    help="Ground length range (crank = 1).",
+)
+@click.option(
+    "--crank-step", type=SEARCH_STEP_DEG, default=None, metavar="DEG", help="Crank-angle step of the candidate search."
+)
 @click.option("--rays", type=RAYS, default=None, help="Scan rays through the pole per crank step.")
 @click.option("--tolerances", default=None, metavar="T1,T2,..", help="Band half-widths (crank lengths), increasing.")
-@click.option("--min-dwell", type=Bounded(0.0, 360.0, "a dwell in degrees", low_open=True, high_open=True), default=None,
-              metavar="DEG", help="Shortest dwell kept.")
-@click.option("--shard-size", type=Count(*SHARD_SIZE_RANGE, "proportions per shard"), default=None,
-              help="Proportions per shard (unit of work, commit and resume).")
+@click.option(
+    "--min-dwell",
+    type=Bounded(0.0, 360.0, "a dwell in degrees", low_open=True, high_open=True),
+    default=None,
+    metavar="DEG",
+    help="Shortest dwell kept.",
+)
+@click.option(
+    "--shard-size",
+    type=Count(*SHARD_SIZE_RANGE, "proportions per shard"),
+    default=None,
+    help="Proportions per shard (unit of work, commit and resume).",
+)
 @click.option("--all-linkages", is_flag=True, help="Keep every proportion, not only crank-rockers.")
-@click.option("--workers", type=click.IntRange(min=1), default=None,
-              help=f"Worker processes of the local engine (default: all CPUs, here {default_workers()}); "
-                   "ignored with --engine dask, where the cluster's workers decide.")
-@click.option("--engine", type=click.Choice(["local", "dask"]), default="local", show_default=True,
-              help="Where shards are computed: local processes, or a dask.distributed cluster (needs --scheduler "
-                   "and the dask extra). The database is written by this process either way.")
-@click.option("--scheduler", metavar="ADDR", default=None,
-              help="Address of a running dask scheduler (tcp://host:8786), with --engine dask.")
-@click.option("--replace", is_flag=True,
-              help="Delete what the atlas holds (any sweep) and build from scratch; needed for a different sweep.")
+@click.option(
+    "--workers",
+    type=click.IntRange(min=1),
+    default=None,
+    help=f"Worker processes of the local engine (default: all CPUs, here {default_workers()}); "
+    "ignored with --engine dask, where the cluster's workers decide.",
+)
+@click.option(
+    "--engine",
+    type=click.Choice(["local", "dask"]),
+    default="local",
+    show_default=True,
+    help="Where shards are computed: local processes, or a dask.distributed cluster (needs --scheduler "
+    "and the dask extra). The database is written by this process either way.",
+)
+@click.option(
+    "--scheduler",
+    metavar="ADDR",
+    default=None,
+    help="Address of a running dask scheduler (tcp://host:8786), with --engine dask.",
+)
+@click.option(
+    "--replace",
+    is_flag=True,
+    help="Delete what the atlas holds (any sweep) and build from scratch; needed for a different sweep.",
+)
 @click.option("--progress/--no-progress", default=None, help="Progress bar on stderr (default: if it is a terminal).")
-def build(db, preset, samples, seed, b_range, c_range, d_range, crank_step, rays, tolerances, min_dwell, shard_size,
-          all_linkages, workers, engine, scheduler, replace, progress):
+def build(
+    db,
+    preset,
+    samples,
+    seed,
+    b_range,
+    c_range,
+    d_range,
+    crank_step,
+    rays,
+    tolerances,
+    min_dwell,
+    shard_size,
+    all_linkages,
+    workers,
+    engine,
+    scheduler,
+    replace,
+    progress,
+):
     """Build an atlas, or resume an interrupted build of the same sweep.
 
     Ctrl-C or a kill loses nothing that was committed: run the same command again to resume
@@ -109,18 +193,32 @@ def build(db, preset, samples, seed, b_range, c_range, d_range, crank_step, rays
         raise click.UsageError("--engine dask needs --scheduler ADDR (a running dask scheduler, e.g. tcp://host:8786)")
     if engine != "dask" and scheduler is not None:
         raise click.UsageError("--scheduler needs --engine dask")
-    spec = sweep_spec_from_options(preset, {
-        "samples": samples, "seed": seed, "b": parse_range(b_range), "c": parse_range(c_range), "d": parse_range(d_range),
-        "crank_step_deg": crank_step, "rays": rays, "tolerances": parse_tolerances(tolerances),
-        "min_dwell_deg": min_dwell, "shard_size": shard_size,
-        "crank_rockers_only": False if all_linkages else None,
-    })
-    check_memory(spec.samples * SWEEP_BYTES_PER_SAMPLE, f"drawing {spec.samples:,} Sobol points",
-                 "lower --samples (the large preset draws 2 097 152)")
+    spec = sweep_spec_from_options(
+        preset,
+        {
+            "samples": samples,
+            "seed": seed,
+            "b": parse_range(b_range),
+            "c": parse_range(c_range),
+            "d": parse_range(d_range),
+            "crank_step_deg": crank_step,
+            "rays": rays,
+            "tolerances": parse_tolerances(tolerances),
+            "min_dwell_deg": min_dwell,
+            "shard_size": shard_size,
+            "crank_rockers_only": False if all_linkages else None,
+        },
+    )
+    check_memory(
+        spec.samples * SWEEP_BYTES_PER_SAMPLE,
+        f"drawing {spec.samples:,} Sobol points",
+        "lower --samples (the large preset draws 2 097 152)",
+    )
     with BuildBar(progress) as bar:
         if engine == "local":
-            summary = build_atlas(db, spec, workers=workers or default_workers(), replace=replace, on_shard=bar,
-                                  log=_log)
+            summary = build_atlas(
+                db, spec, workers=workers or default_workers(), replace=replace, on_shard=bar, log=_log
+            )
         else:
             summary = _build_on_dask(db, spec, scheduler, replace=replace, on_shard=bar)
     click.echo(summary.line())
@@ -147,10 +245,13 @@ def _build_on_dask(db: str, spec, scheduler: str, *, replace: bool, on_shard):  
 @atlas.command("info")
 @db_option
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document.")
-@click.option("--verify", is_flag=True,
-              help="Also check every row: SQLite's integrity check, rows whose parent is missing, and each complete "
-                   "build's content digest recomputed against the stored one (reads the whole atlas). A mismatch "
-                   "is one error line, exit status 2.")
+@click.option(
+    "--verify",
+    is_flag=True,
+    help="Also check every row: SQLite's integrity check, rows whose parent is missing, and each complete "
+    "build's content digest recomputed against the stored one (reads the whole atlas). A mismatch "
+    "is one error line, exit status 2.",
+)
 def info(db, as_json, verify):
     """What an atlas holds: linkages, segments per kind, dwell-angle coverage, build, digest."""
     from sqlalchemy.exc import DatabaseError

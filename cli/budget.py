@@ -61,12 +61,16 @@ def check_memory(need: float, what: str, fix: str) -> None:
     ``what`` names the work ("4 096 × 100 000 crank positions"), ``fix`` the options to lower."""
     budget = MEMORY_SHARE * available_memory()
     if need > budget:
-        raise InputError(f"{what} would need about {_size(need)} of memory, more than this machine's budget of "
-                         f"{_size(budget)} (half of the memory available): {fix}")
+        raise InputError(
+            f"{what} would need about {_size(need)} of memory, more than this machine's budget of "
+            f"{_size(budget)} (half of the memory available): {fix}"
+        )
 
 
 def check_time(seconds: float, what: str, fix: str) -> None:
     """Refuse a benchmark estimated ``seconds`` long, over :data:`BENCH_SECONDS`."""
     if seconds > BENCH_SECONDS:
-        raise InputError(f"{what} would take about {_duration(seconds)} on this machine (the benchmark budget "
-                         f"is {_duration(BENCH_SECONDS)}): {fix}")
+        raise InputError(
+            f"{what} would take about {_duration(seconds)} on this machine (the benchmark budget "
+            f"is {_duration(BENCH_SECONDS)}): {fix}"
+        )

@@ -45,13 +45,23 @@ def _skips(what: str, flags: int) -> list[dict[str, str]]:
 @click.command("curvature")
 @fourbar_options
 @click.option("--phi", type=ANGLE_DEG, required=True, help="Crank angle [deg], CCW from +x.")
-@click.option("--rays", type=click.IntRange(0, 100_000), default=12, show_default=True,
-              help="Rays through the pole for line scanning, evenly spaced over 180 deg from +x.")
-@click.option("--double-ball", "with_double_ball", is_flag=True,
-              help="Also search the whole turn for double Ball points.")
+@click.option(
+    "--rays",
+    type=click.IntRange(0, 100_000),
+    default=12,
+    show_default=True,
+    help="Rays through the pole for line scanning, evenly spaced over 180 deg from +x.",
+)
+@click.option(
+    "--double-ball", "with_double_ball", is_flag=True, help="Also search the whole turn for double Ball points."
+)
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document instead of the text summary.")
-@click.option("--plot", type=click.Path(dir_okay=False), callback=writable_file(".png", ".svg"),
-              help="Draw the coupler plane at this instant to FILE.png|.svg.")
+@click.option(
+    "--plot",
+    type=click.Path(dir_okay=False),
+    callback=writable_file(".png", ".svg"),
+    help="Draw the coupler plane at this instant to FILE.png|.svg.",
+)
 def curvature(a, b, c, d, branch, phi, rays, with_double_ball, as_json, plot):
     """Instantaneous invariants of a four-bar's coupler motion at crank angle --phi."""
     br = int(branch)
@@ -99,29 +109,47 @@ def curvature(a, b, c, d, branch, phi, rays, with_double_ball, as_json, plot):
         circle_inf = flags & (Status.CIRCLE_POINT_AT_INFINITY | Status.RAY_ALONG_POLE_TANGENT | Status.AT_POLE)
         centre_inf = flags & (Status.CENTER_POINT_AT_INFINITY | Status.RAY_ALONG_POLE_TANGENT | Status.AT_POLE)
         ray_deg = float(180.0 * k / rays)
-        doc["conjugate_pairs"].append({
-            "ray_deg": ray_deg,
-            "circle_point": {"xy": _xy(complex(pairs.circle_point[k])), "uv": _xy(complex(pairs.circle_point_uv[k]))}
-            if usable and not circle_inf else None,
-            "center_point": _xy(complex(pairs.center_point[k])) if usable and not centre_inf else None,
-            "radius": float(pairs.radius[k]) if usable and flags == 0 else None,
-        })
+        doc["conjugate_pairs"].append(
+            {
+                "ray_deg": ray_deg,
+                "circle_point": {
+                    "xy": _xy(complex(pairs.circle_point[k])),
+                    "uv": _xy(complex(pairs.circle_point_uv[k])),
+                }
+                if usable and not circle_inf
+                else None,
+                "center_point": _xy(complex(pairs.center_point[k])) if usable and not centre_inf else None,
+                "radius": float(pairs.radius[k]) if usable and flags == 0 else None,
+            }
+        )
         if pole_ok:
             skipped += _skips(f"conjugate pair on ray {ray_deg:g} deg", flags & ~int(pl.status))
     if found is not None:
         doc["double_ball_points"] = [
-            {"uv": _xy(complex(found.uv[k])),
-             "phi_deg": [float(np.degrees(found.phi1[k])), float(np.degrees(found.phi2[k]))],
-             "tangent_lines": [{"point": _xy(complex(z)), "direction_deg": _deg(complex(t))}
-                               for z, t in ((found.point1[k], found.tangent1[k]), (found.point2[k], found.tangent2[k]))]}
+            {
+                "uv": _xy(complex(found.uv[k])),
+                "phi_deg": [float(np.degrees(found.phi1[k])), float(np.degrees(found.phi2[k]))],
+                "tangent_lines": [
+                    {"point": _xy(complex(z)), "direction_deg": _deg(complex(t))}
+                    for z, t in ((found.point1[k], found.tangent1[k]), (found.point2[k], found.tangent2[k]))
+                ],
+            }
             for k in range(len(found))
         ]
         if found.false_crossings[0]:
-            skipped.append({"what": f"{int(found.false_crossings[0])} crossing(s) of the Ball-point track at B",
-                            "reason": "rocker dead-centre: Ball's point is the pole = B there, not a double Ball point"})
+            skipped.append(
+                {
+                    "what": f"{int(found.false_crossings[0])} crossing(s) of the Ball-point track at B",
+                    "reason": "rocker dead-centre: Ball's point is the pole = B there, not a double Ball point",
+                }
+            )
         if found.unconverged[0]:
-            skipped.append({"what": f"{int(found.unconverged[0])} crossing(s) of the sampled Ball-point track",
-                            "reason": "Newton refinement did not converge to two distinct crank angles"})
+            skipped.append(
+                {
+                    "what": f"{int(found.unconverged[0])} crossing(s) of the sampled Ball-point track",
+                    "reason": "Newton refinement did not converge to two distinct crank angles",
+                }
+            )
         skipped += _skips("double Ball point search", found.status[0])
     doc["skipped"] = skipped
 
@@ -162,8 +190,10 @@ def _scene(motion, pl, circle, ball, found, a, b, c, d, br):
         pole_tangent=complex(pl.tangent) if pl.status == 0 else None,
         inflection_center=complex(circle.center) if circle_ok else None,
         inflection_diameter=float(circle.diameter) if circle_ok else None,
-        circle_curve=fan.circle_point, circle_mask=keep_c,
-        center_curve=fan.center_point, center_mask=keep_0,
+        circle_curve=fan.circle_point,
+        circle_mask=keep_c,
+        center_curve=fan.center_point,
+        center_mask=keep_0,
         ball_point=complex(ball.point) if ball_ok else None,
         ball_tangent=complex(ball.tangent) if ball_ok else None,
         ball_path=path,
@@ -192,10 +222,15 @@ def _text(doc: dict) -> str:
             f"Ball's point       xy {f(doc['ball_point']['xy'])}  uv {f(doc['ball_point']['uv'])}",
         ]
     if doc["conjugate_pairs"] and doc["pole"] is not None:
-        lines += ["", f"{'ray[deg]':>9s}  {'circle point xy':>26s}  {'circle point uv':>26s}  {'centre point xy':>26s}  {'radius':>10s}"]
+        lines += [
+            "",
+            f"{'ray[deg]':>9s}  {'circle point xy':>26s}  {'circle point uv':>26s}  {'centre point xy':>26s}  {'radius':>10s}",
+        ]
         for p in doc["conjugate_pairs"]:
             cp = p["circle_point"] or {"xy": None, "uv": None}
-            lines.append(f"{p['ray_deg']:9.4g}  {f(cp['xy']):>26s}  {f(cp['uv']):>26s}  {f(p['center_point']):>26s}  {f(p['radius']):>10s}")
+            lines.append(
+                f"{p['ray_deg']:9.4g}  {f(cp['xy']):>26s}  {f(cp['uv']):>26s}  {f(p['center_point']):>26s}  {f(p['radius']):>10s}"
+            )
     if "double_ball_points" in doc:
         lines += ["", f"double Ball points: {len(doc['double_ball_points'])}"]
         for p in doc["double_ball_points"]:

@@ -32,10 +32,21 @@ TOP = 3
 
 
 @click.command("demo")
-@click.option("--out", "out_dir", default="dwell-out", show_default=True, type=click.Path(file_okay=False),
-              help="Folder for the reports (one sub-folder per request).")
-@click.option("--db", "target", default=None, help="Atlas to build or reuse [default: OUT/demo-atlas.sqlite]. $DWELL_ATLAS is not read here: the "
-                   "demo builds its own small atlas and must not write into yours.")
+@click.option(
+    "--out",
+    "out_dir",
+    default="dwell-out",
+    show_default=True,
+    type=click.Path(file_okay=False),
+    help="Folder for the reports (one sub-folder per request).",
+)
+@click.option(
+    "--db",
+    "target",
+    default=None,
+    help="Atlas to build or reuse [default: OUT/demo-atlas.sqlite]. $DWELL_ATLAS is not read here: the "
+    "demo builds its own small atlas and must not write into yours.",
+)
 @click.option("--workers", type=click.IntRange(1, 256), default=None, help="Build processes [default: all CPUs].")
 def demo(out_dir: str, target: str | None, workers: int | None) -> None:
     """Build the demo atlas, answer an RRR, an RPR and a double-dwell request, write reports."""
@@ -80,21 +91,45 @@ def _demo(out: Path, made: list[Path], target: str, workers: int | None, progres
             except OSError:  # not empty: the interrupted atlas is in it, to resume
                 break
         raise
-    click.echo(f"atlas: {summary.linkages} linkages, {sum(summary.segments.values())} segments "
-               f"({time.perf_counter() - start:.1f} s)")
+    click.echo(
+        f"atlas: {summary.linkages} linkages, {sum(summary.segments.values())} segments "
+        f"({time.perf_counter() - start:.1f} s)"
+    )
     engine = open_atlas(target, readonly=True)
     written = []
     try:
         for name, opts in DEMO_REQUESTS.items():
-            o = {"dwell_tol": 2.0, "swing": None, "swing_tol": 0.5, "output": "any", "dwells": 1,
-                 "dwell_tolerance": 0.1, "crank": 1.0, "min_transmission": 30.0, "max_link_ratio": 10.0, "top": TOP}
+            o = {
+                "dwell_tol": 2.0,
+                "swing": None,
+                "swing_tol": 0.5,
+                "output": "any",
+                "dwells": 1,
+                "dwell_tolerance": 0.1,
+                "crank": 1.0,
+                "min_transmission": 30.0,
+                "max_link_ratio": 10.0,
+                "top": TOP,
+            }
             o.update(opts)
-            args = " ".join(f"--{k.replace('_', '-')} {v:g}" if isinstance(v, float) else f"--{k.replace('_', '-')} {v}"
-                            for k, v in opts.items())
+            args = " ".join(
+                f"--{k.replace('_', '-')} {v:g}" if isinstance(v, float) else f"--{k.replace('_', '-')} {v}"
+                for k, v in opts.items()
+            )
             click.echo(f"\n$ dwell query --db {shown} {args} --top {TOP}")
-            request = request_from_options(o["dwell"], o["dwell_tol"], o["swing"], o["swing_tol"], o["output"],
-                                           o["dwells"], o["dwell_tolerance"], o["crank"], o["min_transmission"],
-                                           o["max_link_ratio"], o["top"])
+            request = request_from_options(
+                o["dwell"],
+                o["dwell_tol"],
+                o["swing"],
+                o["swing_tol"],
+                o["output"],
+                o["dwells"],
+                o["dwell_tolerance"],
+                o["crank"],
+                o["min_transmission"],
+                o["max_link_ratio"],
+                o["top"],
+            )
             progress.stage(f"answering the {name} request")
             result = answer(engine, request)
             if not result.candidates:
@@ -105,11 +140,18 @@ def _demo(out: Path, made: list[Path], target: str, workers: int | None, progres
             remember_shown(result.candidates)
             best = result.candidates[0]
             dwell = " and ".join(f"{math.degrees(d.angle):.2f}°" for d in best.figures.dwells[: request.dwells])
-            click.echo(f"best: {best.id}: {best.sixbar.dyad.kind} output, dwell {dwell}, "
-                       f"swing {math.degrees(best.figures.swing):.2f}°")
+            click.echo(
+                f"best: {best.id}: {best.sixbar.dyad.kind} output, dwell {dwell}, "
+                f"swing {math.degrees(best.figures.swing):.2f}°"
+            )
             folder = out / name
-            write_report(result.candidates, request, folder, option="--out",
-                         on_candidate=progress.counter(f"writing the {name} report", "candidates"))
+            write_report(
+                result.candidates,
+                request,
+                folder,
+                option="--out",
+                on_candidate=progress.counter(f"writing the {name} report", "candidates"),
+            )
             progress.stage("")
             written.append(folder / "index.html")
     finally:

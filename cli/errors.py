@@ -48,8 +48,9 @@ def _database_problem(exc: BaseException) -> str | None:
     name = getattr(exc.orig, "sqlite_errorname", None) or ""
     if not name and _UNDECODABLE in str(exc.orig):  # pysqlite's own error: a text whose bytes are not UTF-8
         return _SQLITE_FILE_PROBLEMS["SQLITE_CORRUPT"]
-    return next((hint for code, hint in _SQLITE_FILE_PROBLEMS.items() if name == code or name.startswith(code + "_")),
-                None)
+    return next(
+        (hint for code, hint in _SQLITE_FILE_PROBLEMS.items() if name == code or name.startswith(code + "_")), None
+    )
 
 
 def is_user_error(exc: BaseException) -> bool:

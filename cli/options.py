@@ -58,8 +58,9 @@ class Bounded(click.FloatRange):
     One instance per kind of value below (:data:`LENGTH`, :data:`ANGLE_DEG`, …): every numeric
     option takes its range from here, so a kind has one range everywhere."""
 
-    def __init__(self, low: float | None, high: float | None, what: str, *, low_open: bool = False,
-                 high_open: bool = False) -> None:
+    def __init__(
+        self, low: float | None, high: float | None, what: str, *, low_open: bool = False, high_open: bool = False
+    ) -> None:
         super().__init__(low, high, min_open=low_open, max_open=high_open)
         self.what = what
 
@@ -74,8 +75,9 @@ class Bounded(click.FloatRange):
             hi = "" if self.max is None else f" {'<' if self.max_open else '<='} {self.max:g}"
             self.fail(f"must be {lo}x{hi} ({self.what}), got {number:g}", param, ctx)
         if number != 0 and abs(number) < sys.float_info.min:  # subnormal: no precision left
-            self.fail(f"must be 0 or at least {sys.float_info.min:.3g} in magnitude ({self.what}), got {number:g}",
-                      param, ctx)
+            self.fail(
+                f"must be 0 or at least {sys.float_info.min:.3g} in magnitude ({self.what}), got {number:g}", param, ctx
+            )
         return number
 
 
@@ -112,7 +114,9 @@ class Count(click.IntRange):
     def convert(self, value, param, ctx):
         text = str(value).strip()
         if len(text) > 30:  # '9' * 400: not parsed (Python limits int() to 4300 digits anyway)
-            self.fail(f"must be a whole number from {self.min} to {self.max} ({self.what}), got {text[:20]}…", param, ctx)
+            self.fail(
+                f"must be a whole number from {self.min} to {self.max} ({self.what}), got {text[:20]}…", param, ctx
+            )
         try:
             return super().convert(value, param, ctx)
         except click.BadParameter:
@@ -154,19 +158,32 @@ fourbar_options = _stack(
     click.option("--b", type=LENGTH, required=True, help="Coupler length A-B."),
     click.option("--c", type=LENGTH, required=True, help="Rocker length B0-B."),
     click.option("--d", type=LENGTH, required=True, help="Ground length A0-B0."),
-    click.option("--branch", type=click.Choice(["1", "-1"]), default="1", show_default=True,
-                 help="Assembly branch: 1 puts B left of the line A->B0, -1 right."),
+    click.option(
+        "--branch",
+        type=click.Choice(["1", "-1"]),
+        default="1",
+        show_default=True,
+        help="Assembly branch: 1 puts B left of the line A->B0, -1 right.",
+    ),
 )
 
 crank_angle_options = _stack(
     click.option("--phi", type=ANGLE_DEG, default=None, help="One crank angle [deg]."),
     click.option("--from", "phi_from", type=ANGLE_DEG, default=None, help="First crank angle [deg] (default 0)."),
-    click.option("--to", "phi_to", type=ANGLE_DEG, default=None, help="Last crank angle [deg] (default 360, excluded when a full turn)."),
+    click.option(
+        "--to",
+        "phi_to",
+        type=ANGLE_DEG,
+        default=None,
+        help="Last crank angle [deg] (default 360, excluded when a full turn).",
+    ),
     click.option("--step", "phi_step", type=STEP_DEG, default=None, help="Crank angle step [deg] (default 30)."),
 )
 
 
-def crank_angles_deg(phi: float | None, phi_from: float | None, phi_to: float | None, phi_step: float | None) -> np.ndarray:
+def crank_angles_deg(
+    phi: float | None, phi_from: float | None, phi_to: float | None, phi_step: float | None
+) -> np.ndarray:
     """Crank angles in degrees from ``--phi`` or ``--from/--to/--step`` (default 0..330 by 30).
 
     ``--to`` is included unless the range is a whole number of turns (its end repeats its start).
@@ -198,8 +215,14 @@ speed_options = _stack(
     click.option("--rpm", type=SPEED, default=None, help="Crank speed [rev/min] (default 60)."),
     click.option("--omega", type=SPEED, default=None, help="Crank speed [rad/s]."),
     click.option("--cw", is_flag=True, help="Crank turns clockwise (default counter-clockwise)."),
-    click.option("--alpha", "crank_alpha", type=ACCELERATION, default=0.0, show_default=True,
-                 help="Crank angular acceleration [rad/s^2], signed like the speed."),
+    click.option(
+        "--alpha",
+        "crank_alpha",
+        type=ACCELERATION,
+        default=0.0,
+        show_default=True,
+        help="Crank angular acceleration [rad/s^2], signed like the speed.",
+    ),
 )
 
 
@@ -316,14 +339,27 @@ def _unit_name(ctx, param, value: str | None) -> str | None:
 
 
 #: The length unit's name: labels, and the DXF's ``$INSUNITS`` (report.dxf.INSUNITS).
-units_option = click.option("--units", default="mm", show_default=True, callback=_unit_name,
-                            help="Name of the length unit (labels; mm, cm, m, in, ft … also set the DXF's units).")
+units_option = click.option(
+    "--units",
+    default="mm",
+    show_default=True,
+    callback=_unit_name,
+    help="Name of the length unit (labels; mm, cm, m, in, ft … also set the DXF's units).",
+)
 
 output_options = _stack(
     click.option("--json", "as_json", is_flag=True, help="Print one JSON document instead of the table."),
-    click.option("--plot", type=click.Path(dir_okay=False), callback=writable_file(".png", ".svg"),
-                 help="Write the motion diagrams (displacement, velocity, acceleration) to FILE.png|.svg."),
-    click.option("--draw", type=click.Path(dir_okay=False), callback=writable_file(".svg", ".png"),
-                 help="Draw the mechanism at the first crank angle to FILE.svg."),
+    click.option(
+        "--plot",
+        type=click.Path(dir_okay=False),
+        callback=writable_file(".png", ".svg"),
+        help="Write the motion diagrams (displacement, velocity, acceleration) to FILE.png|.svg.",
+    ),
+    click.option(
+        "--draw",
+        type=click.Path(dir_okay=False),
+        callback=writable_file(".svg", ".png"),
+        help="Draw the mechanism at the first crank angle to FILE.svg.",
+    ),
     units_option,
 )

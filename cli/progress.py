@@ -143,9 +143,17 @@ class Progress:
 
         fmt = None if self._total else "{desc} {elapsed}{postfix}"
         # leave=False: a part's line is wiped when it ends, the results print on a clean line
-        self._bar = tqdm(total=self._total, desc=self._text or self.job, unit=f" {self._unit}" if self._unit else "it",
-                         unit_scale=(self._total or 0) >= 10_000, file=sys.stderr, dynamic_ncols=True, bar_format=fmt,
-                         initial=self._done, leave=False)
+        self._bar = tqdm(
+            total=self._total,
+            desc=self._text or self.job,
+            unit=f" {self._unit}" if self._unit else "it",
+            unit_scale=(self._total or 0) >= 10_000,
+            file=sys.stderr,
+            dynamic_ncols=True,
+            bar_format=fmt,
+            initial=self._done,
+            leave=False,
+        )
         self._bar.start_t -= time.monotonic() - self._stage_start  # its clock counts from the part's start
         self._draw()
 
@@ -186,8 +194,11 @@ class _Feed:
 
     def __init__(self, show: bool | None = None, *, progress: Progress | None = None) -> None:
         self._own = progress is None
-        self.progress = progress if progress is not None else Progress(
-            self.job, terminal=None if show is None else bool(show), log=show is None)
+        self.progress = (
+            progress
+            if progress is not None
+            else Progress(self.job, terminal=None if show is None else bool(show), log=show is None)
+        )
 
     def close(self) -> None:
         if self._own:

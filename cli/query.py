@@ -26,8 +26,20 @@ from synth.kinds import OutputKind
 from synth.query import SAMPLES, QueryResult, RebuildError
 from synth.query.candidates import OUTPUTS, Request
 
-__all__ = ["BAD_INPUT", "FOUND", "NONE_FOUND", "answer", "answer_tightest", "band_search_json", "no_match_json", "no_match_message", "query", "rebuild",
-           "request_from_options", "table"]
+__all__ = [
+    "BAD_INPUT",
+    "FOUND",
+    "NONE_FOUND",
+    "answer",
+    "answer_tightest",
+    "band_search_json",
+    "no_match_json",
+    "no_match_message",
+    "query",
+    "rebuild",
+    "request_from_options",
+    "table",
+]
 
 _DEFAULTS = {f.name: f.default for f in dataclasses.fields(Request)}
 
@@ -52,8 +64,9 @@ def answer(engine, request: Request, *, progress: bool | None = False, workers: 
     raise_malloc_thresholds()
     with Progress("query", terminal=progress, log=progress is None and request.complete) as shown:
         shown.stage("answering the request")
-        result = answer_(request, AtlasSource(engine), on_progress=SearchBar(progress=shown),
-                         map_batches=batch_map(workers))
+        result = answer_(
+            request, AtlasSource(engine), on_progress=SearchBar(progress=shown), map_batches=batch_map(workers)
+        )
     _settle_heap()
     return result
 
@@ -86,9 +99,12 @@ def batch_map(workers: int):
 
 #: ``--workers`` of the complete search (``dwell query``, ``dwell bench coverage``).
 workers_option = click.option(
-    "--workers", type=click.IntRange(min=1), default=None,
+    "--workers",
+    type=click.IntRange(min=1),
+    default=None,
     help=f"Worker processes of a complete search (default: all CPUs, here {default_workers()}); "
-         "the sampled query runs in one.")
+    "the sampled query runs in one.",
+)
 
 
 def rebuild(engine, ids: list[str], request: Request):
@@ -103,25 +119,55 @@ def rebuild(engine, ids: list[str], request: Request):
         raise InputError(str(exc)) from None
 
 
-def request_from_options(dwell: float, dwell_tol: float | None = None, swing: float | None = None,
-                         swing_tol: float | None = None, output: str | None = None, dwells: int | None = None,
-                         band: float | None = None, crank: float | None = None,
-                         min_transmission: float | None = None, max_link_ratio: float | None = None,
-                         top: int | None = None, *, min_arm: float | None = None, min_clearance: float | None = None,
-                         rpm: float | None = None, max_accel: float | None = None,
-                         step: float | None = None, refine: bool | None = None,
-                         complete: bool | None = None, tolerance: float | None = None) -> Request:
+def request_from_options(
+    dwell: float,
+    dwell_tol: float | None = None,
+    swing: float | None = None,
+    swing_tol: float | None = None,
+    output: str | None = None,
+    dwells: int | None = None,
+    band: float | None = None,
+    crank: float | None = None,
+    min_transmission: float | None = None,
+    max_link_ratio: float | None = None,
+    top: int | None = None,
+    *,
+    min_arm: float | None = None,
+    min_clearance: float | None = None,
+    rpm: float | None = None,
+    max_accel: float | None = None,
+    step: float | None = None,
+    refine: bool | None = None,
+    complete: bool | None = None,
+    tolerance: float | None = None,
+) -> Request:
     """A :class:`Request` from the command's units (degrees); None takes the field's default.
     A bad value is the user's error (one line naming the option)."""
     # the deviation window must hold at least two samples of the simulation's crank grid
     if math.isfinite(dwell) and 0 < dwell < 720.0 / SAMPLES:
-        raise InputError(f"--dwell must be at least {720.0 / SAMPLES:g}° (the simulation samples the turn "
-                         f"every {360.0 / SAMPLES:g}°), got {dwell:g}")
-    given = {"dwell": math.radians(dwell), "dwell_tol": _rad(dwell_tol), "swing": _rad(swing),
-             "swing_tol": _rad(swing_tol), "output": output, "dwells": dwells, "band": _rad(band),
-             "crank": crank, "min_transmission": _rad(min_transmission), "max_link_ratio": max_link_ratio, "top": top,
-             "min_arm": min_arm, "min_clearance": min_clearance, "rpm": rpm, "refine": refine, "complete": complete,
-             "tolerance": tolerance}
+        raise InputError(
+            f"--dwell must be at least {720.0 / SAMPLES:g}° (the simulation samples the turn "
+            f"every {360.0 / SAMPLES:g}°), got {dwell:g}"
+        )
+    given = {
+        "dwell": math.radians(dwell),
+        "dwell_tol": _rad(dwell_tol),
+        "swing": _rad(swing),
+        "swing_tol": _rad(swing_tol),
+        "output": output,
+        "dwells": dwells,
+        "band": _rad(band),
+        "crank": crank,
+        "min_transmission": _rad(min_transmission),
+        "max_link_ratio": max_link_ratio,
+        "top": top,
+        "min_arm": min_arm,
+        "min_clearance": min_clearance,
+        "rpm": rpm,
+        "refine": refine,
+        "complete": complete,
+        "tolerance": tolerance,
+    }
     if max_accel is not None:
         given["max_accel"] = max_accel
     if step is not None:
@@ -144,16 +190,24 @@ def _sixbar_text(sb) -> str:
 def _refined_note(result: QueryResult) -> str:
     """``; 6 of 7 refined (0.37 s)`` for the table's head ('' without refinement)."""
     tried, better = result.refined
-    moved = (f"; {result.reseated} with the output pivot moved off the fitted one "
-             f"({result.seconds.get('reseat', 0.0):.2f} s)") if result.reseated else ""
+    moved = (
+        (
+            f"; {result.reseated} with the output pivot moved off the fitted one "
+            f"({result.seconds.get('reseat', 0.0):.2f} s)"
+        )
+        if result.reseated
+        else ""
+    )
     if not tried:
         return moved
     seconds = result.seconds.get("refine", 0.0)
     if result.from_misses:
         return f"; nothing in the atlas met the request: {better} of its {tried} nearest misses refined to meet it ({seconds:.2f} s)"
     if result.misses_met:
-        return (f"{moved}; {better} of {tried} refined, {result.misses_met} of the six-bars near misses refined to meet "
-                f"the request ({seconds:.2f} s)")
+        return (
+            f"{moved}; {better} of {tried} refined, {result.misses_met} of the six-bars near misses refined to meet "
+            f"the request ({seconds:.2f} s)"
+        )
     return f"{moved}; {better} of {tried} refined ({seconds:.2f} s)"
 
 
@@ -177,8 +231,13 @@ def refinement_json(result: QueryResult) -> dict | None:
     if not result.request.refine:
         return None
     tried, better = result.refined
-    return {"sixbars_refined": tried, "sixbars_improved": better, "from_nearest_misses": result.from_misses,
-            "near_misses_met": result.misses_met, "pivots_moved": result.reseated}
+    return {
+        "sixbars_refined": tried,
+        "sixbars_improved": better,
+        "from_nearest_misses": result.from_misses,
+        "near_misses_met": result.misses_met,
+        "pivots_moved": result.reseated,
+    }
 
 
 def _searched(result: QueryResult) -> str:
@@ -197,17 +256,23 @@ def table(result: QueryResult, units: str = "", *, wide: bool = False) -> str:
     legend: the default's 120 columns (:func:`report.query_table.short_table`), or with
     ``wide`` every column and the full ids."""
     req = result.request
-    head = (f"{len(result.candidates)} six-bar(s) for {req.dwells} dwell(s) of {math.degrees(req.dwell):g}° ± "
-            f"{math.degrees(req.dwell_tol):g}°" + ("" if req.swing is None else f", swing {math.degrees(req.swing):g}°")
-            + f" (output band {math.degrees(req.band):g}°; {_searched(result)}, {result.simulated} simulated"
-            + _refined_note(result) + ")")
+    head = (
+        f"{len(result.candidates)} six-bar(s) for {req.dwells} dwell(s) of {math.degrees(req.dwell):g}° ± "
+        f"{math.degrees(req.dwell_tol):g}°"
+        + ("" if req.swing is None else f", swing {math.degrees(req.swing):g}°")
+        + f" (output band {math.degrees(req.band):g}°; {_searched(result)}, {result.simulated} simulated"
+        + _refined_note(result)
+        + ")"
+    )
     if not wide:
         return short_table(result.candidates, req, head, units)
     lines = [head]
     width = max([26] + [len(c.id) for c in result.candidates])
     tol = f" {'tol dev °':>9}" if req.tolerance > 0 else ""
-    cols = (f"{'rank':>4}  {'id':<{width}} {'out':<3} {'dwell °':>15} {'dev °':>7}{tol} {'swing °':>8} {'μ4 °':>6} {'μout °':>6} "
-            f"{'ratio':>6} {'arm':>7} {'clear':>7} {'α rad/s²':>9}  {'refined: dwell, dev °':<28} six-bar")
+    cols = (
+        f"{'rank':>4}  {'id':<{width}} {'out':<3} {'dwell °':>15} {'dev °':>7}{tol} {'swing °':>8} {'μ4 °':>6} {'μout °':>6} "
+        f"{'ratio':>6} {'arm':>7} {'clear':>7} {'α rad/s²':>9}  {'refined: dwell, dev °':<28} six-bar"
+    )
     lines.append(cols)
     for c in result.candidates:
         f, sb = c.figures, c.sixbar
@@ -229,16 +294,30 @@ def table(result: QueryResult, units: str = "", *, wide: bool = False) -> str:
     unit = units or "your unit"
     legend = [("dev", "output deviation over the requested dwell")]
     if req.tolerance > 0:
-        legend.append(("tol dev", f"95th percentile of dev over 256 six-bars made within ±{req.tolerance:g} {unit} "
-                                  "of each length and pivot coordinate, the ranking's deviation (fails: more than 5 % "
-                                  "of them do not assemble)"))
-    legend += [("μ4, μout", "smallest transmission angles (four-bar, output dyad; a slotted rocker's is 90°)"),
-               ("arm", "slider to slot pivot (RPR)"), ("clear", "smallest clearance to a fixed pivot"),
-               ("α", f"peak output acceleration at {req.rpm:g} rpm"),
-               ("refined", "the dwell and dev before → after refinement (-: kept as retrieved; an id after ~ holds "
-                           "the refined dimensions)"),
-               ("six-bar", f"a b c d (crank, coupler, rocker, ground), P = coupler point (u, v) in the coupler frame, "
-                           f"D = output pivot, RRR rocker L and rod ρ; lengths in {unit} (crank = {req.crank:g})")]
+        legend.append(
+            (
+                "tol dev",
+                f"95th percentile of dev over 256 six-bars made within ±{req.tolerance:g} {unit} "
+                "of each length and pivot coordinate, the ranking's deviation (fails: more than 5 % "
+                "of them do not assemble)",
+            )
+        )
+    legend += [
+        ("μ4, μout", "smallest transmission angles (four-bar, output dyad; a slotted rocker's is 90°)"),
+        ("arm", "slider to slot pivot (RPR)"),
+        ("clear", "smallest clearance to a fixed pivot"),
+        ("α", f"peak output acceleration at {req.rpm:g} rpm"),
+        (
+            "refined",
+            "the dwell and dev before → after refinement (-: kept as retrieved; an id after ~ holds "
+            "the refined dimensions)",
+        ),
+        (
+            "six-bar",
+            f"a b c d (crank, coupler, rocker, ground), P = coupler point (u, v) in the coupler frame, "
+            f"D = output pivot, RRR rocker L and rod ρ; lengths in {unit} (crank = {req.crank:g})",
+        ),
+    ]
     lines += legend_lines(legend)
     return "\n".join(lines)
 
@@ -250,8 +329,9 @@ def answer_tightest(engine, request: Request, *, workers: int = 1):
     from db.queries import AtlasSource
     from synth.query.band_search import answer_tightest as answer_tightest_
 
-    return answer_tightest_(request, AtlasSource(engine),
-                            answer_at=lambda r: answer(engine, r, progress=None, workers=workers))
+    return answer_tightest_(
+        request, AtlasSource(engine), answer_at=lambda r: answer(engine, r, progress=None, workers=workers)
+    )
 
 
 def tighter_band(engine, result: QueryResult):
@@ -269,12 +349,20 @@ def band_search_json(searched) -> dict:
     from synth.query.band_search import REFERENCE_BAND
 
     req = searched.result.request
-    return {"band_deg": math.degrees(searched.band), "settled": searched.settled,
-            "reference_band_deg": math.degrees(REFERENCE_BAND),
-            "probes": [{"band_deg": math.degrees(p.band), "met": p.met} for p in searched.probes],
-            "candidates": [{"id": c.id, "dwell_deg": [math.degrees(d.angle) for d in c.figures.dwells[: req.dwells]],
-                            "reference_dwell_deg": [math.degrees(x) for x in ref]}
-                           for c, ref in zip(searched.result.candidates, searched.reference_dwells)]}
+    return {
+        "band_deg": math.degrees(searched.band),
+        "settled": searched.settled,
+        "reference_band_deg": math.degrees(REFERENCE_BAND),
+        "probes": [{"band_deg": math.degrees(p.band), "met": p.met} for p in searched.probes],
+        "candidates": [
+            {
+                "id": c.id,
+                "dwell_deg": [math.degrees(d.angle) for d in c.figures.dwells[: req.dwells]],
+                "reference_dwell_deg": [math.degrees(x) for x in ref],
+            }
+            for c, ref in zip(searched.result.candidates, searched.reference_dwells)
+        ],
+    }
 
 
 def band_search_text(searched) -> str:
@@ -285,11 +373,15 @@ def band_search_text(searched) -> str:
     req = searched.result.request
     ref = f"{math.degrees(REFERENCE_BAND):g}°"
     if searched.settled:
-        head = (f"band auto: {math.degrees(searched.band):.3g}°, the tightest at which {needed(req)} six-bars of the "
-                f"sample meet the request unrefined ({len(searched.probes)} probes)")
+        head = (
+            f"band auto: {math.degrees(searched.band):.3g}°, the tightest at which {needed(req)} six-bars of the "
+            f"sample meet the request unrefined ({len(searched.probes)} probes)"
+        )
     else:
-        head = (f"band auto: no band down to 1e-4° holds {needed(req)} six-bars of the unrefined sample; "
-                f"answered at {math.degrees(searched.band):g}° ({len(searched.probes)} probes)")
+        head = (
+            f"band auto: no band down to 1e-4° holds {needed(req)} six-bars of the unrefined sample; "
+            f"answered at {math.degrees(searched.band):g}° ({len(searched.probes)} probes)"
+        )
     lines = [head]
     for c, dwells in zip(searched.result.candidates, searched.reference_dwells):
         here = "/".join(f"{math.degrees(d.angle):.2f}°" for d in c.figures.dwells[: req.dwells])
@@ -300,26 +392,42 @@ def band_search_text(searched) -> str:
 
 def tighter_text(tighter, request: Request) -> str:
     """The one line a query at the default band adds when a tighter band also answers it."""
-    return (f"dwell: a stiller rest exists: {tighter.met} six-bars also meet the request within a "
-            f"{math.degrees(tighter.band):g}° band (--band {math.degrees(tighter.band):g}, or --band auto "
-            f"for the tightest)")
+    return (
+        f"dwell: a stiller rest exists: {tighter.met} six-bars also meet the request within a "
+        f"{math.degrees(tighter.band):g}° band (--band {math.degrees(tighter.band):g}, or --band auto "
+        f"for the tightest)"
+    )
 
 
 #: How a no-match names each constraint (synth.query.CONSTRAINTS).
-_CONSTRAINT_NAMES = {"assembly": "assembly (toggles, revolves or misses a dwell)", "dwell": "dwell angle",
-                     "swing": "swing", "step": "step between the rests (--step)", "transmission": "transmission angle", "link_ratio": "link ratio",
-                     "arm": "slider's torque arm (--min-arm)", "clearance": "clearance to the fixed pivots",
-                     "acceleration": "output acceleration"}
+_CONSTRAINT_NAMES = {
+    "assembly": "assembly (toggles, revolves or misses a dwell)",
+    "dwell": "dwell angle",
+    "swing": "swing",
+    "step": "step between the rests (--step)",
+    "transmission": "transmission angle",
+    "link_ratio": "link ratio",
+    "arm": "slider's torque arm (--min-arm)",
+    "clearance": "clearance to the fixed pivots",
+    "acceleration": "output acceleration",
+}
 
 
 def _options_changed(before: Request, after: Request) -> str:
     """The ``dwell query`` options that turn ``before`` into ``after``."""
     out = []
-    for name, option, deg in (("dwell", "--dwell", True), ("dwell_tol", "--dwell-tol", True),
-                              ("swing", "--swing", True), ("swing_tol", "--swing-tol", True), ("step", "--step", True),
-                              ("min_transmission", "--min-transmission", True),
-                              ("max_link_ratio", "--max-link-ratio", False), ("min_arm", "--min-arm", False),
-                              ("min_clearance", "--min-clearance", False), ("max_accel", "--max-accel", False)):
+    for name, option, deg in (
+        ("dwell", "--dwell", True),
+        ("dwell_tol", "--dwell-tol", True),
+        ("swing", "--swing", True),
+        ("swing_tol", "--swing-tol", True),
+        ("step", "--step", True),
+        ("min_transmission", "--min-transmission", True),
+        ("max_link_ratio", "--max-link-ratio", False),
+        ("min_arm", "--min-arm", False),
+        ("min_clearance", "--min-clearance", False),
+        ("max_accel", "--max-accel", False),
+    ):
         old, new = getattr(before, name), getattr(after, name)
         if new != old and new is not None:
             out.append(f"{option} {round(math.degrees(new) if deg else new, 3):g}")
@@ -330,8 +438,10 @@ def _figures_line(c, req: Request) -> str:
     f = c.figures
     dw = "/".join(f"{math.degrees(d.angle):.2f}°" for d in f.dwells[: req.dwells])
     mu = math.degrees(min(f.transmission_fourbar, f.transmission_output))
-    return (f"{c.id}: {c.sixbar.dyad.kind}, dwell {dw}, swing {math.degrees(f.swing):.2f}°, "
-            f"transmission {mu:.1f}°, link ratio {f.link_ratio:.2f}")
+    return (
+        f"{c.id}: {c.sixbar.dyad.kind}, dwell {dw}, swing {math.degrees(f.swing):.2f}°, "
+        f"transmission {mu:.1f}°, link ratio {f.link_ratio:.2f}"
+    )
 
 
 def no_match_message(result: QueryResult) -> str:
@@ -342,8 +452,10 @@ def no_match_message(result: QueryResult) -> str:
     nm = result.no_match
     if nm is not None and nm.fitted:
         counts = ", ".join(f"{_CONSTRAINT_NAMES[k]} {n}" for k, n in nm.rejected.items() if n)
-        lines = [f"{head}; the {_CONSTRAINT_NAMES[nm.failed]} failed most: of {nm.fitted} fitted six-bars, "
-                 f"rejected by {counts}"]
+        lines = [
+            f"{head}; the {_CONSTRAINT_NAMES[nm.failed]} failed most: of {nm.fitted} fitted six-bars, "
+            f"rejected by {counts}"
+        ]
         if nm.nearest is not None:
             lines.append(f"  nearest: {_figures_line(nm.nearest, req)}")
             change = _options_changed(req, nm.would_meet)
@@ -357,13 +469,24 @@ def no_match_message(result: QueryResult) -> str:
     near = [x for x in (below, above) if x is not None]
     if near and min(abs(x - req.dwell) for x in near) <= req.dwell_tol:
         # segments of that dwell exist: it is the dyads that fail the swing or the constraints
-        return "\n".join([f"{head}; the atlas holds segments of that dwell, but no output dyad fits them: try a larger "
-                          f"--max-link-ratio (now {req.max_link_ratio:g}), a lower --min-transmission "
-                          f"(now {math.degrees(req.min_transmission):g}°) or another --swing", *_in_the_way(nm)])
+        return "\n".join(
+            [
+                f"{head}; the atlas holds segments of that dwell, but no output dyad fits them: try a larger "
+                f"--max-link-ratio (now {req.max_link_ratio:g}), a lower --min-transmission "
+                f"(now {math.degrees(req.min_transmission):g}°) or another --swing",
+                *_in_the_way(nm),
+            ]
+        )
     hint = " and ".join(f"{math.degrees(x):.1f}°" for x in near)
-    return "\n".join([f"{head}; " + (f"the closest dwells the atlas holds are {hint}: " if near else "")
-                      + "try a wider --dwell-tol (the error allowed on the dwell angle) or a larger atlas; a wider "
-                        "--band would count a less still output as a dwell", *_in_the_way(nm)])
+    return "\n".join(
+        [
+            f"{head}; "
+            + (f"the closest dwells the atlas holds are {hint}: " if near else "")
+            + "try a wider --dwell-tol (the error allowed on the dwell angle) or a larger atlas; a wider "
+            "--band would count a less still output as a dwell",
+            *_in_the_way(nm),
+        ]
+    )
 
 
 def _in_the_way(nm) -> list[str]:
@@ -372,9 +495,13 @@ def _in_the_way(nm) -> list[str]:
         return []
     key, best, limit = nm.reach
     unit = {"link_ratio": "", "acceleration": " rad/s²", "arm": " cranks", "clearance": " cranks"}.get(key, "°")
-    where = "the stored four-bars near the request" if not nm.fitted else "the fitted six-bars meeting every other limit"
-    return [f"  in the way: the {_CONSTRAINT_NAMES[key]} alone; the best of {where} is {best:.4g}{unit} "
-            f"(asked {limit:.4g}{unit})"]
+    where = (
+        "the stored four-bars near the request" if not nm.fitted else "the fitted six-bars meeting every other limit"
+    )
+    return [
+        f"  in the way: the {_CONSTRAINT_NAMES[key]} alone; the best of {where} is {best:.4g}{unit} "
+        f"(asked {limit:.4g}{unit})"
+    ]
 
 
 def no_match_json(result: QueryResult, units: str = "mm") -> dict:
@@ -422,73 +549,202 @@ TOP = Count(1, 1000, "candidates")
 FOUND, NONE_FOUND, BAD_INPUT = 0, 1, 2
 
 
-@click.command("query", epilog=f"Exit status: {FOUND} if six-bars were found, {NONE_FOUND} if none meets the request "
-               f"(why, on stderr; with --json, the no_match object on stdout), {BAD_INPUT} for bad input "
-               "(an option, a value or the atlas).")
-@click.option("--db", "target", required=True, envvar="DWELL_ATLAS", show_envvar=True, metavar="PATH|URL",
-              help="Atlas: SQLite file path or SQLAlchemy URL.")
+@click.command(
+    "query",
+    epilog=f"Exit status: {FOUND} if six-bars were found, {NONE_FOUND} if none meets the request "
+    f"(why, on stderr; with --json, the no_match object on stdout), {BAD_INPUT} for bad input "
+    "(an option, a value or the atlas).",
+)
+@click.option(
+    "--db",
+    "target",
+    required=True,
+    envvar="DWELL_ATLAS",
+    show_envvar=True,
+    metavar="PATH|URL",
+    help="Atlas: SQLite file path or SQLAlchemy URL.",
+)
 @click.option("--dwell", type=DWELL_DEG, required=True, help="Dwell angle (degrees of crank rotation).")
-@click.option("--dwell-tol", type=DWELL_TOL_DEG, default=default_deg("dwell_tol"), show_default=True,
-              help="Allowed dwell-angle error (°).")
-@click.option("--swing", type=SWING_DEG, default=None,
-              help="Output swing (°): the output's whole swing, max − min over the turn; required, for one dwell "
-                   "and for two.")
-@click.option("--step", type=STEP_DEG, default=None,
-              help="Two dwells: the output's turn (°) between its two rests, ±--swing-tol (at most the swing). "
-                   "Two rests count as two only if the crank turns ≥ 5° and the output leaves both rests' "
-                   "bands by ≥ --swing-tol between them, each way round.")
-@click.option("--swing-tol", type=SWING_TOL_DEG, default=default_deg("swing_tol"), show_default=True,
-              help="Allowed swing error (°).")
-@click.option("--output", type=click.Choice(OUTPUTS, case_sensitive=False), default=_DEFAULTS["output"],
-              show_default=True, help="Output dyad.")
-@click.option("--dwells", type=Count(1, 2, "dwells per turn"), default=_DEFAULTS["dwells"], show_default=True,
-              help="Dwells per turn: 1, or 2 (double Ball point, RPR).")
-@click.option("--band", type=BAND_OR_AUTO, default=default_deg("band"), show_default=True,
-              help="Total width (°) of the output band that counts as a dwell (not --dwell-tol, the error "
-                   "allowed on the dwell angle); auto: the tightest band (down to 1e-4°) at which at least "
-                   "min(--top, 3) six-bars meet the request (docs/query.md).")
-@click.option("--crank", type=LENGTH, default=_DEFAULTS["crank"], show_default=True,
-              help="Crank length (your unit).")
-@click.option("--min-transmission", type=TRANSMISSION_RANGE, default=default_deg("min_transmission"),
-              show_default=True, help="Smallest transmission angle (°).")
-@click.option("--max-link-ratio", type=LINK_RATIO, default=_DEFAULTS["max_link_ratio"], show_default=True,
-              help="Largest link ratio: the longest link over the shortest, every link counted — crank, "
-                   "rocker, ground, the coupler as the plate it is (A-B, A-P and B-P, P the coupler point) "
-                   "and the output dyad's (RRR rocker and rod; RPR the slot's reach, the slider's farthest "
-                   "distance from its pivot).")
+@click.option(
+    "--dwell-tol",
+    type=DWELL_TOL_DEG,
+    default=default_deg("dwell_tol"),
+    show_default=True,
+    help="Allowed dwell-angle error (°).",
+)
+@click.option(
+    "--swing",
+    type=SWING_DEG,
+    default=None,
+    help="Output swing (°): the output's whole swing, max − min over the turn; required, for one dwell and for two.",
+)
+@click.option(
+    "--step",
+    type=STEP_DEG,
+    default=None,
+    help="Two dwells: the output's turn (°) between its two rests, ±--swing-tol (at most the swing). "
+    "Two rests count as two only if the crank turns ≥ 5° and the output leaves both rests' "
+    "bands by ≥ --swing-tol between them, each way round.",
+)
+@click.option(
+    "--swing-tol",
+    type=SWING_TOL_DEG,
+    default=default_deg("swing_tol"),
+    show_default=True,
+    help="Allowed swing error (°).",
+)
+@click.option(
+    "--output",
+    type=click.Choice(OUTPUTS, case_sensitive=False),
+    default=_DEFAULTS["output"],
+    show_default=True,
+    help="Output dyad.",
+)
+@click.option(
+    "--dwells",
+    type=Count(1, 2, "dwells per turn"),
+    default=_DEFAULTS["dwells"],
+    show_default=True,
+    help="Dwells per turn: 1, or 2 (double Ball point, RPR).",
+)
+@click.option(
+    "--band",
+    type=BAND_OR_AUTO,
+    default=default_deg("band"),
+    show_default=True,
+    help="Total width (°) of the output band that counts as a dwell (not --dwell-tol, the error "
+    "allowed on the dwell angle); auto: the tightest band (down to 1e-4°) at which at least "
+    "min(--top, 3) six-bars meet the request (docs/query.md).",
+)
+@click.option("--crank", type=LENGTH, default=_DEFAULTS["crank"], show_default=True, help="Crank length (your unit).")
+@click.option(
+    "--min-transmission",
+    type=TRANSMISSION_RANGE,
+    default=default_deg("min_transmission"),
+    show_default=True,
+    help="Smallest transmission angle (°).",
+)
+@click.option(
+    "--max-link-ratio",
+    type=LINK_RATIO,
+    default=_DEFAULTS["max_link_ratio"],
+    show_default=True,
+    help="Largest link ratio: the longest link over the shortest, every link counted — crank, "
+    "rocker, ground, the coupler as the plate it is (A-B, A-P and B-P, P the coupler point) "
+    "and the output dyad's (RRR rocker and rod; RPR the slot's reach, the slider's farthest "
+    "distance from its pivot).",
+)
 @click.option("--top", type=TOP, default=_DEFAULTS["top"], show_default=True, help="Candidates returned.")
-@click.option("--min-arm", type=CRANKS, default=_DEFAULTS["min_arm"], show_default=True,
-              help="Smallest distance of an RPR slider from its slot pivot over the turn (crank lengths).")
-@click.option("--min-clearance", type=CRANKS, default=_DEFAULTS["min_clearance"], show_default=True,
-              help="Smallest distance of a moving joint or output link from a fixed pivot (crank lengths).")
-@click.option("--tolerance", type=LENGTH, default=None, metavar="LEN",
-              help="Manufacturing tolerance (your unit, like --crank): also rank by the output deviation "
-                   "95 % of six-bars made within ±LEN of every length and pivot coordinate keep.")
-@click.option("--rpm", type=RPM, default=_DEFAULTS["rpm"], show_default=True,
-              help="Crank speed for the output's peak velocity, acceleration and jerk (rev/min).")
+@click.option(
+    "--min-arm",
+    type=CRANKS,
+    default=_DEFAULTS["min_arm"],
+    show_default=True,
+    help="Smallest distance of an RPR slider from its slot pivot over the turn (crank lengths).",
+)
+@click.option(
+    "--min-clearance",
+    type=CRANKS,
+    default=_DEFAULTS["min_clearance"],
+    show_default=True,
+    help="Smallest distance of a moving joint or output link from a fixed pivot (crank lengths).",
+)
+@click.option(
+    "--tolerance",
+    type=LENGTH,
+    default=None,
+    metavar="LEN",
+    help="Manufacturing tolerance (your unit, like --crank): also rank by the output deviation "
+    "95 % of six-bars made within ±LEN of every length and pivot coordinate keep.",
+)
+@click.option(
+    "--rpm",
+    type=RPM,
+    default=_DEFAULTS["rpm"],
+    show_default=True,
+    help="Crank speed for the output's peak velocity, acceleration and jerk (rev/min).",
+)
 @click.option("--max-accel", type=ACCEL_LIMIT, default=None, help="Largest peak output acceleration (rad/s²) at --rpm.")
-@click.option("--refine/--no-refine", default=_DEFAULTS["refine"], show_default=True,
-              help="Refine the returned six-bars (and, when nothing meets the request, the nearest misses) by a "
-                   "local optimisation with exact simulation in the loop.")
-@click.option("--complete/--sampled", default=_DEFAULTS["complete"], show_default=True,
-              help="Search every stored segment at every tolerance level (every six-bar the atlas yields; "
-                   "seconds to minutes, with a progress bar) instead of the segments nearest the request.")
+@click.option(
+    "--refine/--no-refine",
+    default=_DEFAULTS["refine"],
+    show_default=True,
+    help="Refine the returned six-bars (and, when nothing meets the request, the nearest misses) by a "
+    "local optimisation with exact simulation in the loop.",
+)
+@click.option(
+    "--complete/--sampled",
+    default=_DEFAULTS["complete"],
+    show_default=True,
+    help="Search every stored segment at every tolerance level (every six-bar the atlas yields; "
+    "seconds to minutes, with a progress bar) instead of the segments nearest the request.",
+)
 @workers_option
 @click.option("--json", "as_json", is_flag=True, help="JSON on stdout instead of a table.")
-@click.option("--wide", is_flag=True, help="Every column of the table and the full ids (the default table fits 120 "
-                                           "columns and shows short ids, which dwell report also takes).")
-@click.option("--report", "report_dir", type=click.Path(file_okay=False), default=None,
-              help="Also write the report of the candidates to this folder.")
+@click.option(
+    "--wide",
+    is_flag=True,
+    help="Every column of the table and the full ids (the default table fits 120 "
+    "columns and shows short ids, which dwell report also takes).",
+)
+@click.option(
+    "--report",
+    "report_dir",
+    type=click.Path(file_okay=False),
+    default=None,
+    help="Also write the report of the candidates to this folder.",
+)
 @units_option
-def query(target, dwell, dwell_tol, swing, step, swing_tol, output, dwells, band, crank, min_transmission,
-          max_link_ratio, top, min_arm, min_clearance, tolerance, rpm, max_accel, refine, complete, workers, as_json,
-          wide, report_dir, units):
+def query(
+    target,
+    dwell,
+    dwell_tol,
+    swing,
+    step,
+    swing_tol,
+    output,
+    dwells,
+    band,
+    crank,
+    min_transmission,
+    max_link_ratio,
+    top,
+    min_arm,
+    min_clearance,
+    tolerance,
+    rpm,
+    max_accel,
+    refine,
+    complete,
+    workers,
+    as_json,
+    wide,
+    report_dir,
+    units,
+):
     """Ranked six-bars for a requested dwell and swing (docs/query.md)."""
     auto = band == AUTO
-    request = request_from_options(dwell, dwell_tol, swing, swing_tol, output.lower(), dwells, None if auto else band, crank,
-                                   min_transmission, max_link_ratio, top, min_arm=min_arm, min_clearance=min_clearance,
-                                   rpm=rpm, max_accel=max_accel, step=step, refine=refine, complete=complete,
-                                   tolerance=tolerance)
+    request = request_from_options(
+        dwell,
+        dwell_tol,
+        swing,
+        swing_tol,
+        output.lower(),
+        dwells,
+        None if auto else band,
+        crank,
+        min_transmission,
+        max_link_ratio,
+        top,
+        min_arm=min_arm,
+        min_clearance=min_clearance,
+        rpm=rpm,
+        max_accel=max_accel,
+        step=step,
+        refine=refine,
+        complete=complete,
+        tolerance=tolerance,
+    )
     if report_dir is not None:
         _check_report_dir(Path(report_dir))
     from db.engine import open_atlas
@@ -502,8 +758,13 @@ def query(target, dwell, dwell_tol, swing, step, swing_tol, output, dwells, band
             searched = None
             result = answer(engine, request, progress=None, workers=workers or default_workers())
         # no --band given: one cheap probe names a stiller rest the atlas holds (docs/query.md)
-        tighter = (tighter_band(engine, result) if searched is None and result.candidates and
-                   click.get_current_context().get_parameter_source("band") is ParameterSource.DEFAULT else None)
+        tighter = (
+            tighter_band(engine, result)
+            if searched is None
+            and result.candidates
+            and click.get_current_context().get_parameter_source("band") is ParameterSource.DEFAULT
+            else None
+        )
     finally:
         engine.dispose()
     if report_dir is not None:
@@ -516,9 +777,11 @@ def query(target, dwell, dwell_tol, swing, step, swing_tol, output, dwells, band
             raise InputError(f"--crank {crank:g}: {exc}; use a smaller --crank (or no --report)") from None
     request = result.request  # with --band auto, at the band reached
     if as_json:
-        doc = {"request": request_json(request, units),
-               "candidates": [candidate_json(c, request.rpm, units) for c in result.candidates],
-               "refinement": refinement_json(result)}
+        doc = {
+            "request": request_json(request, units),
+            "candidates": [candidate_json(c, request.rpm, units) for c in result.candidates],
+            "refinement": refinement_json(result),
+        }
         if searched is not None:
             doc["band_search"] = band_search_json(searched)
         if tighter is not None:
@@ -540,13 +803,17 @@ def query(target, dwell, dwell_tol, swing, step, swing_tol, output, dwells, band
         click.echo(f"dwell: {no_match_message(result)}", err=True)
         click.get_current_context().exit(NONE_FOUND)  # a script tells "none" from "some" (as grep)
     if report_dir is not None and result.candidates:
+        from cli.progress import Progress
         from report.export import write_report
 
-        from cli.progress import Progress
-
         with Progress("query") as shown:  # a line on a terminal once it runs past a second
-            written = write_report(result.candidates, request, Path(report_dir), units=units,
-                                   on_candidate=shown.counter("writing the report", "candidates"))
+            written = write_report(
+                result.candidates,
+                request,
+                Path(report_dir),
+                units=units,
+                on_candidate=shown.counter("writing the report", "candidates"),
+            )
         click.echo(f"report: {len(written)} files in {report_dir}", err=True)
 
 

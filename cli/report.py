@@ -13,12 +13,12 @@ from cli.options import LENGTH, RPM, probe_folder, units_option
 from cli.query import BAND_DEG, DWELL_DEG, TRANSMISSION_RANGE
 from report.escape import terminal
 
-
 #: A candidate id as `dwell query` prints it, in ASCII: <segment>-<rpr|rrr|dbl><slot>.<level>@<swing
 #: or free>, optionally ~<refined dimensions, base64url>. Python's int() and float() would also
 #: take "+12", full-width digits and "4_0" — and the report would echo them as typed.
-_ID = re.compile(r"[0-9]+-(rpr|rrr|dbl)[0-9]+\.[0-9]+@(free|[0-9]+(\.[0-9]+)?([eE]-?[0-9]+)?)(~[A-Za-z0-9_-]+)?",
-                 re.ASCII)
+_ID = re.compile(
+    r"[0-9]+-(rpr|rrr|dbl)[0-9]+\.[0-9]+@(free|[0-9]+(\.[0-9]+)?([eE]-?[0-9]+)?)(~[A-Za-z0-9_-]+)?", re.ASCII
+)
 
 
 def canonical_id(text: str) -> str:
@@ -30,8 +30,10 @@ def canonical_id(text: str) -> str:
 
     text = resolve(text) or text
     if len(text) > 200 or not _ID.fullmatch(text):
-        raise InputError(f"--candidates: {terminal(repr(text[:80]))} is not a candidate id as `dwell query` prints "
-                         "them (e.g. 1234500007-rrr0.1@30)")
+        raise InputError(
+            f"--candidates: {terminal(repr(text[:80]))} is not a candidate id as `dwell query` prints "
+            "them (e.g. 1234500007-rrr0.1@30)"
+        )
     try:
         segment, output, slot, level, swing = parse_candidate_id(text)
     except ValueError as exc:
@@ -42,19 +44,46 @@ def canonical_id(text: str) -> str:
 
 
 @click.command("report")
-@click.option("--db", "target", required=True, envvar="DWELL_ATLAS", show_envvar=True, metavar="PATH|URL",
-              help="Atlas: SQLite file path or SQLAlchemy URL.")
-@click.option("--candidates", "ids", required=True, multiple=True,
-              help="Candidate id(s) from `dwell query`, full or short (repeat the option or separate with spaces).")
+@click.option(
+    "--db",
+    "target",
+    required=True,
+    envvar="DWELL_ATLAS",
+    show_envvar=True,
+    metavar="PATH|URL",
+    help="Atlas: SQLite file path or SQLAlchemy URL.",
+)
+@click.option(
+    "--candidates",
+    "ids",
+    required=True,
+    multiple=True,
+    help="Candidate id(s) from `dwell query`, full or short (repeat the option or separate with spaces).",
+)
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False), help="Folder for the report.")
 @click.option("--dwell", type=DWELL_DEG, default=None, help="Requested dwell (°) for the output deviation window.")
-@click.option("--band", type=BAND_DEG, default=0.1, show_default=True,
-              help="Total width (°) of the output band that counts as a dwell.")
+@click.option(
+    "--band",
+    type=BAND_DEG,
+    default=0.1,
+    show_default=True,
+    help="Total width (°) of the output band that counts as a dwell.",
+)
 @click.option("--crank", type=LENGTH, default=1.0, show_default=True, help="Crank length (your unit).")
-@click.option("--min-transmission", type=TRANSMISSION_RANGE, default=30.0, show_default=True,
-              help="The query's smallest transmission angle (°): RRR fits are rebuilt with it.")
-@click.option("--rpm", type=RPM, default=60.0, show_default=True,
-              help="Crank speed for the output's peak velocity, acceleration and jerk (rev/min).")
+@click.option(
+    "--min-transmission",
+    type=TRANSMISSION_RANGE,
+    default=30.0,
+    show_default=True,
+    help="The query's smallest transmission angle (°): RRR fits are rebuilt with it.",
+)
+@click.option(
+    "--rpm",
+    type=RPM,
+    default=60.0,
+    show_default=True,
+    help="Crank speed for the output's peak velocity, acceleration and jerk (rev/min).",
+)
 @units_option
 @click.argument("more_ids", nargs=-1)
 def report(target, ids, out_dir, dwell, band, crank, min_transmission, rpm, units, more_ids):
@@ -76,8 +105,20 @@ def report(target, ids, out_dir, dwell, band, crank, min_transmission, rpm, unit
         raise InputError(str(exc)) from None
     probe_folder(out, "--out")
     # the deviation window: the requested dwell, or the rebuilt six-bar's own dwell
-    request = request_from_options(dwell if dwell is not None else 60.0, 2.0, 30.0, 0.5, "any", 1, band,
-                                   crank, min_transmission, 1e12, len(names), rpm=rpm)
+    request = request_from_options(
+        dwell if dwell is not None else 60.0,
+        2.0,
+        30.0,
+        0.5,
+        "any",
+        1,
+        band,
+        crank,
+        min_transmission,
+        1e12,
+        len(names),
+        rpm=rpm,
+    )
     from cli.progress import Progress
 
     with Progress("report") as shown:  # a line on a terminal once it runs past a second
@@ -114,6 +155,12 @@ def _report(target, names: list[str], request, out: Path, units: str, crank: flo
         readable_linkages(candidates, units)
     except LinkageFileError as exc:
         raise InputError(f"--crank {crank:g}: {exc}; use a smaller --crank") from None
-    written = write_report(candidates, request, out, option="--out", units=units,  # all files or none (report/folder.py)
-                           on_candidate=shown.counter("writing the report", "candidates"))
+    written = write_report(
+        candidates,
+        request,
+        out,
+        option="--out",
+        units=units,  # all files or none (report/folder.py)
+        on_candidate=shown.counter("writing the report", "candidates"),
+    )
     return candidates, written

@@ -82,19 +82,28 @@ def resolve(text: str, option: str = "--candidates") -> str | None:
     try:
         with open(path, encoding="utf-8", errors="replace") as lines:
             # a line counts only if its short id is its full id's: a damaged line is ignored
-            found = {full for short, _, full in (line.rstrip("\n").partition("\t") for line in lines)
-                     if short == text and _stands_for(full, text)}
+            found = {
+                full
+                for short, _, full in (line.rstrip("\n").partition("\t") for line in lines)
+                if short == text and _stands_for(full, text)
+            }
     except FileNotFoundError:
         found = set()
     except OSError as exc:
-        raise InputError(f"{option}: short id {text} cannot be looked up ({path}: {exc}); give the full id "
-                         "(dwell query --wide or --json shows it)") from None
+        raise InputError(
+            f"{option}: short id {text} cannot be looked up ({path}: {exc}); give the full id "
+            "(dwell query --wide or --json shows it)"
+        ) from None
     if not found:
-        raise InputError(f"{option}: short id {text} is not one dwell query has shown here (or no longer kept in "
-                         f"{terminal(str(path))}); give the full id (dwell query --wide or --json shows it)")
+        raise InputError(
+            f"{option}: short id {text} is not one dwell query has shown here (or no longer kept in "
+            f"{terminal(str(path))}); give the full id (dwell query --wide or --json shows it)"
+        )
     if len(found) > 1:
-        raise InputError(f"{option}: short id {text} is ambiguous: it stands for {len(found)} six-bars "
-                         f"({', '.join(sorted(found))}); give the full id")
+        raise InputError(
+            f"{option}: short id {text} is ambiguous: it stands for {len(found)} six-bars "
+            f"({', '.join(sorted(found))}); give the full id"
+        )
     return found.pop()
 
 
@@ -105,5 +114,8 @@ def remember_shown(candidates: Iterable) -> None:
 
     problem = remember(c.id for c in candidates)
     if problem is not None:
-        click.echo(f"dwell: the short ids cannot be kept for dwell report ({terminal(problem)}); "
-                   "it takes the full ids (--wide or --json)", err=True)
+        click.echo(
+            f"dwell: the short ids cannot be kept for dwell report ({terminal(problem)}); "
+            "it takes the full ids (--wide or --json)",
+            err=True,
+        )

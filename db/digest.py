@@ -55,11 +55,22 @@ from sqlalchemy import Column, Connection, Engine, Float, Integer, select, union
 from db.rows import SEGMENTS_PER_LINKAGE, TableColumns
 from db.schema import Dwell, Linkage, Segment, Shard, dwell_staging
 
-__all__ = ["DIGEST_EXCLUDED", "combine", "content_digest", "rounded_bits", "shard_digest", "shard_digests",
-           "stored_digest"]
+__all__ = [
+    "DIGEST_EXCLUDED",
+    "combine",
+    "content_digest",
+    "rounded_bits",
+    "shard_digest",
+    "shard_digests",
+    "stored_digest",
+]
 
 #: Columns left out of the digest, by table.
-DIGEST_EXCLUDED: dict[str, frozenset[str]] = {"linkage": frozenset({"build_id"}), "segment": frozenset(), "dwell": frozenset()}
+DIGEST_EXCLUDED: dict[str, frozenset[str]] = {
+    "linkage": frozenset({"build_id"}),
+    "segment": frozenset(),
+    "dwell": frozenset(),
+}
 #: The tables digested, in digest order.
 _MODELS = (Linkage, Segment, Dwell)
 
@@ -130,7 +141,9 @@ def _numbers(values: Any, kind: type) -> Any:
     allowed = (int, float, np.integer, np.floating) if kind is float else (int, np.integer)
     bad = next((v for v in values if v is not None and (isinstance(v, bool) or not isinstance(v, allowed))), None)
     if bad is not None:
-        raise ValueError(f"a {type(bad).__name__} value where {'a number' if kind is float else 'an integer'} is stored")
+        raise ValueError(
+            f"a {type(bad).__name__} value where {'a number' if kind is float else 'an integer'} is stored"
+        )
     return values
 
 
@@ -144,8 +157,13 @@ def _records(model: type, table: TableColumns) -> bytes:
     for name, kind, width in spec:
         values = table.values[name]
         try:
-            value = (rounded_bits(_numbers(values, float)) if kind == "float"
-                     else np.asarray(_numbers(values, int), np.int64) if kind == "int" else _text(values, width))
+            value = (
+                rounded_bits(_numbers(values, float))
+                if kind == "float"
+                else np.asarray(_numbers(values, int), np.int64)
+                if kind == "int"
+                else _text(values, width)
+            )
         except (TypeError, ValueError, OverflowError) as exc:
             raise ValueError(f"column {model.__tablename__}.{name}: {exc}") from None
         null = table.nulls.get(name)
@@ -161,8 +179,11 @@ def _as_columns(model: type, rows: TableColumns | Sequence[Any]) -> TableColumns
     return rows if isinstance(rows, TableColumns) else TableColumns.of_rows([c.name for c in _columns(model)], rows)
 
 
-def shard_digest(linkages: TableColumns | Sequence[Mapping[str, Any]], segments: TableColumns | Sequence[Mapping[str, Any]],
-                 dwells: TableColumns | Sequence[Mapping[str, Any]]) -> str:
+def shard_digest(
+    linkages: TableColumns | Sequence[Mapping[str, Any]],
+    segments: TableColumns | Sequence[Mapping[str, Any]],
+    dwells: TableColumns | Sequence[Mapping[str, Any]],
+) -> str:
     """The digest of one shard's rows, per table as columns (``db.rows``) or as dicts keyed by
     column name (columns the digest leaves out may be absent)."""
     h = hashlib.sha256()
@@ -218,8 +239,11 @@ def _shard_digests(conn: Connection, build_id: int | None) -> dict[int, str]:
         for h in hashers.values():
             h.update(header)
         # the column naming the row's linkage (a segment id is its linkage id · SEGMENTS_PER_LINKAGE + ordinal)
-        owner, per_linkage = {Linkage: ("id", 1), Segment: ("linkage_id", 1),
-                              Dwell: ("segment_id", SEGMENTS_PER_LINKAGE)}[model]
+        owner, per_linkage = {
+            Linkage: ("id", 1),
+            Segment: ("linkage_id", 1),
+            Dwell: ("segment_id", SEGMENTS_PER_LINKAGE),
+        }[model]
         owner = [c.name for c in cols].index(owner)
         key = [c.name for c in model.__table__.primary_key.columns]
         if model is Dwell:  # a build in progress holds its dwell rows in the staging table
@@ -242,6 +266,8 @@ def _shard_digests(conn: Connection, build_id: int | None) -> dict[int, str]:
                 try:
                     columns = TableColumns.of_rows(names, rows)
                 except (TypeError, ValueError, OverflowError):  # e.g. a blob in a number column
-                    raise ValueError(f"table {model.__tablename__}: a value of the wrong type in shard {index}") from None
+                    raise ValueError(
+                        f"table {model.__tablename__}: a value of the wrong type in shard {index}"
+                    ) from None
                 hashers[index].update(_records(model, columns))
     return {index: h.hexdigest() for index, h in sorted(hashers.items())}

@@ -73,12 +73,32 @@ from sqlalchemy.engine import URL, make_url
 from sqlalchemy.exc import ArgumentError, DatabaseError, DBAPIError, OperationalError
 
 from db.schema import APPLICATION, SCHEMA_VERSION, Base, Build, Linkage, Meta, Shard
-from db.sidefiles import (Ownership, journal_verdict, mark_commits, new_atlas_id, page_size, read_page_one,
-                          wal_page_size, wal_verdict)
+from db.sidefiles import (
+    Ownership,
+    journal_verdict,
+    mark_commits,
+    new_atlas_id,
+    page_size,
+    read_page_one,
+    wal_page_size,
+    wal_verdict,
+)
 
 __all__ = [
-    "BUILD_STATUSES", "WHOLE_CHECK_BYTES", "AtlasError", "atlas_name", "check_url", "damaged", "database_url",
-    "display_target", "open_atlas", "scrub", "settle_sqlite", "sqlite_path", "start_writing", "structure_check",
+    "BUILD_STATUSES",
+    "WHOLE_CHECK_BYTES",
+    "AtlasError",
+    "atlas_name",
+    "check_url",
+    "damaged",
+    "database_url",
+    "display_target",
+    "open_atlas",
+    "scrub",
+    "settle_sqlite",
+    "sqlite_path",
+    "start_writing",
+    "structure_check",
 ]
 
 _SQLITE_MAGIC = b"SQLite format 3\x00"
@@ -146,13 +166,13 @@ def _split_userinfo(rest: str) -> tuple[str | None, str]:
     The userinfo ends at the LAST ``@``: a password with an unescaped ``@``, ``:``, ``/`` or
     ``#`` then stays whole inside it (a ``?`` before that ``@``: see :func:`_ambiguous`)."""
     at = rest.rfind("@")
-    return (rest[:at], rest[at + 1:]) if at >= 0 else (None, rest)
+    return (rest[:at], rest[at + 1 :]) if at >= 0 else (None, rest)
 
 
 def _ambiguous(rest: str) -> bool:
     """True if ``rest`` (a URL after ``scheme://``) has a raw ``?`` before its last ``@``: a
     userinfo password holding ``?`` reads the same as a query password holding ``@``."""
-    return "?" in rest[:rest.rfind("@") + 1]
+    return "?" in rest[: rest.rfind("@") + 1]
 
 
 def _secret_query_key(key: str) -> bool:
@@ -182,7 +202,7 @@ def _secrets(target: str) -> list[str]:
                 key, _, value = pair.partition("=")
                 if _secret_query_key(key):
                     # the value up to the next '&', and up to the end (a raw '&' inside it)
-                    to_end = "&".join([value, *pairs[i + 1:]])
+                    to_end = "&".join([value, *pairs[i + 1 :]])
                     # a raw '&' makes the value's tail other options, which drivers name in
                     # errors: hide those pieces too (not 1-2 characters: that garbles messages)
                     pieces = re.split(r"[&=+\s]", f"{to_end}&{unquote_plus(to_end)}")
@@ -194,14 +214,51 @@ def _secrets(target: str) -> list[str]:
 
 #: libpq's connection keywords (PostgreSQL manual, "Parameter Key Words"): a ``--db`` holding
 #: ``key=value`` pairs with one of these is a libpq connection string, not a file name.
-_LIBPQ_KEYS = frozenset({
-    "host", "hostaddr", "port", "dbname", "user", "password", "passfile", "require_auth", "channel_binding",
-    "connect_timeout", "client_encoding", "options", "application_name", "fallback_application_name", "keepalives",
-    "keepalives_idle", "keepalives_interval", "keepalives_count", "tcp_user_timeout", "replication", "gssencmode",
-    "sslmode", "requiressl", "sslcompression", "sslcert", "sslkey", "sslpassword", "sslcertmode", "sslrootcert",
-    "sslcrl", "sslcrldir", "sslsni", "requirepeer", "ssl_min_protocol_version", "ssl_max_protocol_version",
-    "krbsrvname", "gsslib", "gssdelegation", "service", "target_session_attrs", "load_balance_hosts",
-})
+_LIBPQ_KEYS = frozenset(
+    {
+        "host",
+        "hostaddr",
+        "port",
+        "dbname",
+        "user",
+        "password",
+        "passfile",
+        "require_auth",
+        "channel_binding",
+        "connect_timeout",
+        "client_encoding",
+        "options",
+        "application_name",
+        "fallback_application_name",
+        "keepalives",
+        "keepalives_idle",
+        "keepalives_interval",
+        "keepalives_count",
+        "tcp_user_timeout",
+        "replication",
+        "gssencmode",
+        "sslmode",
+        "requiressl",
+        "sslcompression",
+        "sslcert",
+        "sslkey",
+        "sslpassword",
+        "sslcertmode",
+        "sslrootcert",
+        "sslcrl",
+        "sslcrldir",
+        "sslsni",
+        "requirepeer",
+        "ssl_min_protocol_version",
+        "ssl_max_protocol_version",
+        "krbsrvname",
+        "gsslib",
+        "gssdelegation",
+        "service",
+        "target_session_attrs",
+        "load_balance_hosts",
+    }
+)
 _KEY = re.compile(r"(?:^|\s)([A-Za-z_]+)\s*=")
 #: A URL's scheme (RFC 3986: a letter, then letters, digits, "+", ".", "-").
 _SCHEME = re.compile(r"[A-Za-z][A-Za-z0-9+.\-]*")
@@ -227,7 +284,7 @@ def _connection_string_shape(target: str) -> str | None:
     dialect = scheme is not None and scheme.group(1).split("+")[0].lower() in _DIALECTS
     if scheme and (scheme.group(2) == ":" or (dialect and scheme.group(2) != "/")):
         return f"a URL missing '://' after its scheme {scheme.group(1)!r}"
-    if "@" in target and ":" in target[:target.rfind("@")]:
+    if "@" in target and ":" in target[: target.rfind("@")]:
         return "a URL without its scheme (user:password@host…)"
     return None
 
@@ -310,9 +367,13 @@ def structure_check(engine: Engine, *, whole: bool) -> str | None:
     if engine.dialect.name != "sqlite":
         return None
     with engine.connect() as conn:
-        for table in ((None,) if whole else _SMALL_TABLES):
-            rows = [r[0] for r in conn.exec_driver_sql("PRAGMA quick_check(1)" if table is None
-                                                       else f"PRAGMA quick_check({table})")]
+        for table in (None,) if whole else _SMALL_TABLES:
+            rows = [
+                r[0]
+                for r in conn.exec_driver_sql(
+                    "PRAGMA quick_check(1)" if table is None else f"PRAGMA quick_check({table})"
+                )
+            ]
             if rows != ["ok"]:
                 return f"SQLite quick check failed: {rows[0]}"
     return None
@@ -464,8 +525,10 @@ def check_url(target: str) -> URL:
     show in the driver's errors, and the connection would go to the wrong server anyway."""
     shape = _connection_string_shape(target)
     if shape is not None:
-        raise AtlasError(f"not a database path or URL: {shape}; write a PostgreSQL database as "
-                         "postgresql://USER:PASSWORD@HOST:PORT/DBNAME, an SQLite file as its path")
+        raise AtlasError(
+            f"not a database path or URL: {shape}; write a PostgreSQL database as "
+            "postgresql://USER:PASSWORD@HOST:PORT/DBNAME, an SQLite file as its path"
+        )
     try:
         parsed = make_url(database_url(target))
     except (ArgumentError, ValueError):  # ValueError: a port that is not a number
@@ -476,11 +539,15 @@ def check_url(target: str) -> URL:
     userinfo, _ = _split_userinfo(rest)
     written = userinfo.partition(":")[2] if userinfo and ":" in userinfo else None
     if _ambiguous(rest):
-        raise AtlasError(f"{display_target(target)!r}: a raw '?' before the last '@' makes the URL ambiguous "
-                         "(user password or query?): percent-encode the password (%3F for ?, %40 for @)")
+        raise AtlasError(
+            f"{display_target(target)!r}: a raw '?' before the last '@' makes the URL ambiguous "
+            "(user password or query?): percent-encode the password (%3F for ?, %40 for @)"
+        )
     if (written and unquote(written)) != (parsed.password or None):
-        raise AtlasError(f"the password in {display_target(target)!r} holds an unescaped '@': "
-                         "percent-encode it (%40 for @, %3A for :, %2F for /, %23 for #, %3F for ?)")
+        raise AtlasError(
+            f"the password in {display_target(target)!r} holds an unescaped '@': "
+            "percent-encode it (%40 for @, %3A for :, %2F for /, %23 for #, %3F for ?)"
+        )
     return parsed
 
 
@@ -545,7 +612,9 @@ def _checked(engine: Engine, target: str, *, create: bool, empty_ok: bool = Fals
         code = str(getattr(exc.orig, "sqlite_errorname", ""))
         if code.startswith(("SQLITE_CORRUPT", "SQLITE_NOTADB")):
             raise damaged(target, _first_line(exc)) from None
-        raise AtlasError(f"cannot use {display_target(target)!r} as an atlas: {scrub(_first_line(exc), target)}") from None
+        raise AtlasError(
+            f"cannot use {display_target(target)!r} as an atlas: {scrub(_first_line(exc), target)}"
+        ) from None
     except ValueError as exc:  # a damaged page read as a value the driver cannot convert
         engine.dispose()
         raise damaged(target, _first_line(exc)) from None
@@ -561,25 +630,32 @@ def _check_sqlite_file(path: Path, target: str, *, create: bool) -> bool:
         if path.is_dir():
             raise AtlasError(f"{display_target(target)!r} is a folder, not an atlas file")
         if not path.is_file():  # a FIFO, device or socket: opening it would block or never end
-            raise AtlasError(f"{display_target(target)!r} is not a regular file (a FIFO, device or socket), not an atlas")
+            raise AtlasError(
+                f"{display_target(target)!r} is not a regular file (a FIFO, device or socket), not an atlas"
+            )
         try:
             with path.open("rb") as fh:
                 head = fh.read(len(_SQLITE_MAGIC))
         except OSError as exc:
             raise AtlasError(f"cannot read {display_target(target)!r}: {exc.strerror}") from None
         if head != _SQLITE_MAGIC and not (create and head == b""):
-            raise AtlasError(f"{display_target(target)!r} is not an SQLite database (it may be corrupt or another kind of file)")
+            raise AtlasError(
+                f"{display_target(target)!r} is not an SQLite database (it may be corrupt or another kind of file)"
+            )
         return head != b""
     if not create:
-        raise AtlasError(f"no atlas at {display_target(target)!r} (build one with: dwell atlas build --db {display_target(target)})")
+        raise AtlasError(
+            f"no atlas at {display_target(target)!r} (build one with: dwell atlas build --db {display_target(target)})"
+        )
     if not path.parent.is_dir():
         raise AtlasError(f"cannot create {display_target(target)!r}: folder {str(path.parent)!r} does not exist")
     try:  # SQLite would only say "unable to open database file"; it needs the folder for its side files too
         with tempfile.TemporaryFile(dir=path.parent):
             pass
     except OSError as exc:
-        raise AtlasError(f"cannot create {display_target(target)!r}: folder {str(path.parent)!r} cannot be written "
-                         f"({exc.strerror})") from None
+        raise AtlasError(
+            f"cannot create {display_target(target)!r}: folder {str(path.parent)!r} cannot be written ({exc.strerror})"
+        ) from None
     return False
 
 
@@ -661,10 +737,13 @@ def _check_or_create_schema(engine: Engine, target: str, *, create: bool, empty_
 
 def _create_schema(conn: Connection) -> None:
     Base.metadata.create_all(conn)
-    conn.execute(insert(Meta), [
-        {"key": "application", "value": APPLICATION},
-        {"key": "schema_version", "value": str(SCHEMA_VERSION)},
-    ])
+    conn.execute(
+        insert(Meta),
+        [
+            {"key": "application", "value": APPLICATION},
+            {"key": "schema_version", "value": str(SCHEMA_VERSION)},
+        ],
+    )
 
 
 def _check_schema(conn: Connection, tables: set[str], target: str) -> None:
@@ -682,8 +761,10 @@ def _check_schema(conn: Connection, tables: set[str], target: str) -> None:
             f"{target!r} has schema version {version}, newer than this dwell-atlas ({SCHEMA_VERSION}); upgrade the tool"
         )
     if version < SCHEMA_VERSION:
-        raise AtlasError(f"{target!r} has schema version {version}, older than {SCHEMA_VERSION}; rebuild the atlas "
-                         "(delete it and build again, or build into another --db: --replace cannot open an older schema)")
+        raise AtlasError(
+            f"{target!r} has schema version {version}, older than {SCHEMA_VERSION}; rebuild the atlas "
+            "(delete it and build again, or build into another --db: --replace cannot open an older schema)"
+        )
     missing = set(Base.metadata.tables) - tables
     if missing:
         raise AtlasError(f"{target!r} is an incomplete atlas (missing tables: {', '.join(sorted(missing))})")
@@ -758,8 +839,10 @@ def _table_mismatch(inspector: Any, table: Table) -> str | None:
     pk = inspector.get_pk_constraint(table.name).get("constrained_columns") or []
     if list(pk) != [c.name for c in table.primary_key.columns]:
         return f"primary key ({', '.join(pk)})"
-    fks = {(tuple(fk["constrained_columns"]), fk["referred_table"], tuple(fk["referred_columns"]))
-           for fk in inspector.get_foreign_keys(table.name)}
+    fks = {
+        (tuple(fk["constrained_columns"]), fk["referred_table"], tuple(fk["referred_columns"]))
+        for fk in inspector.get_foreign_keys(table.name)
+    }
     for fk in table.foreign_key_constraints:
         want = (tuple(c.name for c in fk.columns), fk.referred_table.name, tuple(e.column.name for e in fk.elements))
         if want not in fks:
@@ -791,7 +874,9 @@ def _check_json(conn: Connection, target: str) -> None:
         try:
             stored_spec(text)
         except SpecError as exc:
-            raise damaged(target, f"the sweep spec of build {build_id} (build.spec_json) is not readable: {exc}") from None
+            raise damaged(
+                target, f"the sweep spec of build {build_id} (build.spec_json) is not readable: {exc}"
+            ) from None
         except TypeError:  # not a text at all (a damaged record)
             raise damaged(target, f"the sweep spec of build {build_id} (build.spec_json) is not readable") from None
     for build_id, index, text in conn.execute(select(Shard.build_id, Shard.shard_index, Shard.skipped_json)):

@@ -67,7 +67,9 @@ TABLES: tuple[tuple[str, str, Table], ...] = (
 )
 
 
-def checked_rows(result: ShardRows, extra: dict[str, dict[str, Any]] | None = None) -> list[tuple[Table, list[str], list[tuple]]]:
+def checked_rows(
+    result: ShardRows, extra: dict[str, dict[str, Any]] | None = None
+) -> list[tuple[Table, list[str], list[tuple]]]:
     """The rows of ``result`` per atlas table — (table, column names in schema order, tuples of
     plain Python values) — after checking that every float is finite (:class:`ShardWriteError`
     naming the first that is not, row by row). ``extra`` adds a column of one value to every
@@ -79,7 +81,9 @@ def checked_rows(result: ShardRows, extra: dict[str, dict[str, Any]] | None = No
         bad = columns.first_nonfinite()
         if bad is not None:
             i, key, value = bad
-            raise ShardWriteError(f"shard {index}: {name} row {i} has {key}={value!r}; nothing of the shard was written")
+            raise ShardWriteError(
+                f"shard {index}: {name} row {i} has {key}={value!r}; nothing of the shard was written"
+            )
         n = len(columns)
         given = dict(zip(columns.values, columns.lists()))
         if n:
@@ -167,9 +171,15 @@ def pack(result: ShardRows, digest: str | None) -> PackedShard:
     finally:
         con.close()
     return PackedShard(
-        shard_index=int(result.shard_index), data=data, n_linkages=len(batches[0][2]), n_segments=len(batches[1][2]),
-        n_dwells=len(batches[2][2]), linkage_ids=tuple(result.linkage_ids),
-        skipped=dict(result.skipped), seconds=float(result.seconds), digest=digest,
+        shard_index=int(result.shard_index),
+        data=data,
+        n_linkages=len(batches[0][2]),
+        n_segments=len(batches[1][2]),
+        n_dwells=len(batches[2][2]),
+        linkage_ids=tuple(result.linkage_ids),
+        skipped=dict(result.skipped),
+        seconds=float(result.seconds),
+        digest=digest,
     )
 
 

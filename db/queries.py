@@ -45,8 +45,16 @@ IN_CHUNK = 5000
 #: allows 500).
 WALKS_CHUNK = 32
 
-__all__ = ["AtlasSource", "DwellWindow", "SegmentRow", "count_segments", "nearest_dwell_angles", "scan_segments",
-           "select_segments", "tolerance_levels"]
+__all__ = [
+    "AtlasSource",
+    "DwellWindow",
+    "SegmentRow",
+    "count_segments",
+    "nearest_dwell_angles",
+    "scan_segments",
+    "select_segments",
+    "tolerance_levels",
+]
 
 
 def select_segments(
@@ -77,8 +85,12 @@ def select_segments(
     tolerance = dict(levels)
     length, ratio, limits = _limits(min_transmission, max_length, min_radius_ratio)
     # (window, kind, level) in the order the walks' rows are taken on a tie
-    walks = [(i, SegmentKind(kind).code, lv) for i, w in enumerate(windows) for kind in kinds
-             for lv in (tolerance if w.level is None else [w.level])]
+    walks = [
+        (i, SegmentKind(kind).code, lv)
+        for i, w in enumerate(windows)
+        for kind in kinds
+        for lv in (tolerance if w.level is None else [w.level])
+    ]
     # per window: (distance from its target, segment id, level, walk number, dwell row)
     found: list[list[tuple]] = [[] for _ in windows]
     with engine.connect() as conn:
@@ -87,8 +99,14 @@ def select_segments(
             args = dict(limits)
             for k, (i, code, lv) in enumerate(chunk):
                 w = windows[i]
-                args |= {f"kind_{k}": code, f"level_{k}": lv, f"target_{k}": w.target, f"low_{k}": w.low,
-                         f"high_{k}": w.high, f"n_{k}": w.limit}
+                args |= {
+                    f"kind_{k}": code,
+                    f"level_{k}": lv,
+                    f"target_{k}": w.target,
+                    f"low_{k}": w.low,
+                    f"high_{k}": w.high,
+                    f"n_{k}": w.limit,
+                }
             for h in conn.execute(_walks(len(chunk), length, ratio), args).all():
                 sid, level, key, *_, walk = h  # unpacked: a row's attributes cost ~0.3 µs each
                 i = chunk[walk // 2][0]
@@ -121,12 +139,23 @@ def scan_segments(
     keyset walk of the dwell table's key, so each batch costs its own rows, not an offset; each
     row's segment and linkage joined by primary key in the same statement)."""
     length, ratio, limits = _limits(min_transmission, max_length, min_radius_ratio)
-    page = (select(*_DWELL_COLUMNS, Segment.id.label("segment"), *_SEGMENT_COLUMNS).select_from(Dwell)
-            .outerjoin(Segment, Segment.id == Dwell.segment_id).outerjoin(Linkage, Linkage.id == Segment.linkage_id)
-            .where(Dwell.kind == SegmentKind(kind).code, Dwell.level == level, *_filters(length, ratio),
-                   or_(Dwell.dwell_key > bindparam("key"),
-                       and_(Dwell.dwell_key == bindparam("key"), Dwell.segment_id > bindparam("sid"))))
-            .order_by(Dwell.dwell_key, Dwell.segment_id).limit(batch))
+    page = (
+        select(*_DWELL_COLUMNS, Segment.id.label("segment"), *_SEGMENT_COLUMNS)
+        .select_from(Dwell)
+        .outerjoin(Segment, Segment.id == Dwell.segment_id)
+        .outerjoin(Linkage, Linkage.id == Segment.linkage_id)
+        .where(
+            Dwell.kind == SegmentKind(kind).code,
+            Dwell.level == level,
+            *_filters(length, ratio),
+            or_(
+                Dwell.dwell_key > bindparam("key"),
+                and_(Dwell.dwell_key == bindparam("key"), Dwell.segment_id > bindparam("sid")),
+            ),
+        )
+        .order_by(Dwell.dwell_key, Dwell.segment_id)
+        .limit(batch)
+    )
     tolerance = dict(tolerance_levels(engine))
     key, sid = -1.0, -1
     while True:
@@ -144,8 +173,30 @@ def _segment_batch(engine: Engine, kind: str, hits: Sequence, tolerance: dict[in
     :data:`_SEGMENT_COLUMNS`); ``tolerance``: level → path tolerance (crank lengths). The one
     place where a stored dwell row becomes the query's stretches: the interval's end is its
     start plus the dwell angle, a line's point its foot from A0 (:func:`db.rows.line_points`)."""
-    (segment_id, levels, _, angle, start, x, y, direction, radius, angle2, start2, x2, direction2,
-     segment, u, v, phi_gen, b, c, d, branch, transmission_min) = zip(*hits)
+    (
+        segment_id,
+        levels,
+        _,
+        angle,
+        start,
+        x,
+        y,
+        direction,
+        radius,
+        angle2,
+        start2,
+        x2,
+        direction2,
+        segment,
+        u,
+        v,
+        phi_gen,
+        b,
+        c,
+        d,
+        branch,
+        transmission_min,
+    ) = zip(*hits)
     if None in segment or None in b:  # the outer join found no segment (or linkage) for a dwell row
         raise _lost_segment(engine, segment_id[list(segment).index(None) if None in segment else list(b).index(None)])
     n = len(hits)
@@ -174,28 +225,73 @@ def _segment_batch(engine: Engine, kind: str, hits: Sequence, tolerance: dict[in
         second = np.stack([start2, start2 + angle2, foot2.real, foot2.imag, direction2, np.full(n, np.nan)], axis=1)
         parts = (first, second)
         has_parts += ~np.isnan(angle2)
-    return SegmentBatch(kind, column(segment_id, np.int64), column(levels, np.int64),
-                        column([tolerance.get(lv, 0.0) for lv in levels]),
-                        column(b), column(c), column(d), column(branch, np.int64), column(u), column(v),
-                        column(phi_gen), column(transmission_min), parts, has_parts)
+    return SegmentBatch(
+        kind,
+        column(segment_id, np.int64),
+        column(levels, np.int64),
+        column([tolerance.get(lv, 0.0) for lv in levels]),
+        column(b),
+        column(c),
+        column(d),
+        column(branch, np.int64),
+        column(u),
+        column(v),
+        column(phi_gen),
+        column(transmission_min),
+        parts,
+        has_parts,
+    )
 
 
-def count_segments(engine: Engine, kind: str, level: int, *, min_transmission: float = 0.0,
-                   max_length: float = 1e300, min_radius_ratio: float = 0.0) -> int:
+def count_segments(
+    engine: Engine,
+    kind: str,
+    level: int,
+    *,
+    min_transmission: float = 0.0,
+    max_length: float = 1e300,
+    min_radius_ratio: float = 0.0,
+) -> int:
     """How many segments :func:`scan_segments` walks (one count over the index)."""
     length, ratio, limits = _limits(min_transmission, max_length, min_radius_ratio)
     with engine.connect() as conn:
-        return int(conn.execute(select(func.count()).select_from(Dwell).where(
-            Dwell.kind == SegmentKind(kind).code, Dwell.level == level, *_filters(length, ratio)), limits).scalar_one())
+        return int(
+            conn.execute(
+                select(func.count())
+                .select_from(Dwell)
+                .where(Dwell.kind == SegmentKind(kind).code, Dwell.level == level, *_filters(length, ratio)),
+                limits,
+            ).scalar_one()
+        )
 
 
 #: What the walks read of a dwell row: the key, then the stretch(es) it describes.
-_DWELL_COLUMNS = (Dwell.segment_id, Dwell.level, Dwell.dwell_key, stored_dwell_angle(Dwell).label("dwell_angle"),
-                  Dwell.phi_start, Dwell.x, Dwell.y, Dwell.direction,
-                  Dwell.radius, Dwell.dwell_angle2, Dwell.phi_start2, Dwell.x2, Dwell.direction2)
+_DWELL_COLUMNS = (
+    Dwell.segment_id,
+    Dwell.level,
+    Dwell.dwell_key,
+    stored_dwell_angle(Dwell).label("dwell_angle"),
+    Dwell.phi_start,
+    Dwell.x,
+    Dwell.y,
+    Dwell.direction,
+    Dwell.radius,
+    Dwell.dwell_angle2,
+    Dwell.phi_start2,
+    Dwell.x2,
+    Dwell.direction2,
+)
 #: What a query reads of a dwell row's segment and linkage.
-_SEGMENT_COLUMNS = (Segment.u, Segment.v, Segment.phi_gen, Linkage.b, Linkage.c, Linkage.d, Linkage.branch,
-                    Linkage.transmission_min)
+_SEGMENT_COLUMNS = (
+    Segment.u,
+    Segment.v,
+    Segment.phi_gen,
+    Linkage.b,
+    Linkage.c,
+    Linkage.d,
+    Linkage.branch,
+    Linkage.transmission_min,
+)
 #: A segment with :data:`_SEGMENT_COLUMNS`, after its id and kind (one join by primary key).
 _SEGMENTS = select(Segment.id, Segment.kind, *_SEGMENT_COLUMNS).join(Linkage, Segment.linkage_id == Linkage.id)
 #: :data:`_SEGMENTS` of the segment ids bound as ``ids`` (one statement object, so that its
@@ -228,13 +324,22 @@ def _filters(length: bool, ratio: bool) -> list:
     within 0.01° or 0.001 crank of it, which the exact figures then reject."""
     out = [Dwell.transmission_min_cdeg >= bindparam("min_cdeg")]
     if length:
-        out += [Dwell.longest_link_milli <= bindparam("max_milli"),
-                or_(Dwell.radius.is_(None), Dwell.radius <= bindparam("max_length"))]  # an arc's radius is the rod
+        out += [
+            Dwell.longest_link_milli <= bindparam("max_milli"),
+            or_(Dwell.radius.is_(None), Dwell.radius <= bindparam("max_length")),
+        ]  # an arc's radius is the rod
     if ratio:
         min_ratio = bindparam("min_radius_ratio", type_=Float)
-        out.append(or_(Dwell.radius.is_(None), and_(
-            # (milli − 2)/1000 is below the longest link whatever the rounding of its copy
-            Dwell.radius >= min_ratio, Dwell.radius * 1000 >= min_ratio * (Dwell.longest_link_milli - 2))))
+        out.append(
+            or_(
+                Dwell.radius.is_(None),
+                and_(
+                    # (milli − 2)/1000 is below the longest link whatever the rounding of its copy
+                    Dwell.radius >= min_ratio,
+                    Dwell.radius * 1000 >= min_ratio * (Dwell.longest_link_milli - 2),
+                ),
+            )
+        )
     return out
 
 
@@ -247,16 +352,24 @@ def _walks(n: int, length: bool, ratio: bool) -> CompoundSelect:
     ORDER BY and LIMIT then hold inside the UNION ALL (SQLite allows them nowhere else)."""
     parts = []
     for k in range(n):
-        base = select(*_DWELL_COLUMNS).where(Dwell.kind == bindparam(f"kind_{k}"),
-                                             Dwell.level == bindparam(f"level_{k}"),
-                                             *_filters(length, ratio))
+        base = select(*_DWELL_COLUMNS).where(
+            Dwell.kind == bindparam(f"kind_{k}"), Dwell.level == bindparam(f"level_{k}"), *_filters(length, ratio)
+        )
         target, limit = bindparam(f"target_{k}"), bindparam(f"n_{k}")
-        up = (base.where(Dwell.dwell_key >= target, Dwell.dwell_key <= bindparam(f"high_{k}"))
-              .order_by(Dwell.dwell_key, Dwell.segment_id).limit(limit))
-        down = (base.where(Dwell.dwell_key < target, Dwell.dwell_key >= bindparam(f"low_{k}"))
-                .order_by(Dwell.dwell_key.desc(), Dwell.segment_id).limit(limit))
-        parts += [walk.subquery().select().add_columns(literal_column(str(2 * k + way), Integer).label("walk"))
-                  for way, walk in enumerate((up, down))]
+        up = (
+            base.where(Dwell.dwell_key >= target, Dwell.dwell_key <= bindparam(f"high_{k}"))
+            .order_by(Dwell.dwell_key, Dwell.segment_id)
+            .limit(limit)
+        )
+        down = (
+            base.where(Dwell.dwell_key < target, Dwell.dwell_key >= bindparam(f"low_{k}"))
+            .order_by(Dwell.dwell_key.desc(), Dwell.segment_id)
+            .limit(limit)
+        )
+        parts += [
+            walk.subquery().select().add_columns(literal_column(str(2 * k + way), Integer).label("walk"))
+            for way, walk in enumerate((up, down))
+        ]
     return union_all(*parts)
 
 
@@ -327,8 +440,11 @@ def segment_row(engine: Engine, segment_id: int, level: int) -> SegmentRow | Non
         seg = conn.execute(_SEGMENTS.where(Segment.id == segment_id)).first()
         if seg is None:
             return None
-        dw = conn.execute(select(*_DWELL_COLUMNS).where(
-            Dwell.kind == SegmentKind(seg.kind).code, Dwell.level == level, Dwell.segment_id == segment_id)).first()
+        dw = conn.execute(
+            select(*_DWELL_COLUMNS).where(
+                Dwell.kind == SegmentKind(seg.kind).code, Dwell.level == level, Dwell.segment_id == segment_id
+            )
+        ).first()
     if dw is None:
         segment_id, kind, u, v, phi_gen, b, c, d, branch, transmission_min = seg
         return SegmentRow(segment_id, kind, level, 0.0, b, c, d, branch, u, v, phi_gen, (), transmission_min)
@@ -349,9 +465,15 @@ class AtlasSource:
         return self._levels
 
     def select_segments(self, kinds, windows, *, min_transmission, max_length, min_radius_ratio):
-        return select_segments(self.engine, kinds, windows, min_transmission=min_transmission,
-                               max_length=max_length, min_radius_ratio=min_radius_ratio,
-                               levels=self.tolerance_levels())
+        return select_segments(
+            self.engine,
+            kinds,
+            windows,
+            min_transmission=min_transmission,
+            max_length=max_length,
+            min_radius_ratio=min_radius_ratio,
+            levels=self.tolerance_levels(),
+        )
 
     def segment(self, segment_id: int, level: int) -> SegmentRow | None:
         return segment_row(self.engine, segment_id, level)
@@ -360,9 +482,22 @@ class AtlasSource:
         return nearest_dwell_angles(self.engine, kinds, target)
 
     def scan_segments(self, kind, level, *, min_transmission, max_length, min_radius_ratio, batch):
-        return scan_segments(self.engine, kind, level, min_transmission=min_transmission, max_length=max_length,
-                             min_radius_ratio=min_radius_ratio, batch=batch)
+        return scan_segments(
+            self.engine,
+            kind,
+            level,
+            min_transmission=min_transmission,
+            max_length=max_length,
+            min_radius_ratio=min_radius_ratio,
+            batch=batch,
+        )
 
     def count_segments(self, kind, level, *, min_transmission, max_length, min_radius_ratio):
-        return count_segments(self.engine, kind, level, min_transmission=min_transmission, max_length=max_length,
-                              min_radius_ratio=min_radius_ratio)
+        return count_segments(
+            self.engine,
+            kind,
+            level,
+            min_transmission=min_transmission,
+            max_length=max_length,
+            min_radius_ratio=min_radius_ratio,
+        )

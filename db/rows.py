@@ -34,8 +34,20 @@ from synth.kinds import SEGMENT_KINDS, SegmentKind
 from synth.segment_search.dwell_key import arc_dwell_key
 from synth.segment_search.segments import FoundSegments
 
-__all__ = ["SEGMENTS_PER_LINKAGE", "TableColumns", "length_ceil_milli", "line_offset", "line_offsets", "line_point",
-           "line_points", "linkage_columns", "linkage_id", "linkage_ids", "segment_columns", "transmission_floor_cdeg"]
+__all__ = [
+    "SEGMENTS_PER_LINKAGE",
+    "TableColumns",
+    "length_ceil_milli",
+    "line_offset",
+    "line_offsets",
+    "line_point",
+    "line_points",
+    "linkage_columns",
+    "linkage_id",
+    "linkage_ids",
+    "segment_columns",
+    "transmission_floor_cdeg",
+]
 
 #: Room for segment ordinals inside one linkage's id range (ids stay below 2^63 for 10^8 linkages).
 SEGMENTS_PER_LINKAGE = 100_000
@@ -101,7 +113,9 @@ class TableColumns:
         return first
 
     @classmethod
-    def of_rows(cls, names: Sequence[str] | None, rows: Sequence[Sequence[Any]] | Sequence[Mapping[str, Any]]) -> TableColumns:
+    def of_rows(
+        cls, names: Sequence[str] | None, rows: Sequence[Sequence[Any]] | Sequence[Mapping[str, Any]]
+    ) -> TableColumns:
         """The columns ``names`` of ``rows`` given as tuples of values in ``names`` order, or as
         dicts (``names`` None: the first row's keys): None is NULL. A column of ``str`` stays a
         list; every other column becomes a float64 array if it holds a float, int64 otherwise."""
@@ -123,8 +137,16 @@ class TableColumns:
         return cls(values, nulls)
 
 
-def linkage_columns(shard_index: int, sweep_index: NDArray, b: NDArray, c: NDArray, d: NDArray, branch: NDArray,
-                    grashof: NDArray, transmission: NDArray) -> TableColumns:
+def linkage_columns(
+    shard_index: int,
+    sweep_index: NDArray,
+    b: NDArray,
+    c: NDArray,
+    d: NDArray,
+    branch: NDArray,
+    grashof: NDArray,
+    transmission: NDArray,
+) -> TableColumns:
     """The ``linkage`` table's columns, one row per four-bar; ``transmission`` (N, M) holds its
     folded transmission angle over the turn (rad; NaN where it does not assemble, not read)."""
     sweep_index = np.asarray(sweep_index, np.int64)
@@ -132,18 +154,20 @@ def linkage_columns(shard_index: int, sweep_index: NDArray, b: NDArray, c: NDArr
     with warnings.catch_warnings():  # a linkage of no assembled sample (none reaches a row) is all NaN
         warnings.simplefilter("ignore", RuntimeWarning)
         low, high = np.nanmin(transmission, axis=1), np.nanmax(transmission, axis=1)
-    return TableColumns({
-        "id": linkage_ids(sweep_index, branch),
-        "shard_index": np.full(sweep_index.size, int(shard_index), np.int64),
-        "sweep_index": sweep_index,
-        "b": np.asarray(b, np.float64),
-        "c": np.asarray(c, np.float64),
-        "d": np.asarray(d, np.float64),
-        "branch": branch,
-        "grashof": np.asarray(grashof, np.int64),
-        "transmission_min": np.asarray(low, np.float64),
-        "transmission_max": np.asarray(high, np.float64),
-    })
+    return TableColumns(
+        {
+            "id": linkage_ids(sweep_index, branch),
+            "shard_index": np.full(sweep_index.size, int(shard_index), np.int64),
+            "sweep_index": sweep_index,
+            "b": np.asarray(b, np.float64),
+            "c": np.asarray(c, np.float64),
+            "d": np.asarray(d, np.float64),
+            "branch": branch,
+            "grashof": np.asarray(grashof, np.int64),
+            "transmission_min": np.asarray(low, np.float64),
+            "transmission_max": np.asarray(high, np.float64),
+        }
+    )
 
 
 def transmission_floor_cdeg(angle: float) -> int:
@@ -207,13 +231,20 @@ def segment_columns(found: FoundSegments, linkages: TableColumns) -> tuple[Table
     sids = link_id[owner] * SEGMENTS_PER_LINKAGE + _ordinals(owner)
     names = np.array([kind.value for kind in SEGMENT_KINDS], dtype=object)
     segments = TableColumns(
-        {"id": sids, "linkage_id": link_id[owner], "kind": names[code].tolist(), "phi_gen": found.phi_gen,
-         "phi_gen2": np.where(double, found.phi_gen2, 0.0), "u": found.uv.real.copy(), "v": found.uv.imag.copy()},
+        {
+            "id": sids,
+            "linkage_id": link_id[owner],
+            "kind": names[code].tolist(),
+            "phi_gen": found.phi_gen,
+            "phi_gen2": np.where(double, found.phi_gen2, 0.0),
+            "u": found.uv.real.copy(),
+            "v": found.uv.imag.copy(),
+        },
         {"phi_gen2": ~double},
     )
 
     # the dwell rows: (segment, level) where the first stretch has a dwell (a double line: both)
-    has = found.has_dwell[:, :len(found.tolerances)]
+    has = found.has_dwell[:, : len(found.tolerances)]
     seg, level = np.nonzero(has[:, :, 0] & (has[:, :, 1] | ~double[:, None]))  # segment-major: the rows' order
     # the integer copies, worked out once per linkage by the scalar rules
     low, b, c, d = (linkages.values[n].tolist() for n in ("transmission_min", "b", "c", "d"))
@@ -221,8 +252,14 @@ def segment_columns(found: FoundSegments, linkages: TableColumns) -> tuple[Table
     copy_longest = np.array([length_ceil_milli(max(x)) for x in zip(b, c, d)], np.int64)
     values, nulls = _stretches(found, seg, level)
     dwells = TableColumns(
-        {"kind": code[seg], "level": level.astype(np.int64), "segment_id": sids[seg],
-         "transmission_min_cdeg": copy_min[owner[seg]], "longest_link_milli": copy_longest[owner[seg]], **values},
+        {
+            "kind": code[seg],
+            "level": level.astype(np.int64),
+            "segment_id": sids[seg],
+            "transmission_min_cdeg": copy_min[owner[seg]],
+            "longest_link_milli": copy_longest[owner[seg]],
+            **values,
+        },
         nulls,
     )
     return segments, dwells
@@ -241,7 +278,9 @@ def _stretches(found: FoundSegments, seg: NDArray[np.int64], level: NDArray[np.i
     angle = found.phi_end[seg, level, 0] - start
     point = found.fit_point[seg, level, 0]
     key = angle.copy()  # a line's
-    key[arc] = arc_dwell_key(angle[arc], found.excursion[seg[arc], level[arc]], np.asarray(found.tolerances)[level[arc]])
+    key[arc] = arc_dwell_key(
+        angle[arc], found.excursion[seg[arc], level[arc]], np.asarray(found.tolerances)[level[arc]]
+    )
     # np.angle of an array runs the arctan2 loop np.angle of one value runs: the same floats
     direction = np.zeros(seg.size)
     direction[line] = np.angle(found.fit_direction[seg[line], level[line], 0])
@@ -251,13 +290,29 @@ def _stretches(found: FoundSegments, seg: NDArray[np.int64], level: NDArray[np.i
     direction2 = np.where(double, np.angle(found.fit_direction[seg, level, 1]), 0.0)
     x2 = np.zeros(seg.size)
     x2[double] = line_offsets(found.fit_point[seg[double], level[double], 1], direction2[double])
-    values = {"dwell_key": key, "dwell_angle": np.where(arc, angle, 0.0), "phi_start": start, "x": x,
-              "y": np.where(arc, point.imag, 0.0), "direction": direction,
-              "radius": np.where(arc, found.fit_radius[seg, level, 0], 0.0),
-              "dwell_angle2": np.where(double, found.phi_end[seg, level, 1] - found.phi_start[seg, level, 1], 0.0),
-              "phi_start2": start2, "x2": x2, "direction2": direction2}
-    nulls = {"dwell_angle": line, "y": line, "direction": arc, "radius": line,
-             "dwell_angle2": ~double, "phi_start2": ~double, "x2": ~double, "direction2": ~double}
+    values = {
+        "dwell_key": key,
+        "dwell_angle": np.where(arc, angle, 0.0),
+        "phi_start": start,
+        "x": x,
+        "y": np.where(arc, point.imag, 0.0),
+        "direction": direction,
+        "radius": np.where(arc, found.fit_radius[seg, level, 0], 0.0),
+        "dwell_angle2": np.where(double, found.phi_end[seg, level, 1] - found.phi_start[seg, level, 1], 0.0),
+        "phi_start2": start2,
+        "x2": x2,
+        "direction2": direction2,
+    }
+    nulls = {
+        "dwell_angle": line,
+        "y": line,
+        "direction": arc,
+        "radius": line,
+        "dwell_angle2": ~double,
+        "phi_start2": ~double,
+        "x2": ~double,
+        "direction2": ~double,
+    }
     return values, nulls
 
 

@@ -13,15 +13,39 @@ non-finite values before writing. ``tests/db/test_engine.py`` tries every float 
 
 from __future__ import annotations
 
-from sqlalchemy import (BigInteger, CheckConstraint, Column, Float, ForeignKey, Index, Integer, PrimaryKeyConstraint, String,
-                        Table, Text, UniqueConstraint, func)
-from sqlalchemy.sql.elements import ColumnElement
+from sqlalchemy import (
+    BigInteger,
+    CheckConstraint,
+    Column,
+    Float,
+    ForeignKey,
+    Index,
+    Integer,
+    PrimaryKeyConstraint,
+    String,
+    Table,
+    Text,
+    UniqueConstraint,
+    func,
+)
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
+from sqlalchemy.sql.elements import ColumnElement
 
 from synth.kinds import SEGMENT_KINDS
 
-__all__ = ["SCHEMA_VERSION", "APPLICATION", "Base", "Meta", "Build", "Shard", "Linkage", "Segment", "Dwell",
-           "dwell_staging", "stored_dwell_angle"]
+__all__ = [
+    "SCHEMA_VERSION",
+    "APPLICATION",
+    "Base",
+    "Meta",
+    "Build",
+    "Shard",
+    "Linkage",
+    "Segment",
+    "Dwell",
+    "dwell_staging",
+    "stored_dwell_angle",
+]
 
 #: Bumped whenever a table or column changes meaning; an atlas of a newer version is refused,
 #: an older one must be rebuilt. 2: deterministic 64-bit row ids, per-level fitted geometry
@@ -61,9 +85,7 @@ def _finite_checks(table: str, *columns: str) -> tuple[CheckConstraint, ...]:
 
 def _finite_or_null_checks(table: str, *columns: str) -> tuple[CheckConstraint, ...]:
     # optional geometry (a line has no radius): NULL allowed, but never NaN/inf
-    return tuple(
-        CheckConstraint(f"{c} IS NULL OR {c} {_FINITE}", name=f"ck_{table}_{c}_finite") for c in columns
-    )
+    return tuple(CheckConstraint(f"{c} IS NULL OR {c} {_FINITE}", name=f"ck_{table}_{c}_finite") for c in columns)
 
 
 def _dwell_checks(table: str) -> tuple[CheckConstraint, ...]:
@@ -73,8 +95,9 @@ def _dwell_checks(table: str) -> tuple[CheckConstraint, ...]:
         CheckConstraint("dwell_key > 0", name=f"ck_{table}_positive"),
         CheckConstraint("dwell_angle IS NULL OR dwell_angle > 0", name=f"ck_{table}_dwell_angle_positive"),
         *_finite_checks(table, "dwell_key", "phi_start", "x"),
-        *_finite_or_null_checks(table, "dwell_angle", "radius", "y", "direction", "dwell_angle2", "phi_start2", "x2",
-                                "direction2"),
+        *_finite_or_null_checks(
+            table, "dwell_angle", "radius", "y", "direction", "dwell_angle2", "phi_start2", "x2", "direction2"
+        ),
     )
 
 

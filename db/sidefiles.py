@@ -54,8 +54,18 @@ import secrets
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["ATLAS_ID_OFFSET", "Ownership", "Verdict", "atlas_id", "journal_verdict", "mark_commits", "new_atlas_id",
-           "read_page_one", "wal_page_size", "wal_verdict"]
+__all__ = [
+    "ATLAS_ID_OFFSET",
+    "Ownership",
+    "Verdict",
+    "atlas_id",
+    "journal_verdict",
+    "mark_commits",
+    "new_atlas_id",
+    "read_page_one",
+    "wal_page_size",
+    "wal_verdict",
+]
 
 #: Where the atlas id lives: the database header's ``user_version`` (4 bytes, big-endian).
 ATLAS_ID_OFFSET = 60
@@ -95,7 +105,7 @@ def new_atlas_id() -> int:
 
 def atlas_id(page_one: bytes) -> int:
     """The atlas id in page 1 (0: none, an atlas made before ids or not yet named)."""
-    return int.from_bytes(page_one[ATLAS_ID_OFFSET:ATLAS_ID_OFFSET + 4], "big") if len(page_one) >= 100 else 0
+    return int.from_bytes(page_one[ATLAS_ID_OFFSET : ATLAS_ID_OFFSET + 4], "big") if len(page_one) >= 100 else 0
 
 
 def page_size(page_one: bytes) -> int | None:
@@ -134,8 +144,11 @@ def _names_this_atlas(copy: bytes, page_one: bytes, *, id_being_set: bool = Fals
     if theirs and theirs == ours:
         return _fixed(copy) == _fixed(page_one)
     if theirs == 0 and (ours == 0 or id_being_set):
-        return _fixed(copy, with_id=False) == _fixed(page_one, with_id=False) and copy[100:] == page_one[100:] \
-            and copy[40:60] == page_one[40:60]  # the schema cookie, format, cache size, root, encoding
+        return (
+            _fixed(copy, with_id=False) == _fixed(page_one, with_id=False)
+            and copy[100:] == page_one[100:]
+            and copy[40:60] == page_one[40:60]
+        )  # the schema cookie, format, cache size, root, encoding
     return False
 
 
@@ -171,7 +184,9 @@ def journal_verdict(journal: Path, page_one: bytes, file_size: int) -> Verdict:
     if not replayed:
         if initial_pages == pages:
             return Verdict(Ownership.HARMLESS)
-        return Verdict(Ownership.FOREIGN, f"rolling it back would resize the atlas from {pages} to {initial_pages} pages")
+        return Verdict(
+            Ownership.FOREIGN, f"rolling it back would resize the atlas from {pages} to {initial_pages} pages"
+        )
     copy = next((page for number, page in replayed if number == 1), None)
     if copy is None:
         return Verdict(Ownership.FOREIGN, "it holds no copy of the atlas's first page, so nothing shows whose it is")
@@ -189,9 +204,9 @@ def _journal_records(data: bytes, sector: int, size: int):
     the first record whose checksum fails or that the file does not hold whole."""
     record = 4 + size + 4
     offset = 0
-    while offset + 28 <= len(data) and data[offset:offset + 8] == _JOURNAL_MAGIC:
-        n_rec = int.from_bytes(data[offset + 8:offset + 12], "big")
-        nonce = int.from_bytes(data[offset + 12:offset + 16], "big")
+    while offset + 28 <= len(data) and data[offset : offset + 8] == _JOURNAL_MAGIC:
+        n_rec = int.from_bytes(data[offset + 8 : offset + 12], "big")
+        nonce = int.from_bytes(data[offset + 12 : offset + 16], "big")
         start = offset + sector
         if n_rec == 0xFFFFFFFF:  # written without syncs: as many as the file holds
             n_rec = (len(data) - start) // record
@@ -199,10 +214,10 @@ def _journal_records(data: bytes, sector: int, size: int):
             at = start + i * record
             if at + record > len(data):
                 return
-            number = int.from_bytes(data[at:at + 4], "big")
-            page = data[at + 4:at + 4 + size]
-            stored = int.from_bytes(data[at + 4 + size:at + record], "big")
-            check = (nonce + sum(page[size - 200:0:-200])) & 0xFFFFFFFF  # bytes size−200, size−400, … > 0
+            number = int.from_bytes(data[at : at + 4], "big")
+            page = data[at + 4 : at + 4 + size]
+            stored = int.from_bytes(data[at + 4 + size : at + record], "big")
+            check = (nonce + sum(page[size - 200 : 0 : -200])) & 0xFFFFFFFF  # bytes size−200, size−400, … > 0
             if number == 0 or stored != check:
                 return
             yield number, page
@@ -220,8 +235,8 @@ def _wal_checksum(data: bytes, big_endian: bool) -> tuple[int, int]:
     order = "big" if big_endian else "little"
     s0 = s1 = 0
     for i in range(0, len(data), 8):
-        s0 = (s0 + int.from_bytes(data[i:i + 4], order) + s1) & 0xFFFFFFFF
-        s1 = (s1 + int.from_bytes(data[i + 4:i + 8], order) + s0) & 0xFFFFFFFF
+        s0 = (s0 + int.from_bytes(data[i : i + 4], order) + s1) & 0xFFFFFFFF
+        s1 = (s1 + int.from_bytes(data[i + 4 : i + 8], order) + s0) & 0xFFFFFFFF
     return s0, s1
 
 
@@ -281,8 +296,10 @@ def wal_verdict(wal: Path, page_one: bytes) -> Verdict:
     if any(_names_this_atlas(copy, page_one) for copy in copies):
         return Verdict(Ownership.OWN)
     if not copies:
-        return Verdict(Ownership.FOREIGN, "its first transaction holds no copy of the atlas's first page, "
-                                          "so nothing shows whose it is")
+        return Verdict(
+            Ownership.FOREIGN,
+            "its first transaction holds no copy of the atlas's first page, so nothing shows whose it is",
+        )
     return Verdict(Ownership.FOREIGN, "another database's: its copy of the first page is not the atlas's")
 
 

@@ -29,8 +29,14 @@ class SpecError(ValueError):
 #: ``SHARD_SIZE_RANGE``, ``CRANK_STEP_RANGE_DEG``, ``PROPORTION_RANGE``, ``TOLERANCE_RANGE``;
 #: ``tests/db/test_spec.py`` holds them equal — ``db`` does not import ``atlas``).
 SPEC_RANGES: dict[str, tuple[float, float]] = {
-    "samples": (1, 2**31), "rays": (1, 3600), "shard_size": (1, 1_000_000), "seed": (0, 2**63 - 1),
-    "crank_step_deg": (0.05, 30.0), "proportion": (1e-3, 1e3), "tolerance": (1e-9, 1.0), "min_dwell_deg": (0.0, 360.0),
+    "samples": (1, 2**31),
+    "rays": (1, 3600),
+    "shard_size": (1, 1_000_000),
+    "seed": (0, 2**63 - 1),
+    "crank_step_deg": (0.05, 30.0),
+    "proportion": (1e-3, 1e3),
+    "tolerance": (1e-9, 1.0),
+    "min_dwell_deg": (0.0, 360.0),
 }
 
 
@@ -42,7 +48,12 @@ def _integer(spec: dict[str, Any], key: str) -> None:
 
 def _number(value: Any, key: str, bounds: tuple[float, float]) -> float:
     lo, hi = bounds
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or not lo <= value <= hi:
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, float))
+        or not math.isfinite(value)
+        or not lo <= value <= hi
+    ):
         raise SpecError(f"{key} is {value!r}, not a number from {lo:g} to {hi:g}")
     return float(value)
 
@@ -71,8 +82,11 @@ def _check_fields(spec: dict[str, Any]) -> None:
     values = [_number(t, "tolerances", SPEC_RANGES["tolerance"]) for t in tols]
     if any(b <= a for a, b in zip(values, values[1:])):
         raise SpecError(f"tolerances {tols!r} do not increase")
-    if "branches" in spec and (not isinstance(spec["branches"], list) or not spec["branches"]
-                               or any(b not in (1, -1) or isinstance(b, bool) for b in spec["branches"])):
+    if "branches" in spec and (
+        not isinstance(spec["branches"], list)
+        or not spec["branches"]
+        or any(b not in (1, -1) or isinstance(b, bool) for b in spec["branches"])
+    ):
         raise SpecError(f"branches is {spec['branches']!r}, not a list of 1 and -1")
     if "crank_rockers_only" in spec and not isinstance(spec["crank_rockers_only"], bool):
         raise SpecError(f"crank_rockers_only is {spec['crank_rockers_only']!r}, not true or false")

@@ -21,8 +21,14 @@ from db.spec import stored_spec, tolerances
 from synth.kinds import SEGMENT_KINDS
 
 __all__ = [
-    "BIN_DEG", "AtlasSummary", "Verification", "atlas_summary", "format_summary", "quick_check",
-    "row_counts", "verify_atlas",
+    "BIN_DEG",
+    "AtlasSummary",
+    "Verification",
+    "atlas_summary",
+    "format_summary",
+    "quick_check",
+    "row_counts",
+    "verify_atlas",
 ]
 
 #: Segment kinds, in report order (the schema's CHECK constraint lists the same).
@@ -85,8 +91,12 @@ class AtlasSummary:
 def _dwell_rows():
     """Every dwell row's kind, level, angle and segment: the ``dwell`` table's and, while a
     build is in progress, the staging table's (empty in a complete atlas)."""
-    return union_all(*(select(t.c.kind, t.c.level, stored_dwell_angle(t).label("dwell_angle"), t.c.segment_id)
-                       for t in (Dwell.__table__, dwell_staging))).subquery("dwell_rows")
+    return union_all(
+        *(
+            select(t.c.kind, t.c.level, stored_dwell_angle(t).label("dwell_angle"), t.c.segment_id)
+            for t in (Dwell.__table__, dwell_staging)
+        )
+    ).subquery("dwell_rows")
 
 
 def _histogram_rows(engine: Engine) -> dict[tuple[str, int], tuple[list[int], float]]:
@@ -101,10 +111,7 @@ def _histogram_rows(engine: Engine) -> dict[tuple[str, int], tuple[list[int], fl
     for i in range(_N_BINS):
         upper = rows.c.dwell_angle <= edges[i + 1] if i == _N_BINS - 1 else rows.c.dwell_angle < edges[i + 1]
         bins.append(func.sum(case(((rows.c.dwell_angle >= edges[i]) & upper, 1), else_=0)))
-    stmt = (
-        select(rows.c.kind, rows.c.level, func.max(rows.c.dwell_angle), *bins)
-        .group_by(rows.c.kind, rows.c.level)
-    )
+    stmt = select(rows.c.kind, rows.c.level, func.max(rows.c.dwell_angle), *bins).group_by(rows.c.kind, rows.c.level)
     out = {}
     with engine.connect() as conn:
         for kind, level, top, *counts in conn.execute(stmt):
@@ -149,8 +156,12 @@ def atlas_summary(engine: Engine) -> AtlasSummary:
         segments.update({k: int(n) for k, n in conn.execute(select(Segment.kind, func.count()).group_by(Segment.kind))})
         dwells = dict.fromkeys(SEGMENT_KINDS, 0)
         rows = _dwell_rows()
-        dwells.update({SEGMENT_KINDS[int(k)].value: int(n)
-                       for k, n in conn.execute(select(rows.c.kind, func.count()).group_by(rows.c.kind))})
+        dwells.update(
+            {
+                SEGMENT_KINDS[int(k)].value: int(n)
+                for k, n in conn.execute(select(rows.c.kind, func.count()).group_by(rows.c.kind))
+            }
+        )
         builds = conn.execute(select(Build).order_by(Build.id)).all()
         skipped: dict[str, int] = {}
         for (text,) in conn.execute(select(Shard.skipped_json)):
@@ -158,7 +169,9 @@ def atlas_summary(engine: Engine) -> AtlasSummary:
                 skipped[reason] = skipped.get(reason, 0) + int(n)
         shard_stats = {
             bid: (int(n), float(sec or 0.0))
-            for bid, n, sec in conn.execute(select(Shard.build_id, func.count(), func.sum(Shard.seconds)).group_by(Shard.build_id))
+            for bid, n, sec in conn.execute(
+                select(Shard.build_id, func.count(), func.sum(Shard.seconds)).group_by(Shard.build_id)
+            )
         }
 
     build = None
@@ -182,7 +195,8 @@ def atlas_summary(engine: Engine) -> AtlasSummary:
             "finished_at": row.finished_at,
             "builder": (
                 {"pid": row.lock_pid, "host": row.lock_host, "heartbeat": row.lock_heartbeat}
-                if row.lock_token is not None else None
+                if row.lock_token is not None
+                else None
             ),
         }
 
@@ -193,12 +207,14 @@ def atlas_summary(engine: Engine) -> AtlasSummary:
         per_level = []
         for lvl in levels:
             counts, top = found.get((kind, lvl), ([0] * _N_BINS, None))
-            per_level.append({
-                "level": lvl,
-                "tolerance": levels_tol[lvl] if lvl < len(levels_tol) else None,
-                "counts": counts,
-                "max_dwell_deg": None if top is None else math.degrees(top),
-            })
+            per_level.append(
+                {
+                    "level": lvl,
+                    "tolerance": levels_tol[lvl] if lvl < len(levels_tol) else None,
+                    "counts": counts,
+                    "max_dwell_deg": None if top is None else math.degrees(top),
+                }
+            )
         histogram[kind] = per_level
 
     # a complete build stores its digest (re-reading every row of a big atlas takes minutes);
@@ -228,10 +244,13 @@ def storage_bytes(engine: Engine) -> int | None:
             return int(pages) * int(conn.exec_driver_sql("PRAGMA page_size").scalar_one())
         if engine.dialect.name == "postgresql":
             tables = [t.name for t in Base.metadata.sorted_tables]
-            sizes = conn.execute(text(
-                "SELECT sum(pg_total_relation_size(c.oid)) FROM pg_class c JOIN pg_namespace n ON n.oid = c.relnamespace "
-                "WHERE n.nspname = current_schema() AND c.relkind = 'r' AND c.relname IN :names"
-            ).bindparams(bindparam("names", expanding=True)), {"names": tables}).scalar_one()
+            sizes = conn.execute(
+                text(
+                    "SELECT sum(pg_total_relation_size(c.oid)) FROM pg_class c JOIN pg_namespace n ON n.oid = c.relnamespace "
+                    "WHERE n.nspname = current_schema() AND c.relkind = 'r' AND c.relname IN :names"
+                ).bindparams(bindparam("names", expanding=True)),
+                {"names": tables},
+            ).scalar_one()
             return None if sizes is None else int(sizes)
     return None
 
@@ -251,9 +270,24 @@ def format_summary(summary: AtlasSummary, target: str) -> str:
         )
         lines.append(
             "sweep: "
-            + ", ".join(f"{k}={spec[k]}" for k in ("samples", "seed", "b", "c", "d", "crank_rockers_only", "branches",
-                                                   "crank_step_deg", "rays", "tolerances", "min_dwell_deg", "shard_size")
-                        if k in spec)
+            + ", ".join(
+                f"{k}={spec[k]}"
+                for k in (
+                    "samples",
+                    "seed",
+                    "b",
+                    "c",
+                    "d",
+                    "crank_rockers_only",
+                    "branches",
+                    "crank_step_deg",
+                    "rays",
+                    "tolerances",
+                    "min_dwell_deg",
+                    "shard_size",
+                )
+                if k in spec
+            )
         )
         if b["builder"] is not None:
             lines.append(f"builder: pid {b['builder']['pid']} on {b['builder']['host']}")
@@ -313,8 +347,12 @@ class Verification:
 
 
 #: child table → (its column naming the parent, parent model): the rows ``--verify`` counts.
-_PARENTS = ((Dwell, Dwell.segment_id, Segment), (Segment, Segment.linkage_id, Linkage),
-            (Linkage, Linkage.build_id, Build), (Shard, Shard.build_id, Build))
+_PARENTS = (
+    (Dwell, Dwell.segment_id, Segment),
+    (Segment, Segment.linkage_id, Linkage),
+    (Linkage, Linkage.build_id, Build),
+    (Shard, Shard.build_id, Build),
+)
 
 
 def quick_check(engine: Engine) -> str | None:
@@ -337,7 +375,9 @@ def _shard_problems(conn: Any, build_id: int, status: str, n_shards: int, again:
     problems = []
     if status not in ("building", "complete"):
         problems.append(f"build {build_id} has the unknown status {status!r}")
-    kept = {int(i): d for i, d in conn.execute(select(Shard.shard_index, Shard.digest).where(Shard.build_id == build_id))}
+    kept = {
+        int(i): d for i, d in conn.execute(select(Shard.shard_index, Shard.digest).where(Shard.build_id == build_id))
+    }
     outside = sorted(i for i in kept if not 0 <= i < n_shards)
     if outside:
         problems.append(f"build {build_id} has shard rows outside its {n_shards} shards: {_list(outside)}")
@@ -350,8 +390,9 @@ def _shard_problems(conn: Any, build_id: int, status: str, n_shards: int, again:
         problems.append(f"build {build_id} holds rows of shard(s) {_list(unrecorded)}, which have no shard row")
     changed = sorted(i for i, d in kept.items() if again.get(i) != d)
     if changed:
-        problems.append(f"build {build_id}: the rows of shard(s) {_list(changed)} do not give the digest stored "
-                        "in their shard row")
+        problems.append(
+            f"build {build_id}: the rows of shard(s) {_list(changed)} do not give the digest stored in their shard row"
+        )
     return problems
 
 
@@ -369,7 +410,9 @@ def verify_atlas(engine: Engine) -> Verification:
                 problems.append(f"SQLite integrity check {integrity}")
         orphans = {}
         for child, column, parent in _PARENTS:
-            n = conn.execute(select(func.count()).select_from(child).where(column.not_in(select(parent.id)))).scalar_one()
+            n = conn.execute(
+                select(func.count()).select_from(child).where(column.not_in(select(parent.id)))
+            ).scalar_one()
             orphans[child.__tablename__] = int(n)
             if n:
                 problems.append(f"{n} {child.__tablename__} row(s) name a {parent.__tablename__} that does not exist")
@@ -383,6 +426,8 @@ def verify_atlas(engine: Engine) -> Verification:
             again = combine(per_shard.items())
             digests[int(build_id)] = (stored, again)
             if stored != again:
-                problems.append(f"build {build_id}'s rows do not give its stored content digest "
-                                f"({(stored or 'none')[:12]}…, recomputed {again[:12]}…)")
+                problems.append(
+                    f"build {build_id}'s rows do not give its stored content digest "
+                    f"({(stored or 'none')[:12]}…, recomputed {again[:12]}…)"
+                )
     return Verification(integrity, orphans, digests, tuple(problems))

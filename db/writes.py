@@ -55,8 +55,8 @@ from db.digest import shard_digest, stored_digest
 from db.engine import AtlasError, atlas_name, damaged, display_target, start_writing
 from db.packed import TABLES, PackedShard, ShardRows, ShardWriteError, checked_rows
 from db.packed import columns as packed_columns
-from db.spec import spec_name
 from db.schema import SCHEMA_VERSION, Build, Dwell, Linkage, Segment, Shard, dwell_staging
+from db.spec import spec_name
 
 __all__ = [
     "PID_REUSE_SECONDS",
@@ -180,7 +180,9 @@ def _take_lock(conn: Connection, row: Any, lock: BuildLock, target: str) -> None
         .values(lock_token=lock.token, lock_pid=lock.pid, lock_host=lock.host, lock_heartbeat=time.time())
     )
     if res.rowcount != 1:
-        raise AtlasError(f"atlas {target!r} is being built by another process (it took the lock just now); wait for it to finish")
+        raise AtlasError(
+            f"atlas {target!r} is being built by another process (it took the lock just now); wait for it to finish"
+        )
 
 
 def _delete_rows(conn: Connection, build_id: int, *, unfinished_only: bool = False) -> None:
@@ -243,8 +245,14 @@ def open_build(
             for row in builds:
                 _take_lock(conn, row, lock, target)  # first: fails fast if a builder sneaked in
             # everything, children first: also rows a damaged atlas holds for no recorded build
-            for table in (dwell_staging, Dwell.__table__, Segment.__table__, Linkage.__table__, Shard.__table__,
-                          Build.__table__):
+            for table in (
+                dwell_staging,
+                Dwell.__table__,
+                Segment.__table__,
+                Linkage.__table__,
+                Shard.__table__,
+                Build.__table__,
+            ):
                 conn.execute(delete(table))
             build_id = _insert_build(conn, spec_json, spec_digest, n_shards, lock, version)
         return BuildHandle(build_id, n_shards, frozenset(), resumed=False, complete=False, replaced=replaced)
@@ -257,11 +265,15 @@ def open_build(
             with engine.begin() as conn:
                 build_id = _insert_build(conn, spec_json, spec_digest, n_shards, lock, version)
         except IntegrityError:  # a concurrent builder created the same build a moment ago
-            raise AtlasError(f"atlas {target!r} is being built by another process (it started just now); wait for it to finish") from None
+            raise AtlasError(
+                f"atlas {target!r} is being built by another process (it started just now); wait for it to finish"
+            ) from None
         return BuildHandle(build_id, n_shards, frozenset(), resumed=False, complete=False)
 
     if same.n_shards != n_shards:  # same spec digest ⇒ same sweep: a different count is a bug
-        raise AtlasError(f"atlas {target!r} records {same.n_shards} shards for this sweep, this code makes {n_shards}; use --replace")
+        raise AtlasError(
+            f"atlas {target!r} records {same.n_shards} shards for this sweep, this code makes {n_shards}; use --replace"
+        )
     with engine.connect() as conn:
         done = frozenset(conn.execute(select(Shard.shard_index).where(Shard.build_id == same.id)).scalars())
     if same.status == "complete":
@@ -294,7 +306,9 @@ def _refuse_unrecorded_rows(engine: Engine, target: str) -> None:
                 raise damaged(target, f"it holds rows of build {stray}, which has no build row")
 
 
-def _insert_build(conn: Connection, spec_json: str, spec_digest: str, n_shards: int, lock: BuildLock, version: str) -> int:
+def _insert_build(
+    conn: Connection, spec_json: str, spec_digest: str, n_shards: int, lock: BuildLock, version: str
+) -> int:
     res = conn.execute(
         insert(Build).values(
             spec_json=spec_json,
@@ -364,13 +378,17 @@ def _insert_rows(conn: Connection, table: Table, names: list[str], tuples: list[
         _copy_rows(conn, table, names, tuples)
     elif conn.dialect.paramstyle == "qmark":
         quote = conn.dialect.identifier_preparer.quote
-        conn.exec_driver_sql(f"INSERT INTO {quote(table.name)} ({', '.join(map(quote, names))}) "
-                             f"VALUES ({', '.join('?' * len(names))})", tuples)
+        conn.exec_driver_sql(
+            f"INSERT INTO {quote(table.name)} ({', '.join(map(quote, names))}) VALUES ({', '.join('?' * len(names))})",
+            tuples,
+        )
     else:
         conn.execute(insert(table), [dict(zip(names, t)) for t in tuples])
 
 
-def write_shard(engine: Engine, build_id: int, result: ShardRows | PackedShard, *, lock_token: str | None = None) -> None:
+def write_shard(
+    engine: Engine, build_id: int, result: ShardRows | PackedShard, *, lock_token: str | None = None
+) -> None:
     """Store one shard — linkages, segments, dwells and the shard row — in ONE transaction.
 
     ``result`` is a shard's rows as columns (checked here) or packed by a worker
@@ -387,8 +405,7 @@ def write_shard(engine: Engine, build_id: int, result: ShardRows | PackedShard, 
     batches = None if packed is not None else checked_rows(result, extra)
     if packed is not None and not math.isfinite(packed.seconds):
         raise ShardWriteError(f"shard {index}: seconds={packed.seconds!r}; nothing of the shard was written")
-    counts = ((packed.n_linkages, packed.n_segments) if packed is not None
-              else (len(batches[0][2]), len(batches[1][2])))
+    counts = (packed.n_linkages, packed.n_segments) if packed is not None else (len(batches[0][2]), len(batches[1][2]))
     shard_row = dict(
         build_id=build_id,
         shard_index=index,
@@ -413,8 +430,10 @@ def write_shard(engine: Engine, build_id: int, result: ShardRows | PackedShard, 
     except IntegrityError as exc:
         clash = _stored_already(engine, result)
         if clash is not None:  # rows the atlas should not hold (ids are deterministic): damage, not a bug
-            raise damaged(atlas_name(engine), f"it already holds {clash} of shard {index}, which has no shard row "
-                                              "(shard rolled back)") from None
+            raise damaged(
+                atlas_name(engine),
+                f"it already holds {clash} of shard {index}, which has no shard row (shard rolled back)",
+            ) from None
         first = str(exc.orig).splitlines()[0] if exc.orig is not None else str(exc)
         raise ShardWriteError(f"shard {index} of build {build_id} rolled back: {first}") from exc
 
@@ -473,21 +492,26 @@ def _copy_packed(conn: Connection, schema: str, packed: PackedShard, build_id: i
         names = [quote(c) for c in packed_columns(raw, schema, table.name)]
         source = ", ".join(names)
         if table.name == "linkage":
-            conn.exec_driver_sql(f"INSERT INTO main.linkage ({quote('build_id')}, {source}) "
-                                 f"SELECT ?, {source} FROM {schema}.linkage ORDER BY rowid", (build_id,))
+            conn.exec_driver_sql(
+                f"INSERT INTO main.linkage ({quote('build_id')}, {source}) "
+                f"SELECT ?, {source} FROM {schema}.linkage ORDER BY rowid",
+                (build_id,),
+            )
         else:
-            conn.exec_driver_sql(f"INSERT INTO main.{quote(table.name)} ({source}) "
-                                 f"SELECT {source} FROM {schema}.{quote(table.name)} ORDER BY rowid")
+            conn.exec_driver_sql(
+                f"INSERT INTO main.{quote(table.name)} ({source}) "
+                f"SELECT {source} FROM {schema}.{quote(table.name)} ORDER BY rowid"
+            )
 
 
 def _stored_already(engine: Engine, result: ShardRows | PackedShard) -> str | None:
-    """"linkage ID" if the atlas already holds one of this shard's linkages — its ids derive
+    """ "linkage ID" if the atlas already holds one of this shard's linkages — its ids derive
     from the shard index, so that is this shard's own row, stored without its shard row (or
     under a build row since deleted): a damaged atlas. None otherwise (a bug upstream)."""
     ids = list(result.linkage_ids)
     with engine.connect() as conn:
         for start in range(0, len(ids), 500):  # under every dialect's parameter limit
-            found = conn.execute(select(Linkage.id).where(Linkage.id.in_(ids[start:start + 500])).limit(1)).scalar()
+            found = conn.execute(select(Linkage.id).where(Linkage.id.in_(ids[start : start + 500])).limit(1)).scalar()
             if found is not None:
                 return f"linkage {found}"
     return None
@@ -508,14 +532,22 @@ def finish_build(engine: Engine, build_id: int, token: str) -> bool:
         # page after page (see ``db.schema.dwell_staging``)
         names = [c.name for c in Dwell.__table__.columns]
         staged = select(*(dwell_staging.c[n] for n in names)).order_by(
-            *(dwell_staging.c[c.name] for c in Dwell.__table__.primary_key.columns))
+            *(dwell_staging.c[c.name] for c in Dwell.__table__.primary_key.columns)
+        )
         conn.execute(insert(Dwell).from_select(names, staged))
         conn.execute(delete(dwell_staging))
         conn.execute(
             update(Build)
             .where(Build.id == build_id)
-            .values(status="complete", finished_at=_now_iso(), content_digest=stored_digest(conn, build_id),
-                    lock_token=None, lock_pid=None, lock_host=None, lock_heartbeat=None)
+            .values(
+                status="complete",
+                finished_at=_now_iso(),
+                content_digest=stored_digest(conn, build_id),
+                lock_token=None,
+                lock_pid=None,
+                lock_host=None,
+                lock_heartbeat=None,
+            )
         )
     return True
 
@@ -546,6 +578,7 @@ def _moving_staged_rows(conn: Connection) -> Iterator[None]:
     try:
         yield
     finally:
+
         def undo() -> None:
             conn.exec_driver_sql("PRAGMA foreign_keys=ON")
             conn.exec_driver_sql("PRAGMA ignore_check_constraints=OFF")

@@ -95,8 +95,17 @@ def _check_clutch(clutch: str, phases: int) -> None:
         raise ValueError(f"phases must be a whole number >= 1, not {phases!r}")
 
 
-def speed_profile(a: float, b: float, c: float, d: float, phi: ArrayLike, branch: int = 1, *,
-                  phases: int = 1, clutch: str = "freewheel") -> NDArray[np.float64]:
+def speed_profile(
+    a: float,
+    b: float,
+    c: float,
+    d: float,
+    phi: ArrayLike,
+    branch: int = 1,
+    *,
+    phases: int = 1,
+    clutch: str = "freewheel",
+) -> NDArray[np.float64]:
     """u(φ) = ω_out/ω_in at crank angles ``phi`` (rad), see the module notes."""
     _check_clutch(clutch, phases)
     phi = np.asarray(phi, float)
@@ -163,13 +172,24 @@ def _turn(a: float, b: float, c: float, d: float, branch: int, phases: int, clut
         g0, g20 = mf.dgamma[0], mf.dgamma[1]
     cands = list(g0)
     for i in np.flatnonzero(g20[1:] * g20[:-1] < 0):
-        r = brentq(lambda p: float(fourbar_motion(a, b, c, d, p, branch, order=2).dgamma[1]), full[i], full[i + 1], xtol=1e-14)
+        r = brentq(
+            lambda p: float(fourbar_motion(a, b, c, d, p, branch, order=2).dgamma[1]), full[i], full[i + 1], xtol=1e-14
+        )
         cands.append(gk(r, 0))
     return _Turn(m1, m2, float(min(cands)), float(max(cands)), status)
 
 
-def output_speed_stats(crank_lengths: ArrayLike, b: float, c: float, d: float, rpms: ArrayLike,
-                       branch: int = 1, *, phases: int = 1, clutch: str = "freewheel") -> OutputSpeedStats:
+def output_speed_stats(
+    crank_lengths: ArrayLike,
+    b: float,
+    c: float,
+    d: float,
+    rpms: ArrayLike,
+    branch: int = 1,
+    *,
+    phases: int = 1,
+    clutch: str = "freewheel",
+) -> OutputSpeedStats:
     """Statistics of the output speed for every crank length × input speed (rev/min).
 
     Coupler b, rocker c and ground d stay fixed. See :class:`OutputSpeedStats` and the module
@@ -195,8 +215,14 @@ def output_speed_stats(crank_lengths: ArrayLike, b: float, c: float, d: float, r
     shape = (L.size, n.size)
     bc = lambda v: np.broadcast_to(v, shape).copy()  # noqa: E731
     return OutputSpeedStats(
-        bc(L[:, None]), bc(n[None, :]), bc(mean), bc(std), bc(variance), bc(cv),
-        bc(np.array([t.ratio_min for t in turns])[:, None]), bc(np.array([t.ratio_max for t in turns])[:, None]),
+        bc(L[:, None]),
+        bc(n[None, :]),
+        bc(mean),
+        bc(std),
+        bc(variance),
+        bc(cv),
+        bc(np.array([t.ratio_min for t in turns])[:, None]),
+        bc(np.array([t.ratio_max for t in turns])[:, None]),
         bc(status),
     )
 
@@ -219,8 +245,15 @@ class CvMinimum:
     evaluations: int
 
 
-def minimise_cv(lengths: dict[str, float], bounds: dict[str, tuple[float, float]], branch: int = 1, *,
-                phases: int = 1, clutch: str = "freewheel", budget: int = 400) -> CvMinimum:
+def minimise_cv(
+    lengths: dict[str, float],
+    bounds: dict[str, tuple[float, float]],
+    branch: int = 1,
+    *,
+    phases: int = 1,
+    clutch: str = "freewheel",
+    budget: int = 400,
+) -> CvMinimum:
     """Minimise c_v over the link lengths named in ``bounds`` (others fixed at ``lengths``).
 
     A grid of about ``budget`` linkages over the box (only those whose crank turns fully count)
@@ -259,8 +292,9 @@ def minimise_cv(lengths: dict[str, float], bounds: dict[str, tuple[float, float]
         x_best = mesh[int(np.argmin(values))]
         best = float(values.min())
         if best < penalty and any(bounds[k][1] > bounds[k][0] for k in names):
-            res = minimize(cv_of, x_best, method="Powell", bounds=[bounds[k] for k in names],
-                           options={"xtol": 1e-6, "ftol": 1e-10})
+            res = minimize(
+                cv_of, x_best, method="Powell", bounds=[bounds[k] for k in names], options={"xtol": 1e-6, "ftol": 1e-10}
+            )
             if res.fun < best:
                 x_best, best = np.asarray(res.x, float), float(res.fun)
     if best >= penalty:

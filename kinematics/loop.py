@@ -165,8 +165,9 @@ class CircleIntersection:
         return x, y
 
 
-def circle_intersection(R: ArrayLike, l1: ArrayLike, l2: ArrayLike, branch: ArrayLike, *,
-                        rates: bool = True) -> CircleIntersection:
+def circle_intersection(
+    R: ArrayLike, l1: ArrayLike, l2: ArrayLike, branch: ArrayLike, *, rates: bool = True
+) -> CircleIntersection:
     """Closing point of a binary loop: the intersection of two circles, on one branch.
 
     Parameters
@@ -207,8 +208,9 @@ def circle_intersection(R: ArrayLike, l1: ArrayLike, l2: ArrayLike, branch: Arra
     return circle_intersection_xy(R.real, R.imag, l1, l2, branch, rates=rates)
 
 
-def circle_intersection_xy(rx: ArrayLike, ry: ArrayLike, l1: ArrayLike, l2: ArrayLike, branch: ArrayLike, *,
-                           rates: bool = True) -> CircleIntersection:
+def circle_intersection_xy(
+    rx: ArrayLike, ry: ArrayLike, l1: ArrayLike, l2: ArrayLike, branch: ArrayLike, *, rates: bool = True
+) -> CircleIntersection:
     """:func:`circle_intersection` with R given as its real and imaginary parts (float64, or
     longdouble for a reference computation: the precision of the inputs is kept)."""
     rx, ry, l1_in, l2_in, branch = (_real(x) for x in (rx, ry, l1, l2, branch))
@@ -288,8 +290,9 @@ class LineIntersection(NamedTuple):
         return self.status != 0
 
 
-def line_intersection(p1: ArrayLike, u1: ArrayLike, p2: ArrayLike, u2: ArrayLike, *,
-                      parallel_eps: float = PARALLEL_EPS) -> LineIntersection:
+def line_intersection(
+    p1: ArrayLike, u1: ArrayLike, p2: ArrayLike, u2: ArrayLike, *, parallel_eps: float = PARALLEL_EPS
+) -> LineIntersection:
     """Intersection of the lines p1 + t₁·u1 and p2 + t₂·u2 (complex points, unit directions);
     lines closer to parallel than ``parallel_eps`` (|sin| of their angle) do not meet.
 

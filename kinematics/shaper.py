@@ -269,8 +269,22 @@ def shaper_motion(
         ds5.append(-(l4 * w4 * w4 + l3 * e3 * sin_34 + l3 * w3 * w3 * cos_34) * inv_c4)
 
     motion = ShaperMotion(
-        l1, l3, l4, h, e, phi1, branch, s2, phi3, phi4, s5,
-        tuple(ds2), tuple(dphi3), tuple(dphi4), tuple(ds5), status,
+        l1,
+        l3,
+        l4,
+        h,
+        e,
+        phi1,
+        branch,
+        s2,
+        phi3,
+        phi4,
+        s5,
+        tuple(ds2),
+        tuple(dphi3),
+        tuple(dphi4),
+        tuple(ds5),
+        status,
     )
     if mode == "raise":
         _raise_first_violation(motion, order)
@@ -291,9 +305,13 @@ def _raise_first_violation(motion: ShaperMotion, order: int) -> None:
     if not motion.status[i] & Status.NOT_ASSEMBLABLE:
         raise AssemblyError(f"{where}: link 4 is perpendicular to the slider line (cos phi4 = 0), velocities undefined")
     if s2 <= TOGGLE_EPS * (l1 + h):
-        raise AssemblyError(f"{where} cannot assemble: B lies on the rod pivot C (l1 = h), the rod angle is undefined {affected}")
+        raise AssemblyError(
+            f"{where} cannot assemble: B lies on the rod pivot C (l1 = h), the rod angle is undefined {affected}"
+        )
     if s2 > l3:
-        raise AssemblyError(f"{where} cannot assemble: s2 = |CB| = {s2:.6g} > l3 = {l3:g}, block 2 is off the rod {affected}")
+        raise AssemblyError(
+            f"{where} cannot assemble: s2 = |CB| = {s2:.6g} > l3 = {l3:g}, block 2 is off the rod {affected}"
+        )
     q4 = h - e - l3 * np.sin(phi3)
     raise AssemblyError(
         f"{where} cannot assemble: |h - e - l3 sin(phi3)| = {abs(q4):.6g} > l4 = {l4:g}, link 4 cannot reach "
@@ -301,7 +319,9 @@ def _raise_first_violation(motion: ShaperMotion, order: int) -> None:
     )
 
 
-def shaper_limits(l1: float, l3: float, l4: float, h: float, e: float, branch: int = SliderBranch.FORWARD) -> SliderLimits:
+def shaper_limits(
+    l1: float, l3: float, l4: float, h: float, e: float, branch: int = SliderBranch.FORWARD
+) -> SliderLimits:
     """Limit positions, stroke and time ratio of slider 5, from every stationary position in closed form.
 
     s5′ = φ3′·ds5/dφ3 with ds5/dφ3 = −l3·sin(φ3 − φ4)/cos φ4, so slider 5 stops where

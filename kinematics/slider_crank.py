@@ -237,8 +237,7 @@ def _raise_first_violation(motion: SliderCrankMotion, order: int) -> None:
             f"{count} position(s) affected)"
         )
     raise AssemblyError(
-        f"{where}: the rod is perpendicular to the guide (cos phi2 = 0, l1 + |e| = l2), "
-        "so velocities are undefined"
+        f"{where}: the rod is perpendicular to the guide (cos phi2 = 0, l1 + |e| = l2), so velocities are undefined"
     )
 
 
@@ -337,10 +336,14 @@ def slider_limits_from(phi_stationary: ArrayLike, s_stationary: ArrayLike) -> Sl
     s = np.asarray(s_stationary, dtype=float)
     hi, lo = int(np.argmax(s)), int(np.argmin(s))
     if not s[hi] > s[lo]:
-        raise AssemblyError(f"the slider's stroke is below floating-point resolution (it stops at s = {s[hi]:g} "
-                            "only): the link ratios are too extreme for limit positions")
+        raise AssemblyError(
+            f"the slider's stroke is below floating-point resolution (it stops at s = {s[hi]:g} "
+            "only): the link ratios are too extreme for limit positions"
+        )
     ratio, reversals = slider_time_ratio(phi, s)
-    return SliderLimits(float(phi[hi]), float(s[hi]), float(phi[lo]), float(s[lo]), float(s[hi] - s[lo]), ratio, reversals)
+    return SliderLimits(
+        float(phi[hi]), float(s[hi]), float(phi[lo]), float(s[lo]), float(s[hi] - s[lo]), ratio, reversals
+    )
 
 
 def slider_crank_limits(

@@ -37,7 +37,9 @@ class Status(enum.IntFlag):
     TOGGLE = 1 << 1  #: coupler and rocker (or rod and slider guide) aligned: sin(θ−γ) = 0
     POLE_AT_INFINITY = 1 << 2  #: θ′ = 0, the coupler is momentarily translating
     INFLECTION_CIRCLE_COLLAPSED = 1 << 3  #: |Z2| = 0, the inflection circle has no diameter
-    CIRCLE_POINT_AT_INFINITY = 1 << 4  #: the ray meets the cubic at infinity (a straight "arc"), or too near it to place to 1e-9
+    CIRCLE_POINT_AT_INFINITY = (
+        1 << 4
+    )  #: the ray meets the cubic at infinity (a straight "arc"), or too near it to place to 1e-9
     RAY_ALONG_POLE_TANGENT = 1 << 5  #: R2 = 0: the ray is the pole tangent
     CENTER_POINT_AT_INFINITY = 1 << 6  #: the circle point lies on (or within rounding of) the inflection circle
     AT_INFINITY = 1 << 7  #: any other point at infinity (e.g. a coupler point 1e6 cranks away)
@@ -102,10 +104,7 @@ _ON_DEGENERATE = ("flag", "raise")
 def check_on_degenerate(on_degenerate: str) -> OnDegenerate:
     """Validate the keyword-only ``on_degenerate`` choice once, with the list of options."""
     if on_degenerate not in _ON_DEGENERATE:
-        raise ValueError(
-            f"on_degenerate must be one of {', '.join(map(repr, _ON_DEGENERATE))}, "
-            f"not {on_degenerate!r}"
-        )
+        raise ValueError(f"on_degenerate must be one of {', '.join(map(repr, _ON_DEGENERATE))}, not {on_degenerate!r}")
     return on_degenerate  # type: ignore[return-value]
 
 

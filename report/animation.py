@@ -82,9 +82,13 @@ def _svg(animation: Animation, smil: bool) -> str:
         f"<title>{text(animation.title)}</title>",
     ]
     for path in animation.paths:
-        out.append(f'<polyline points="{_pts(path)}" fill="none" stroke="#999" stroke-dasharray="{3 * unit:.3g}" stroke-width="{unit:.3g}"/>')
+        out.append(
+            f'<polyline points="{_pts(path)}" fill="none" stroke="#999" stroke-dasharray="{3 * unit:.3g}" stroke-width="{unit:.3g}"/>'
+        )
     for a, b in animation.guides:
-        out.append(f'<polyline points="{_pts([a, b])}" stroke="#555" stroke-width="{1.2 * unit:.3g}" stroke-dasharray="{8 * unit:.3g},{3 * unit:.3g}"/>')
+        out.append(
+            f'<polyline points="{_pts([a, b])}" stroke="#555" stroke-width="{1.2 * unit:.3g}" stroke-dasharray="{8 * unit:.3g},{3 * unit:.3g}"/>'
+        )
 
     def animate(attr: str, values: list[str]) -> str:
         if not smil or n == 1:
@@ -97,13 +101,17 @@ def _svg(animation: Animation, smil: bool) -> str:
         tag = "polygon" if closed else "polyline"
         fill = f'fill="{color}" fill-opacity="0.25"' if closed else 'fill="none"'
         frames = [_pts(f.links[k]) for f in animation.frames]
-        out.append(f'<{tag} class="link" points="{frames[0]}" {fill} stroke="{color}" stroke-width="{5 * unit:.3g}" '
-                   f'stroke-linejoin="round" stroke-linecap="round">{animate("points", frames)}'
-                   f"<title>{text(animation.link_labels[k])}</title></{tag}>")
+        out.append(
+            f'<{tag} class="link" points="{frames[0]}" {fill} stroke="{color}" stroke-width="{5 * unit:.3g}" '
+            f'stroke-linejoin="round" stroke-linecap="round">{animate("points", frames)}'
+            f"<title>{text(animation.link_labels[k])}</title></{tag}>"
+        )
     for k, _ in enumerate(first.blocks):
         frames = [_pts(f.blocks[k]) for f in animation.frames]
-        out.append(f'<polygon class="block" points="{frames[0]}" fill="#bcbd22" fill-opacity="0.6" stroke="#444" '
-                   f'stroke-width="{unit:.3g}">{animate("points", frames)}</polygon>')
+        out.append(
+            f'<polygon class="block" points="{frames[0]}" fill="#bcbd22" fill-opacity="0.6" stroke="#444" '
+            f'stroke-width="{unit:.3g}">{animate("points", frames)}</polygon>'
+        )
     for label, (x, y) in animation.ground_pivots:
         s = 6 * unit
         out.append(f'<polygon points="{_pts([(x, y), (x - s, y - 1.6 * s), (x + s, y - 1.6 * s)])}" fill="#555"/>')
@@ -111,11 +119,15 @@ def _svg(animation: Animation, smil: bool) -> str:
     for k, _ in enumerate(first.joints):
         xs = [f"{f.joints[k][0]:.6g}" for f in animation.frames]
         ys = [f"{-f.joints[k][1]:.6g}" for f in animation.frames]
-        out.append(f'<circle class="joint" cx="{xs[0]}" cy="{ys[0]}" r="{3.5 * unit:.3g}" fill="#fff" stroke="#000" '
-                   f'stroke-width="{unit:.3g}">{animate("cx", xs)}{animate("cy", ys)}</circle>')
+        out.append(
+            f'<circle class="joint" cx="{xs[0]}" cy="{ys[0]}" r="{3.5 * unit:.3g}" fill="#fff" stroke="#000" '
+            f'stroke-width="{unit:.3g}">{animate("cx", xs)}{animate("cy", ys)}</circle>'
+        )
     # SMIL cannot change text, so the self-playing SVG shows no per-frame caption
     caption = "" if smil and n > 1 else text(first.caption)
-    out.append(f'<text id="caption" x="{x0 + 4 * unit:.6g}" y="{-y1 + 14 * unit:.6g}" font-size="{12 * unit:.3g}">{caption}</text>')
+    out.append(
+        f'<text id="caption" x="{x0 + 4 * unit:.6g}" y="{-y1 + 14 * unit:.6g}" font-size="{12 * unit:.3g}">{caption}</text>'
+    )
     out.append("</svg>")
     return "\n".join(out)
 

@@ -73,15 +73,21 @@ def candidate_json(c: Candidate, rpm: float = 60.0, units: str = "mm") -> dict:
     dyad = sb.dyad
     output: dict = {"type": dyad.kind, f"pivot_{L}": _xy(dyad.pivot)}
     if dyad.kind == "RRR":
-        output |= {f"rocker_{L}": float(dyad.rocker), f"rod_{L}": float(dyad.rod), "branch": int(dyad.branch),
-                   f"dwell_position_{L}": None if c.dwell_position is None else _xy(c.dwell_position)}
+        output |= {
+            f"rocker_{L}": float(dyad.rocker),
+            f"rod_{L}": float(dyad.rod),
+            "branch": int(dyad.branch),
+            f"dwell_position_{L}": None if c.dwell_position is None else _xy(c.dwell_position),
+        }
     dwells = []
     for k, d in enumerate(f.dwells):
-        dwells.append({
-            "dwell_deg": math.degrees(d.angle),
-            "interval_deg": list(d.ends_deg()),
-            "output_deviation_deg": math.degrees(f.deviations[k]) if k < len(f.deviations) else None,
-        })
+        dwells.append(
+            {
+                "dwell_deg": math.degrees(d.angle),
+                "interval_deg": list(d.ends_deg()),
+                "output_deviation_deg": math.degrees(f.deviations[k]) if k < len(f.deviations) else None,
+            }
+        )
     return {
         "rank": c.rank,
         "id": c.id,
@@ -96,8 +102,10 @@ def candidate_json(c: Candidate, rpm: float = 60.0, units: str = "mm") -> dict:
         "swing_deg": math.degrees(f.swing),
         "step_deg": None if f.step is None else math.degrees(f.step),
         # a slotted rocker's transmission angle is 90° by construction: no figure (null)
-        "transmission_deg": {"fourbar_min": math.degrees(f.transmission_fourbar),
-                             "output_min": None if dyad.kind == "RPR" else math.degrees(f.transmission_output)},
+        "transmission_deg": {
+            "fourbar_min": math.degrees(f.transmission_fourbar),
+            "output_min": None if dyad.kind == "RPR" else math.degrees(f.transmission_output),
+        },
         "link_ratio": f.link_ratio,
         f"footprint_{L}2": f.footprint,
         "buildability": _buildability_json(f, rpm, L),
@@ -107,8 +115,11 @@ def candidate_json(c: Candidate, rpm: float = 60.0, units: str = "mm") -> dict:
 
 
 def _summary_json(f: SixBarFigures) -> dict:
-    return {"dwell_deg": [math.degrees(d.angle) for d in f.dwells], "swing_deg": math.degrees(f.swing),
-            "output_deviation_deg": max(math.degrees(x) for x in f.deviations) if f.deviations else None}
+    return {
+        "dwell_deg": [math.degrees(d.angle) for d in f.dwells],
+        "swing_deg": math.degrees(f.swing),
+        "output_deviation_deg": max(math.degrees(x) for x in f.deviations) if f.deviations else None,
+    }
 
 
 def _refinement_json(c: Candidate) -> dict | None:
@@ -126,9 +137,16 @@ def _buildability_json(f: SixBarFigures, rpm: float, L: str) -> dict | None:
     if b is None:
         return None
     speed, accel, jerk = b.dynamics(rpm)
-    return {f"arm_{L}": b.arm, f"slot_used_{L}": None if b.slot is None else list(b.slot), f"clearance_{L}": b.clearance,
-            "clearance_between": b.clearance_between, "rpm": rpm, "peak_output_speed_rad_s": speed,
-            "peak_output_accel_rad_s2": accel, "peak_output_jerk_rad_s3": jerk}
+    return {
+        f"arm_{L}": b.arm,
+        f"slot_used_{L}": None if b.slot is None else list(b.slot),
+        f"clearance_{L}": b.clearance,
+        "clearance_between": b.clearance_between,
+        "rpm": rpm,
+        "peak_output_speed_rad_s": speed,
+        "peak_output_accel_rad_s2": accel,
+        "peak_output_jerk_rad_s3": jerk,
+    }
 
 
 def sixbar_from_json(doc: dict) -> SixBar:

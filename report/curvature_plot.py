@@ -12,9 +12,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from report.escape import plot_text
-
 import numpy as np
+
+from report.escape import plot_text
 
 __all__ = ["CurvatureScene", "plot_curvature"]
 
@@ -69,16 +69,38 @@ def plot_curvature(scene: CurvatureScene, path: str | Path, title: str = "") -> 
     radius = min(0.65 * max(max(xs) - min(xs), max(ys) - min(ys), size), 6.0 * size)
 
     fig, ax = plt.subplots(figsize=(8, 7))
-    ax.plot(*_broken(scene.circle_curve, scene.circle_mask, centre, radius), color="tab:blue", lw=1.2,
-            label="circle-point curve (cubic of stationary curvature)")
-    ax.plot(*_broken(scene.center_curve, scene.center_mask, centre, radius), color="tab:orange", lw=1.0, ls="--",
-            label="centre-point curve")
+    ax.plot(
+        *_broken(scene.circle_curve, scene.circle_mask, centre, radius),
+        color="tab:blue",
+        lw=1.2,
+        label="circle-point curve (cubic of stationary curvature)",
+    )
+    ax.plot(
+        *_broken(scene.center_curve, scene.center_mask, centre, radius),
+        color="tab:orange",
+        lw=1.0,
+        ls="--",
+        label="centre-point curve",
+    )
     if scene.inflection_center is not None and scene.inflection_diameter is not None:
-        ax.add_patch(Circle((scene.inflection_center.real, scene.inflection_center.imag), scene.inflection_diameter / 2,
-                            fill=False, color="tab:green", lw=1.2, label="inflection circle"))
+        ax.add_patch(
+            Circle(
+                (scene.inflection_center.real, scene.inflection_center.imag),
+                scene.inflection_diameter / 2,
+                fill=False,
+                color="tab:green",
+                lw=1.2,
+                label="inflection circle",
+            )
+        )
     if scene.ball_path.size:
-        ax.plot(*_broken(scene.ball_path, np.ones(scene.ball_path.size, bool), centre, 10 * radius),
-                color="tab:purple", lw=0.8, alpha=0.8, label="coupler curve of Ball's point")
+        ax.plot(
+            *_broken(scene.ball_path, np.ones(scene.ball_path.size, bool), centre, 10 * radius),
+            color="tab:purple",
+            lw=0.8,
+            alpha=0.8,
+            label="coupler curve of Ball's point",
+        )
     if scene.ball_point is not None:
         ax.plot([scene.ball_point.real], [scene.ball_point.imag], "D", color="tab:purple", ms=7, label="Ball's point")
         if scene.ball_tangent is not None:
@@ -92,8 +114,15 @@ def plot_curvature(scene: CurvatureScene, path: str | Path, title: str = "") -> 
                 ax.plot(ends.real, ends.imag, color="tab:red", lw=0.7, ls=style)
     for k, z in enumerate(scene.double_ball):
         ax.plot([z.real], [z.imag], "*", color="black", ms=10, label="double Ball points" if k == 0 else None)
-    ax.plot([A0.real, A.real, B.real, B0.real], [A0.imag, A.imag, B.imag, B0.imag], color="0.2", lw=2.5,
-            marker="o", mfc="white", label="four-bar")
+    ax.plot(
+        [A0.real, A.real, B.real, B0.real],
+        [A0.imag, A.imag, B.imag, B0.imag],
+        color="0.2",
+        lw=2.5,
+        marker="o",
+        mfc="white",
+        label="four-bar",
+    )
     for name, z in (("A0", A0), ("B0", B0), ("A", A), ("B", B)):
         ax.annotate(name, (z.real, z.imag), textcoords="offset points", xytext=(5, 5), fontsize=9)
     ax.set_xlim(centre.real - radius, centre.real + radius)

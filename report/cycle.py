@@ -132,12 +132,20 @@ def sixbar_cycle(sixbar: SixBar, figures: SixBarFigures, *, step_deg: float = 1.
     fb = m.fourbar
     A = np.broadcast_to(fb.A, phi.shape).astype(complex) * scale
     return Cycle(
-        phi=phi, A=A, B=np.asarray(fb.B, complex) * scale, P=np.asarray(m.z[0], complex) * scale,
+        phi=phi,
+        A=A,
+        B=np.asarray(fb.B, complex) * scale,
+        P=np.asarray(m.z[0], complex) * scale,
         Q=np.asarray(m.moving_pivot, complex) * scale,
-        theta=np.asarray(fb.theta, float), gamma=np.asarray(fb.gamma, float),
-        psi=m.psi, dpsi=m.dpsi[0], ddpsi=m.dpsi[1],
-        mu_fourbar=m.transmission_fourbar, mu_output=m.transmission_output,
-        status=m.status.astype(np.uint16), dwelling=dwell_mask(phi, figures),
+        theta=np.asarray(fb.theta, float),
+        gamma=np.asarray(fb.gamma, float),
+        psi=m.psi,
+        dpsi=m.dpsi[0],
+        ddpsi=m.dpsi[1],
+        mu_fourbar=m.transmission_fourbar,
+        mu_output=m.transmission_output,
+        status=m.status.astype(np.uint16),
+        dwelling=dwell_mask(phi, figures),
     )
 
 

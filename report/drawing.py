@@ -56,7 +56,11 @@ def draw_sketch(sketch: Sketch, path: str | Path, title: str = "") -> Path:
         if closed:
             ax.add_patch(Polygon(pts, closed=True, alpha=0.25, color=color))
         ax.plot(x, y, lw=3, color=color, solid_capstyle="round")
-        mid = (sum(x[:-1]) / (len(x) - 1), sum(y[:-1]) / (len(y) - 1)) if closed else ((x[0] + x[-1]) / 2, (y[0] + y[-1]) / 2)
+        mid = (
+            (sum(x[:-1]) / (len(x) - 1), sum(y[:-1]) / (len(y) - 1))
+            if closed
+            else ((x[0] + x[-1]) / 2, (y[0] + y[-1]) / 2)
+        )
         ax.annotate(plot_text(label), mid, textcoords="offset points", xytext=(4, 4), fontsize=8, color=color)
     span = max(max(xs, default=1) - min(xs, default=0), max(ys, default=1) - min(ys, default=0), 1e-9)
     size = 0.04 * span

@@ -24,8 +24,21 @@ __all__ = ["INSUNITS", "LAYERS", "write_dxf"]
 
 #: Unit name (as typed in ``--units``, case-insensitive) → DXF ``$INSUNITS`` code.
 INSUNITS: dict[str, int] = {
-    "in": 1, "inch": 1, "inches": 1, "ft": 2, "foot": 2, "feet": 2, "mi": 3, "mm": 4, "cm": 5, "m": 6, "km": 7,
-    "µm": 13, "um": 13, "dm": 14, "yd": 10,
+    "in": 1,
+    "inch": 1,
+    "inches": 1,
+    "ft": 2,
+    "foot": 2,
+    "feet": 2,
+    "mi": 3,
+    "mm": 4,
+    "cm": 5,
+    "m": 6,
+    "km": 7,
+    "µm": 13,
+    "um": 13,
+    "dm": 14,
+    "yd": 10,
 }
 
 #: Layer name → (true colour, what it holds). One layer per link (as the drawing names them).
@@ -86,8 +99,11 @@ def write_dxf(geom: SixBarGeometry, path: str | Path) -> Path:
     for z in geom.fixed.values():
         x, y = _xy(z)
         msp.add_circle((x, y), r, dxfattribs={"layer": "FIXED_PIVOTS"})
-        msp.add_lwpolyline([(x, y), (x - 2 * r, y - 3.2 * r), (x + 2 * r, y - 3.2 * r)], close=True,
-                           dxfattribs={"layer": "FIXED_PIVOTS"})
+        msp.add_lwpolyline(
+            [(x, y), (x - 2 * r, y - 3.2 * r), (x + 2 * r, y - 3.2 * r)],
+            close=True,
+            dxfattribs={"layer": "FIXED_PIVOTS"},
+        )
     for link in geom.links:
         pts = [_xy(p) for p in link.points]
         if len(pts) == 2:
@@ -106,8 +122,9 @@ def write_dxf(geom: SixBarGeometry, path: str | Path) -> Path:
         msp.add_line(_xy(pts[0]), _xy(pts[-1]), dxfattribs={"layer": "DWELL"})
     else:
         start, end = (math.degrees(t) for t in arc)
-        msp.add_arc(_xy(complex(geom.guide[1])), float(geom.guide[2]), start % 360.0, end % 360.0,
-                    dxfattribs={"layer": "DWELL"})
+        msp.add_arc(
+            _xy(complex(geom.guide[1])), float(geom.guide[2]), start % 360.0, end % 360.0, dxfattribs={"layer": "DWELL"}
+        )
 
     _dimensions(msp, geom, h, span)
     _labels(msp, geom, h, r, text_size)
@@ -119,8 +136,16 @@ def write_dxf(geom: SixBarGeometry, path: str | Path) -> Path:
 def _dimensions(msp, geom: SixBarGeometry, h: float, span: float) -> None:
     """Aligned dimensions of every link of fixed length (each side of the coupler triangle),
     linear ones of the fixed pivots' x and y from A0, drawn on the DIMENSIONS layer."""
-    style = {"dimtxt": 0.7 * h, "dimasz": 0.5 * h, "dimexe": 0.3 * h, "dimexo": 0.3 * h, "dimgap": 0.2 * h,
-             "dimdec": 4, "dimzin": 8, "dimlfac": 1.0}  # EZDXF style shows cm of metres (dimlfac 100)
+    style = {
+        "dimtxt": 0.7 * h,
+        "dimasz": 0.5 * h,
+        "dimexe": 0.3 * h,
+        "dimexo": 0.3 * h,
+        "dimgap": 0.2 * h,
+        "dimdec": 4,
+        "dimzin": 8,
+        "dimlfac": 1.0,
+    }  # EZDXF style shows cm of metres (dimlfac 100)
     attribs = {"layer": "DIMENSIONS"}
     sides: list[tuple[complex, complex]] = []
     for link in geom.links:
@@ -130,8 +155,9 @@ def _dimensions(msp, geom: SixBarGeometry, h: float, span: float) -> None:
         sides += [(pts[i], pts[(i + 1) % len(pts)]) for i in range(len(pts) if len(pts) > 2 else 1)]
     for p1, p2 in sides:
         if abs(p2 - p1) > 1e-9 * span:
-            msp.add_aligned_dim(p1=_xy(p1), p2=_xy(p2), distance=1.2 * h, dimstyle="EZDXF", override=style,
-                                dxfattribs=attribs).render()
+            msp.add_aligned_dim(
+                p1=_xy(p1), p2=_xy(p2), distance=1.2 * h, dimstyle="EZDXF", override=style, dxfattribs=attribs
+            ).render()
     # fixed pivots from A0: x below the drawing, y to the left of it
     lowest = min(float(np.min(geom.curve.imag)), *(z.imag for z in geom.fixed.values()))
     left = min(float(np.min(geom.curve.real)), *(z.real for z in geom.fixed.values()))
@@ -139,12 +165,26 @@ def _dimensions(msp, geom: SixBarGeometry, h: float, span: float) -> None:
     for k, (label, z) in enumerate(item for item in geom.fixed.items() if item[0] != "A0"):
         base_y = lowest - (3 + 2 * k) * h
         if abs(z.real - a0.real) > 1e-9 * span:
-            msp.add_linear_dim(base=(0.5 * (a0.real + z.real), base_y), p1=_xy(a0), p2=_xy(z), angle=0,
-                               dimstyle="EZDXF", override=style, dxfattribs=attribs).render()
+            msp.add_linear_dim(
+                base=(0.5 * (a0.real + z.real), base_y),
+                p1=_xy(a0),
+                p2=_xy(z),
+                angle=0,
+                dimstyle="EZDXF",
+                override=style,
+                dxfattribs=attribs,
+            ).render()
         if abs(z.imag - a0.imag) > 1e-9 * span:
             base_x = left - (3 + 2 * k) * h
-            msp.add_linear_dim(base=(base_x, 0.5 * (a0.imag + z.imag)), p1=_xy(a0), p2=_xy(z), angle=90,
-                               dimstyle="EZDXF", override=style, dxfattribs=attribs).render()
+            msp.add_linear_dim(
+                base=(base_x, 0.5 * (a0.imag + z.imag)),
+                p1=_xy(a0),
+                p2=_xy(z),
+                angle=90,
+                dimstyle="EZDXF",
+                override=style,
+                dxfattribs=attribs,
+            ).render()
 
 
 def _labels(msp, geom: SixBarGeometry, h: float, r: float, text_size) -> None:
@@ -175,4 +215,5 @@ def _labels(msp, geom: SixBarGeometry, h: float, r: float, text_size) -> None:
     top = lowest - (4 + 2 * len(geom.fixed)) * h
     for i, line in enumerate(lines):
         msp.add_text(_one_line(line), dxfattribs={"layer": "TEXT", "height": h}).set_placement(
-            (left, top - 1.6 * h * (i + 1)))
+            (left, top - 1.6 * h * (i + 1))
+        )

@@ -31,8 +31,14 @@ __all__ = ["CONTROLS", "plot_text", "script_json", "terminal", "text"]
 
 #: Characters shown as escapes wherever a user string is written: C0, DEL, C1, and the
 #: bidirectional embeddings, overrides and isolates.
-CONTROLS = frozenset([*map(chr, range(0x20)), *map(chr, range(0x7F, 0xA0)), *map(chr, range(0x202A, 0x202F)),
-                      *map(chr, range(0x2066, 0x206A))])
+CONTROLS = frozenset(
+    [
+        *map(chr, range(0x20)),
+        *map(chr, range(0x7F, 0xA0)),
+        *map(chr, range(0x202A, 0x202F)),
+        *map(chr, range(0x2066, 0x206A)),
+    ]
+)
 _VISIBLE = str.maketrans({ch: (f"\\x{ord(ch):02x}" if ord(ch) < 0x100 else f"\\u{ord(ch):04x}") for ch in CONTROLS})
 
 
@@ -42,10 +48,12 @@ def terminal(value: object) -> str:
     what follows."""
     return str(value).translate(_VISIBLE)
 
+
 # The characters that would let JSON text end a <script> element, open an HTML comment or end
 # a JavaScript string literal in older engines; each becomes a JSON \uXXXX escape.
-_SCRIPT_UNSAFE = str.maketrans({"<": "\\u003c", ">": "\\u003e", "&": "\\u0026",
-                                "\u2028": "\\u2028", "\u2029": "\\u2029"})
+_SCRIPT_UNSAFE = str.maketrans(
+    {"<": "\\u003c", ">": "\\u003e", "&": "\\u0026", "\u2028": "\\u2028", "\u2029": "\\u2029"}
+)
 
 
 def text(value: object) -> str:

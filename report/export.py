@@ -38,7 +38,16 @@ from report.escape import terminal
 from synth.kinds import OutputKind
 from synth.query.candidates import Candidate, Request
 
-__all__ = ["CSV_COLUMNS", "MAX_DWELLS", "candidate_row", "csv_cell", "csv_header", "report_json", "safe_stem", "write_report"]
+__all__ = [
+    "CSV_COLUMNS",
+    "MAX_DWELLS",
+    "candidate_row",
+    "csv_cell",
+    "csv_header",
+    "report_json",
+    "safe_stem",
+    "write_report",
+]
 
 #: Dwells per turn a report has columns for (a double Ball point gives two).
 MAX_DWELLS = 2
@@ -48,9 +57,16 @@ def _dwell_columns(k: int) -> tuple[tuple[str, str, str], ...]:
     return (
         (f"dwell{k}_deg", "deg", f"length of dwell {k} (crank angle over which ψ stays within the band)"),
         (f"dwell{k}_start_deg", "deg", f"crank angle where dwell {k} starts, in [0, 360)"),
-        (f"dwell{k}_end_deg", "deg", f"crank angle where dwell {k} ends, in [0, 360) (less than the start when it passes 0)"),
-        (f"dwell{k}_deviation_deg", "deg",
-         f"output deviation (peak-to-peak ψ) over a window of the requested dwell length around dwell {k}"),
+        (
+            f"dwell{k}_end_deg",
+            "deg",
+            f"crank angle where dwell {k} ends, in [0, 360) (less than the start when it passes 0)",
+        ),
+        (
+            f"dwell{k}_deviation_deg",
+            "deg",
+            f"output deviation (peak-to-peak ψ) over a window of the requested dwell length around dwell {k}",
+        ),
     )
 
 
@@ -79,10 +95,18 @@ CSV_COLUMNS: tuple[tuple[str, str, str], ...] = (
     *(col for k in range(1, MAX_DWELLS + 1) for col in _dwell_columns(k)),
     ("swing_deg", "deg", "output swing, max ψ - min ψ over the turn"),
     ("output_deviation_deg", "deg", "largest of the dwells' output deviations (the ranking's objective)"),
-    ("toleranced_deviation_deg", "deg", "with --tolerance: 95th percentile of output_deviation_deg over 256 six-bars "
-     "made within it (the ranking's objective then; empty otherwise)"),
+    (
+        "toleranced_deviation_deg",
+        "deg",
+        "with --tolerance: 95th percentile of output_deviation_deg over 256 six-bars "
+        "made within it (the ranking's objective then; empty otherwise)",
+    ),
     ("transmission_fourbar_min_deg", "deg", "smallest four-bar transmission angle over the turn, in [0, 90]"),
-    ("transmission_output_min_deg", "deg", "smallest output transmission angle over the turn (RRR; empty for RPR, whose slot transmits at 90)"),
+    (
+        "transmission_output_min_deg",
+        "deg",
+        "smallest output transmission angle over the turn (RRR; empty for RPR, whose slot transmits at 90)",
+    ),
     ("link_ratio", "", "longest over shortest link length"),
     ("footprint", "length^2", "area of the convex hull of the pivots and joint paths"),
 )
@@ -125,8 +149,9 @@ def _clean(value: Any) -> Any:
     return value
 
 
-def report_json(request: Request, candidates: Sequence[Candidate], cycles: Sequence[Cycle],
-                step_deg: float = 1.0, units: str = "") -> dict:
+def report_json(
+    request: Request, candidates: Sequence[Candidate], cycles: Sequence[Cycle], step_deg: float = 1.0, units: str = ""
+) -> dict:
     """The ``candidates.json`` document: the request, and per candidate the query's JSON shape
     (:func:`report.candidate_json.candidate_json`, lengths in ``units``) plus its ``cycle`` table."""
     items = []
@@ -134,16 +159,18 @@ def report_json(request: Request, candidates: Sequence[Candidate], cycles: Seque
         doc = candidate_json(c, request.rpm, units)
         doc["cycle"] = {"step_deg": float(step_deg), **cycle_json(cyc, c.sixbar.dyad.kind)}
         items.append(doc)
-    return _clean({
-        "request": request_json(request, units),
-        "conventions": {
-            "lengths": "request unit (crank = request.crank)",
-            "angles": "degrees; psi derivatives per radian of crank",
-            "frame": "A0 = (0, 0), B0 = (d, 0), y up; coupler point in the coupler frame (origin A, x along A->B)",
-            "cycle_columns": {key: {"unit": unit, "meaning": meaning} for key, unit, meaning in CYCLE_COLUMNS},
-        },
-        "candidates": items,
-    })
+    return _clean(
+        {
+            "request": request_json(request, units),
+            "conventions": {
+                "lengths": "request unit (crank = request.crank)",
+                "angles": "degrees; psi derivatives per radian of crank",
+                "frame": "A0 = (0, 0), B0 = (d, 0), y up; coupler point in the coupler frame (origin A, x along A->B)",
+                "cycle_columns": {key: {"unit": unit, "meaning": meaning} for key, unit, meaning in CYCLE_COLUMNS},
+            },
+            "candidates": items,
+        }
+    )
 
 
 def json_document_text(doc: dict) -> str:
@@ -170,7 +197,9 @@ def _compact(value: Any) -> str:
     try:
         return json.dumps(value, separators=(",", ":"), allow_nan=False, ensure_ascii=False)
     except ValueError:
-        raise ValueError(f"the report would hold a non-finite number at {_non_finite(value)}: nothing written") from None
+        raise ValueError(
+            f"the report would hold a non-finite number at {_non_finite(value)}: nothing written"
+        ) from None
 
 
 def _non_finite(value: Any, where: str = "") -> str | None:
@@ -191,12 +220,24 @@ def candidate_row(c: Candidate) -> dict[str, Any]:
     rrr = dy.kind == OutputKind.RRR
     rest = c.dwell_position if rrr else None
     row: dict[str, Any] = {
-        "rank": int(c.rank), "id": c.id, "segment_id": int(c.segment_id), "output_type": dy.kind,
-        "a": sb.a, "b": sb.b, "c": sb.c, "d": sb.d, "branch": int(sb.branch), "u": sb.u, "v": sb.v,
-        "pivot_x": dy.pivot.real, "pivot_y": dy.pivot.imag,
-        "rocker": dy.rocker if rrr else None, "rod": dy.rod if rrr else None,
+        "rank": int(c.rank),
+        "id": c.id,
+        "segment_id": int(c.segment_id),
+        "output_type": dy.kind,
+        "a": sb.a,
+        "b": sb.b,
+        "c": sb.c,
+        "d": sb.d,
+        "branch": int(sb.branch),
+        "u": sb.u,
+        "v": sb.v,
+        "pivot_x": dy.pivot.real,
+        "pivot_y": dy.pivot.imag,
+        "rocker": dy.rocker if rrr else None,
+        "rod": dy.rod if rrr else None,
         "dyad_branch": int(dy.branch) if rrr else None,
-        "rest_x": None if rest is None else rest.real, "rest_y": None if rest is None else rest.imag,
+        "rest_x": None if rest is None else rest.real,
+        "rest_y": None if rest is None else rest.imag,
     }
     for k in range(1, MAX_DWELLS + 1):
         d = f.dwells[k - 1] if k <= len(f.dwells) else None
@@ -210,7 +251,8 @@ def candidate_row(c: Candidate) -> dict[str, Any]:
         "toleranced_deviation_deg": None if c.toleranced_deviation is None else math.degrees(c.toleranced_deviation),
         "transmission_fourbar_min_deg": math.degrees(f.transmission_fourbar),
         "transmission_output_min_deg": None if dy.kind == "RPR" else math.degrees(f.transmission_output),
-        "link_ratio": f.link_ratio, "footprint": f.footprint,
+        "link_ratio": f.link_ratio,
+        "footprint": f.footprint,
     }
     return {k: _finite(v) if isinstance(v, float) else v for k, v in row.items()}
 
@@ -264,13 +306,17 @@ def _readme(request: Request, stems: Sequence[str], units: str) -> str:
         "",
         *_heading("Files (NN = rank, ID = candidate id made filesystem-safe)"),
     ]
-    files = [("index.html", "the candidates: table, animation, psi(phi) strip, dimensions, plots (self-contained)"),
-             ("candidates.json", "request + per candidate its dimensions, figures and full cycle table"),
-             ("candidates.csv", "one row per candidate (columns below)")]
+    files = [
+        ("index.html", "the candidates: table, animation, psi(phi) strip, dimensions, plots (self-contained)"),
+        ("candidates.json", "request + per candidate its dimensions, figures and full cycle table"),
+        ("candidates.csv", "one row per candidate (columns below)"),
+    ]
     files += [(f"NN-ID-{name}.png/.svg", what) for name, what in PLOTS.items()]
-    files += [("NN-ID-drawing.svg", "the six-bar at mid-dwell, pivots and link lengths labelled"),
-              ("NN-ID.toml", "the six-bar as a linkage file: dwell analyze linkage NN-ID.toml --limits gives its figures"),
-              ("NN-ID-drawing.dxf", "the same geometry for CAD ($INSUNITS from --units), layers:")]
+    files += [
+        ("NN-ID-drawing.svg", "the six-bar at mid-dwell, pivots and link lengths labelled"),
+        ("NN-ID.toml", "the six-bar as a linkage file: dwell analyze linkage NN-ID.toml --limits gives its figures"),
+        ("NN-ID-drawing.dxf", "the same geometry for CAD ($INSUNITS from --units), layers:"),
+    ]
     files += [(f"  {name}", what) for name, (_, what) in LAYERS.items()]
     width = max(len(n) for n, _ in files)
     lines += [f"{name:<{width}}  {what}" for name, what in files]
@@ -278,8 +324,10 @@ def _readme(request: Request, stems: Sequence[str], units: str) -> str:
     width = max(len(n) for n, _, _ in CSV_COLUMNS)
     for name, unit, meaning in CSV_COLUMNS:
         lines.append(f"{name:<{width}}  [{unit or '-'}]  {meaning}")
-    lines += ["", *_heading("candidates.json cycle columns (one list per key, one value per crank step; "
-                            "null = does not exist)")]
+    lines += [
+        "",
+        *_heading("candidates.json cycle columns (one list per key, one value per crank step; null = does not exist)"),
+    ]
     width = max(len(n) for n, _, _ in CYCLE_COLUMNS)
     for name, unit, meaning in CYCLE_COLUMNS:
         lines.append(f"{name:<{width}}  [{unit or '-'}]  {meaning}")
@@ -291,9 +339,16 @@ def _readme(request: Request, stems: Sequence[str], units: str) -> str:
 # --------------------------------------------------------------------------------------------
 
 
-def write_report(candidates: list[Candidate], request: Request, out_dir: Path, *,
-                 step_deg: float = 1.0, option: str = "report folder", units: str = "",
-                 on_candidate: Callable[[int, int], None] | None = None) -> list[Path]:
+def write_report(
+    candidates: list[Candidate],
+    request: Request,
+    out_dir: Path,
+    *,
+    step_deg: float = 1.0,
+    option: str = "report folder",
+    units: str = "",
+    on_candidate: Callable[[int, int], None] | None = None,
+) -> list[Path]:
     """Write the report of ``candidates`` (ranked, in the user's units) for ``request`` into
     ``out_dir``: written into a temporary sibling folder that replaces ``out_dir`` when
     complete (:func:`report.folder.staged_folder`; a folder holding files the tool did not
@@ -355,8 +410,11 @@ def write_report(candidates: list[Candidate], request: Request, out_dir: Path, *
     written = []
     # all files go into a temporary sibling renamed into place at the end (report/folder.py)
     with staged_folder(final, option) as out:
-        for name, text in (("candidates.json", json_text), ("candidates.csv", csv_text),
-                           ("README.txt", _readme(request, stems, units))):
+        for name, text in (
+            ("candidates.json", json_text),
+            ("candidates.csv", csv_text),
+            ("README.txt", _readme(request, stems, units)),
+        ):
             (out / name).write_text(text, encoding="utf-8")
             written.append(out / name)
 
@@ -370,8 +428,9 @@ def write_report(candidates: list[Candidate], request: Request, out_dir: Path, *
             toml.write_text(linkage_toml(c, units, band=request.band, dwells=request.dwells), encoding="utf-8")
             files = [p for pf in plots.values() for p in (pf.png, pf.svg)] + [drawing, dxf, toml]
             written += files
-            entries.append(PageEntry(c, cyc, geom, {k: pf.svg_text for k, pf in plots.items()},
-                                     [p.name for p in files]))
+            entries.append(
+                PageEntry(c, cyc, geom, {k: pf.svg_text for k, pf in plots.items()}, [p.name for p in files])
+            )
             if on_candidate is not None:
                 on_candidate(len(entries), len(candidates))
         page = out / "index.html"

@@ -38,8 +38,10 @@ __all__ = ["MARKER", "ReportFolderError", "check_report_folder", "staged_file", 
 MARKER = ".dwell-report"
 
 # The names a report writes (export.write_report): fixed files and NN-<safe id>-<what>.<ext>.
-_REPORT_FILE = re.compile(r"(index\.html|candidates\.json|candidates\.csv|README\.txt"
-                          r"|\d{2,}-[A-Za-z0-9._-]+\.(png|svg|dxf|toml))")
+_REPORT_FILE = re.compile(
+    r"(index\.html|candidates\.json|candidates\.csv|README\.txt"
+    r"|\d{2,}-[A-Za-z0-9._-]+\.(png|svg|dxf|toml))"
+)
 
 
 class ReportFolderError(Exception):
@@ -70,8 +72,10 @@ def check_report_folder(out: Path, option: str = "report folder") -> None:
         raise ReportFolderError(f"{option}: cannot read {str(out)!r}: {exc.strerror}") from None
     if foreign:
         more = f" and {len(foreign) - 1} more" if len(foreign) > 1 else ""
-        raise ReportFolderError(f"{option} {str(out)!r} holds files dwell did not write ({foreign[0]!r}{more}): "
-                                "a report replaces its whole folder; choose a new or empty folder")
+        raise ReportFolderError(
+            f"{option} {str(out)!r} holds files dwell did not write ({foreign[0]!r}{more}): "
+            "a report replaces its whole folder; choose a new or empty folder"
+        )
 
 
 def _alive(pid: int) -> bool:
@@ -164,8 +168,9 @@ def staged_folder(out: Path, option: str = "report folder") -> Iterator[Path]:
             shutil.rmtree(old, ignore_errors=True)
     except OSError as exc:
         shutil.rmtree(tmp, ignore_errors=True)
-        raise ReportFolderError(f"{option}: cannot write the report into {str(out)!r}: {exc.strerror or exc}; "
-                                "nothing was changed") from None
+        raise ReportFolderError(
+            f"{option}: cannot write the report into {str(out)!r}: {exc.strerror or exc}; nothing was changed"
+        ) from None
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

@@ -143,8 +143,12 @@ def _animation_data(entry: PageEntry) -> dict:
         "psi": [float(f"{v:.7g}") for v in psi_deg],
         "dwell": [int(v) for v in cyc.dwelling],
         "ok": [int(v) for v in cyc.assembled],
-        "A0": _pt(0j), "B0": _pt(complex(sb.d, 0.0)), "D": _pt(sb.dyad.pivot),
-        "A": [_pt(z) for z in cyc.A], "B": [_pt(z) for z in cyc.B], "P": [_pt(z) for z in cyc.P],
+        "A0": _pt(0j),
+        "B0": _pt(complex(sb.d, 0.0)),
+        "D": _pt(sb.dyad.pivot),
+        "A": [_pt(z) for z in cyc.A],
+        "B": [_pt(z) for z in cyc.B],
+        "P": [_pt(z) for z in cyc.P],
         "sy": [round(float(v), 2) for v in sy],
         "strip": {"x0": ml, "w": W - ml - mr},
     }
@@ -172,8 +176,11 @@ def _poly(points: list[list[float]]) -> str:
 
 def _runs_svg(entry: PageEntry) -> list[str]:
     """Polylines of the coupler curve's dwell stretches (static)."""
-    return [f'<polyline class="dwell-stretch" points="{_poly([_pt(z) for z in s])}"/>'
-            for s in entry.geometry.dwell_stretches if len(s) >= 2]
+    return [
+        f'<polyline class="dwell-stretch" points="{_poly([_pt(z) for z in s])}"/>'
+        for s in entry.geometry.dwell_stretches
+        if len(s) >= 2
+    ]
 
 
 def _mechanism_svg(entry: PageEntry, data: dict) -> str:
@@ -182,12 +189,17 @@ def _mechanism_svg(entry: PageEntry, data: dict) -> str:
     u = max(w, h) / 500.0  # one "pixel" of a 500-px drawing, in user units
     kind = data["kind"]
     A, B, P = data["A"][0], data["B"][0], data["P"][0]
+
     def line(cls: str, p: list[float], q: list[float]) -> str:
         return f'<line class="{cls}" x1="{p[0]:.7g}" y1="{p[1]:.7g}" x2="{q[0]:.7g}" y2="{q[1]:.7g}"/>'
 
-    out = [(f'<svg class="mech" xmlns="http://www.w3.org/2000/svg" viewBox="{x:.7g} {y:.7g} {w:.7g} {h:.7g}" '
-            f'width="560" height="{560 * h / w:.0f}" role="img" aria-label="six-bar animation">'),
-           f'<polyline class="coupler-curve" points="{_poly(data["P"] + data["P"][:1])}"/>']
+    out = [
+        (
+            f'<svg class="mech" xmlns="http://www.w3.org/2000/svg" viewBox="{x:.7g} {y:.7g} {w:.7g} {h:.7g}" '
+            f'width="560" height="{560 * h / w:.0f}" role="img" aria-label="six-bar animation">'
+        ),
+        f'<polyline class="coupler-curve" points="{_poly(data["P"] + data["P"][:1])}"/>',
+    ]
     out += _runs_svg(entry)
     if kind == OutputKind.RRR:
         out.append(f'<polyline class="q-path" points="{_poly(data["Q"])}"/>')
@@ -202,8 +214,10 @@ def _mechanism_svg(entry: PageEntry, data: dict) -> str:
     else:
         out.append(line("output-link", data["D"], data["S"][0]))
         s = 7 * u
-        out.append(f'<rect class="block" x="{-1.6 * s:.5g}" y="{-s:.5g}" width="{3.2 * s:.5g}" height="{2 * s:.5g}" '
-                   f'transform="translate({P[0]:.7g},{P[1]:.7g}) rotate({-data["psi"][0]:.6g})"/>')
+        out.append(
+            f'<rect class="block" x="{-1.6 * s:.5g}" y="{-s:.5g}" width="{3.2 * s:.5g}" height="{2 * s:.5g}" '
+            f'transform="translate({P[0]:.7g},{P[1]:.7g}) rotate({-data["psi"][0]:.6g})"/>'
+        )
     for name in ("A0", "B0", "D"):
         px, py = data[name]
         s = 8 * u
@@ -212,13 +226,17 @@ def _mechanism_svg(entry: PageEntry, data: dict) -> str:
         out.append(f'<circle class="pivot" cx="{px:.7g}" cy="{py:.7g}" r="{3.2 * u:.4g}"/>')
         # D often sits near B0: its label goes on the other side
         lx, anchor = (px - 1.3 * s, "end") if name == "D" else (px + 1.3 * s, "start")
-        out.append(f'<text class="label fixed" x="{lx:.7g}" y="{py + 2.4 * s:.7g}" text-anchor="{anchor}" '
-                   f'font-size="{13 * u:.4g}">{_esc(name)}</text>')
+        out.append(
+            f'<text class="label fixed" x="{lx:.7g}" y="{py + 2.4 * s:.7g}" text-anchor="{anchor}" '
+            f'font-size="{13 * u:.4g}">{_esc(name)}</text>'
+        )
     joints = {"A": A, "B": B, "P": P} | ({"Q": data["Q"][0]} if kind == OutputKind.RRR else {})
     for name, p in joints.items():
         out.append(f'<circle class="joint j-{_esc(name)}" cx="{p[0]:.7g}" cy="{p[1]:.7g}" r="{3.6 * u:.4g}"/>')
-        out.append(f'<text class="label l-{_esc(name)}" x="{p[0] + 6 * u:.7g}" y="{p[1] - 6 * u:.7g}" '
-                   f'font-size="{13 * u:.4g}">{_esc(name)}</text>')
+        out.append(
+            f'<text class="label l-{_esc(name)}" x="{p[0] + 6 * u:.7g}" y="{p[1] - 6 * u:.7g}" '
+            f'font-size="{13 * u:.4g}">{_esc(name)}</text>'
+        )
     out.append("</svg>")
     return "\n".join(out)
 
@@ -231,20 +249,28 @@ def _strip_svg(entry: PageEntry, data: dict) -> str:
     lo, hi = _strip_map(psi_deg[cyc.assembled] if cyc.assembled.any() else psi_deg)
     phi_deg = np.append(np.degrees(cyc.phi), 360.0)
     x, y = _strip_xy(phi_deg, np.append(psi_deg, psi_deg[0]), lo, hi)
-    out = [(f'<svg class="strip" xmlns="http://www.w3.org/2000/svg" viewBox="0 0 {W:g} {H:g}" width="{W:g}" '
-            f'height="{H:g}" role="img" aria-label="output angle against crank angle">')]
+    out = [
+        (
+            f'<svg class="strip" xmlns="http://www.w3.org/2000/svg" viewBox="0 0 {W:g} {H:g}" width="{W:g}" '
+            f'height="{H:g}" role="img" aria-label="output angle against crank angle">'
+        )
+    ]
     top, bottom = mt, H - mb
     for dw in entry.candidate.figures.dwells:
         for a, b in dw.spans_deg():
             xa, _ = _strip_xy(a, lo, lo, hi)
             xb, _ = _strip_xy(b, lo, lo, hi)
-            out.append(f'<rect class="dwell-band" x="{xa:.2f}" y="{top:.2f}" width="{xb - xa:.2f}" '
-                       f'height="{bottom - top:.2f}"/>')
+            out.append(
+                f'<rect class="dwell-band" x="{xa:.2f}" y="{top:.2f}" width="{xb - xa:.2f}" '
+                f'height="{bottom - top:.2f}"/>'
+            )
     out.append(f'<rect class="frame" x="{ml:g}" y="{top:g}" width="{W - ml - mr:g}" height="{bottom - top:g}"/>')
     for tick in range(0, 361, 90):
         tx, _ = _strip_xy(tick, lo, lo, hi)
-        out.append(f'<line class="tick" x1="{tx:.2f}" y1="{bottom:g}" x2="{tx:.2f}" y2="{bottom + 4:g}"/>'
-                   f'<text class="tick-label" x="{tx:.2f}" y="{H - 8:g}" text-anchor="middle">{tick}°</text>')
+        out.append(
+            f'<line class="tick" x1="{tx:.2f}" y1="{bottom:g}" x2="{tx:.2f}" y2="{bottom + 4:g}"/>'
+            f'<text class="tick-label" x="{tx:.2f}" y="{H - 8:g}" text-anchor="middle">{tick}°</text>'
+        )
     for value in (lo, hi):
         _, ty = _strip_xy(0.0, value, lo, hi)
         out.append(f'<text class="tick-label" x="{ml - 5:g}" y="{ty + 4:.2f}" text-anchor="end">{value:.1f}°</text>')
@@ -264,18 +290,23 @@ def _strip_svg(entry: PageEntry, data: dict) -> str:
 
 def _request_line(request: Request, units: str = "") -> str:
     r = request
-    swing = ("swing free" if r.swing is None
-             else f"swing {_num(math.degrees(r.swing))}° ± {_num(math.degrees(r.swing_tol))}°")
-    parts = [f"dwell {_num(math.degrees(r.dwell))}° ± {_num(math.degrees(r.dwell_tol))}°",
-             f"{r.dwells} dwell(s) per turn",
-             swing,
-             f"output {r.output}",
-             f"dwell band {_num(math.degrees(r.band))}°",
-             f"crank {_length(r.crank, units)}",
-             *((f"manufacturing tolerance ±{_length(r.tolerance, units)}",) if r.tolerance > 0 else ()),
-             f"transmission ≥ {_num(math.degrees(r.min_transmission))}°",
-             f"link ratio ≤ {_num(r.max_link_ratio)}",
-             f"slider arm ≥ {_num(r.min_arm)} cranks · clearance ≥ {_num(r.min_clearance)} cranks"]
+    swing = (
+        "swing free"
+        if r.swing is None
+        else f"swing {_num(math.degrees(r.swing))}° ± {_num(math.degrees(r.swing_tol))}°"
+    )
+    parts = [
+        f"dwell {_num(math.degrees(r.dwell))}° ± {_num(math.degrees(r.dwell_tol))}°",
+        f"{r.dwells} dwell(s) per turn",
+        swing,
+        f"output {r.output}",
+        f"dwell band {_num(math.degrees(r.band))}°",
+        f"crank {_length(r.crank, units)}",
+        *((f"manufacturing tolerance ±{_length(r.tolerance, units)}",) if r.tolerance > 0 else ()),
+        f"transmission ≥ {_num(math.degrees(r.min_transmission))}°",
+        f"link ratio ≤ {_num(r.max_link_ratio)}",
+        f"slider arm ≥ {_num(r.min_arm)} cranks · clearance ≥ {_num(r.min_clearance)} cranks",
+    ]
     return " · ".join(_esc(p) for p in parts)
 
 
@@ -287,23 +318,45 @@ def _dwells_text(c: Candidate) -> str:
 def _summary_table(entries: list[PageEntry], units: str = "") -> str:
     # the toleranced deviation (--tolerance) beside the nominal one, where it was worked out
     toleranced = any(e.candidate.toleranced_deviation is not None for e in entries)
-    head = ("rank", "id", "output", "dwell(s)", "deviation", *(("toleranced deviation",) if toleranced else ()),
-            "swing", "μ four-bar", "μ output", "link ratio", f"footprint ({units}²)" if units else "footprint")
+    head = (
+        "rank",
+        "id",
+        "output",
+        "dwell(s)",
+        "deviation",
+        *(("toleranced deviation",) if toleranced else ()),
+        "swing",
+        "μ four-bar",
+        "μ output",
+        "link ratio",
+        f"footprint ({units}²)" if units else "footprint",
+    )
     rows = []
     for e in entries:
         c, f = e.candidate, e.candidate.figures
         dev = max(f.deviations) if f.deviations else None
         tol = c.toleranced_deviation
-        cells = [f'<a href="#cand-{int(c.rank)}">{int(c.rank)}</a>', f"<code>{_esc(c.id)}</code>",
-                 _esc(c.sixbar.dyad.kind),
-                 _esc(_dwells_text(c)), "–" if dev is None else f"{math.degrees(dev):.4f}°",
-                 *((("–" if tol is None else f"{math.degrees(tol):.4f}°"),) if toleranced else ()),
-                 f"{math.degrees(f.swing):.3f}°", f"{math.degrees(f.transmission_fourbar):.1f}°",
-                 "slot" if c.sixbar.dyad.kind == "RPR" else f"{math.degrees(f.transmission_output):.1f}°",
-                 f"{f.link_ratio:.2f}", _num(f.footprint, 6)]
+        cells = [
+            f'<a href="#cand-{int(c.rank)}">{int(c.rank)}</a>',
+            f"<code>{_esc(c.id)}</code>",
+            _esc(c.sixbar.dyad.kind),
+            _esc(_dwells_text(c)),
+            "–" if dev is None else f"{math.degrees(dev):.4f}°",
+            *((("–" if tol is None else f"{math.degrees(tol):.4f}°"),) if toleranced else ()),
+            f"{math.degrees(f.swing):.3f}°",
+            f"{math.degrees(f.transmission_fourbar):.1f}°",
+            "slot" if c.sixbar.dyad.kind == "RPR" else f"{math.degrees(f.transmission_output):.1f}°",
+            f"{f.link_ratio:.2f}",
+            _num(f.footprint, 6),
+        ]
         rows.append("<tr>" + "".join(f"<td>{x}</td>" for x in cells) + "</tr>")
-    return ('<table class="summary"><thead><tr>' + "".join(f"<th>{_esc(h)}</th>" for h in head)
-            + "</tr></thead><tbody>" + "\n".join(rows) + "</tbody></table>")
+    return (
+        '<table class="summary"><thead><tr>'
+        + "".join(f"<th>{_esc(h)}</th>" for h in head)
+        + "</tr></thead><tbody>"
+        + "\n".join(rows)
+        + "</tbody></table>"
+    )
 
 
 def _dimensions_table(entry: PageEntry, rpm: float, units: str = "") -> str:
@@ -319,14 +372,21 @@ def _dimensions_table(entry: PageEntry, rpm: float, units: str = "") -> str:
         return _length(x, units, digits)
 
     rows: list[tuple[str, str]] = [
-        ("crank a (A0–A)", ln(sb.a)), ("coupler b (A–B)", ln(sb.b)), ("rocker c (B0–B)", ln(sb.c)),
-        ("ground d (A0–B0)", ln(sb.d)), ("four-bar branch", f"{sb.branch:+d}"),
+        ("crank a (A0–A)", ln(sb.a)),
+        ("coupler b (A–B)", ln(sb.b)),
+        ("rocker c (B0–B)", ln(sb.c)),
+        ("ground d (A0–B0)", ln(sb.d)),
+        ("four-bar branch", f"{sb.branch:+d}"),
         ("coupler point (u, v), coupler frame", xy(sb.coupler_point)),
-        ("output dyad", dy.kind), ("output pivot D", xy(dy.pivot)),
+        ("output dyad", dy.kind),
+        ("output pivot D", xy(dy.pivot)),
     ]
     if dy.kind == OutputKind.RRR:
-        rows += [("output rocker L (D–Q)", ln(dy.rocker)), ("rod ρ (P–Q)", ln(dy.rod)),
-                 ("dyad branch", f"{dy.branch:+d}")]
+        rows += [
+            ("output rocker L (D–Q)", ln(dy.rocker)),
+            ("rod ρ (P–Q)", ln(dy.rod)),
+            ("dyad branch", f"{dy.branch:+d}"),
+        ]
         if c.dwell_position is not None:
             rows.append(("Q at rest (dwell)", xy(c.dwell_position)))
     for k, d in enumerate(f.dwells):
@@ -342,23 +402,37 @@ def _dimensions_table(entry: PageEntry, rpm: float, units: str = "") -> str:
         dev = f" · deviation {math.degrees(max(g.deviations)):.4f}°" if g.deviations else ""
         rows.append(("refined from (as retrieved)", f"dwell {dwells} · swing {math.degrees(g.swing):.4f}°{dev}"))
     if c.toleranced_deviation is not None:
-        rows.append(("toleranced deviation (95 % of six-bars made within the tolerance)",
-                     f"{math.degrees(c.toleranced_deviation):.4f}°"))
-    rows += [("swing", f"{math.degrees(f.swing):.4f}°"),
-             ("min transmission, four-bar", f"{math.degrees(f.transmission_fourbar):.2f}°"),
-             ("min transmission, output", "slot (90° by construction)" if dy.kind == "RPR"
-              else f"{math.degrees(f.transmission_output):.2f}°"),
-             ("link ratio", _num(f.link_ratio, 4)),
-             ("footprint (hull area)", f"{_num(f.footprint, 5)}{f' {units}²' if units else ''}")]
+        rows.append(
+            (
+                "toleranced deviation (95 % of six-bars made within the tolerance)",
+                f"{math.degrees(c.toleranced_deviation):.4f}°",
+            )
+        )
+    rows += [
+        ("swing", f"{math.degrees(f.swing):.4f}°"),
+        ("min transmission, four-bar", f"{math.degrees(f.transmission_fourbar):.2f}°"),
+        (
+            "min transmission, output",
+            "slot (90° by construction)" if dy.kind == "RPR" else f"{math.degrees(f.transmission_output):.2f}°",
+        ),
+        ("link ratio", _num(f.link_ratio, 4)),
+        ("footprint (hull area)", f"{_num(f.footprint, 5)}{f' {units}²' if units else ''}"),
+    ]
     if f.build is not None:
         b = f.build
         if b.arm is not None:
-            rows += [("slider to slot pivot, smallest (torque arm)", ln(b.arm)),
-                     ("slot length used, |P − D|", f"{_num(b.slot[0])} … {ln(b.slot[1])}")]
+            rows += [
+                ("slider to slot pivot, smallest (torque arm)", ln(b.arm)),
+                ("slot length used, |P − D|", f"{_num(b.slot[0])} … {ln(b.slot[1])}"),
+            ]
         speed, accel, jerk = b.dynamics(rpm)
-        rows += [("clearance to the fixed pivots", f"{ln(b.clearance)} ({b.clearance_between})"),
-                 (f"output peak speed / acceleration / jerk at {_num(rpm)} rpm",
-                  f"{_num(speed, 4)} rad/s · {_num(accel, 4)} rad/s² · {_num(jerk, 4)} rad/s³")]
+        rows += [
+            ("clearance to the fixed pivots", f"{ln(b.clearance)} ({b.clearance_between})"),
+            (
+                f"output peak speed / acceleration / jerk at {_num(rpm)} rpm",
+                f"{_num(speed, 4)} rad/s · {_num(accel, 4)} rad/s² · {_num(jerk, 4)} rad/s³",
+            ),
+        ]
     rows.append(("segment", str(int(c.segment_id))))
     body = "".join(f"<tr><th>{_esc(k)}</th><td>{_esc(v)}</td></tr>" for k, v in rows)
     return f'<table class="dimensions">{body}</table>'
@@ -375,8 +449,10 @@ def _candidate_section(entry: PageEntry, rpm: float, units: str = "") -> str:
     sid = f"cand-{rank}"
     data = _animation_data(entry)
     n = len(data["phi"])
-    plots = "\n".join(f'<figure class="plot plot-{_esc(name)}">{inline_svg(svg, f"{sid}-{name}-")}</figure>'
-                      for name, svg in entry.plots.items())
+    plots = "\n".join(
+        f'<figure class="plot plot-{_esc(name)}">{inline_svg(svg, f"{sid}-{name}-")}</figure>'
+        for name, svg in entry.plots.items()
+    )
     files = " · ".join(f'<a href="{_esc(name)}">{_esc(name)}</a>' for name in entry.files)
     phi0, kind = f"{data['phi'][0]:g}", _esc(c.sixbar.dyad.kind)
     return f"""<section class="candidate" id="{sid}" data-rank="{rank}" data-kind="{kind}" data-phi="{phi0}">
@@ -387,7 +463,7 @@ def _candidate_section(entry: PageEntry, rpm: float, units: str = "") -> str:
 <div class="controls">
 <button class="play" type="button" aria-pressed="false">Play</button>
 <input class="phi-slider" type="range" min="0" max="{n - 1}" step="1" value="0" data-phi="{phi0}"
- data-step="{data['step']:g}" aria-label="crank angle">
+ data-step="{data["step"]:g}" aria-label="crank angle">
 <output class="phi-readout">φ = 0°</output>
 <span class="dwell-flag">dwell</span>
 </div>
@@ -405,14 +481,16 @@ def _candidate_section(entry: PageEntry, rpm: float, units: str = "") -> str:
 
 def _palette_css() -> str:
     """The links' colours of :mod:`report.palette` (the SVG drawing's and the DXF's) as CSS."""
-    rules = [f":root{{--dwell:{DWELL}}}",
-             f"svg.mech .crank{{stroke:{LINK_COLORS['crank']}}}",
-             f"svg.mech .coupler{{fill:{LINK_COLORS['coupler']};stroke:{LINK_COLORS['coupler']}}}",
-             f"svg.mech .rocker{{stroke:{LINK_COLORS['rocker']}}}",
-             f"svg.mech .rod{{stroke:{LINK_COLORS['rod']}}}",
-             f"svg.mech .output-link{{stroke:{LINK_COLORS['output']}}}",
-             f"svg.mech .block{{fill:{BLOCK}}}",
-             f"svg.mech .coupler-curve{{stroke:{CURVE}}}"]
+    rules = [
+        f":root{{--dwell:{DWELL}}}",
+        f"svg.mech .crank{{stroke:{LINK_COLORS['crank']}}}",
+        f"svg.mech .coupler{{fill:{LINK_COLORS['coupler']};stroke:{LINK_COLORS['coupler']}}}",
+        f"svg.mech .rocker{{stroke:{LINK_COLORS['rocker']}}}",
+        f"svg.mech .rod{{stroke:{LINK_COLORS['rod']}}}",
+        f"svg.mech .output-link{{stroke:{LINK_COLORS['output']}}}",
+        f"svg.mech .block{{fill:{BLOCK}}}",
+        f"svg.mech .coupler-curve{{stroke:{CURVE}}}",
+    ]
     return "\n".join(rules) + "\n"
 
 
@@ -645,13 +723,17 @@ _MAIN_JS = """
 """.replace("__TURN_MS__", str(TURN_MS))
 
 
-def render_page(request: Request, entries: list[PageEntry], *,
-                title: str = "Dwell Atlas — candidate six-bars", units: str = "") -> str:
+def render_page(
+    request: Request, entries: list[PageEntry], *, title: str = "Dwell Atlas — candidate six-bars", units: str = ""
+) -> str:
     """The whole page as one string (UTF-8 text, no external resources); ``units`` names the
     length unit beside every length ('': the request's unit, unnamed)."""
     sections = "\n".join(_candidate_section(e, request.rpm, units) for e in entries)
-    unit_note = (f"Lengths in {_esc(units)} (crank = {_esc(_length(request.crank, units))})" if units
-                 else f"Lengths in the request's unit (crank = {_esc(_num(request.crank))})")
+    unit_note = (
+        f"Lengths in {_esc(units)} (crank = {_esc(_length(request.crank, units))})"
+        if units
+        else f"Lengths in the request's unit (crank = {_esc(_num(request.crank))})"
+    )
     return f"""<!DOCTYPE html>
 <html lang="en">
 <head>

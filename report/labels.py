@@ -56,8 +56,13 @@ def _candidates(x: float, y: float, w: float, h: float, gap: float) -> list[Box]
     return out
 
 
-def place_labels(anchors: Sequence[tuple[float, float]], sizes: Sequence[tuple[float, float]], *, gap: float,
-                 obstacles: Sequence[Box] = ()) -> list[Box]:
+def place_labels(
+    anchors: Sequence[tuple[float, float]],
+    sizes: Sequence[tuple[float, float]],
+    *,
+    gap: float,
+    obstacles: Sequence[Box] = (),
+) -> list[Box]:
     """Boxes for labels of ``sizes`` (width, height) next to ``anchors`` (x, y), in order.
 
     ``gap`` is the distance kept between an anchor and its label's nearest edge. Labels placed

@@ -37,8 +37,9 @@ def _pair(z: complex) -> str:
     return f"[{_num(z.real)}, {_num(z.imag)}]"
 
 
-def _body(candidate: Candidate, units: str, configuration: int | None = None, band: float | None = None,
-          dwells: int = 1) -> list[str]:
+def _body(
+    candidate: Candidate, units: str, configuration: int | None = None, band: float | None = None, dwells: int = 1
+) -> list[str]:
     sb = candidate.sixbar
     rrr = sb.dyad.kind == OutputKind.RRR
     lines = [
@@ -95,8 +96,10 @@ def _body(candidate: Candidate, units: str, configuration: int | None = None, ba
         ]
     lines += ["[[inputs]]", 'joint = "A0"', 'link = "crank"', "value = 0.0", "", "[output]", 'link = "output"']
     if band is not None:
-        lines += [f"band = {_num(math.degrees(band))}         # deg: the output band within which it rests",
-                  f"dwells = {int(dwells)}"]
+        lines += [
+            f"band = {_num(math.degrees(band))}         # deg: the output band within which it rests",
+            f"dwells = {int(dwells)}",
+        ]
     return lines
 
 
@@ -107,7 +110,7 @@ def _name(candidate_id: str) -> str:
     from report.escape import terminal
 
     name = f"six-bar {terminal(candidate_id)}"
-    return name if len(name) <= MAX_NAME else name[:MAX_NAME - 1] + "…"
+    return name if len(name) <= MAX_NAME else name[: MAX_NAME - 1] + "…"
 
 
 def _quoted(text: str) -> str:
@@ -137,8 +140,10 @@ def linkage_configuration(candidate: Candidate, text: str) -> int:
         if miss < best_miss:
             best, best_miss = k, miss
     if best_miss > 1e-6 * size:
-        raise ValueError(f"no configuration of the linkage file matches candidate {candidate.id!r} "
-                         f"(closest misses by {best_miss:.3g})")
+        raise ValueError(
+            f"no configuration of the linkage file matches candidate {candidate.id!r} "
+            f"(closest misses by {best_miss:.3g})"
+        )
     return best
 
 
@@ -172,8 +177,11 @@ def linkage_toml(candidate: Candidate, units: str = "", *, band: float | None = 
         f"# Candidate {candidate.id!r} (rank {candidate.rank}), written by dwell report.",
         f"# swing {math.degrees(f.swing):.6f} deg; dwell(s) {dwells};",
         f"# min transmission: four-bar {math.degrees(f.transmission_fourbar):.3f} deg, "
-        + ("output: a slot (90 deg by construction)." if candidate.sixbar.dyad.kind == "RPR"
-           else f"output {math.degrees(f.transmission_output):.3f} deg."),
+        + (
+            "output: a slot (90 deg by construction)."
+            if candidate.sixbar.dyad.kind == "RPR"
+            else f"output {math.degrees(f.transmission_output):.3f} deg."
+        ),
         "# Reproduce with: dwell analyze linkage THIS_FILE --limits",
         "",
     ]

@@ -13,8 +13,8 @@ import textwrap
 from collections.abc import Sequence
 
 from report.short_id import short_id
-from synth.query.candidates import Candidate, Request
 from synth.kinds import OutputKind
+from synth.query.candidates import Candidate, Request
 
 __all__ = ["WIDTH", "fit_lines", "legend_lines", "short_table"]
 
@@ -67,14 +67,17 @@ def short_table(candidates: Sequence[Candidate], request: Request, head: str, un
     req = request
     toleranced = req.tolerance > 0
     ids = [short_id(c.id) for c in candidates]
-    dwells = ["/".join(f"{math.degrees(d.angle):.2f}" for d in c.figures.dwells[: req.dwells]) or "-"
-              for c in candidates]
+    dwells = [
+        "/".join(f"{math.degrees(d.angle):.2f}" for d in c.figures.dwells[: req.dwells]) or "-" for c in candidates
+    ]
     id_w = max([2, *map(len, ids)])
     dwell_w = max([7, *map(len, dwells)])
     tol_head = f" {'tol dev °':>9}" if toleranced else ""
     lines = fit_lines(head, 2)
-    lines.append(f"{'rank':>4}  {'id':<{id_w}} {'out':<3} {'dwell °':>{dwell_w}} {'dev °':>7}{tol_head} "
-                 f"{'swing °':>8} {'μ °':>5} {'ratio':>6} {'α rad/s²':>9}")
+    lines.append(
+        f"{'rank':>4}  {'id':<{id_w}} {'out':<3} {'dwell °':>{dwell_w}} {'dev °':>7}{tol_head} "
+        f"{'swing °':>8} {'μ °':>5} {'ratio':>6} {'α rad/s²':>9}"
+    )
     for c, sid, dw in zip(candidates, ids, dwells):
         f = c.figures
         dev = max(f.deviations) if f.deviations else 0.0
@@ -82,28 +85,41 @@ def short_table(candidates: Sequence[Candidate], request: Request, head: str, un
         if toleranced:
             t = c.toleranced_deviation
             tol = f" {'fails' if t is None else f'{math.degrees(t):.3f}':>9}"
-        lines.append(f"{c.rank:>4}  {sid:<{id_w}} {c.sixbar.dyad.kind:<3} {dw:>{dwell_w}} {math.degrees(dev):>7.3f}{tol} "
-                     f"{math.degrees(f.swing):>8.2f} {math.degrees(_transmission(c)):>5.1f} {f.link_ratio:>6.2f} "
-                     f"{_accel(c, req.rpm):>9}")
+        lines.append(
+            f"{c.rank:>4}  {sid:<{id_w}} {c.sixbar.dyad.kind:<3} {dw:>{dwell_w}} {math.degrees(dev):>7.3f}{tol} "
+            f"{math.degrees(f.swing):>8.2f} {math.degrees(_transmission(c)):>5.1f} {f.link_ratio:>6.2f} "
+            f"{_accel(c, req.rpm):>9}"
+        )
     unit = units or "your unit"
     entries = [
         ("rank", "Pareto layer, then score, over dwell error, deviation, transmission, footprint, acceleration"),
         ("id", "short id: dwell report takes it or the full id (--wide and --json show the full id)"),
         ("out", "output dyad: RRR rocker and rod, or RPR slotted rocker"),
-        ("dwell", f"the output's rest{'s' if req.dwells > 1 else ''} within the {math.degrees(req.band):g}° band, "
-                  "crank degrees"),
+        (
+            "dwell",
+            f"the output's rest{'s' if req.dwells > 1 else ''} within the {math.degrees(req.band):g}° band, "
+            "crank degrees",
+        ),
         ("dev", "output deviation over the requested dwell (peak to peak)"),
     ]
     if toleranced:
-        entries.append(("tol dev", f"95th percentile of dev over 256 six-bars made within ±{req.tolerance:g} {unit} "
-                                   "of each length and pivot coordinate: the ranking's deviation (fails: more than "
-                                   "5 % of them do not assemble)"))
+        entries.append(
+            (
+                "tol dev",
+                f"95th percentile of dev over 256 six-bars made within ±{req.tolerance:g} {unit} "
+                "of each length and pivot coordinate: the ranking's deviation (fails: more than "
+                "5 % of them do not assemble)",
+            )
+        )
     entries += [
         ("swing", "the output's whole swing over the turn"),
         ("μ", "smallest transmission angle, four-bar or output dyad (a slotted rocker's is 90°)"),
         ("ratio", "link ratio: longest link over shortest, every link counted"),
         ("α", f"peak output acceleration at {req.rpm:g} rpm"),
-        ("--wide", f"every column: both transmission angles, slider arm, clearance, refinement and the six-bar's "
-                   f"dimensions (lengths in {unit}, crank = {req.crank:g})"),
+        (
+            "--wide",
+            f"every column: both transmission angles, slider arm, clearance, refinement and the six-bar's "
+            f"dimensions (lengths in {unit}, crank = {req.crank:g})",
+        ),
     ]
     return "\n".join(lines + legend_lines(entries))

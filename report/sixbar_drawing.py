@@ -88,8 +88,13 @@ class SixBarGeometry:
 
     def extent(self) -> float:
         """Largest side of the bounding box of everything drawn (length, > 0)."""
-        pts = np.concatenate([np.asarray(list(self.fixed.values()) + list(self.joints.values())),
-                              np.concatenate([np.asarray(k.points) for k in self.links]), self.curve])
+        pts = np.concatenate(
+            [
+                np.asarray(list(self.fixed.values()) + list(self.joints.values())),
+                np.concatenate([np.asarray(k.points) for k in self.links]),
+                self.curve,
+            ]
+        )
         return float(max(np.ptp(pts.real), np.ptp(pts.imag), 1e-12))
 
 
@@ -139,16 +144,22 @@ def sixbar_geometry(candidate: Candidate, cycle: Cycle, phi: float | None = None
 
     links = [
         Link("crank", f"crank a = {length(sb.a)}", [0j, A], sb.a),
-        Link("coupler", f"coupler b = {length(sb.b)}, |AP| = {length(abs(P - A))}, |BP| = {length(abs(P - B))}",
-             [A, B, P, A], sb.b),
+        Link(
+            "coupler",
+            f"coupler b = {length(sb.b)}, |AP| = {length(abs(P - A))}, |BP| = {length(abs(P - B))}",
+            [A, B, P, A],
+            sb.b,
+        ),
         Link("rocker", f"rocker c = {length(sb.c)}", [complex(sb.d, 0.0), B], sb.c),
     ]
     stretches = [cycle.P[run] for run in _runs(cycle.dwelling & cycle.assembled)]
     if sb.dyad.kind == OutputKind.RRR:
         Q = complex(m.moving_pivot[0]) * scale
         joints["Q"] = Q
-        links += [Link("rod", f"rod ρ = {length(sb.dyad.rod)}", [P, Q], sb.dyad.rod),
-                  Link("output", f"output rocker L = {length(sb.dyad.rocker)}", [D, Q], sb.dyad.rocker)]
+        links += [
+            Link("rod", f"rod ρ = {length(sb.dyad.rod)}", [P, Q], sb.dyad.rod),
+            Link("output", f"output rocker L = {length(sb.dyad.rocker)}", [D, Q], sb.dyad.rocker),
+        ]
         rest = candidate.dwell_position
         if rest is None:  # the arc's centre: where Q stands at mid-dwell
             rest = complex(unit_motion(sb, np.array([_mid_dwell(f)]))[0].moving_pivot[0]) * scale
@@ -162,9 +173,20 @@ def sixbar_geometry(candidate: Candidate, cycle: Cycle, phi: float | None = None
         guide = ("line", D, complex(np.exp(1j * psi_mid)))
     ground = [("A0–B0 (d)", sb.d), ("A0–D", abs(D)), ("B0–D", abs(D - sb.d))]
     title = f"#{candidate.rank} {candidate.id} ({sb.dyad.kind}) at φ = {math.degrees(phi) % 360:.1f}°"
-    return SixBarGeometry(phi=phi, fixed=fixed, joints=joints, links=links, ground=ground, curve=cycle.P.copy(),
-                          dwell_stretches=stretches, guide=guide, kind=sb.dyad.kind, psi=psi, title=title,
-                          units=units)
+    return SixBarGeometry(
+        phi=phi,
+        fixed=fixed,
+        joints=joints,
+        links=links,
+        ground=ground,
+        curve=cycle.P.copy(),
+        dwell_stretches=stretches,
+        guide=guide,
+        kind=sb.dyad.kind,
+        psi=psi,
+        title=title,
+        units=units,
+    )
 
 
 def _mid_dwell(figures) -> float:
@@ -190,11 +212,24 @@ def draw_sixbar(geom: SixBarGeometry, path: str | Path) -> Path:
         span = geom.extent()
         size = 0.025 * span
         c = geom.curve
-        ax.plot(np.append(c.real, c.real[0]), np.append(c.imag, c.imag[0]), lw=0.8, ls="--", color=CURVE,
-                label="coupler curve of P")
+        ax.plot(
+            np.append(c.real, c.real[0]),
+            np.append(c.imag, c.imag[0]),
+            lw=0.8,
+            ls="--",
+            color=CURVE,
+            label="coupler curve of P",
+        )
         for i, s in enumerate(geom.dwell_stretches):
-            ax.plot(s.real, s.imag, lw=3.5, color=DWELL, alpha=0.55, solid_capstyle="round",
-                    label="dwell stretch" if i == 0 else None)
+            ax.plot(
+                s.real,
+                s.imag,
+                lw=3.5,
+                color=DWELL,
+                alpha=0.55,
+                solid_capstyle="round",
+                label="dwell stretch" if i == 0 else None,
+            )
         _draw_guide(ax, geom, span)
         a0, b0 = geom.fixed["A0"], geom.fixed["B0"]
         ax.plot([a0.real, b0.real], [a0.imag, b0.imag], color=GROUND, lw=1.0, ls="-.")
@@ -241,8 +276,16 @@ def _place_joint_labels(fig, ax, legend, geom: SixBarGeometry, canvas) -> None:
     anchors, sizes, texts = [], [], []
     for label, z in points.items():
         x, y = ax.transData.transform((z.real, z.imag))
-        text = ax.annotate(label, (z.real, z.imag), textcoords="offset points", xytext=(0, 0), fontsize=_LABEL_SIZE,
-                           weight="bold" if label in fixed else "normal", va="baseline", ha="left")
+        text = ax.annotate(
+            label,
+            (z.real, z.imag),
+            textcoords="offset points",
+            xytext=(0, 0),
+            fontsize=_LABEL_SIZE,
+            weight="bold" if label in fixed else "normal",
+            va="baseline",
+            ha="left",
+        )
         ext = text.get_window_extent(renderer)
         anchors.append((float(x), float(y)))
         sizes.append((ext.width, ext.height))

@@ -22,8 +22,15 @@ from report.sixbar_drawing import SixBarGeometry, guide_path
 from synth.kinds import OutputKind
 from synth.query.candidates import Candidate
 
-__all__ = ["PLOTS", "PlotFiles", "coupler_figure", "motion_figure", "plot_candidate", "save_figure",
-           "transmission_figure"]
+__all__ = [
+    "PLOTS",
+    "PlotFiles",
+    "coupler_figure",
+    "motion_figure",
+    "plot_candidate",
+    "save_figure",
+    "transmission_figure",
+]
 
 #: Plot name → what it shows (file suffix ``-<name>.png`` / ``.svg``).
 PLOTS: dict[str, str] = {
@@ -86,9 +93,11 @@ def motion_figure(candidate: Candidate, cycle: Cycle):
     axes = fig.subplots(3, 1, sharex=True)
     phi = np.degrees(cycle.phi)
     ok = cycle.status == 0
-    rows = [(np.degrees(cycle.psi), cycle.assembled, "output ψ [deg]"),
-            (cycle.dpsi, ok, "ψ′ [rad/rad]"),
-            (cycle.ddpsi, ok, "ψ″ [rad/rad²]")]
+    rows = [
+        (np.degrees(cycle.psi), cycle.assembled, "output ψ [deg]"),
+        (cycle.dpsi, ok, "ψ′ [rad/rad]"),
+        (cycle.ddpsi, ok, "ψ″ [rad/rad²]"),
+    ]
     for i, (ax, (y, valid, label)) in enumerate(zip(axes, rows)):
         _shade_dwells(ax, candidate, label=i == 0)
         ax.plot(*_closed(phi, y, valid), lw=1.5, color="C4")
@@ -115,11 +124,24 @@ def coupler_figure(candidate: Candidate, cycle: Cycle, geom: SixBarGeometry):
     P = cycle.P
     ax.plot(_loop(P.real, ok), _loop(P.imag, ok), lw=1.2, color="0.35", label="coupler curve of P")
     for i, s in enumerate(geom.dwell_stretches):
-        ax.plot(s.real, s.imag, lw=4, color=_DWELL_COLOR, alpha=0.6, solid_capstyle="round",
-                label="dwell stretch" if i == 0 else None)
+        ax.plot(
+            s.real,
+            s.imag,
+            lw=4,
+            color=_DWELL_COLOR,
+            alpha=0.6,
+            solid_capstyle="round",
+            label="dwell stretch" if i == 0 else None,
+        )
     pts, arc = guide_path(geom)
-    ax.plot(pts.real, pts.imag, ls="--", lw=1, color="tab:purple",
-            label="slot line (mid-dwell)" if arc is None else "dwell arc, radius ρ about Q at rest")
+    ax.plot(
+        pts.real,
+        pts.imag,
+        ls="--",
+        lw=1,
+        color="tab:purple",
+        label="slot line (mid-dwell)" if arc is None else "dwell arc, radius ρ about Q at rest",
+    )
     if arc is not None:
         rest = complex(geom.guide[1])
         ax.plot([rest.real], [rest.imag], "+", ms=9, color="tab:purple")
@@ -127,8 +149,13 @@ def coupler_figure(candidate: Candidate, cycle: Cycle, geom: SixBarGeometry):
         ax.plot(_loop(Q.real, ok), _loop(Q.imag, ok), lw=1, color="tab:green", alpha=0.7, label="path of Q")
     for label, z in geom.fixed.items():
         ax.plot([z.real], [z.imag], "^", ms=8, color="0.25")
-        ax.annotate(label, (z.real, z.imag), textcoords="offset points", xytext=(-16, 6) if label == "D" else (6, -12),
-                    fontsize=9)
+        ax.annotate(
+            label,
+            (z.real, z.imag),
+            textcoords="offset points",
+            xytext=(-16, 6) if label == "D" else (6, -12),
+            fontsize=9,
+        )
     ax.set_aspect("equal", adjustable="datalim")
     ax.grid(True, alpha=0.3)
     if geom.units:  # the coordinates are lengths: their unit on both axes
@@ -150,11 +177,19 @@ def transmission_figure(candidate: Candidate, cycle: Cycle, min_transmission: fl
     ok = cycle.assembled
     _shade_dwells(ax, candidate, label=False)
     f = candidate.figures
-    ax.plot(*_closed(phi, np.degrees(cycle.mu_fourbar), ok), lw=1.5, color="C0",
-            label=f"four-bar at B (min {math.degrees(f.transmission_fourbar):.2f}°)")
+    ax.plot(
+        *_closed(phi, np.degrees(cycle.mu_fourbar), ok),
+        lw=1.5,
+        color="C0",
+        label=f"four-bar at B (min {math.degrees(f.transmission_fourbar):.2f}°)",
+    )
     out_label = "output at Q" if candidate.sixbar.dyad.kind == OutputKind.RRR else "output (slotted rocker: 90°)"
-    ax.plot(*_closed(phi, np.degrees(cycle.mu_output), ok), lw=1.5, color="C4",
-            label=f"{out_label} (min {math.degrees(f.transmission_output):.2f}°)")
+    ax.plot(
+        *_closed(phi, np.degrees(cycle.mu_output), ok),
+        lw=1.5,
+        color="C4",
+        label=f"{out_label} (min {math.degrees(f.transmission_output):.2f}°)",
+    )
     if min_transmission is not None:
         ax.axhline(math.degrees(min_transmission), color="0.4", ls="--", lw=0.8, label="requested minimum")
     ax.set_ylim(0.0, 92.0)
@@ -179,13 +214,16 @@ def save_figure(fig, stem: Path, *, dpi: int = 110) -> PlotFiles:
     return PlotFiles(png, svg, data.decode("utf-8"))
 
 
-def plot_candidate(candidate: Candidate, cycle: Cycle, geom: SixBarGeometry, stem: Path,
-                   min_transmission: float | None = None) -> dict[str, PlotFiles]:
+def plot_candidate(
+    candidate: Candidate, cycle: Cycle, geom: SixBarGeometry, stem: Path, min_transmission: float | None = None
+) -> dict[str, PlotFiles]:
     """All :data:`PLOTS` of one candidate, written as ``<stem>-<name>.png/.svg``."""
     import matplotlib
 
     with matplotlib.rc_context(_RC):
-        figs = {"motion": motion_figure(candidate, cycle),
-                "coupler": coupler_figure(candidate, cycle, geom),
-                "transmission": transmission_figure(candidate, cycle, min_transmission)}
+        figs = {
+            "motion": motion_figure(candidate, cycle),
+            "coupler": coupler_figure(candidate, cycle, geom),
+            "transmission": transmission_figure(candidate, cycle, min_transmission),
+        }
         return {name: save_figure(fig, stem.with_name(f"{stem.name}-{name}")) for name, fig in figs.items()}

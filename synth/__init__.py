@@ -46,8 +46,20 @@ from synth.query import *  # noqa: F403
 from synth.query.candidates import *  # noqa: F403
 
 #: The modules whose ``__all__`` is re-exported (no name is exported by two of them).
-_MODULES = ("curvature.ball", "curvature.double_ball", "curvature.inflection", "curvature.line_scan", "curvature.pole",
-            "kinds", "mechanism.buildability", "mechanism.dyad", "mechanism.figures", "mechanism.output_range",
-            "mechanism.sixbar", "query", "query.candidates")
+_MODULES = (
+    "curvature.ball",
+    "curvature.double_ball",
+    "curvature.inflection",
+    "curvature.line_scan",
+    "curvature.pole",
+    "kinds",
+    "mechanism.buildability",
+    "mechanism.dyad",
+    "mechanism.figures",
+    "mechanism.output_range",
+    "mechanism.sixbar",
+    "query",
+    "query.candidates",
+)
 
 __all__ = sorted(name for module in _MODULES for name in _importlib.import_module(f"synth.{module}").__all__)

@@ -27,5 +27,10 @@ RAY_EPS = 1e-9
 #: Every flag: ``on_degenerate="raise"`` raises on any of them.
 ANY_FLAG = Status(sum(int(f) for f in Status))
 #: Instant flags after which no curvature quantity at that instant is meaningful.
-INVALID = int(Status.NOT_ASSEMBLABLE | Status.TOGGLE | Status.ILL_CONDITIONED | Status.POLE_AT_INFINITY
-              | Status.INFLECTION_CIRCLE_COLLAPSED)
+INVALID = int(
+    Status.NOT_ASSEMBLABLE
+    | Status.TOGGLE
+    | Status.ILL_CONDITIONED
+    | Status.POLE_AT_INFINITY
+    | Status.INFLECTION_CIRCLE_COLLAPSED
+)

@@ -47,8 +47,14 @@ class Agreement:
     #: how many files named each configuration number (round_trip only)
     configurations: Counter = field(default_factory=Counter)
 
-    def add(self, ident: str, cand: dict, swing: float, dwells: Sequence[tuple[float, float]],
-            transmission: dict[str, float]) -> None:
+    def add(
+        self,
+        ident: str,
+        cand: dict,
+        swing: float,
+        dwells: Sequence[tuple[float, float]],
+        transmission: dict[str, float],
+    ) -> None:
         """Compare one candidate (its ``candidates.json`` object) with its file's ``swing`` (deg),
         ``dwells`` ((start, end) deg) and smallest transmission angle by joint (deg)."""
         self.checked += 1
@@ -75,8 +81,12 @@ class Agreement:
                 self.failures.append(f"{ident}: transmission at {joint} {transmission.get(joint)!r} vs {value!r}")
 
     def figures(self) -> dict:
-        return {"six_bars": self.checked, "max_swing_error_deg": self.swing, "max_dwell_end_error_deg": self.dwell_end,
-                "max_transmission_error_deg": self.transmission}
+        return {
+            "six_bars": self.checked,
+            "max_swing_error_deg": self.swing,
+            "max_dwell_end_error_deg": self.dwell_end,
+            "max_transmission_error_deg": self.transmission,
+        }
 
 
 def check_linkage_files(folder: Path, run, as_json: Path | None = None) -> int:
@@ -98,8 +108,13 @@ def check_linkage_files(folder: Path, run, as_json: Path | None = None) -> int:
         assert out["mechanism"]["configuration_from"] == "file"
         lim = out["summary"]["limits"]
         assert abs(lim["band_deg"] - doc["request"]["band_deg"]) < 1e-9
-        agreement.add(cand["id"], cand, lim["swing_deg"], [tuple(d["interval_deg"]) for d in lim["dwells"]],
-                      {t["joint"]: t["min_deg"] for t in lim["transmission"]})
+        agreement.add(
+            cand["id"],
+            cand,
+            lim["swing_deg"],
+            [tuple(d["interval_deg"]) for d in lim["dwells"]],
+            {t["joint"]: t["min_deg"] for t in lim["transmission"]},
+        )
     assert not agreement.failures, agreement.failures[:5]
     assert agreement.checked == len(doc["candidates"])
     return agreement.checked
@@ -125,8 +140,9 @@ def round_trip(candidates: Sequence, request, units: str = "mm", agreement: Agre
         mech = linkage_from_text(linkage_toml(c, units, band=request.band, dwells=request.dwells))
         dec = decompose(mech)
         first = np.zeros((1, 1))
-        number, source, start = configuration_start(mech, dec, first, configurations(mech, first[0], decomposition=dec),
-                                                    None, "file")
+        number, source, start = configuration_start(
+            mech, dec, first, configurations(mech, first[0], decomposition=dec), None, "file"
+        )
         assert source == "file" and mech.output.band == request.band
         agreement.configurations[number] += 1
         items.append((mech, dec, start, mech.output))
@@ -137,7 +153,15 @@ def round_trip(candidates: Sequence, request, units: str = "mm", agreement: Agre
         # extremes located by the parabola through the samples, evaluated on the exact positions
         swing, turns = output_swing(phi, np.unwrap(exact(phi)), psi_at=exact)
         assert int(turns) == 0, c.id
-        mu = {t.joint: math.degrees(t.angle) for t in transmission_minima(mech, start, 0.0, 2 * math.pi, decomposition=dec)}
-        agreement.add(c.id, candidate_json(c, request.rpm, units), math.degrees(float(swing)),
-                      [(d.start, d.end) for d in dwells], mu)
+        mu = {
+            t.joint: math.degrees(t.angle)
+            for t in transmission_minima(mech, start, 0.0, 2 * math.pi, decomposition=dec)
+        }
+        agreement.add(
+            c.id,
+            candidate_json(c, request.rpm, units),
+            math.degrees(float(swing)),
+            [(d.start, d.end) for d in dwells],
+            mu,
+        )
     return agreement

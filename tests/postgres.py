@@ -262,13 +262,37 @@ class _PrivateServer:
         pwfile.write_text(password + "\n")
         if self.run_as:
             os.chown(pwfile, pwd.getpwnam("postgres").pw_uid, -1)
-        self._run(str(self.bindir / "initdb"), "-D", str(self.data), "-U", "postgres", "--auth=scram-sha-256",
-                  f"--pwfile={pwfile}", "-E", "UTF8", "--locale=C", "--no-sync")
+        self._run(
+            str(self.bindir / "initdb"),
+            "-D",
+            str(self.data),
+            "-U",
+            "postgres",
+            "--auth=scram-sha-256",
+            f"--pwfile={pwfile}",
+            "-E",
+            "UTF8",
+            "--locale=C",
+            "--no-sync",
+        )
         # durability is worthless for a throwaway test server, and fsync dominates its time
-        options = (f"-k {self.root} -c listen_addresses='' -p {self.PORT} "
-                   "-c fsync=off -c synchronous_commit=off -c full_page_writes=off")
-        self._run(str(self.bindir / "pg_ctl"), "-D", str(self.data), "-l", str(self.root / "log"),
-                  "-o", options, "-w", "-t", "60", "start")
+        options = (
+            f"-k {self.root} -c listen_addresses='' -p {self.PORT} "
+            "-c fsync=off -c synchronous_commit=off -c full_page_writes=off"
+        )
+        self._run(
+            str(self.bindir / "pg_ctl"),
+            "-D",
+            str(self.data),
+            "-l",
+            str(self.root / "log"),
+            "-o",
+            options,
+            "-w",
+            "-t",
+            "60",
+            "start",
+        )
         return f"postgresql+psycopg://postgres:{password}@/postgres?host={self.root}&port={self.PORT}"
 
     def stop(self) -> None:

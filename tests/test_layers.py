@@ -41,11 +41,13 @@ KNOWN_CYCLES: frozenset[frozenset[str]] = frozenset()
 
 #: (importing module, imported module, private name) left in files under redesign by others
 #: (the query, its refinement, the six-bar's figures and output range). Only shrinks.
-KNOWN_PRIVATE_IMPORTS: frozenset[tuple[str, str, str]] = frozenset({
-    ("tests.synth.test_batched_cma", "synth.query.refine", "_descend"),
-    ("tests.synth.test_band_windows", "synth.mechanism.output_range", "_vertex_bounds"),
-    ("tests.synth.test_pair_search", "synth.mechanism.output_range", "_pair_search"),
-})
+KNOWN_PRIVATE_IMPORTS: frozenset[tuple[str, str, str]] = frozenset(
+    {
+        ("tests.synth.test_batched_cma", "synth.query.refine", "_descend"),
+        ("tests.synth.test_band_windows", "synth.mechanism.output_range", "_vertex_bounds"),
+        ("tests.synth.test_pair_search", "synth.mechanism.output_range", "_pair_search"),
+    }
+)
 
 
 #: Test files that still put a folder on ``sys.path`` (the fault tests' helpers, being moved).
@@ -120,15 +122,20 @@ def test_the_scan_sees_the_product_and_its_function_level_imports():
 
 
 def test_no_layer_imports_a_layer_above_it():
-    wrong = sorted(f"{i.importer}:{i.line} imports {target(i)}" for i in PRODUCT_IMPORTS
-                   if target(i) and layer(target(i)) != layer(i.importer)
-                   and layer(target(i)) not in ALLOWED[layer(i.importer)])
+    wrong = sorted(
+        f"{i.importer}:{i.line} imports {target(i)}"
+        for i in PRODUCT_IMPORTS
+        if target(i) and layer(target(i)) != layer(i.importer) and layer(target(i)) not in ALLOWED[layer(i.importer)]
+    )
     assert not wrong, "upward imports (see ALLOWED):\n" + "\n".join(wrong)
 
 
 def test_the_product_never_imports_the_tests():
-    wrong = sorted(f"{i.importer}:{i.line} imports {i.module}" for i in PRODUCT_IMPORTS
-                   if i.module.split(".")[0] in TEST_TOP_NAMES and i.module.split(".")[0] not in LAYERS)
+    wrong = sorted(
+        f"{i.importer}:{i.line} imports {i.module}"
+        for i in PRODUCT_IMPORTS
+        if i.module.split(".")[0] in TEST_TOP_NAMES and i.module.split(".")[0] not in LAYERS
+    )
     assert not wrong, "\n".join(wrong)
 
 
@@ -151,7 +158,8 @@ def test_no_module_imports_a_private_name_of_another():
     found = private_imports(PRODUCT_IMPORTS) | private_imports(TEST_IMPORTS)
     new = sorted(found - KNOWN_PRIVATE_IMPORTS)
     assert not new, "private names imported (make them public in __all__, or use the public name):\n" + "\n".join(
-        f"{a} imports {c} from {b}" for a, b, c in new)
+        f"{a} imports {c} from {b}" for a, b, c in new
+    )
     gone = sorted(KNOWN_PRIVATE_IMPORTS - found)
     assert not gone, f"no longer imported, remove from KNOWN_PRIVATE_IMPORTS: {gone}"
 

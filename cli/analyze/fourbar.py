@@ -7,8 +7,24 @@ import numpy as np
 
 from cli.analyze.emit import emit_motion
 from cli.analyze.fourbar_stats import run_stats, stats_options
-from cli.options import COORDINATE, crank_angle_options, crank_angles_deg, fourbar_options, output_options, speed_from_options, speed_options
-from kinematics.fourbar import GrashofType, check_lengths, crank_range, fourbar_motion, grashof_type, rocker_limits, transmission_angle
+from cli.options import (
+    COORDINATE,
+    crank_angle_options,
+    crank_angles_deg,
+    fourbar_options,
+    output_options,
+    speed_from_options,
+    speed_options,
+)
+from kinematics.fourbar import (
+    GrashofType,
+    check_lengths,
+    crank_range,
+    fourbar_motion,
+    grashof_type,
+    rocker_limits,
+    transmission_angle,
+)
 from kinematics.timing import time_derivatives
 from report.drawing import Sketch
 from report.motion_table import Column, MotionTable
@@ -16,19 +32,64 @@ from report.motion_table import Column, MotionTable
 
 @click.command("fourbar")
 @fourbar_options
-@click.option("--point", nargs=2, type=COORDINATE, default=None, metavar="U V",
-              help="Coupler point in the coupler frame (origin A, x-axis along A->B).")
+@click.option(
+    "--point",
+    nargs=2,
+    type=COORDINATE,
+    default=None,
+    metavar="U V",
+    help="Coupler point in the coupler frame (origin A, x-axis along A->B).",
+)
 @crank_angle_options
 @speed_options
 @output_options
 @stats_options
-def fourbar(a, b, c, d, branch, point, phi, phi_from, phi_to, phi_step, rpm, omega, cw, crank_alpha, as_json, plot, draw, units,
-            stats, crank_lengths, rpms, phases, clutch, cv_bounds):
+def fourbar(
+    a,
+    b,
+    c,
+    d,
+    branch,
+    point,
+    phi,
+    phi_from,
+    phi_to,
+    phi_step,
+    rpm,
+    omega,
+    cw,
+    crank_alpha,
+    as_json,
+    plot,
+    draw,
+    units,
+    stats,
+    crank_lengths,
+    rpms,
+    phases,
+    clutch,
+    cv_bounds,
+):
     """Analyse a four-bar: ground pivots A0=(0,0), B0=(d,0); crank angle CCW from +x."""
     check_lengths(a=a, b=b, c=c, d=d)
     if stats:
-        return run_stats(a, b, c, d, int(branch), stats, crank_lengths, rpms, as_json, plot, rpm=rpm, phases=phases,
-                         clutch=clutch, cv_bounds=cv_bounds, units=units)
+        return run_stats(
+            a,
+            b,
+            c,
+            d,
+            int(branch),
+            stats,
+            crank_lengths,
+            rpms,
+            as_json,
+            plot,
+            rpm=rpm,
+            phases=phases,
+            clutch=clutch,
+            cv_bounds=cv_bounds,
+            units=units,
+        )
     if point is not None and not np.all(np.isfinite(point)):
         raise click.BadParameter("--point must be two finite numbers")
     br = int(branch)
@@ -57,23 +118,39 @@ def fourbar(a, b, c, d, branch, point, phi, phi_from, phi_to, phi_step, rpm, ome
             z = m.coupler_point(point[0], point[1], order=2)
             zt = time_derivatives(z[1:], w, crank_alpha)
             cols += [
-                Column("Px", L, z[0].real), Column("Py", L, z[0].imag),
-                Column("vPx", f"{L}/s", zt[0].real), Column("vPy", f"{L}/s", zt[0].imag),
-                Column("aPx", f"{L}/s^2", zt[1].real), Column("aPy", f"{L}/s^2", zt[1].imag),
+                Column("Px", L, z[0].real),
+                Column("Py", L, z[0].imag),
+                Column("vPx", f"{L}/s", zt[0].real),
+                Column("vPy", f"{L}/s", zt[0].imag),
+                Column("aPx", f"{L}/s^2", zt[1].real),
+                Column("aPy", f"{L}/s^2", zt[1].imag),
             ]
         return MotionTable(mechanism, cols, summary)
 
     kind = GrashofType(int(grashof_type(a, b, c, d)))
-    mechanism = {"type": "fourbar", "a": a, "b": b, "c": c, "d": d, "branch": br,
-                 "point": list(point) if point is not None else None, "length_unit": L,
-                 "crank_speed_rad_s": w, "crank_acceleration_rad_s2": crank_alpha}
-    summary = {"grashof": kind.label,
-               "crank_range_deg": [[float(np.degrees(lo)), float(np.degrees(hi))] for lo, hi in crank_range(a, b, c, d)]}
+    mechanism = {
+        "type": "fourbar",
+        "a": a,
+        "b": b,
+        "c": c,
+        "d": d,
+        "branch": br,
+        "point": list(point) if point is not None else None,
+        "length_unit": L,
+        "crank_speed_rad_s": w,
+        "crank_acceleration_rad_s2": crank_alpha,
+    }
+    summary = {
+        "grashof": kind.label,
+        "crank_range_deg": [[float(np.degrees(lo)), float(np.degrees(hi))] for lo, hi in crank_range(a, b, c, d)],
+    }
     if kind is GrashofType.CRANK_ROCKER:
         lim = rocker_limits(a, b, c, d, br)
         summary["rocker_limits"] = {
-            "phi_extended_deg": float(np.degrees(lim.phi_extended)), "gamma_extended_deg": float(np.degrees(lim.gamma_extended)),
-            "phi_folded_deg": float(np.degrees(lim.phi_folded)), "gamma_folded_deg": float(np.degrees(lim.gamma_folded)),
+            "phi_extended_deg": float(np.degrees(lim.phi_extended)),
+            "gamma_extended_deg": float(np.degrees(lim.gamma_extended)),
+            "phi_folded_deg": float(np.degrees(lim.phi_folded)),
+            "gamma_folded_deg": float(np.degrees(lim.gamma_folded)),
         }
         summary["swing_deg"] = float(np.degrees(lim.swing))
         summary["time_ratio"] = lim.time_ratio
@@ -106,8 +183,12 @@ def fourbar(a, b, c, d, branch, point, phi, phi_from, phi_to, phi_step, rpm, ome
         )
 
     emit_motion(
-        table, as_json=as_json, plot=plot, draw=draw,
+        table,
+        as_json=as_json,
+        plot=plot,
+        draw=draw,
         plot_columns=["gamma", "omega_rocker", "alpha_rocker"],
-        evaluate=evaluate, sketch=sketch,
+        evaluate=evaluate,
+        sketch=sketch,
         title=f"Four-bar a={a:g} b={b:g} c={c:g} d={d:g} branch {br:+d} ({kind.label})",
     )

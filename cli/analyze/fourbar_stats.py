@@ -66,27 +66,69 @@ def _bounds(ctx: click.Context, param: click.Parameter, value: tuple[str, ...]) 
 def stats_options(f: Callable) -> Callable:
     """Add ``--stats``, ``--crank-lengths``, ``--rpms``, ``--phases``, ``--clutch``, ``--cv-bounds``."""
     options = [
-        click.option("--stats", is_flag=True,
-                     help="Output-speed statistics over a turn (pulsating-transmission stage) instead of the motion table."),
-        click.option("--crank-lengths", callback=_list_of(LENGTH), metavar="L1,L2,..",
-                     help="With --stats: crank lengths to compare (default --a)."),
-        click.option("--rpms", callback=_list_of(RPM), metavar="N1,N2,..",
-                     help="With --stats: input speeds [rev/min] to compare (default --rpm, or 60)."),
-        click.option("--phases", type=click.IntRange(min=1, max=12), default=1, show_default=True,
-                     help="With --stats: identical stages driven 360/N deg apart onto one output."),
-        click.option("--clutch", type=click.Choice(CLUTCHES), default="freewheel", show_default=True,
-                     help="With --stats: a one-way clutch passes the forward strokes (freewheel), or none."),
-        click.option("--cv-bounds", multiple=True, callback=_bounds, metavar="NAME=LOW:HIGH",
-                     help="With --stats: bounds of a link length (a, b, c, d) for the minimum coefficient of "
-                          "variation; repeat for several (default a between the --crank-lengths)."),
+        click.option(
+            "--stats",
+            is_flag=True,
+            help="Output-speed statistics over a turn (pulsating-transmission stage) instead of the motion table.",
+        ),
+        click.option(
+            "--crank-lengths",
+            callback=_list_of(LENGTH),
+            metavar="L1,L2,..",
+            help="With --stats: crank lengths to compare (default --a).",
+        ),
+        click.option(
+            "--rpms",
+            callback=_list_of(RPM),
+            metavar="N1,N2,..",
+            help="With --stats: input speeds [rev/min] to compare (default --rpm, or 60).",
+        ),
+        click.option(
+            "--phases",
+            type=click.IntRange(min=1, max=12),
+            default=1,
+            show_default=True,
+            help="With --stats: identical stages driven 360/N deg apart onto one output.",
+        ),
+        click.option(
+            "--clutch",
+            type=click.Choice(CLUTCHES),
+            default="freewheel",
+            show_default=True,
+            help="With --stats: a one-way clutch passes the forward strokes (freewheel), or none.",
+        ),
+        click.option(
+            "--cv-bounds",
+            multiple=True,
+            callback=_bounds,
+            metavar="NAME=LOW:HIGH",
+            help="With --stats: bounds of a link length (a, b, c, d) for the minimum coefficient of "
+            "variation; repeat for several (default a between the --crank-lengths).",
+        ),
     ]
     for option in reversed(options):
         f = option(f)
     return f
 
 
-def run_stats(a, b, c, d, branch, stats, crank_lengths, rpms, as_json, plot, *, rpm=None, phases=1,
-              clutch="freewheel", cv_bounds=None, units="mm") -> None:
+def run_stats(
+    a,
+    b,
+    c,
+    d,
+    branch,
+    stats,
+    crank_lengths,
+    rpms,
+    as_json,
+    plot,
+    *,
+    rpm=None,
+    phases=1,
+    clutch="freewheel",
+    cv_bounds=None,
+    units="mm",
+) -> None:
     """Print the statistics table (or JSON), the minimum-c_v link lengths, and write the plot."""
     if not stats:
         return
@@ -97,14 +139,24 @@ def run_stats(a, b, c, d, branch, stats, crank_lengths, rpms, as_json, plot, *, 
     bounds = dict(cv_bounds or {})
     if not bounds and len(lengths) > 1:
         bounds = {"a": (min(lengths), max(lengths))}
-    best = minimise_cv({"a": a, "b": b, "c": c, "d": d}, bounds, branch, phases=phases, clutch=clutch) if bounds else None
+    best = (
+        minimise_cv({"a": a, "b": b, "c": c, "d": d}, bounds, branch, phases=phases, clutch=clutch) if bounds else None
+    )
 
     bad = (st.status & Status.NOT_ASSEMBLABLE) != 0
     shown = lambda v: np.where(bad, np.nan, v).ravel()  # noqa: E731 - display only: "-" / null
     cv_shown = np.where((st.status & Status.AT_INFINITY) != 0, np.nan, st.cv)
     table = MotionTable(
-        {"type": "fourbar-stats", "b": b, "c": c, "d": d, "branch": branch, "phases": phases, "clutch": clutch,
-         "length_unit": units},
+        {
+            "type": "fourbar-stats",
+            "b": b,
+            "c": c,
+            "d": d,
+            "branch": branch,
+            "phases": phases,
+            "clutch": clutch,
+            "length_unit": units,
+        },
         [
             Column("crank", units, st.crank_length.ravel(), "crank length"),
             Column("n_in", "rpm", st.rpm.ravel(), "input speed"),
@@ -123,8 +175,10 @@ def run_stats(a, b, c, d, branch, stats, crank_lengths, rpms, as_json, plot, *, 
         doc = {"mechanism": doc["mechanism"], "stats": doc["positions"], "summary": doc["summary"]}
         click.echo(json.dumps(doc, indent=1, allow_nan=False))
     else:
-        click.echo(f"Four-bar output-speed statistics: b={b:g} c={c:g} d={d:g} branch {branch:+d}, "
-                   f"{phases} stage(s), clutch {clutch}")
+        click.echo(
+            f"Four-bar output-speed statistics: b={b:g} c={c:g} d={d:g} branch {branch:+d}, "
+            f"{phases} stage(s), clutch {clutch}"
+        )
         click.echo("")
         click.echo(table.to_text())
         click.echo("")
@@ -138,7 +192,7 @@ def run_stats(a, b, c, d, branch, stats, crank_lengths, rpms, as_json, plot, *, 
 def _summary(st, bounds: dict, best) -> dict:
     summary: dict = {
         "definition": "output speed over one turn at constant input speed; cv = std/mean (independent of rpm); "
-                      "ratio = rocker/crank angular velocity before the clutch",
+        "ratio = rocker/crank angular velocity before the clutch",
     }
     cannot = sorted({float(x) for x, s in zip(st.crank_length[:, 0], st.status[:, 0]) if s & Status.NOT_ASSEMBLABLE})
     if cannot:
@@ -146,8 +200,13 @@ def _summary(st, bounds: dict, best) -> dict:
     if best is not None:
         summary["cv_minimum"] = {
             "bounds": {k: list(v) for k, v in bounds.items()},
-            "a": best.a, "b": best.b, "c": best.c, "d": best.d, "cv": best.cv,
-            "mean_ratio": best.mean_ratio, "evaluations": best.evaluations,
+            "a": best.a,
+            "b": best.b,
+            "c": best.c,
+            "d": best.d,
+            "cv": best.cv,
+            "mean_ratio": best.mean_ratio,
+            "evaluations": best.evaluations,
         }
     else:
         summary["cv_minimum"] = "give several --crank-lengths or --cv-bounds to minimise the coefficient of variation"

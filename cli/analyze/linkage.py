@@ -18,9 +18,9 @@ import numpy as np
 from cli.analyze.linkage_limits import cycle_limits, limits_json, limits_text
 from cli.options import (
     INPUT_STEP,
-    Bounded,
     INPUT_VALUE,
     SPEED,
+    Bounded,
     output_options,
     readable_text,
     speed_from_options,
@@ -62,33 +62,102 @@ ANIMATION_POSITIONS = 181
 
 @click.command("linkage")
 @click.argument("file", type=click.Path(exists=True, dir_okay=False))
-@click.option("--input", "input_values", type=INPUT_VALUE, multiple=True, metavar="DEG|LEN",
-              help="Value of an input ([[inputs]] order; deg for angles). Repeat for several inputs. "
-                   "With --from/--to/--step the first input sweeps and --input gives the others.")
-@click.option("--from", "x_from", type=INPUT_VALUE, default=None, help="First value of the first input [deg or length].")
+@click.option(
+    "--input",
+    "input_values",
+    type=INPUT_VALUE,
+    multiple=True,
+    metavar="DEG|LEN",
+    help="Value of an input ([[inputs]] order; deg for angles). Repeat for several inputs. "
+    "With --from/--to/--step the first input sweeps and --input gives the others.",
+)
+@click.option(
+    "--from", "x_from", type=INPUT_VALUE, default=None, help="First value of the first input [deg or length]."
+)
 @click.option("--to", "x_to", type=INPUT_VALUE, default=None, help="Last value of the first input [deg or length].")
-@click.option("--step", "x_step", type=INPUT_STEP, default=None, help="Step of the first input (default 30 deg, or 1/12 of a slide's range).")
-@click.option("--configuration", type=click.IntRange(1, MAX_CONFIGURATIONS), default=None,
-              help="Assembly configuration to follow, numbered as --all-configurations lists them at the first position "
-                   "(default: the file's 'configuration', else 1).")
-@click.option("--all-configurations", "all_configurations", is_flag=True, help="List every assembly configuration at each position.")
+@click.option(
+    "--step",
+    "x_step",
+    type=INPUT_STEP,
+    default=None,
+    help="Step of the first input (default 30 deg, or 1/12 of a slide's range).",
+)
+@click.option(
+    "--configuration",
+    type=click.IntRange(1, MAX_CONFIGURATIONS),
+    default=None,
+    help="Assembly configuration to follow, numbered as --all-configurations lists them at the first position "
+    "(default: the file's 'configuration', else 1).",
+)
+@click.option(
+    "--all-configurations",
+    "all_configurations",
+    is_flag=True,
+    help="List every assembly configuration at each position.",
+)
 @click.option("--limits", is_flag=True, help="Find the limit positions of the output (where its velocity vanishes).")
-@click.option("--output", "output_name", default=None, metavar="NAME",
-              help="Output for --limits and --plot: a link (its angle) or a prismatic pair (its slide). Default: [output] of the file.")
-@click.option("--band", type=BAND_DEG, default=None, metavar="DEG",
-              help="With --limits, also the dwells: crank intervals on which the output angle stays within a band "
-                   "this wide (default: the file's [output] band).")
-@click.option("--dwells", type=click.IntRange(1, 2), default=None,
-              help="Dwells per turn to find with --band: 1, or 2 (the two longest) (default: the file's, else 1).")
+@click.option(
+    "--output",
+    "output_name",
+    default=None,
+    metavar="NAME",
+    help="Output for --limits and --plot: a link (its angle) or a prismatic pair (its slide). Default: [output] of the file.",
+)
+@click.option(
+    "--band",
+    type=BAND_DEG,
+    default=None,
+    metavar="DEG",
+    help="With --limits, also the dwells: crank intervals on which the output angle stays within a band "
+    "this wide (default: the file's [output] band).",
+)
+@click.option(
+    "--dwells",
+    type=click.IntRange(1, 2),
+    default=None,
+    help="Dwells per turn to find with --band: 1, or 2 (the two longest) (default: the file's, else 1).",
+)
 @speed_options
-@click.option("--speed", "slide_speed", type=SPEED, default=1.0, show_default=True,
-              help="Speed of a slide input [length/s] (angle inputs use --rpm/--omega).")
+@click.option(
+    "--speed",
+    "slide_speed",
+    type=SPEED,
+    default=1.0,
+    show_default=True,
+    help="Speed of a slide input [length/s] (angle inputs use --rpm/--omega).",
+)
 @output_options
-@click.option("--animate", type=click.Path(dir_okay=False), callback=writable_file(".html", ".svg"),
-              help="Write an animation over the input range to FILE.html (with controls) or FILE.svg.")
+@click.option(
+    "--animate",
+    type=click.Path(dir_okay=False),
+    callback=writable_file(".html", ".svg"),
+    help="Write an animation over the input range to FILE.html (with controls) or FILE.svg.",
+)
 @click.pass_context
-def linkage(ctx, file, input_values, x_from, x_to, x_step, configuration, all_configurations, limits, output_name,
-            band, dwells, rpm, omega, cw, crank_alpha, slide_speed, as_json, plot, draw, units, animate):
+def linkage(
+    ctx,
+    file,
+    input_values,
+    x_from,
+    x_to,
+    x_step,
+    configuration,
+    all_configurations,
+    limits,
+    output_name,
+    band,
+    dwells,
+    rpm,
+    omega,
+    cw,
+    crank_alpha,
+    slide_speed,
+    as_json,
+    plot,
+    draw,
+    units,
+    animate,
+):
     """Analyse the planar linkage described in FILE (TOML, or JSON if it ends in .json)."""
     path = Path(file)
     text = readable_text(path, "FILE", 4 * MAX_CHARS)  # UTF-8: up to 4 bytes a character
@@ -113,8 +182,12 @@ def linkage(ctx, file, input_values, x_from, x_to, x_step, configuration, all_co
     if not found:
         raise AssemblyError(f"{mech.name}: cannot assemble at {_inputs_text(mech, inputs[0])}")
     mechanism = {
-        "name": mech.name, "file": str(file), "length_unit": units, "dof": mech.dof,
-        "inputs": [_input_info(mech, i) for i in range(k)], "groups": groups,
+        "name": mech.name,
+        "file": str(file),
+        "length_unit": units,
+        "dof": mech.dof,
+        "inputs": [_input_info(mech, i) for i in range(k)],
+        "groups": groups,
         "configurations_at_first_position": len(found),
         # True when the listing stopped at MAX_CONFIGURATIONS (a chain of n dyads has 2^n)
         "configurations_capped": len(found) >= MAX_CONFIGURATIONS,
@@ -122,12 +195,15 @@ def linkage(ctx, file, input_values, x_from, x_to, x_step, configuration, all_co
 
     if all_configurations:
         if limits or plot is not None or draw is not None or animate is not None:
-            raise click.UsageError("--limits, --plot, --draw and --animate follow one configuration; "
-                                   "leave out --all-configurations")
+            raise click.UsageError(
+                "--limits, --plot, --draw and --animate follow one configuration; leave out --all-configurations"
+            )
         if len(found) >= MAX_CONFIGURATIONS:
-            raise click.UsageError(f"{mech.name} has more than {MAX_CONFIGURATIONS} assembly configurations at "
-                                   f"{_inputs_text(mech, inputs[0])}: --all-configurations lists at most "
-                                   f"{MAX_CONFIGURATIONS}; follow one with --configuration N")
+            raise click.UsageError(
+                f"{mech.name} has more than {MAX_CONFIGURATIONS} assembly configurations at "
+                f"{_inputs_text(mech, inputs[0])}: --all-configurations lists at most "
+                f"{MAX_CONFIGURATIONS}; follow one with --configuration N"
+            )
         table = _configurations_table(mech, dec, inputs, units, mechanism)
         _print(table, as_json, f"{mech.name}: every assembly configuration", key="configurations")
         return
@@ -136,18 +212,33 @@ def linkage(ctx, file, input_values, x_from, x_to, x_step, configuration, all_co
     asm = assemble(mech, inputs, start, decomposition=dec)
     _require_assembled(mech, asm, configuration)
     motion = linkage_motion(mech, asm, rates, accels)
-    mechanism.update(configuration=configuration, configuration_from=source, choice=list(start.choice),
-                     input_speed=rate, input_acceleration=accel)
+    mechanism.update(
+        configuration=configuration,
+        configuration_from=source,
+        choice=list(start.choice),
+        input_speed=rate,
+        input_acceleration=accel,
+    )
     summary: dict = {
         "loop_closure_max": float(loop_closure(mech, asm).max()),
-        "singular_positions": [_input_value(mech, x) for x in inputs[motion.status & Status.TOGGLE != 0, 0]] if k else [],
+        "singular_positions": [_input_value(mech, x) for x in inputs[motion.status & Status.TOGGLE != 0, 0]]
+        if k
+        else [],
     }
     lim = None
     if limits:
         own = output_name is None and mech.output is not None  # the file's band is its output's
-        lim = cycle_limits(mech, dec, start, output, inputs, x_from, x_to,
-                           np.radians(band) if band is not None else (mech.output.band if own else None),
-                           dwells or (mech.output.dwells if own else 1))
+        lim = cycle_limits(
+            mech,
+            dec,
+            start,
+            output,
+            inputs,
+            x_from,
+            x_to,
+            np.radians(band) if band is not None else (mech.output.band if own else None),
+            dwells or (mech.output.dwells if own else 1),
+        )
         summary["limits"] = limits_json(mech, lim)
     table = _motion_table(mech, motion, units, mechanism, summary)
 
@@ -157,7 +248,9 @@ def linkage(ctx, file, input_values, x_from, x_to, x_step, configuration, all_co
         if plot is not None:
             dense = _output_table(mech, linkage_motion(mech, fine, rates, accels), output, units)
         if animate is not None:
-            anim = _animation(mech, fine.rows(slice(None, None, max(1, (PLOT_POSITIONS - 1) // (ANIMATION_POSITIONS - 1)))))
+            anim = _animation(
+                mech, fine.rows(slice(None, None, max(1, (PLOT_POSITIONS - 1) // (ANIMATION_POSITIONS - 1))))
+            )
         if draw is not None:
             drawing = _sketch(mech, asm.at(0), fine)
 
@@ -186,10 +279,13 @@ def _input_grid(mech: Linkage, values, x_from, x_to, x_step, sweep_given) -> np.
     base = np.array([i.value for i in mech.inputs], float)
     user = [_to_internal(mech, i, v) for i, v in enumerate(values, start=1 if sweep_given else 0)]
     if len(user) > (k - 1 if sweep_given else k):
-        raise click.BadParameter(f"{len(values)} --input value(s) given but the linkage has {k} input(s)"
-                                 + (" and the first one sweeps" if sweep_given else ""), param_hint="--input")
+        raise click.BadParameter(
+            f"{len(values)} --input value(s) given but the linkage has {k} input(s)"
+            + (" and the first one sweeps" if sweep_given else ""),
+            param_hint="--input",
+        )
     offset = 1 if sweep_given else 0
-    base[offset:offset + len(user)] = user
+    base[offset : offset + len(user)] = user
     if k == 0:
         if sweep_given:
             raise click.UsageError("the linkage has no input to sweep")
@@ -199,7 +295,7 @@ def _input_grid(mech: Linkage, values, x_from, x_to, x_step, sweep_given) -> np.
     inp = mech.inputs[0]
     angle = inp.kind == "angle"
     if angle:
-        lo_d, hi_d = (np.degrees(inp.sweep) if inp.sweep else (None, None))
+        lo_d, hi_d = np.degrees(inp.sweep) if inp.sweep else (None, None)
         start = x_from if x_from is not None else (lo_d if lo_d is not None else 0.0)
         stop = x_to if x_to is not None else (hi_d if hi_d is not None else start + 360.0)
         step = x_step if x_step is not None else (DEFAULT_STEP_DEG if inp.sweep is None else (stop - start) / 12)
@@ -249,8 +345,12 @@ def _typed_degrees(x: np.ndarray) -> np.ndarray:
 def _input_info(mech: Linkage, i: int) -> dict:
     inp = mech.inputs[i]
     pair = mech.pairs[inp.pair]
-    info = {"joint": pair.joint, "kind": inp.kind, "link": mech.links[inp.link].name,
-            "relative_to": mech.links[inp.relative_to].name}
+    info = {
+        "joint": pair.joint,
+        "kind": inp.kind,
+        "link": mech.links[inp.link].name,
+        "relative_to": mech.links[inp.relative_to].name,
+    }
     return info
 
 
@@ -262,8 +362,9 @@ def _inputs_text(mech: Linkage, row) -> str:
     return ", ".join(parts) or "its only position"
 
 
-def configuration_start(mech: Linkage, dec, inputs: np.ndarray, found: list[Assembly], option: int | None,
-           file: str) -> tuple[int, str, Assembly]:
+def configuration_start(
+    mech: Linkage, dec, inputs: np.ndarray, found: list[Assembly], option: int | None, file: str
+) -> tuple[int, str, Assembly]:
     """The configuration to follow, where its number came from, and its pose at the first
     position: ``--configuration`` (numbered at the first position), else the file's
     ``configuration`` (numbered at the inputs' ``value``, then followed to the first
@@ -271,21 +372,27 @@ def configuration_start(mech: Linkage, dec, inputs: np.ndarray, found: list[Asse
     if option is not None or mech.configuration is None:
         number, source = (option, "option") if option is not None else (1, "default")
         if number > len(found):
-            raise AssemblyError(f"{mech.name}: configuration {number} does not exist at "
-                                f"{_inputs_text(mech, inputs[0])} (there are {len(found)}; see --all-configurations)")
+            raise AssemblyError(
+                f"{mech.name}: configuration {number} does not exist at "
+                f"{_inputs_text(mech, inputs[0])} (there are {len(found)}; see --all-configurations)"
+            )
         return number, source, found[number - 1]
     number = mech.configuration
     anchor = np.array([[i.value for i in mech.inputs]], float).reshape(1, len(mech.inputs))
     listed = found if np.array_equal(anchor, inputs[:1]) else configurations(mech, anchor[0], decomposition=dec)
     if number > len(listed):
-        raise AssemblyError(f"{file}: 'configuration' is {number} but {mech.name} has {len(listed)} assembly "
-                            f"configuration(s) at {_inputs_text(mech, anchor[0])} (see --all-configurations)")
+        raise AssemblyError(
+            f"{file}: 'configuration' is {number} but {mech.name} has {len(listed)} assembly "
+            f"configuration(s) at {_inputs_text(mech, anchor[0])} (see --all-configurations)"
+        )
     start = listed[number - 1]
     if not np.array_equal(anchor, inputs[:1]):
         start = assemble(mech, inputs[:1], start, decomposition=dec)
         if np.any(start.status & Status.NOT_ASSEMBLABLE):
-            raise AssemblyError(f"{mech.name}: configuration {number} of the file (numbered at "
-                                f"{_inputs_text(mech, anchor[0])}) does not reach {_inputs_text(mech, inputs[0])}")
+            raise AssemblyError(
+                f"{mech.name}: configuration {number} of the file (numbered at "
+                f"{_inputs_text(mech, anchor[0])}) does not reach {_inputs_text(mech, inputs[0])}"
+            )
     return number, "file", start
 
 
@@ -297,8 +404,10 @@ def _require_assembled(mech: Linkage, asm: Assembly, configuration: int) -> None
     reach = ""
     if i > 0:
         reach = f" (it follows the sweep only up to {_inputs_text(mech, asm.inputs[i - 1])})"
-    raise AssemblyError(f"{mech.name}: configuration {configuration} cannot assemble at "
-                        f"{_inputs_text(mech, asm.inputs[i])}{reach}; {int(bad.sum())} position(s) affected")
+    raise AssemblyError(
+        f"{mech.name}: configuration {configuration} cannot assemble at "
+        f"{_inputs_text(mech, asm.inputs[i])}{reach}; {int(bad.sum())} position(s) affected"
+    )
 
 
 def _pick_output(mech: Linkage, name: str | None) -> Output:
@@ -332,8 +441,11 @@ def _pick_output(mech: Linkage, name: str | None) -> Output:
 
 
 def _pose_columns(mech: Linkage, asm: Assembly, s: np.ndarray, units: str) -> list[Column]:
-    cols = [Column(f"theta_{link.name}", "deg", np.degrees(asm.theta[:, i]), f"angle of {link.name}")
-            for i, link in enumerate(mech.links) if i]
+    cols = [
+        Column(f"theta_{link.name}", "deg", np.degrees(asm.theta[:, i]), f"angle of {link.name}")
+        for i, link in enumerate(mech.links)
+        if i
+    ]
     prism = [p for p in mech.pairs if isinstance(p, PrismaticPair)]
     cols += [Column(f"s_{p.joint}", units, s[:, c], f"slide {p.joint}") for c, p in enumerate(prism)]
     for name, link, p in mech.moving_points():
@@ -361,16 +473,31 @@ def _motion_table(mech: Linkage, motion: LinkageMotion, units: str, mechanism: d
     t_unit = "s"
     for i, link in enumerate(mech.links):
         if i:
-            cols += [Column(f"omega_{link.name}", f"rad/{t_unit}", shown(motion.omega[:, i]), f"angular velocity of {link.name}"),
-                     Column(f"alpha_{link.name}", f"rad/{t_unit}^2", shown(motion.alpha[:, i]), f"angular acceleration of {link.name}")]
+            cols += [
+                Column(
+                    f"omega_{link.name}", f"rad/{t_unit}", shown(motion.omega[:, i]), f"angular velocity of {link.name}"
+                ),
+                Column(
+                    f"alpha_{link.name}",
+                    f"rad/{t_unit}^2",
+                    shown(motion.alpha[:, i]),
+                    f"angular acceleration of {link.name}",
+                ),
+            ]
     prism = [p for p in mech.pairs if isinstance(p, PrismaticPair)]
     for c, p in enumerate(prism):
-        cols += [Column(f"v_{p.joint}", f"{units}/s", shown(motion.ds[:, c]), f"slide velocity {p.joint}"),
-                 Column(f"a_{p.joint}", f"{units}/s^2", shown(motion.dds[:, c]), f"slide acceleration {p.joint}")]
+        cols += [
+            Column(f"v_{p.joint}", f"{units}/s", shown(motion.ds[:, c]), f"slide velocity {p.joint}"),
+            Column(f"a_{p.joint}", f"{units}/s^2", shown(motion.dds[:, c]), f"slide acceleration {p.joint}"),
+        ]
     for name, link, p in mech.moving_points():
         _, v, a = motion.point(link, p)
-        cols += [Column(f"v{name}x", f"{units}/s", shown(v.real)), Column(f"v{name}y", f"{units}/s", shown(v.imag)),
-                 Column(f"a{name}x", f"{units}/s^2", shown(a.real)), Column(f"a{name}y", f"{units}/s^2", shown(a.imag))]
+        cols += [
+            Column(f"v{name}x", f"{units}/s", shown(v.real)),
+            Column(f"v{name}y", f"{units}/s", shown(v.imag)),
+            Column(f"a{name}x", f"{units}/s^2", shown(a.real)),
+            Column(f"a{name}y", f"{units}/s^2", shown(a.imag)),
+        ]
     return MotionTable(mechanism, cols, summary)
 
 
@@ -394,8 +521,14 @@ def _configurations_table(mech: Linkage, dec, inputs: np.ndarray, units: str, me
     cols.append(Column("configuration", "", np.asarray(numbers, float)))
     for g, group in enumerate(dec.groups):
         label = "branch" if group.is_dyad else "root"
-        cols.append(Column(f"{label}{g + 1}", "", np.array([a.choice[g] for a in rows], float),
-                           f"group {g + 1}: {mechanism['groups'][g]}"))
+        cols.append(
+            Column(
+                f"{label}{g + 1}",
+                "",
+                np.array([a.choice[g] for a in rows], float),
+                f"group {g + 1}: {mechanism['groups'][g]}",
+            )
+        )
     cols += _pose_columns(mech, asm, s, units)
     cols.append(Column("loop_closure", units, loop_closure(mech, asm), "largest pair violation"))
     return MotionTable(mechanism, cols, {"configurations": len(rows)})
@@ -483,7 +616,10 @@ def _outline(mech: Linkage, asm: Assembly, row: int) -> tuple[list[list[tuple[fl
         for pair in mech.pairs:  # a guide without points is drawn along its line, past the block
             if isinstance(pair, PrismaticPair) and pair.guide == i and len(local) < 2:
                 block = asm.point(pair.block, pair.block_point)[row]
-                s = (np.conj(pair.direction) * np.conj(asm.e[row, i]) * (block - asm.r[row, i]) - np.conj(pair.direction) * pair.through).real
+                s = (
+                    np.conj(pair.direction) * np.conj(asm.e[row, i]) * (block - asm.r[row, i])
+                    - np.conj(pair.direction) * pair.through
+                ).real
                 reach = s + np.copysign(0.15 * mech.length_scale, s)
                 local += [pair.through, pair.through + pair.direction * reach]
         if not local:
@@ -500,15 +636,27 @@ def _outline(mech: Linkage, asm: Assembly, row: int) -> tuple[list[list[tuple[fl
     return polys, labels
 
 
-def _blocks(mech: Linkage, asm: Assembly, row: int) -> list[tuple[str, tuple[float, float], float, list[tuple[float, float]]]]:
+def _blocks(
+    mech: Linkage, asm: Assembly, row: int
+) -> list[tuple[str, tuple[float, float], float, list[tuple[float, float]]]]:
     size = 0.04 * mech.length_scale
     out = []
     for pair in mech.pairs:
         if isinstance(pair, PrismaticPair):
             c = complex(asm.point(pair.block, pair.block_point)[row])
             U = complex(asm.e[row, pair.guide] * pair.direction)
-            corners = [c + U * complex(dx, dy) for dx, dy in ((-1.5 * size, -size), (1.5 * size, -size), (1.5 * size, size), (-1.5 * size, size))]
-            out.append((pair.joint, (c.real, c.imag), float(np.angle(U)), [(z.real, z.imag) for z in corners] + [(corners[0].real, corners[0].imag)]))
+            corners = [
+                c + U * complex(dx, dy)
+                for dx, dy in ((-1.5 * size, -size), (1.5 * size, -size), (1.5 * size, size), (-1.5 * size, size))
+            ]
+            out.append(
+                (
+                    pair.joint,
+                    (c.real, c.imag),
+                    float(np.angle(U)),
+                    [(z.real, z.imag) for z in corners] + [(corners[0].real, corners[0].imag)],
+                )
+            )
     return out
 
 
@@ -567,6 +715,12 @@ def _animation(mech: Linkage, asm: Assembly) -> Animation:
         caption = _inputs_text(mech, asm.inputs[row]) if mech.inputs else ""
         frames.append(Frame(polys, joints, blocks, caption))
     ground = [(name, (p.real, p.imag)) for name, p in mech.links[0].points.items()]
-    return Animation(frames, labels, ground, _guides(mech, asm), [path for _, path in _tracer_paths(mech, asm)],
-                     title=mech.name, seconds=max(2.0, 0.04 * len(frames)))
-
+    return Animation(
+        frames,
+        labels,
+        ground,
+        _guides(mech, asm),
+        [path for _, path in _tracer_paths(mech, asm)],
+        title=mech.name,
+        seconds=max(2.0, 0.04 * len(frames)),
+    )

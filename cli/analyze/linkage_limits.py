@@ -58,8 +58,17 @@ class CycleLimits:
     no_dwells: str | None = None
 
 
-def cycle_limits(mech: Linkage, dec: Decomposition, start: Assembly, output: Output, inputs: np.ndarray,
-                 x_from: float | None, x_to: float | None, band: float | None, dwells: int) -> CycleLimits:
+def cycle_limits(
+    mech: Linkage,
+    dec: Decomposition,
+    start: Assembly,
+    output: Output,
+    inputs: np.ndarray,
+    x_from: float | None,
+    x_to: float | None,
+    band: float | None,
+    dwells: int,
+) -> CycleLimits:
     """Limit positions over a full turn of an angle input (else over the sweep's range), the
     RRR dyads' smallest transmission angles over the same range, and the dwells within
     ``band`` (rad) when the output is an angle and the input turns fully."""
@@ -90,8 +99,9 @@ def cycle_limits(mech: Linkage, dec: Decomposition, start: Assembly, output: Out
     return CycleLimits(lim, transmission, band, found, why)
 
 
-def rests(items: Sequence[tuple[Linkage, Decomposition, Assembly, Output]], band: float,
-          count: int) -> list[tuple[Rest, ...]]:
+def rests(
+    items: Sequence[tuple[Linkage, Decomposition, Assembly, Output]], band: float, count: int
+) -> list[tuple[Rest, ...]]:
     """Per item (a linkage, its decomposition, the configuration's start pose and an angle
     output), the ``count`` longest disjoint crank intervals of one turn from the start on
     which the output stays within ``band`` (rad). One dwell search for all items (the exact
@@ -119,8 +129,14 @@ def rests(items: Sequence[tuple[Linkage, Decomposition, Assembly, Output]], band
         mine = []
         for d in found.dwells((row,)):
             rest = math.degrees(d.rest) % 360.0
-            mine.append(Rest(crank_degrees(d.start), crank_degrees(d.end), math.degrees(d.angle),
-                             rest - 360.0 if rest > 180.0 else rest))
+            mine.append(
+                Rest(
+                    crank_degrees(d.start),
+                    crank_degrees(d.end),
+                    math.degrees(d.angle),
+                    rest - 360.0 if rest > 180.0 else rest,
+                )
+            )
         out.append(tuple(mine))
     return out
 
@@ -134,22 +150,30 @@ def limits_json(mech: Linkage, cyc: CycleLimits) -> dict:
     in_conv = (lambda v: float(np.degrees(v))) if mech.inputs[0].kind == "angle" else float  # noqa: E731
     doc = {
         "output": lim.output.name,
-        "positions": [{in_key: in_conv(p.input), f"output_{out_unit}": conv(p.output), "kind": p.kind}
-                      for p in lim.positions],
+        "positions": [
+            {in_key: in_conv(p.input), f"output_{out_unit}": conv(p.output), "kind": p.kind} for p in lim.positions
+        ],
         ("swing_deg" if lim.output.kind == "angle" else f"stroke_{mech.units}"): conv(lim.stroke),
         f"output_min_{out_unit}": conv(lim.output_min),
         f"output_max_{out_unit}": conv(lim.output_max),
         "full_turn": lim.full_turn,
     }
     if lim.time_ratio is not None:
-        doc.update(time_ratio=lim.time_ratio, advance_deg=float(np.degrees(lim.advance)),
-                   return_deg=float(np.degrees(lim.return_)))
-    doc["transmission"] = [{"joint": t.joint, "min_deg": float(np.degrees(t.angle)), in_key: in_conv(t.input)}
-                           for t in cyc.transmission]
+        doc.update(
+            time_ratio=lim.time_ratio,
+            advance_deg=float(np.degrees(lim.advance)),
+            return_deg=float(np.degrees(lim.return_)),
+        )
+    doc["transmission"] = [
+        {"joint": t.joint, "min_deg": float(np.degrees(t.angle)), in_key: in_conv(t.input)} for t in cyc.transmission
+    ]
     if cyc.band is not None:
         doc["band_deg"] = float(np.degrees(cyc.band))
-        doc["dwells"] = None if cyc.dwells is None else [
-            {"interval_deg": [d.start, d.end], "dwell_deg": d.length, "rest_deg": d.rest} for d in cyc.dwells]
+        doc["dwells"] = (
+            None
+            if cyc.dwells is None
+            else [{"interval_deg": [d.start, d.end], "dwell_deg": d.length, "rest_deg": d.rest} for d in cyc.dwells]
+        )
         if cyc.no_dwells is not None:
             doc["dwells_not_measured"] = cyc.no_dwells
     return doc
@@ -166,20 +190,28 @@ def limits_text(mech: Linkage, cyc: CycleLimits, units: str) -> str:
     if not lim.positions:
         lines.append("  none: the output velocity does not vanish on the range")
     for p in lim.positions:
-        lines.append(f"  input {float(in_conv(p.input)):.10g} {in_unit}: {p.kind} {float(conv(p.output)):.10g} {out_unit}")
+        lines.append(
+            f"  input {float(in_conv(p.input)):.10g} {in_unit}: {p.kind} {float(conv(p.output)):.10g} {out_unit}"
+        )
     word = "swing" if lim.output.kind == "angle" else "stroke"
     lines.append(f"{word}: {float(conv(lim.stroke)):.10g} {out_unit}")
     if lim.time_ratio is not None:
-        lines.append(f"time ratio: {lim.time_ratio:.10g} (advance {np.degrees(lim.advance):.6g} deg, "
-                     f"return {np.degrees(lim.return_):.6g} deg of input)")
+        lines.append(
+            f"time ratio: {lim.time_ratio:.10g} (advance {np.degrees(lim.advance):.6g} deg, "
+            f"return {np.degrees(lim.return_):.6g} deg of input)"
+        )
     for t in cyc.transmission:
-        lines.append(f"smallest transmission angle at {t.joint}: {np.degrees(t.angle):.10g} deg "
-                     f"(input {float(in_conv(t.input)):.10g} {in_unit})")
+        lines.append(
+            f"smallest transmission angle at {t.joint}: {np.degrees(t.angle):.10g} deg "
+            f"(input {float(in_conv(t.input)):.10g} {in_unit})"
+        )
     if cyc.band is not None:
         band = f"{np.degrees(cyc.band):.6g} deg"
         if cyc.dwells is None:
             lines.append(f"dwells within a {band} band: not measured ({cyc.no_dwells})")
         for k, d in enumerate(cyc.dwells or (), start=1):
-            lines.append(f"dwell {k} within a {band} band: input {d.start:.10g}..{d.end:.10g} deg "
-                         f"({d.length:.10g} deg), output at rest near {d.rest:.6g} deg")
+            lines.append(
+                f"dwell {k} within a {band} band: input {d.start:.10g}..{d.end:.10g} deg "
+                f"({d.length:.10g} deg), output at rest near {d.rest:.6g} deg"
+            )
     return "\n".join(lines)

@@ -9,7 +9,15 @@ import numpy as np
 
 from cli.analyze.emit import emit_motion
 from cli.analyze.slider_crank import BRANCH_HELP, limits_summary, xy
-from cli.options import COORDINATE, LENGTH, crank_angle_options, crank_angles_deg, output_options, speed_from_options, speed_options
+from cli.options import (
+    COORDINATE,
+    LENGTH,
+    crank_angle_options,
+    crank_angles_deg,
+    output_options,
+    speed_from_options,
+    speed_options,
+)
 from kinematics.shaper import check_shaper, shaper_limits, shaper_motion
 from kinematics.timing import time_derivatives
 from report.drawing import Sketch
@@ -20,15 +28,24 @@ from report.motion_table import Column, MotionTable
 @click.option("--crank", "l1", type=LENGTH, required=True, help="Crank length AB (l1).")
 @click.option("--rod", "l3", type=LENGTH, required=True, help="Guide rod length CD (l3).")
 @click.option("--link", "l4", type=LENGTH, required=True, help="Link length DE (l4).")
-@click.option("--height", "h", type=LENGTH, required=True,
-              help="Height h of the crank pivot A above the rod pivot C=(0,-h).")
-@click.option("--offset", "e", type=COORDINATE, default=0.0, show_default=True,
-              help="Slider line y = -e (positive: below the crank pivot A).")
+@click.option(
+    "--height", "h", type=LENGTH, required=True, help="Height h of the crank pivot A above the rod pivot C=(0,-h)."
+)
+@click.option(
+    "--offset",
+    "e",
+    type=COORDINATE,
+    default=0.0,
+    show_default=True,
+    help="Slider line y = -e (positive: below the crank pivot A).",
+)
 @click.option("--branch", type=click.Choice(["1", "-1"]), default="1", show_default=True, help=BRANCH_HELP)
 @crank_angle_options
 @speed_options
 @output_options
-def shaper(l1, l3, l4, h, e, branch, phi, phi_from, phi_to, phi_step, rpm, omega, cw, crank_alpha, as_json, plot, draw, units):
+def shaper(
+    l1, l3, l4, h, e, branch, phi, phi_from, phi_to, phi_step, rpm, omega, cw, crank_alpha, as_json, plot, draw, units
+):
     """Analyse a quick-return shaper: crank pivot A=(0,0), rod pivot C=(0,-h), slider E=(s5,-e).
 
     Formulas: docs/cases/classic_mechanisms.md section 1 (s2 block on the rod, phi3 rod,
@@ -58,13 +75,25 @@ def shaper(l1, l3, l4, h, e, branch, phi, phi_from, phi_to, phi_step, rpm, omega
             Column("eps3", "rad/s^2", rod[1], "guide rod angular acceleration"),
             Column("eps4", "rad/s^2", link[1], "link DE angular acceleration"),
             Column("a5", f"{L}/s^2", slider[1], "slider acceleration"),
-            Column("Bx", L, B.real), Column("By", L, B.imag),
-            Column("Dx", L, D.real), Column("Dy", L, D.imag),
+            Column("Bx", L, B.real),
+            Column("By", L, B.imag),
+            Column("Dx", L, D.real),
+            Column("Dy", L, D.imag),
         ]
         return MotionTable(mechanism, cols, summary)
 
-    mechanism = {"type": "shaper", "l1": l1, "l3": l3, "l4": l4, "h": h, "e": e, "branch": br,
-                 "length_unit": L, "crank_speed_rad_s": w, "crank_acceleration_rad_s2": crank_alpha}
+    mechanism = {
+        "type": "shaper",
+        "l1": l1,
+        "l3": l3,
+        "l4": l4,
+        "h": h,
+        "e": e,
+        "branch": br,
+        "length_unit": L,
+        "crank_speed_rad_s": w,
+        "crank_acceleration_rad_s2": crank_alpha,
+    }
     lim = shaper_limits(l1, l3, l4, h, e, br)
     summary: dict[str, Any] = {"rod_swing_deg": float(np.degrees(2.0 * np.arcsin(l1 / h)))}
     summary |= limits_summary(lim, "s5", L)
@@ -83,8 +112,12 @@ def shaper(l1, l3, l4, h, e, branch, phi, phi_from, phi_to, phi_step, rpm, omega
         )
 
     emit_motion(
-        table, as_json=as_json, plot=plot, draw=draw,
+        table,
+        as_json=as_json,
+        plot=plot,
+        draw=draw,
         plot_columns=["s5", "v5", "a5"],
-        evaluate=evaluate, sketch=sketch,
+        evaluate=evaluate,
+        sketch=sketch,
         title=f"Shaper l1={l1:g} l3={l3:g} l4={l4:g} h={h:g} e={e:g} branch {br:+d}",
     )

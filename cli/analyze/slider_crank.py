@@ -9,7 +9,16 @@ import click
 import numpy as np
 
 from cli.analyze.emit import emit_motion
-from cli.options import ANGLE_DEG, COORDINATE, LENGTH, crank_angle_options, crank_angles_deg, output_options, speed_from_options, speed_options
+from cli.options import (
+    ANGLE_DEG,
+    COORDINATE,
+    LENGTH,
+    crank_angle_options,
+    crank_angles_deg,
+    output_options,
+    speed_from_options,
+    speed_options,
+)
 from kinematics.slider_crank import SliderLimits, slider_crank_limits, slider_crank_motion, slider_crank_range
 from kinematics.timing import time_derivatives
 from report.drawing import Sketch
@@ -23,8 +32,10 @@ def limits_summary(lim: SliderLimits, slider: str, unit: str) -> dict[str, Any]:
     u = unit_key(unit)
     return {
         "limit_positions": {
-            "phi1_max_deg": float(np.degrees(lim.phi_max)), f"{slider}_max_{u}": lim.s_max,
-            "phi1_min_deg": float(np.degrees(lim.phi_min)), f"{slider}_min_{u}": lim.s_min,
+            "phi1_max_deg": float(np.degrees(lim.phi_max)),
+            f"{slider}_max_{u}": lim.s_max,
+            "phi1_min_deg": float(np.degrees(lim.phi_min)),
+            f"{slider}_min_{u}": lim.s_min,
         },
         f"stroke_{u}": lim.stroke,
         "time_ratio": lim.time_ratio,
@@ -40,15 +51,44 @@ def xy(z: complex) -> tuple[float, float]:
 @click.command("slider-crank")
 @click.option("--crank", "l1", type=LENGTH, required=True, help="Crank length AB (l1).")
 @click.option("--rod", "l2", type=LENGTH, required=True, help="Connecting rod length BC (l2).")
-@click.option("--offset", "e", type=COORDINATE, default=0.0, show_default=True,
-              help="Guide offset e: the guide is y = -e (positive: below the crank pivot A).")
-@click.option("--guide-angle", type=ANGLE_DEG, default=0.0, show_default=True,
-              help="Inclination of the guide [deg]; the offset is then to the right of the guide direction.")
+@click.option(
+    "--offset",
+    "e",
+    type=COORDINATE,
+    default=0.0,
+    show_default=True,
+    help="Guide offset e: the guide is y = -e (positive: below the crank pivot A).",
+)
+@click.option(
+    "--guide-angle",
+    type=ANGLE_DEG,
+    default=0.0,
+    show_default=True,
+    help="Inclination of the guide [deg]; the offset is then to the right of the guide direction.",
+)
 @click.option("--branch", type=click.Choice(["1", "-1"]), default="1", show_default=True, help=BRANCH_HELP)
 @crank_angle_options
 @speed_options
 @output_options
-def slider_crank(l1, l2, e, guide_angle, branch, phi, phi_from, phi_to, phi_step, rpm, omega, cw, crank_alpha, as_json, plot, draw, units):
+def slider_crank(
+    l1,
+    l2,
+    e,
+    guide_angle,
+    branch,
+    phi,
+    phi_from,
+    phi_to,
+    phi_step,
+    rpm,
+    omega,
+    cw,
+    crank_alpha,
+    as_json,
+    plot,
+    draw,
+    units,
+):
     """Analyse an offset slider-crank: crank pivot A=(0,0), slider C=(s3,-e); angles CCW from +x.
 
     Formulas: docs/cases/classic_mechanisms.md section 2 (phi1 crank, phi2 rod, s3 slider).
@@ -74,13 +114,24 @@ def slider_crank(l1, l2, e, guide_angle, branch, phi, phi_from, phi_to, phi_step
             Column("v3", f"{L}/s", slider[0], "slider velocity"),
             Column("eps2", "rad/s^2", rod[1], "rod angular acceleration"),
             Column("a3", f"{L}/s^2", slider[1], "slider acceleration"),
-            Column("Bx", L, B.real), Column("By", L, B.imag),
-            Column("Cx", L, C.real), Column("Cy", L, C.imag),
+            Column("Bx", L, B.real),
+            Column("By", L, B.imag),
+            Column("Cx", L, C.real),
+            Column("Cy", L, C.imag),
         ]
         return MotionTable(mechanism, cols, summary)
 
-    mechanism = {"type": "slider-crank", "l1": l1, "l2": l2, "e": e, "guide_angle_deg": guide_angle, "branch": br,
-                 "length_unit": L, "crank_speed_rad_s": w, "crank_acceleration_rad_s2": crank_alpha}
+    mechanism = {
+        "type": "slider-crank",
+        "l1": l1,
+        "l2": l2,
+        "e": e,
+        "guide_angle_deg": guide_angle,
+        "branch": br,
+        "length_unit": L,
+        "crank_speed_rad_s": w,
+        "crank_acceleration_rad_s2": crank_alpha,
+    }
     reach = slider_crank_range(l1, l2, e, guide_angle=alpha)
     summary: dict[str, Any] = {
         "full_turn": l1 + abs(e) <= l2,
@@ -105,8 +156,12 @@ def slider_crank(l1, l2, e, guide_angle, branch, phi, phi_from, phi_to, phi_step
         )
 
     emit_motion(
-        table, as_json=as_json, plot=plot, draw=draw,
+        table,
+        as_json=as_json,
+        plot=plot,
+        draw=draw,
         plot_columns=["s3", "v3", "a3"],
-        evaluate=evaluate, sketch=sketch,
+        evaluate=evaluate,
+        sketch=sketch,
         title=f"Slider-crank l1={l1:g} l2={l2:g} e={e:g} guide {guide_angle:g} deg branch {br:+d}",
     )

@@ -61,8 +61,9 @@ def _resolutions(text: str) -> list[tuple[float, int]]:
     for item in items:
         step, sep, rays = item.partition(":")
         if not sep:
-            raise click.BadParameter(f"expected STEP:RAYS pairs separated by commas, got {item!r}",
-                                     param_hint="--resolutions")
+            raise click.BadParameter(
+                f"expected STEP:RAYS pairs separated by commas, got {item!r}", param_hint="--resolutions"
+            )
         out.append((SEARCH_STEP_DEG.convert(step, None, None), RAYS.convert(rays, None, None)))
     return out
 
@@ -107,25 +108,77 @@ def _best(found, n_links: int, levels: int) -> np.ndarray:
 
 @click.command("atlas")
 @click.option("--preset", type=click.Choice(sorted(PRESETS)), default="standard", show_default=True)
-@click.option("--proportions", type=click.IntRange(1, 100_000), default=32, show_default=True,
-              help="Proportions of the sweep searched (each on both branches).")
-@click.option("--resolutions", default=DEFAULT_RESOLUTIONS, show_default=True,
-              help="STEP:RAYS pairs (degrees, rays; each in the ranges of --reference-step and --reference-rays).")
-@click.option("--reference-step", type=SEARCH_STEP_DEG, default=0.75, show_default=True, help="Crank step (°) of the reference search.")
+@click.option(
+    "--proportions",
+    type=click.IntRange(1, 100_000),
+    default=32,
+    show_default=True,
+    help="Proportions of the sweep searched (each on both branches).",
+)
+@click.option(
+    "--resolutions",
+    default=DEFAULT_RESOLUTIONS,
+    show_default=True,
+    help="STEP:RAYS pairs (degrees, rays; each in the ranges of --reference-step and --reference-rays).",
+)
+@click.option(
+    "--reference-step",
+    type=SEARCH_STEP_DEG,
+    default=0.75,
+    show_default=True,
+    help="Crank step (°) of the reference search.",
+)
 @click.option("--reference-rays", type=RAYS, default=96, show_default=True, help="Rays of the reference search.")
-@click.option("--dwell-samples", type=click.IntRange(0, 10_000), default=60, show_default=True,
-              help="Stored dwells re-measured independently per resolution.")
-@click.option("--build", "build_samples", type=click.IntRange(0, 2**24), default=0, show_default=True,
-              help="Also time a real build of N samples at the preset's resolution (0: skip).")
-@click.option("--ingest", "ingest_samples", type=click.IntRange(0, 2**24), default=0, show_default=True,
-              help="Also time the single writer alone on N samples: their shards computed first, then written "
-                   "(writes, digest, packing) with compute removed (0: skip).")
-@click.option("--workers", type=click.IntRange(1, 256), default=2, show_default=True,
-              help="Workers of the timed build (and of computing --ingest's shards).")
-@click.option("--plot", type=click.Path(dir_okay=False), callback=writable_file(".png"), default=None,
-              help="Write the time–error chart (PNG).")
-def atlas(preset, proportions, resolutions, reference_step, reference_rays, dwell_samples, build_samples, ingest_samples,
-          workers, plot):
+@click.option(
+    "--dwell-samples",
+    type=click.IntRange(0, 10_000),
+    default=60,
+    show_default=True,
+    help="Stored dwells re-measured independently per resolution.",
+)
+@click.option(
+    "--build",
+    "build_samples",
+    type=click.IntRange(0, 2**24),
+    default=0,
+    show_default=True,
+    help="Also time a real build of N samples at the preset's resolution (0: skip).",
+)
+@click.option(
+    "--ingest",
+    "ingest_samples",
+    type=click.IntRange(0, 2**24),
+    default=0,
+    show_default=True,
+    help="Also time the single writer alone on N samples: their shards computed first, then written "
+    "(writes, digest, packing) with compute removed (0: skip).",
+)
+@click.option(
+    "--workers",
+    type=click.IntRange(1, 256),
+    default=2,
+    show_default=True,
+    help="Workers of the timed build (and of computing --ingest's shards).",
+)
+@click.option(
+    "--plot",
+    type=click.Path(dir_okay=False),
+    callback=writable_file(".png"),
+    default=None,
+    help="Write the time–error chart (PNG).",
+)
+def atlas(
+    preset,
+    proportions,
+    resolutions,
+    reference_step,
+    reference_rays,
+    dwell_samples,
+    build_samples,
+    ingest_samples,
+    workers,
+    plot,
+):
     """Atlas build: linkages/s and segments/s against dwell error, per search resolution."""
     spec = PRESETS[preset]
     try:
@@ -137,8 +190,11 @@ def atlas(preset, proportions, resolutions, reference_step, reference_rays, dwel
     for option, samples in (("--build", build_samples), ("--ingest", ingest_samples)):
         if samples:
             linkages = samples * len(sweep) / spec.samples * len(spec.branches)
-            check_time(linkages / (FASTEST_BUILD_RATE * workers), f"{option} {samples} (about {linkages:,.0f} linkages)",
-                       f"lower {option} (the standard atlas is 32 768 samples)")
+            check_time(
+                linkages / (FASTEST_BUILD_RATE * workers),
+                f"{option} {samples} (about {linkages:,.0f} linkages)",
+                f"lower {option} (the standard atlas is 32 768 samples)",
+            )
     n = min(proportions, len(sweep))
     b, c, d = (np.repeat(x[:n], len(spec.branches)) for x in (sweep.b, sweep.c, sweep.d))
     br = np.tile(np.asarray(spec.branches), n)
@@ -161,11 +217,21 @@ def atlas(preset, proportions, resolutions, reference_step, reference_rays, dwel
         best = _best(found, b.size, levels)
         has = ref_best > 0
         shortfall = np.clip((ref_best - best)[has] / ref_best[has], 0.0, None)
-        triples = [(i, lv, p) for i in range(len(found)) for lv in range(levels)
-                   for p in range(2 if SEGMENT_KINDS[found.kind[i]] is SegmentKind.DOUBLE_LINE else 1) if found.has_dwell[i, lv, p]]
+        triples = [
+            (i, lv, p)
+            for i in range(len(found))
+            for lv in range(levels)
+            for p in range(2 if SEGMENT_KINDS[found.kind[i]] is SegmentKind.DOUBLE_LINE else 1)
+            if found.has_dwell[i, lv, p]
+        ]
         pick = rng.choice(len(triples), size=min(dwell_samples, len(triples)), replace=False) if triples else []
-        errors = [abs(_independent_dwell(b, c, d, br, found, *triples[j])
-                      - (found.phi_end[triples[j]] - found.phi_start[triples[j]])) for j in pick]
+        errors = [
+            abs(
+                _independent_dwell(b, c, d, br, found, *triples[j])
+                - (found.phi_end[triples[j]] - found.phi_start[triples[j]])
+            )
+            for j in pick
+        ]
         results.append(
             {
                 "crank_step_deg": step,
@@ -188,8 +254,12 @@ def atlas(preset, proportions, resolutions, reference_step, reference_rays, dwel
         "proportions": n,
         "branches": list(spec.branches),
         "tolerances": list(spec.tolerances),
-        "reference": {"crank_step_deg": reference_step, "rays": reference_rays, "seconds": round(ref_seconds, 3),
-                      "linkages_per_s": round(b.size / ref_seconds, 2)},
+        "reference": {
+            "crank_step_deg": reference_step,
+            "rays": reference_rays,
+            "seconds": round(ref_seconds, 3),
+            "linkages_per_s": round(b.size / ref_seconds, 2),
+        },
         "resolutions": results,
         "machine": {"cpus": os.cpu_count(), "python": platform.python_version(), "machine": platform.machine()},
     }
@@ -249,8 +319,10 @@ def timed_ingest(spec, samples: int, workers: int) -> dict:
     small = spec.replace(samples=samples)
     sweep = sweep_linkages(small)
     t0 = time.perf_counter()
-    cached = {r.shard_index: handed_over(r) if isinstance(r, ShardResult) else r
-              for r in run_shards(small, sweep, range(sweep.n_shards(small.shard_size)), workers)}
+    cached = {
+        r.shard_index: handed_over(r) if isinstance(r, ShardResult) else r
+        for r in run_shards(small, sweep, range(sweep.n_shards(small.shard_size)), workers)
+    }
     computed = time.perf_counter() - t0
 
     def replay(spec, sweep, indices, workers, *, tick=None):
@@ -288,13 +360,21 @@ def _plot(report: dict, path: Path) -> None:
     ax.plot(x, y, "o-", label="median shortfall of the best dwell")
     ax.plot(x, y90, "s--", label="90th percentile")
     for r, xi, yi in zip(rows, x, y90):
-        ax.annotate(f"{r['crank_step_deg']:g}°, {r['rays']} rays", (xi, yi), textcoords="offset points", xytext=(4, 6),
-                    fontsize=8)
+        ax.annotate(
+            f"{r['crank_step_deg']:g}°, {r['rays']} rays",
+            (xi, yi),
+            textcoords="offset points",
+            xytext=(4, 6),
+            fontsize=8,
+        )
     ax.set_xlabel("linkages per second (one core, search only)")
     ax.set_ylabel(f"% shorter than at {report['reference']['crank_step_deg']:g}°/{report['reference']['rays']} rays")
     err = max((r["dwell_error_deg"] or 0.0) for r in rows)
-    ax.set_title(f"Atlas search: speed against error ({report['preset']} sweep, {report['proportions']} proportions)\n"
-                 f"stored dwell angles vs independent measurement: max error {err:.1e}°", fontsize=10)
+    ax.set_title(
+        f"Atlas search: speed against error ({report['preset']} sweep, {report['proportions']} proportions)\n"
+        f"stored dwell angles vs independent measurement: max error {err:.1e}°",
+        fontsize=10,
+    )
     ax.grid(True, alpha=0.3)
     ax.margins(x=0.15, y=0.15)  # room for the point labels
     ax.legend()

@@ -50,10 +50,12 @@ class Cell:
         from cli.query import request_from_options
 
         if self.family == "double":
-            return request_from_options(self.dwell, DOUBLE_TOL, self.swing, None, "rpr", 2, top=top, refine=refine,
-                                        complete=complete)
-        return request_from_options(self.dwell, None, self.swing, None, self.family, 1, top=top, refine=refine,
-                                    complete=complete)
+            return request_from_options(
+                self.dwell, DOUBLE_TOL, self.swing, None, "rpr", 2, top=top, refine=refine, complete=complete
+            )
+        return request_from_options(
+            self.dwell, None, self.swing, None, self.family, 1, top=top, refine=refine, complete=complete
+        )
 
 
 def cells(families: tuple[str, ...] = FAMILIES, dwells: tuple[float, ...] = ()) -> list[Cell]:
@@ -76,8 +78,9 @@ def _row(cell: Cell, result, seconds: float, top: int) -> dict:
         "best": shown[0].id if shown else None,
         "failed": None if result.no_match is None else result.no_match.failed,
         # the one constraint in the way, its best figure and the request's (synth.query.NoMatch.reach)
-        "in_the_way": None if result.no_match is None or result.no_match.reach is None else
-        [result.no_match.reach[0], round(result.no_match.reach[1], 4), round(result.no_match.reach[2], 4)],
+        "in_the_way": None
+        if result.no_match is None or result.no_match.reach is None
+        else [result.no_match.reach[0], round(result.no_match.reach[1], 4), round(result.no_match.reach[2], 4)],
         "refined": sum(c.refined_from is not None for c in shown),
         "ms": round(1000 * seconds, 1),
     }
@@ -100,8 +103,11 @@ def _recall(cell: Cell, complete, source) -> dict:
     sampled = answer(cell.request(1000, refine=False), source)
     every = {_curve(c) for c in complete.candidates}
     found = {_curve(c) for c in sampled.candidates} & every
-    return {"complete": len(every), "sampled": len(sampled.candidates),
-            "recall": None if not every else round(len(found) / len(every), 4)}
+    return {
+        "complete": len(every),
+        "sampled": len(sampled.candidates),
+        "recall": None if not every else round(len(found) / len(every), 4),
+    }
 
 
 def summary(rows: list[dict]) -> dict:
@@ -110,8 +116,11 @@ def summary(rows: list[dict]) -> dict:
     out = {}
     for fam in dict.fromkeys(r["family"] for r in rows):
         mine = [r for r in rows if r["family"] == fam]
-        out[fam] = {"cells": len(mine), "answered": sum(r["candidates"] >= 1 for r in mine),
-                    "three_or_more": sum(r["candidates"] >= 3 for r in mine)}
+        out[fam] = {
+            "cells": len(mine),
+            "answered": sum(r["candidates"] >= 1 for r in mine),
+            "three_or_more": sum(r["candidates"] >= 3 for r in mine),
+        }
         if mine and "recall" in mine[0]:
             every = sum(r["complete"] for r in mine)
             found = sum(round(r["recall"] * r["complete"]) for r in mine if r["recall"] is not None)
@@ -122,20 +131,41 @@ def summary(rows: list[dict]) -> dict:
 @click.command("coverage")
 @db_option
 @click.option("--top", type=click.IntRange(1, 1000), default=10, show_default=True, help="Candidates per query.")
-@click.option("--refine/--no-refine", default=True, show_default=True,
-              help="Refine the candidates (and the nearest misses) as `dwell query` does.")
-@click.option("--family", "families", type=click.Choice(FAMILIES), multiple=True,
-              help="Only this family's cells (repeat for several; default: all three).")
-@click.option("--complete", is_flag=True,
-              help="Answer every cell with the complete search (`dwell query --complete`, unrefined, all its "
-                   "six-bars kept) and report, per cell, the share of them the default sampled query finds.")
-@click.option("--dwell", "dwells", type=Bounded(0.0, 360.0, "a dwell in degrees", low_open=True, high_open=True),
-              multiple=True,
-              help="Only the grid's rows of this dwell (degrees; repeat for several; default: every row).")
+@click.option(
+    "--refine/--no-refine",
+    default=True,
+    show_default=True,
+    help="Refine the candidates (and the nearest misses) as `dwell query` does.",
+)
+@click.option(
+    "--family",
+    "families",
+    type=click.Choice(FAMILIES),
+    multiple=True,
+    help="Only this family's cells (repeat for several; default: all three).",
+)
+@click.option(
+    "--complete",
+    is_flag=True,
+    help="Answer every cell with the complete search (`dwell query --complete`, unrefined, all its "
+    "six-bars kept) and report, per cell, the share of them the default sampled query finds.",
+)
+@click.option(
+    "--dwell",
+    "dwells",
+    type=Bounded(0.0, 360.0, "a dwell in degrees", low_open=True, high_open=True),
+    multiple=True,
+    help="Only the grid's rows of this dwell (degrees; repeat for several; default: every row).",
+)
 @workers_option
 @click.option("--json", "as_json", is_flag=True, help="JSON on stdout instead of a table.")
-@click.option("--plot", type=click.Path(dir_okay=False), callback=writable_file(".png"), default=None,
-              help="Write the grids as heat maps of the candidates found (PNG).")
+@click.option(
+    "--plot",
+    type=click.Path(dir_okay=False),
+    callback=writable_file(".png"),
+    default=None,
+    help="Write the grids as heat maps of the candidates found (PNG).",
+)
 def coverage(db, top, refine, families, complete, dwells, workers, as_json, plot):
     """Coverage of the dwell × swing grid (RPR, RRR) and the double-dwell row: candidates, best deviation, time."""
     from cli.bench.query import atlas_facts
@@ -146,8 +176,9 @@ def coverage(db, top, refine, families, complete, dwells, workers, as_json, plot
 
     grid = cells(tuple(families) or FAMILIES, tuple(dwells))
     if not grid:
-        raise click.BadParameter(f"no row of the grid has a dwell of {', '.join(f'{d:g}' for d in dwells)}°",
-                                 param_hint="'--dwell'")
+        raise click.BadParameter(
+            f"no row of the grid has a dwell of {', '.join(f'{d:g}' for d in dwells)}°", param_hint="'--dwell'"
+        )
     engine = open_atlas(db, readonly=True)
     try:
         atlas = atlas_facts(engine)
@@ -166,8 +197,12 @@ def coverage(db, top, refine, families, complete, dwells, workers, as_json, plot
             for members in groups.values():
                 t0 = time.perf_counter()
                 with SearchBar(None) as bar:
-                    found = search_many([requests[k] for k in members], source, on_progress=bar,
-                                        map_batches=batch_map(workers or default_workers()))
+                    found = search_many(
+                        [requests[k] for k in members],
+                        source,
+                        on_progress=bar,
+                        map_batches=batch_map(workers or default_workers()),
+                    )
                 share = (time.perf_counter() - t0) / len(members)
                 for k, searched in zip(members, found):
                     t1 = time.perf_counter()
@@ -183,18 +218,36 @@ def coverage(db, top, refine, families, complete, dwells, workers, as_json, plot
         total = time.perf_counter() - start
     finally:
         engine.dispose()
-    report = {"benchmark": "coverage", "atlas": atlas, "top": top, "refine": refine and not complete,
-              "complete": complete, "seconds": round(total, 2), "summary": summary(rows), "cells": rows}
+    report = {
+        "benchmark": "coverage",
+        "atlas": atlas,
+        "top": top,
+        "refine": refine and not complete,
+        "complete": complete,
+        "seconds": round(total, 2),
+        "summary": summary(rows),
+        "cells": rows,
+    }
     if as_json:
         click.echo(json.dumps(report, indent=2, allow_nan=False))
     else:
         click.echo(table(report))
     s = report["summary"]
-    click.echo("dwell bench coverage: " + ", ".join(
-        f"{fam} {v['three_or_more']}/{v['cells']} cells with ≥ 3 ({v['answered']} with ≥ 1"
-        + ("" if v.get("recall") is None else f"; the sampled query finds {100 * v['recall']:.1f}% of "
-           f"{v['complete']} six-bars") + ")" for fam, v in s.items())
-        + f" in {total:.1f} s", err=True)
+    click.echo(
+        "dwell bench coverage: "
+        + ", ".join(
+            f"{fam} {v['three_or_more']}/{v['cells']} cells with ≥ 3 ({v['answered']} with ≥ 1"
+            + (
+                ""
+                if v.get("recall") is None
+                else f"; the sampled query finds {100 * v['recall']:.1f}% of {v['complete']} six-bars"
+            )
+            + ")"
+            for fam, v in s.items()
+        )
+        + f" in {total:.1f} s",
+        err=True,
+    )
     if plot:
         _plot(report, Path(plot))
 
@@ -202,8 +255,10 @@ def coverage(db, top, refine, families, complete, dwells, workers, as_json, plot
 def table(report: dict) -> str:
     """Per family a grid: rows dwell, columns swing, each cell ``candidates/best deviation``;
     then each cell's time."""
-    lines = [f"coverage of {report['atlas']['preset']} ({report['atlas']['linkages']} linkages), top {report['top']}: "
-             "candidates found, best output deviation (°) [ms]"]
+    lines = [
+        f"coverage of {report['atlas']['preset']} ({report['atlas']['linkages']} linkages), top {report['top']}: "
+        "candidates found, best output deviation (°) [ms]"
+    ]
     rows = report["cells"]
     for fam in report["summary"]:
         mine = [r for r in rows if r["family"] == fam]
@@ -220,9 +275,14 @@ def table(report: dict) -> str:
                 text.append(f"{r['candidates']:>3}/{dev:<6}[{r['ms']:>5.0f}]")
             lines.append(f"dwell {d:>4g}°     " + "".join(f"{t:>20}" for t in text))
         v = report["summary"][fam]
-        lines.append(f"{fam}: {v['three_or_more']}/{v['cells']} cells with ≥ 3 candidates, {v['answered']} with ≥ 1"
-                     + ("" if v.get("recall") is None else
-                        f"; the sampled query finds {100 * v['recall']:.1f}% of the {v['complete']} coupler curves"))
+        lines.append(
+            f"{fam}: {v['three_or_more']}/{v['cells']} cells with ≥ 3 candidates, {v['answered']} with ≥ 1"
+            + (
+                ""
+                if v.get("recall") is None
+                else f"; the sampled query finds {100 * v['recall']:.1f}% of the {v['complete']} coupler curves"
+            )
+        )
     return "\n".join(lines)
 
 
@@ -237,8 +297,14 @@ def _plot(report: dict, path: Path) -> None:
     top = report["top"]
     families = list(report["summary"])
     widths = [2.4 if fam == "double" else 6.0 for fam in families]
-    fig, axes = plt.subplots(1, len(families), figsize=(12 * sum(widths) / 13.6 + 1.0, 4.2), width_ratios=widths,
-                             constrained_layout=True, squeeze=False)
+    fig, axes = plt.subplots(
+        1,
+        len(families),
+        figsize=(12 * sum(widths) / 13.6 + 1.0, 4.2),
+        width_ratios=widths,
+        constrained_layout=True,
+        squeeze=False,
+    )
     axes = axes[0]
     for ax, fam in zip(axes, families):
         mine = [r for r in rows if r["family"] == fam]

@@ -19,9 +19,9 @@ import time
 import click
 import numpy as np
 
-from cli.options import SEED
 from cli.bench import reference
 from cli.budget import check_memory, check_time
+from cli.options import SEED
 from kinematics.fourbar import fourbar_motion
 from synth.curvature.ball import ball_point
 from synth.curvature.double_ball import double_ball_points
@@ -90,23 +90,53 @@ def _errors(seed: int, rays: int) -> dict[str, float]:
 
 
 @click.command("curvature")
-@click.option("--linkages", type=click.IntRange(1, 1_000_000), default=400, show_default=True,
-              help="Random crank-rockers (crank 1).")
-@click.option("--angles", type=click.IntRange(1, 100_000), default=720, show_default=True,
-              help="Crank angles per linkage.")
-@click.option("--rays", type=click.IntRange(1, 10_000), default=36, show_default=True,
-              help="Conjugate pairs per instant (rays over 180 deg).")
-@click.option("--batch", type=click.IntRange(1, 1_000_000), default=64, show_default=True,
-              help="Linkages per call (bounds memory: batch x angles x rays pairs).")
-@click.option("--repeat", type=click.IntRange(1, 100), default=3, show_default=True,
-              help="Timed runs (the best is kept: the machine is shared).")
-@click.option("--double-ball-linkages", "n_double", type=click.IntRange(0, 100_000), default=20, show_default=True,
-              help="Linkages for the double-Ball-point search timing.")
+@click.option(
+    "--linkages",
+    type=click.IntRange(1, 1_000_000),
+    default=400,
+    show_default=True,
+    help="Random crank-rockers (crank 1).",
+)
+@click.option(
+    "--angles", type=click.IntRange(1, 100_000), default=720, show_default=True, help="Crank angles per linkage."
+)
+@click.option(
+    "--rays",
+    type=click.IntRange(1, 10_000),
+    default=36,
+    show_default=True,
+    help="Conjugate pairs per instant (rays over 180 deg).",
+)
+@click.option(
+    "--batch",
+    type=click.IntRange(1, 1_000_000),
+    default=64,
+    show_default=True,
+    help="Linkages per call (bounds memory: batch x angles x rays pairs).",
+)
+@click.option(
+    "--repeat",
+    type=click.IntRange(1, 100),
+    default=3,
+    show_default=True,
+    help="Timed runs (the best is kept: the machine is shared).",
+)
+@click.option(
+    "--double-ball-linkages",
+    "n_double",
+    type=click.IntRange(0, 100_000),
+    default=20,
+    show_default=True,
+    help="Linkages for the double-Ball-point search timing.",
+)
 @click.option("--seed", type=SEED, default=0, show_default=True, help="Seed of the random cases (>= 0).")
 def curvature(linkages, angles, rays, batch, repeat, n_double, seed):
     """Instants/s (pole + inflection circle + Ball point + conjugate pairs) and double-Ball time (JSON)."""
-    check_memory(min(batch, linkages) * angles * rays * BYTES_PER_PAIR,
-                 f"--batch {batch} × --angles {angles} × --rays {rays} conjugate pairs per call", "lower --batch or --rays")
+    check_memory(
+        min(batch, linkages) * angles * rays * BYTES_PER_PAIR,
+        f"--batch {batch} × --angles {angles} × --rays {rays} conjugate pairs per call",
+        "lower --batch or --rays",
+    )
     links = crank_rockers(linkages, seed)
     phi = np.linspace(0, 2 * np.pi, angles, endpoint=False)[:, None]
     alpha = np.pi * np.arange(rays) / rays
@@ -115,8 +145,11 @@ def curvature(linkages, angles, rays, batch, repeat, n_double, seed):
     # one batch timed, the whole run estimated from it (repeat timed runs + staged run + errors)
     first = min(batch, linkages)
     seconds = _run(tuple(x[:first] for x in links), phi, alpha, batch) * (linkages / first) * (repeat + 2)
-    check_time(seconds, f"--linkages {linkages} × --angles {angles} × --rays {rays} × --repeat {repeat}",
-               "lower --linkages, --angles, --rays or --repeat")
+    check_time(
+        seconds,
+        f"--linkages {linkages} × --angles {angles} × --rays {rays} × --repeat {repeat}",
+        "lower --linkages, --angles, --rays or --repeat",
+    )
     best = min(_run(links, phi, alpha, batch) for _ in range(repeat))
     clock = dict.fromkeys(STAGES, 0.0)
     _run(links, phi, alpha, batch, clock)
@@ -144,7 +177,7 @@ def curvature(linkages, angles, rays, batch, repeat, n_double, seed):
     doc = {
         "benchmark": "curvature",
         "what": "per instant: four-bar solve (3 derivative orders), pole, inflection circle, Ball's point, "
-                f"{rays} conjugate pairs (circle point xy+uv, centre point, radius, flags)",
+        f"{rays} conjugate pairs (circle point xy+uv, centre point, radius, flags)",
         "linkages": linkages,
         "angles_per_linkage": angles,
         "rays": rays,
@@ -159,7 +192,11 @@ def curvature(linkages, angles, rays, batch, repeat, n_double, seed):
         "ns_per_instant": {k: v / instants * 1e9 for k, v in clock.items()},
         "double_ball": double,
         "max_residual_vs_extended_precision": _errors(seed, rays),
-        "platform": {"python": platform.python_version(), "numpy": np.__version__,
-                     "machine": platform.machine(), "cpus": os.cpu_count()},
+        "platform": {
+            "python": platform.python_version(),
+            "numpy": np.__version__,
+            "machine": platform.machine(),
+            "cpus": os.cpu_count(),
+        },
     }
     click.echo(json.dumps(doc, indent=1))

@@ -159,18 +159,44 @@ class _Sweep:
     env: dict[str, str] = field(default_factory=dict)
 
     def build_args(self, target: str) -> list[str]:
-        return [*_DWELL, "atlas", "build", "--db", target, "--preset", PRESET,
-                "--samples", str(self.samples), "--shard-size", str(self.shard_size), "--workers", str(self.workers),
-                "--no-progress"]
+        return [
+            *_DWELL,
+            "atlas",
+            "build",
+            "--db",
+            target,
+            "--preset",
+            PRESET,
+            "--samples",
+            str(self.samples),
+            "--shard-size",
+            str(self.shard_size),
+            "--workers",
+            str(self.workers),
+            "--no-progress",
+        ]
 
     def start(self, target: str) -> subprocess.Popen:
         # a session of its own: one process group holds the builder, the forkserver and the workers
-        return subprocess.Popen(self.build_args(target), cwd=self.cwd, env=self.env, stdout=subprocess.PIPE,
-                                stderr=subprocess.PIPE, text=True, start_new_session=True)
+        return subprocess.Popen(
+            self.build_args(target),
+            cwd=self.cwd,
+            env=self.env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            start_new_session=True,
+        )
 
     def info(self, target: str) -> tuple[dict | None, str]:
-        proc = subprocess.run([*_DWELL, "atlas", "info", "--db", target, "--json"],
-                              cwd=self.cwd, env=self.env, capture_output=True, text=True, timeout=RUN_TIMEOUT)
+        proc = subprocess.run(
+            [*_DWELL, "atlas", "info", "--db", target, "--json"],
+            cwd=self.cwd,
+            env=self.env,
+            capture_output=True,
+            text=True,
+            timeout=RUN_TIMEOUT,
+        )
         if proc.returncode != 0:
             return None, _last_line(proc.stderr) or f"exit status {proc.returncode}"
         return json.loads(proc.stdout), ""
@@ -217,8 +243,16 @@ def _finish(proc: subprocess.Popen) -> tuple[int, str, str]:
     return proc.returncode, out, err
 
 
-def _trial(sweep: _Sweep, atlas: _Atlas, rng: random.Random, max_kills: int, window: float, startup: float,
-           n_shards: int, reference: str) -> dict:
+def _trial(
+    sweep: _Sweep,
+    atlas: _Atlas,
+    rng: random.Random,
+    max_kills: int,
+    window: float,
+    startup: float,
+    n_shards: int,
+    reference: str,
+) -> dict:
     """Kill-and-resume one fresh atlas; the trial's JSON record.
 
     The first kill falls uniformly in ``window`` (an uninterrupted build's wall time), a later
@@ -236,8 +270,11 @@ def _trial(sweep: _Sweep, atlas: _Atlas, rng: random.Random, max_kills: int, win
             survivors = _kill_group(proc)
             stored = atlas.shard_indices()
             # it may have ended by itself in the instant between the timeout and the kill
-            record = {"at_s": round(at, 3), "landed": proc.returncode == -signal.SIGKILL,
-                      "shards_done": None if stored is None else len(stored)}
+            record = {
+                "at_s": round(at, 3),
+                "landed": proc.returncode == -signal.SIGKILL,
+                "shards_done": None if stored is None else len(stored),
+            }
             if proc.returncode not in (0, -signal.SIGKILL):
                 problems.append(f"a run exited {proc.returncode} just before the kill at {at:.3f} s")
             if survivors:
@@ -315,19 +352,33 @@ def _concurrent_builder(sweep: _Sweep, atlases: _Atlases, reference: str) -> dic
         first = sweep.start(atlas.target)
         if not _wait_for_lock(atlas, first, RUN_TIMEOUT):
             rc, _, err = _finish(first)
-            return {"checked": False, "passed": False, "attempts": attempt,
-                    "problems": [f"the first build never held its lock while running (exit {rc}: {_last_line(err)})"]}
+            return {
+                "checked": False,
+                "passed": False,
+                "attempts": attempt,
+                "problems": [f"the first build never held its lock while running (exit {rc}: {_last_line(err)})"],
+            }
         if _signal_group(first, signal.SIGSTOP) and atlas.builder_holds_lock():
             break  # held half-way, lock taken, whatever the machine's speed
         _signal_group(first, signal.SIGCONT)  # too late: the build finished before the stop
         _finish(first)
         atlas.drop()
     else:
-        return {"checked": False, "passed": False, "attempts": _STOP_ATTEMPTS,
-                "problems": [f"the first build finished before it could be stopped, {_STOP_ATTEMPTS} times"]}
+        return {
+            "checked": False,
+            "passed": False,
+            "attempts": _STOP_ATTEMPTS,
+            "problems": [f"the first build finished before it could be stopped, {_STOP_ATTEMPTS} times"],
+        }
     try:
-        second = subprocess.run(sweep.build_args(atlas.target), cwd=sweep.cwd, env=sweep.env, capture_output=True,
-                                text=True, timeout=RUN_TIMEOUT)
+        second = subprocess.run(
+            sweep.build_args(atlas.target),
+            cwd=sweep.cwd,
+            env=sweep.env,
+            capture_output=True,
+            text=True,
+            timeout=RUN_TIMEOUT,
+        )
     finally:
         _signal_group(first, signal.SIGCONT)
     rc, _, first_err = _finish(first)
@@ -379,12 +430,16 @@ def _run_kind(kind: str, sweep: _Sweep, trials: int, max_kills: int, seed: int, 
             digests.append(doc["content_digest"])
             ref.drop()
         if digests[0] != digests[1]:
-            raise InputError(f"two uninterrupted builds on {kind} differ ({digests[0][:12]}…, {digests[1][:12]}…): "
-                             "the build is not deterministic (or the code changed while the bench ran)")
+            raise InputError(
+                f"two uninterrupted builds on {kind} differ ({digests[0][:12]}…, {digests[1][:12]}…): "
+                "the build is not deterministic (or the code changed while the bench ran)"
+            )
         reference, ref_seconds = digests[0], min(times)
         n_shards = doc["build"]["n_shards"]
-        click.echo(f"faults: {kind}: reference build {ref_seconds:.1f} s, {n_shards} shards, digest {reference[:12]}…",
-                   err=True)
+        click.echo(
+            f"faults: {kind}: reference build {ref_seconds:.1f} s, {n_shards} shards, digest {reference[:12]}…",
+            err=True,
+        )
         # one generator per database kind: its schedule does not depend on the other kind
         rng = random.Random(f"{seed}:{kind}")
         records = []
@@ -394,17 +449,31 @@ def _run_kind(kind: str, sweep: _Sweep, trials: int, max_kills: int, seed: int, 
             atlas.drop()
             records.append(record)
             kills = ", ".join(f"{k['at_s']:.2f} s" + ("" if k["landed"] else " (missed)") for k in record["kills"])
-            click.echo(f"faults: {kind}: trial {i + 1}/{trials}: killed at {kills}; "
-                       + ("survived" if record["survived"] else "FAILED: " + "; ".join(record["problems"])), err=True)
+            click.echo(
+                f"faults: {kind}: trial {i + 1}/{trials}: killed at {kills}; "
+                + ("survived" if record["survived"] else "FAILED: " + "; ".join(record["problems"])),
+                err=True,
+            )
         concurrent = _concurrent_builder(sweep, atlases, reference)
-        click.echo(f"faults: {kind}: second builder " + ("refused, first build unharmed" if concurrent["passed"]
-                                                          else "FAILED: " + "; ".join(concurrent["problems"])), err=True)
+        click.echo(
+            f"faults: {kind}: second builder "
+            + (
+                "refused, first build unharmed"
+                if concurrent["passed"]
+                else "FAILED: " + "; ".join(concurrent["problems"])
+            ),
+            err=True,
+        )
     finally:
         atlases.drop_all()
     return {
         "db_kind": kind,
-        "reference": {"seconds": round(ref_seconds, 2), "startup_seconds": round(startup, 2), "n_shards": n_shards,
-                      "content_digest": reference},
+        "reference": {
+            "seconds": round(ref_seconds, 2),
+            "startup_seconds": round(startup, 2),
+            "n_shards": n_shards,
+            "content_digest": reference,
+        },
         "trials": trials,
         "survived": sum(r["survived"] for r in records),
         "kills_landed": sum(r["kills_landed"] for r in records),
@@ -443,16 +512,39 @@ def _check_postgres(url: str) -> None:
 
 
 @click.command("faults")
-@click.option("--trials", type=click.IntRange(1, 1000), default=10, show_default=True,
-              help="Kill-and-resume trials per database kind.")
-@click.option("--kills", "max_kills", type=click.IntRange(1, 20), default=2, show_default=True,
-              help="Most kills per trial (each trial draws 1..K).")
+@click.option(
+    "--trials",
+    type=click.IntRange(1, 1000),
+    default=10,
+    show_default=True,
+    help="Kill-and-resume trials per database kind.",
+)
+@click.option(
+    "--kills",
+    "max_kills",
+    type=click.IntRange(1, 20),
+    default=2,
+    show_default=True,
+    help="Most kills per trial (each trial draws 1..K).",
+)
 @click.option("--seed", type=SEED, default=0, show_default=True, help="Seed of the kill schedule.")
 @click.option("--db-kind", type=click.Choice(["sqlite", "postgresql", "both"]), default="sqlite", show_default=True)
-@click.option("--postgres", "postgres_url", envvar="DWELL_TEST_POSTGRES", show_envvar=True, default=None,
-              metavar="URL", help="PostgreSQL server (a database there; trials create and drop their own).")
-@click.option("--samples", type=click.IntRange(2, 4096), default=64, show_default=True,
-              help="Sobol points of the sweep (demo preset settings).")
+@click.option(
+    "--postgres",
+    "postgres_url",
+    envvar="DWELL_TEST_POSTGRES",
+    show_envvar=True,
+    default=None,
+    metavar="URL",
+    help="PostgreSQL server (a database there; trials create and drop their own).",
+)
+@click.option(
+    "--samples",
+    type=click.IntRange(2, 4096),
+    default=64,
+    show_default=True,
+    help="Sobol points of the sweep (demo preset settings).",
+)
 @click.option("--shard-size", type=click.IntRange(1, 1024), default=4, show_default=True, help="Proportions per shard.")
 @click.option("--workers", type=click.IntRange(1, 64), default=2, show_default=True, help="Build worker processes.")
 def faults(trials, max_kills, seed, db_kind, postgres_url, samples, shard_size, workers):
@@ -484,8 +576,11 @@ def faults(trials, max_kills, seed, db_kind, postgres_url, samples, shard_size, 
         "machine": {"cpus": os.cpu_count(), "python": platform.python_version(), "machine": platform.machine()},
     }
     click.echo(json.dumps(doc, indent=2))
-    parts = [f"{r['db_kind']} {r['survived']}/{r['trials']} trials survived ({r['kills_landed']} kills landed), "
-             f"second builder {'refused' if r['concurrent_builder']['passed'] else 'NOT refused cleanly'}" for r in runs]
+    parts = [
+        f"{r['db_kind']} {r['survived']}/{r['trials']} trials survived ({r['kills_landed']} kills landed), "
+        f"second builder {'refused' if r['concurrent_builder']['passed'] else 'NOT refused cleanly'}"
+        for r in runs
+    ]
     click.echo(f"faults: {'; '.join(parts)}; {doc['seconds']:.0f} s", err=True)
     if doc["survived"] < doc["trials"] or not doc["concurrent_builder_refused"]:
         raise click.exceptions.Exit(1)

@@ -16,9 +16,9 @@ import time
 import click
 import numpy as np
 
-from cli.options import SEED
 from cli.bench.plain import fourbar_positions
 from cli.budget import check_memory, check_time
+from cli.options import SEED
 from kinematics.fourbar import fourbar_motion
 
 #: Linkages per call when streaming a large sweep (what an atlas shard does): the output of
@@ -55,15 +55,22 @@ def sizes_option(sizes: str, most: int) -> list[int]:
     return ns
 
 
-def check_positions(ns: list[int], angles: int, repeat: int, bytes_per_position: float, passes: int,
-                    things: str) -> None:
+def check_positions(
+    ns: list[int], angles: int, repeat: int, bytes_per_position: float, passes: int, things: str
+) -> None:
     """Refuse (cli.budget) a run whose one call over ``max(ns) × angles`` positions needs too
     much memory, or whose ``passes`` timed passes per repeat would take too long."""
-    check_memory(max(ns) * angles * bytes_per_position, f"{max(ns):,} {things} × {angles:,} angles in one call",
-                 "lower --n or --angles")
+    check_memory(
+        max(ns) * angles * bytes_per_position,
+        f"{max(ns):,} {things} × {angles:,} angles in one call",
+        "lower --n or --angles",
+    )
     runs = sum(max(n * angles, MIN_POSITIONS_PER_RUN) for n in ns) * passes
-    check_time(runs / FASTEST_POSITIONS_PER_S, f"--n {','.join(map(str, ns))} × --angles {angles} × --repeat {repeat}",
-               "lower --n, --angles or --repeat")
+    check_time(
+        runs / FASTEST_POSITIONS_PER_S,
+        f"--n {','.join(map(str, ns))} × --angles {angles} × --repeat {repeat}",
+        "lower --n, --angles or --repeat",
+    )
 
 
 def best_time(fn, repeat: int, loops: int = 1) -> float:
@@ -101,10 +108,15 @@ def _accuracy(samples: int, angles: int, seed: int) -> dict[str, float]:
 
 
 @click.command("kinematics")
-@click.option("--n", "sizes", default="1,10,100,1000,10000,100000", show_default=True,
-              help="Comma-separated numbers of linkages.")
-@click.option("--angles", default=360, show_default=True, type=click.IntRange(1, 100_000), help="Crank angles per linkage.")
-@click.option("--repeat", default=3, show_default=True, type=click.IntRange(1, 100), help="Timed runs per size (best is kept).")
+@click.option(
+    "--n", "sizes", default="1,10,100,1000,10000,100000", show_default=True, help="Comma-separated numbers of linkages."
+)
+@click.option(
+    "--angles", default=360, show_default=True, type=click.IntRange(1, 100_000), help="Crank angles per linkage."
+)
+@click.option(
+    "--repeat", default=3, show_default=True, type=click.IntRange(1, 100), help="Timed runs per size (best is kept)."
+)
 @click.option("--seed", type=SEED, default=0, show_default=True, help="Seed of the random linkages (>= 0).")
 def kinematics(sizes: str, angles: int, repeat: int, seed: int) -> None:
     """Four-bar positions + 3 derivative orders per second (one core), with their error."""
@@ -130,33 +142,42 @@ def kinematics(sizes: str, angles: int, repeat: int, seed: int) -> None:
         # the yardstick computes the same θ (all sweeps are crank-rockers: every position closes)
         theta = np.angle(fourbar_motion(a, b, c, d, phi, 1, order=0).e_theta)
         agree = float(np.max(np.abs(np.angle(np.exp(1j * (theta - fourbar_positions(a, b, c, d, phi)))))))
-        results.append({
-            "n": n,
-            "positions": positions,
-            "calls_per_timed_run": loops,
-            "single_call_s": t_single,
-            "single_call_positions_per_s": positions / t_single,
-            "streamed_s": t_stream,
-            "streamed_positions_per_s": positions / t_stream,
-            "plain_numpy_positions_only_per_s": positions / t_plain,
-            "ratio_to_plain_numpy": t_plain / min(t_single, t_stream),
-            "plain_numpy_max_abs_theta_difference_rad": agree,
-        })
-        click.echo(f"n={n}: {positions / t_stream / 1e6:.2f} M positions/s streamed, "
-                   f"{positions / t_single / 1e6:.2f} M single call; plain numpy positions only "
-                   f"{positions / t_plain / 1e6:.2f} M (ratio {t_plain / min(t_single, t_stream):.2f})", err=True)
+        results.append(
+            {
+                "n": n,
+                "positions": positions,
+                "calls_per_timed_run": loops,
+                "single_call_s": t_single,
+                "single_call_positions_per_s": positions / t_single,
+                "streamed_s": t_stream,
+                "streamed_positions_per_s": positions / t_stream,
+                "plain_numpy_positions_only_per_s": positions / t_plain,
+                "ratio_to_plain_numpy": t_plain / min(t_single, t_stream),
+                "plain_numpy_max_abs_theta_difference_rad": agree,
+            }
+        )
+        click.echo(
+            f"n={n}: {positions / t_stream / 1e6:.2f} M positions/s streamed, "
+            f"{positions / t_single / 1e6:.2f} M single call; plain numpy positions only "
+            f"{positions / t_plain / 1e6:.2f} M (ratio {t_plain / min(t_single, t_stream):.2f})",
+            err=True,
+        )
     doc = {
         "benchmark": "kinematics",
         "what": "four-bar positions with theta, gamma and their 1st-3rd crank-angle derivatives; "
-                "ratio_to_plain_numpy: the best of single call and streamed against the plain numpy "
-                "law-of-cosines theta alone (cli/bench/plain.py), same run",
+        "ratio_to_plain_numpy: the best of single call and streamed against the plain numpy "
+        "law-of-cosines theta alone (cli/bench/plain.py), same run",
         "angles_per_linkage": angles,
         "stream_batch_linkages": STREAM_BATCH,
         "cores_used": 1,
         "floor_positions_per_s_per_core": 5_000_000,
         "results": results,
         "max_error_vs_extended_precision": _accuracy(200, angles, seed),
-        "platform": {"python": platform.python_version(), "numpy": np.__version__,
-                     "machine": platform.machine(), "cpus": os.cpu_count()},
+        "platform": {
+            "python": platform.python_version(),
+            "numpy": np.__version__,
+            "machine": platform.machine(),
+            "cpus": os.cpu_count(),
+        },
     }
     click.echo(json.dumps(doc, indent=1))

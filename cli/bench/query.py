@@ -31,9 +31,8 @@ from pathlib import Path
 import click
 import numpy as np
 
-from cli.budget import check_time
-
 from cli.atlas import db_option
+from cli.budget import check_time
 from cli.options import writable_file
 
 FLOOR_MS = 1500.0  # p95 per request with refinement, --top 10 (issue #13 item 7)
@@ -82,8 +81,20 @@ REQUESTS: tuple[BenchRequest, ...] = (
 def _request(r: BenchRequest, top: int, refine: bool = True):
     from cli.query import request_from_options
 
-    return request_from_options(r.dwell, r.dwell_tol, r.swing, 0.5, r.output, r.dwells, 0.1, 1.0,
-                                r.min_transmission, r.max_link_ratio, top, refine=refine)
+    return request_from_options(
+        r.dwell,
+        r.dwell_tol,
+        r.swing,
+        0.5,
+        r.output,
+        r.dwells,
+        0.1,
+        1.0,
+        r.min_transmission,
+        r.max_link_ratio,
+        top,
+        refine=refine,
+    )
 
 
 def atlas_facts(engine) -> dict:
@@ -104,10 +115,19 @@ def _percentile(values: list[float], q: float) -> float:
 @db_option
 @click.option("--repeat", type=click.IntRange(1, 1000), default=5, show_default=True, help="Runs of every request.")
 @click.option("--top", type=click.IntRange(1, 1000), default=10, show_default=True, help="Candidates per query.")
-@click.option("--plot", type=click.Path(dir_okay=False), callback=writable_file(".png"), default=None,
-              help="Write the per-request latency breakdown (PNG).")
-@click.option("--compare/--no-compare", default=True, show_default=True,
-              help="Also time every request without refinement (--no-refine).")
+@click.option(
+    "--plot",
+    type=click.Path(dir_okay=False),
+    callback=writable_file(".png"),
+    default=None,
+    help="Write the per-request latency breakdown (PNG).",
+)
+@click.option(
+    "--compare/--no-compare",
+    default=True,
+    show_default=True,
+    help="Also time every request without refinement (--no-refine).",
+)
 def query(db, repeat, top, plot, compare):
     """Query latency: a fixed set of requests against an atlas, p50/p95 and where the time goes."""
     from cli.query import answer
@@ -121,10 +141,16 @@ def query(db, repeat, top, plot, compare):
         # one timed answer of the first request, then the whole run's estimate against the budget
         t0 = time.perf_counter()
         answer(engine, _request(REQUESTS[0], top))
-        check_time((time.perf_counter() - t0) * repeat * len(REQUESTS) * (1.2 if compare else 1.0),
-                   f"--repeat {repeat} × {len(REQUESTS)} requests (--top {top}) on this atlas", "lower --repeat or --top")
+        check_time(
+            (time.perf_counter() - t0) * repeat * len(REQUESTS) * (1.2 if compare else 1.0),
+            f"--repeat {repeat} × {len(REQUESTS)} requests (--top {top}) on this atlas",
+            "lower --repeat or --top",
+        )
         if atlas["preset"] != "standard":
-            click.echo(f"dwell: note: {display_target(db)} holds the {atlas['preset']!r} sweep; the floor is set for 'standard'", err=True)
+            click.echo(
+                f"dwell: note: {display_target(db)} holds the {atlas['preset']!r} sweep; the floor is set for 'standard'",
+                err=True,
+            )
         rows, every, plain_every = [], [], []
         for r in REQUESTS:
             request = _request(r, top)
@@ -145,28 +171,35 @@ def query(db, repeat, top, plot, compare):
                 plain_every += plain
             result = runs[-1][1]
             best = result.candidates[0] if result.candidates else None
-            rows.append({
-                "label": r.label,
-                "request": request_json(result.request),
-                "ms_median": round(statistics.median(ms), 2),
-                "ms_max": round(max(ms), 2),
-                "ms_by_stage": {s: round(statistics.median(1000 * res.seconds.get(s, 0.0) for _, res in runs), 2)
-                                for s in STAGES},
-                "ms_median_without_refine": round(statistics.median(plain), 2) if plain else None,
-                "candidates_without_refine": len(plain_result.candidates) if plain else None,
-                "segments_fitted": result.considered,
-                "sixbars_simulated": result.simulated,
-                "sixbars_refined": result.refined[0],
-                "sixbars_improved": result.refined[1],
-                "candidates": len(result.candidates),
-                "best": None if best is None else {
-                    "id": best.id,
-                    "dwell_deg": [round(math.degrees(d.angle), 3) for d in best.figures.dwells[: r.dwells]],
-                    "swing_deg": round(math.degrees(best.figures.swing), 3),
-                    "output_deviation_deg": round(math.degrees(max(best.figures.deviations)), 4)
-                    if best.figures.deviations else None,
-                },
-            })
+            rows.append(
+                {
+                    "label": r.label,
+                    "request": request_json(result.request),
+                    "ms_median": round(statistics.median(ms), 2),
+                    "ms_max": round(max(ms), 2),
+                    "ms_by_stage": {
+                        s: round(statistics.median(1000 * res.seconds.get(s, 0.0) for _, res in runs), 2)
+                        for s in STAGES
+                    },
+                    "ms_median_without_refine": round(statistics.median(plain), 2) if plain else None,
+                    "candidates_without_refine": len(plain_result.candidates) if plain else None,
+                    "segments_fitted": result.considered,
+                    "sixbars_simulated": result.simulated,
+                    "sixbars_refined": result.refined[0],
+                    "sixbars_improved": result.refined[1],
+                    "candidates": len(result.candidates),
+                    "best": None
+                    if best is None
+                    else {
+                        "id": best.id,
+                        "dwell_deg": [round(math.degrees(d.angle), 3) for d in best.figures.dwells[: r.dwells]],
+                        "swing_deg": round(math.degrees(best.figures.swing), 3),
+                        "output_deviation_deg": round(math.degrees(max(best.figures.deviations)), 4)
+                        if best.figures.deviations
+                        else None,
+                    },
+                }
+            )
     finally:
         engine.dispose()
     p95 = _percentile(every, 95)
@@ -184,7 +217,9 @@ def query(db, repeat, top, plot, compare):
         "meets_floor": bool(p95 <= FLOOR_MS),
         "meets_goal": bool(p95 <= GOAL_MS),
         "ms_by_stage_total": {s: round(sum(r["ms_by_stage"][s] for r in rows), 2) for s in STAGES},
-        "without_refine": None if not compare else {
+        "without_refine": None
+        if not compare
+        else {
             "ms_p50": round(_percentile(plain_every, 50), 2),
             "ms_p95": round(_percentile(plain_every, 95), 2),
             "ms_max": round(max(plain_every), 2),
@@ -196,11 +231,19 @@ def query(db, repeat, top, plot, compare):
         "machine": {"cpus": os.cpu_count(), "python": platform.python_version(), "machine": platform.machine()},
     }
     click.echo(json.dumps(report, indent=2, allow_nan=False))
-    plain_note = "" if not compare else (
-        f"; without refinement p50 {report['without_refine']['ms_p50']:.1f} ms, p95 {report['without_refine']['ms_p95']:.1f} ms "
-        f"(floor {PLAIN_FLOOR_MS:g} ms: {'met' if report['without_refine']['meets_floor'] else 'NOT met'})")
-    click.echo(f"dwell bench query: {len(every)} queries with refinement, p50 {report['ms_p50']:.1f} ms, p95 {p95:.1f} ms "
-               f"(floor {FLOOR_MS:g} ms: {'met' if report['meets_floor'] else 'NOT met'})" + plain_note, err=True)
+    plain_note = (
+        ""
+        if not compare
+        else (
+            f"; without refinement p50 {report['without_refine']['ms_p50']:.1f} ms, p95 {report['without_refine']['ms_p95']:.1f} ms "
+            f"(floor {PLAIN_FLOOR_MS:g} ms: {'met' if report['without_refine']['meets_floor'] else 'NOT met'})"
+        )
+    )
+    click.echo(
+        f"dwell bench query: {len(every)} queries with refinement, p50 {report['ms_p50']:.1f} ms, p95 {p95:.1f} ms "
+        f"(floor {FLOOR_MS:g} ms: {'met' if report['meets_floor'] else 'NOT met'})" + plain_note,
+        err=True,
+    )
     if plot:
         _plot(report, Path(plot))
 
@@ -219,14 +262,19 @@ def _plot(report: dict, path: Path) -> None:
         width = np.array([r["ms_by_stage"][stage] for r in rows])
         ax.barh(y, width, left=left, label=stage)
         left += width
-    ax.axvline(report["floor_ms_p95"], color="crimson", ls="--", lw=1, label=f"floor (p95) {report['floor_ms_p95']:g} ms")
+    ax.axvline(
+        report["floor_ms_p95"], color="crimson", ls="--", lw=1, label=f"floor (p95) {report['floor_ms_p95']:g} ms"
+    )
     ax.axvline(report["goal_ms_p95"], color="seagreen", ls=":", lw=1, label=f"goal {report['goal_ms_p95']:g} ms")
     ax.set_yticks(y, [f"{r['label']} ({r['candidates']})" for r in rows], fontsize=8)
     ax.invert_yaxis()
     ax.set_xlabel("median milliseconds per query (candidates returned in brackets)")
     atlas = report["atlas"]
-    ax.set_title(f"dwell query latency: {atlas['linkages']} linkages ({atlas['preset']}), top {report['top']}; "
-                 f"p95 {report['ms_p95']:.0f} ms", fontsize=10)
+    ax.set_title(
+        f"dwell query latency: {atlas['linkages']} linkages ({atlas['preset']}), top {report['top']}; "
+        f"p95 {report['ms_p95']:.0f} ms",
+        fontsize=10,
+    )
     ax.legend(fontsize=8, loc="lower right")
     ax.grid(True, axis="x", alpha=0.3)
     fig.savefig(path, dpi=120)

@@ -23,11 +23,11 @@ import platform
 import click
 import numpy as np
 
-from cli.options import SEED
-from cli.bench.kinematics import MIN_POSITIONS_PER_RUN, best_time, random_linkages, check_positions, sizes_option
+from cli.bench.kinematics import MIN_POSITIONS_PER_RUN, best_time, check_positions, random_linkages, sizes_option
 from cli.bench.plain import sixbar_rrr_positions
+from cli.options import SEED
 from synth import parallel_rows
-from synth.mechanism.sixbar import SixBars, simulate_numpy, simulate
+from synth.mechanism.sixbar import SixBars, simulate, simulate_numpy
 
 #: Peak memory of simulate(order=0) per position (bytes; 229 measured with tracemalloc).
 SIXBAR_BYTES_PER_POSITION = 300
@@ -57,14 +57,19 @@ def random_rrr_sixbars(n: int, seed: int) -> SixBars:
 
 def _plain(s: SixBars, phi):
     col = lambda x: x[:, None]  # noqa: E731
-    return sixbar_rrr_positions(col(s.a), col(s.b), col(s.c), col(s.d), col(s.u), col(s.v), col(s.pivot),
-                                col(s.rocker), col(s.rod), phi)
+    return sixbar_rrr_positions(
+        col(s.a), col(s.b), col(s.c), col(s.d), col(s.u), col(s.v), col(s.pivot), col(s.rocker), col(s.rod), phi
+    )
 
 
 @click.command("sixbar")
 @click.option("--n", "sizes", default="1,100,10000", show_default=True, help="Comma-separated numbers of six-bars.")
-@click.option("--angles", default=360, show_default=True, type=click.IntRange(1, 3600), help="Crank angles per six-bar.")
-@click.option("--repeat", default=3, show_default=True, type=click.IntRange(1, 100), help="Timed runs per size (best is kept).")
+@click.option(
+    "--angles", default=360, show_default=True, type=click.IntRange(1, 3600), help="Crank angles per six-bar."
+)
+@click.option(
+    "--repeat", default=3, show_default=True, type=click.IntRange(1, 100), help="Timed runs per size (best is kept)."
+)
 @click.option("--seed", type=SEED, default=0, show_default=True, help="Seed of the random six-bars.")
 def sixbar(sizes: str, angles: int, repeat: int, seed: int) -> None:
     """Six-bar positions per second (one core, and all the cores the product uses), as a ratio to
@@ -92,36 +97,47 @@ def sixbar(sizes: str, angles: int, repeat: int, seed: int) -> None:
         t_threads = best_time(run, repeat, loops) if cores > 1 else t_ours
         t_plain = best_time(lambda: _plain(six, phi), repeat, loops)
         single = one is not None
-        t_numpy = best_time(lambda: simulate_numpy(SixBars.from_sixbars([one]) if single else six, single, phi, 0,
-                                                    "flag"), repeat, loops)
-        results.append({
-            "n": n,
-            "positions": positions,
-            "assembled_positions": assembled,
-            "max_abs_psi_difference_rad": agree,
-            "ours_positions_per_s": positions / t_ours,
-            "plain_numpy_positions_per_s": positions / t_plain,
-            "ratio_to_plain_numpy": t_plain / t_ours,
-            "numpy_path_positions_per_s": positions / t_numpy,
-            "numpy_path_ratio_to_plain_numpy": t_plain / t_numpy,
-            "ours_threads_positions_per_s": positions / t_threads,
-            "ratio_to_plain_numpy_threads": t_plain / t_threads,
-        })
-        click.echo(f"n={n}: {positions / t_ours / 1e6:.2f} M positions/s, plain numpy "
-                   f"{positions / t_plain / 1e6:.2f} M (ratio {t_plain / t_ours:.2f}; the numpy path "
-                   f"{t_plain / t_numpy:.2f}; on {cores} threads {t_plain / t_threads:.2f}); |Δψ| ≤ {agree:.1e}",
-                   err=True)
+        t_numpy = best_time(
+            lambda: simulate_numpy(SixBars.from_sixbars([one]) if single else six, single, phi, 0, "flag"),
+            repeat,
+            loops,
+        )
+        results.append(
+            {
+                "n": n,
+                "positions": positions,
+                "assembled_positions": assembled,
+                "max_abs_psi_difference_rad": agree,
+                "ours_positions_per_s": positions / t_ours,
+                "plain_numpy_positions_per_s": positions / t_plain,
+                "ratio_to_plain_numpy": t_plain / t_ours,
+                "numpy_path_positions_per_s": positions / t_numpy,
+                "numpy_path_ratio_to_plain_numpy": t_plain / t_numpy,
+                "ours_threads_positions_per_s": positions / t_threads,
+                "ratio_to_plain_numpy_threads": t_plain / t_threads,
+            }
+        )
+        click.echo(
+            f"n={n}: {positions / t_ours / 1e6:.2f} M positions/s, plain numpy "
+            f"{positions / t_plain / 1e6:.2f} M (ratio {t_plain / t_ours:.2f}; the numpy path "
+            f"{t_plain / t_numpy:.2f}; on {cores} threads {t_plain / t_threads:.2f}); |Δψ| ≤ {agree:.1e}",
+            err=True,
+        )
     doc = {
         "benchmark": "sixbar",
         "what": "four-bar + RRR dyad positions: synth.mechanism.sixbar.simulate(order=0) (compiled kernel; status flags, "
-                "transmission angles, continuous psi) against the plain numpy law-of-cosines closed form "
-                "(cli/bench/plain.py); numpy_path_*: the same simulation on the numpy reference path",
+        "transmission angles, continuous psi) against the plain numpy law-of-cosines closed form "
+        "(cli/bench/plain.py); numpy_path_*: the same simulation on the numpy reference path",
         "angles_per_sixbar": angles,
         "cores_used": 1,
         "threads": cores,
         "floor_ratio_to_plain_numpy_at_10000": 1.0,
         "results": results,
-        "platform": {"python": platform.python_version(), "numpy": np.__version__,
-                     "machine": platform.machine(), "cpus": os.cpu_count()},
+        "platform": {
+            "python": platform.python_version(),
+            "numpy": np.__version__,
+            "machine": platform.machine(),
+            "cpus": os.cpu_count(),
+        },
     }
     click.echo(json.dumps(doc, indent=1))

@@ -29,9 +29,9 @@ import time
 import click
 import numpy as np
 
-from cli.options import SEED
 from cli.bench import reference
 from cli.bench.curvature import crank_rockers
+from cli.options import SEED
 from kinematics.fourbar import fourbar_motion
 from kinematics.status import AssemblyError, Status
 from synth.curvature.ball import ball_point
@@ -96,8 +96,11 @@ def make_cases(n: int, seed: int) -> dict[str, np.ndarray]:
         _, lo, hi, ok = _reachable_angles(rng, a, b, c, d)
         limited = ok & ((lo > -1) | (hi < 1))
         a, b, c, d, lo, hi = (x[limited] for x in (a, b, c, d, lo, hi))
-        edge = np.where((hi < 1) & ((lo <= -1) | (rng.random(a.size) < 0.5)), np.arccos(np.clip(hi, -1, 1)),
-                        np.arccos(np.clip(lo, -1, 1)))
+        edge = np.where(
+            (hi < 1) & ((lo <= -1) | (rng.random(a.size) < 0.5)),
+            np.arccos(np.clip(hi, -1, 1)),
+            np.arccos(np.clip(lo, -1, 1)),
+        )
         eps = rng.uniform(0, 1e-9, a.size)
         for sign in (1.0, -1.0):
             phi = edge + sign * eps
@@ -109,7 +112,7 @@ def make_cases(n: int, seed: int) -> dict[str, np.ndarray]:
     # near translation: θ′ = 0 located by bisection, then ± 1e-9 rad
     k = counts[3]
     a, b, c, d = crank_rockers(k, int(rng.integers(2**31)))
-    br = branch[counts[:3].sum():counts[:4].sum()]
+    br = branch[counts[:3].sum() : counts[:4].sum()]
     grid = np.linspace(0, 2 * np.pi, 65)
     t1 = fourbar_motion(a[:, None], b[:, None], c[:, None], d[:, None], grid, br[:, None], order=1).dtheta[0]
     j = np.argmax(np.sign(t1[:, :-1]) != np.sign(t1[:, 1:]), axis=1)
@@ -128,9 +131,18 @@ def make_cases(n: int, seed: int) -> dict[str, np.ndarray]:
 
     cols = [np.concatenate([p[i] for p in parts]) for i in range(5)]
     family = np.repeat(np.arange(len(FAMILIES)), [p[0].size for p in parts])
-    return {"a": cols[0], "b": cols[1], "c": cols[2], "d": cols[3], "branch": branch, "phi": cols[4],
-            "family": family, "ray_offsets": rng.uniform(-1e-12, 1e-12, (family.size, 4)),
-            "ray_random": rng.uniform(0, np.pi, (family.size, 2)), "beta": rng.uniform(0, 2 * np.pi, (family.size, 4))}
+    return {
+        "a": cols[0],
+        "b": cols[1],
+        "c": cols[2],
+        "d": cols[3],
+        "branch": branch,
+        "phi": cols[4],
+        "family": family,
+        "ray_offsets": rng.uniform(-1e-12, 1e-12, (family.size, 4)),
+        "ray_random": rng.uniform(0, np.pi, (family.size, 2)),
+        "beta": rng.uniform(0, 2 * np.pi, (family.size, 4)),
+    }
 
 
 def evaluate_cases(case: dict[str, np.ndarray]) -> dict[str, object]:
@@ -142,15 +154,24 @@ def evaluate_cases(case: dict[str, np.ndarray]) -> dict[str, object]:
     ball = ball_point(pl)
     tangent = np.angle(pl.tangent)
     normal = np.angle(pl.normal)
-    alpha = np.concatenate([col["ray_random"], tangent + col["ray_offsets"][:, :2], normal + col["ray_offsets"][:, 2:]], axis=1)
+    alpha = np.concatenate(
+        [col["ray_random"], tangent + col["ray_offsets"][:, :2], normal + col["ray_offsets"][:, 2:]], axis=1
+    )
     scan = line_scan(pl, alpha)
     beta = col["beta"]
     size = np.maximum(np.maximum(col["a"], col["b"]), np.maximum(col["c"], col["d"]))
     # coupler points (coupler frame): one a linkage size from A, one FAR_POINT cranks away
     points = np.concatenate([size * np.exp(1j * beta[:, :1]), FAR_POINT * col["a"] * np.exp(1j * beta[:, 1:2])], axis=1)
     centres = euler_savary(pl, pl.to_fixed(points))
-    return {"motion": motion, "pole": pl, "inflection_circle": circle, "ball_point": ball, "line_scan": scan,
-            "euler_savary": centres, "points": points}
+    return {
+        "motion": motion,
+        "pole": pl,
+        "inflection_circle": circle,
+        "ball_point": ball,
+        "line_scan": scan,
+        "euler_savary": centres,
+        "points": points,
+    }
 
 
 def _nonfinite(results: dict[str, object]) -> int:
@@ -183,18 +204,20 @@ def stability_summary(n: int, seed: int = 0) -> dict:
     by_family = {f: {"items": dict.fromkeys(kinds, 0), "flagged": dict.fromkeys(kinds, 0)} for f in FAMILIES}
     items = dict.fromkeys(kinds, 0)
     unflagged = dict.fromkeys(kinds, 0)
-    worst = {k: 0.0 for k in ("pole", "inflection_circle", "ball_point", "circle_point", "center_point", "euler_savary")}
+    worst = {
+        k: 0.0 for k in ("pole", "inflection_circle", "ball_point", "circle_point", "center_point", "euler_savary")
+    }
     exceptions: dict[str, int] = {}
     nonfinite = 0
     for i in range(0, n, BATCH):
-        batch = {k: v[i:i + BATCH] for k, v in cases.items()}
+        batch = {k: v[i : i + BATCH] for k, v in cases.items()}
         try:
             results = evaluate_cases(batch)
         except Exception:  # noqa: BLE001 — counted case by case below, never fatal
             results = None
             for j in range(batch["a"].size):
                 try:
-                    evaluate_cases({k: v[j:j + 1] for k, v in batch.items()})
+                    evaluate_cases({k: v[j : j + 1] for k, v in batch.items()})
                 except Exception as exc:  # noqa: BLE001
                     name = type(exc).__name__
                     exceptions[name] = exceptions.get(name, 0) + 1
@@ -247,7 +270,9 @@ def _raise_mode_check(cases: dict[str, np.ndarray], count: int = 200) -> dict[st
     for j in range(min(count, cases["a"].size)):
         out["cases"] += 1
         try:
-            motion = fourbar_motion(*(cases[k][j] for k in ("a", "b", "c", "d", "phi", "branch")), on_degenerate="raise")
+            motion = fourbar_motion(
+                *(cases[k][j] for k in ("a", "b", "c", "d", "phi", "branch")), on_degenerate="raise"
+            )
             pl = pole(motion, on_degenerate="raise")
             inflection_circle(pl, on_degenerate="raise")
             ball_point(pl, on_degenerate="raise")
@@ -260,8 +285,9 @@ def _raise_mode_check(cases: dict[str, np.ndarray], count: int = 200) -> dict[st
 
 
 @click.command("stability")
-@click.option("--n", "n_cases", type=click.IntRange(1, 10_000_000), default=100_000, show_default=True,
-              help="Number of cases.")
+@click.option(
+    "--n", "n_cases", type=click.IntRange(1, 10_000_000), default=100_000, show_default=True, help="Number of cases."
+)
 @click.option("--seed", type=SEED, default=0, show_default=True, help="Seed of the random cases (>= 0).")
 def stability(n_cases: int, seed: int) -> None:
     """Random and adversarial cases: flags per reason, NaN/inf, exceptions, residuals (JSON)."""

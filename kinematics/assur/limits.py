@@ -89,8 +89,9 @@ def output_series(linkage: Linkage, motion: LinkageMotion, output: Output) -> tu
     return motion.s[:, col], motion.ds[:, col], motion.dds[:, col]
 
 
-def output_at(linkage: Linkage, start: Assembly, output: Output, *,
-              decomposition: Decomposition | None = None) -> Callable[[np.ndarray], np.ndarray]:
+def output_at(
+    linkage: Linkage, start: Assembly, output: Output, *, decomposition: Decomposition | None = None
+) -> Callable[[np.ndarray], np.ndarray]:
     """The exact output y(x) of the configuration of ``start`` as a function of the first
     input x (rad or length; other inputs at the start's values): an array of any shape →
     y of the same shape (an angle on any 2π branch, rad; a slide, length). Positions where
@@ -110,7 +111,9 @@ def output_at(linkage: Linkage, start: Assembly, output: Output, *,
         asm = assemble(linkage, rows, start, decomposition=dec)
         if np.any(asm.status & Status.NOT_ASSEMBLABLE):
             bad = float(rows[int(np.argmax((asm.status & Status.NOT_ASSEMBLABLE) != 0)), 0])
-            raise AssemblyError(f"{linkage.name}: this configuration does not assemble at input {_fmt_input(linkage, bad)}")
+            raise AssemblyError(
+                f"{linkage.name}: this configuration does not assemble at input {_fmt_input(linkage, bad)}"
+            )
         if output.kind == "angle":
             value = asm.theta[:, output.index]
         else:
@@ -159,12 +162,14 @@ def limit_positions(
     if np.any(bad):
         i = int(np.flatnonzero(bad)[0])
         what = "does not assemble" if motion.status[i] & Status.NOT_ASSEMBLABLE else "is singular"
-        raise AssemblyError(f"{linkage.name}: this configuration {what} at input {_fmt_input(linkage, grid[i])} "
-                            "inside the range of the limit-position search")
+        raise AssemblyError(
+            f"{linkage.name}: this configuration {what} at input {_fmt_input(linkage, grid[i])} "
+            "inside the range of the limit-position search"
+        )
     y, y1, y2 = output_series(linkage, motion, output)
 
     def evaluate(x: float, near: int) -> tuple[float, float, float]:
-        row = inputs[near:near + 1].copy()
+        row = inputs[near : near + 1].copy()
         row[0, 0] = x
         a = assemble(linkage, row, asm.at(near), decomposition=dec)
         m = linkage_motion(linkage, a)
@@ -228,8 +233,14 @@ def limit_positions(
     values = np.concatenate([y, [p.output for p in found]])
     lo_i, hi_i = int(np.argmin(values)), int(np.argmax(values))
     y_min, y_max = float(values[lo_i]), float(values[hi_i])
-    result = dict(output=output, positions=tuple(found), stroke=y_max - y_min, output_min=y_min,
-                  output_max=y_max, full_turn=full_turn)
+    result = dict(
+        output=output,
+        positions=tuple(found),
+        stroke=y_max - y_min,
+        output_min=y_min,
+        output_max=y_max,
+        full_turn=full_turn,
+    )
     periodic = full_turn and _same_pose(asm, 0, samples, linkage.length_scale)
     extremes = [p for p in found if p.kind in ("max", "min")]
     if periodic and len(extremes) >= 2:

@@ -40,7 +40,6 @@ import tomllib
 from collections.abc import Mapping
 from typing import Any
 
-from kinematics.assur.positions import MAX_CONFIGURATIONS
 from kinematics.assur.model import (
     GROUND,
     Input,
@@ -51,8 +50,18 @@ from kinematics.assur.model import (
     PrismaticPair,
     RevolutePair,
 )
+from kinematics.assur.positions import MAX_CONFIGURATIONS
 
-__all__ = ["MAX_CHARS", "MAX_DEPTH", "MAX_LINKS", "MAX_NAME", "plain_text_problem", "linkage_from_mapping", "linkage_from_text", "nesting_depth"]
+__all__ = [
+    "MAX_CHARS",
+    "MAX_DEPTH",
+    "MAX_LINKS",
+    "MAX_NAME",
+    "plain_text_problem",
+    "linkage_from_mapping",
+    "linkage_from_text",
+    "nesting_depth",
+]
 
 _TOP_KEYS = {"name", "units", "configuration", "ground", "links", "prismatic", "inputs", "output"}
 _LINK_KEYS = {"joints", "length", "points"}
@@ -126,8 +135,9 @@ def linkage_from_text(text: str, fmt: str = "toml") -> Linkage:
     except (tomllib.TOMLDecodeError, json.JSONDecodeError) as exc:
         raise LinkageFileError(f"not valid {fmt.upper()}: {exc}") from None
     except ValueError:  # an integer of more than 4 300 digits (Python's limit of int())
-        raise LinkageFileError(f"not valid {fmt.upper()}: an integer has more than "
-                               f"{sys.get_int_max_str_digits()} digits") from None
+        raise LinkageFileError(
+            f"not valid {fmt.upper()}: an integer has more than {sys.get_int_max_str_digits()} digits"
+        ) from None
     return linkage_from_mapping(data)
 
 
@@ -144,8 +154,11 @@ def linkage_from_mapping(data: Any) -> Linkage:
         raise LinkageFileError("[ground] must be a table of point = [x, y]")
     if len(ground_raw) > MAX_LINKS:
         raise LinkageFileError(f"[ground] has {len(ground_raw)} points; at most {MAX_LINKS}")
-    links: list[Link] = [Link(GROUND, {_text(k, "a ground point's name"): _point(v, f"ground point {k!r}")
-                                       for k, v in ground_raw.items()})]
+    links: list[Link] = [
+        Link(
+            GROUND, {_text(k, "a ground point's name"): _point(v, f"ground point {k!r}") for k, v in ground_raw.items()}
+        )
+    ]
 
     links_raw = data.get("links", {})
     if not isinstance(links_raw, Mapping) or not links_raw:
@@ -245,8 +258,9 @@ def _number(value: Any, where: str) -> float:
     except OverflowError:  # an integer beyond float range
         x = math.inf
     if not math.isfinite(x) or abs(x) > MAX_MAGNITUDE:
-        raise LinkageFileError(f"{where} must be a finite number of magnitude at most {MAX_MAGNITUDE:g}, "
-                               f"got {_shown(value)}")
+        raise LinkageFileError(
+            f"{where} must be a finite number of magnitude at most {MAX_MAGNITUDE:g}, got {_shown(value)}"
+        )
     return x
 
 
@@ -375,7 +389,9 @@ def _revolute_pairs(links: list[Link], centres: Mapping[str, int]) -> list[Revol
             centre = at[0]
         for other in at:
             if other != centre:
-                pairs.append(RevolutePair(joint, (centre, other), (links[centre].points[joint], links[other].points[joint])))
+                pairs.append(
+                    RevolutePair(joint, (centre, other), (links[centre].points[joint], links[other].points[joint]))
+                )
     return pairs
 
 
@@ -417,7 +433,9 @@ def _check_pairs(links: list[Link], pairs: tuple) -> None:
         if i and len(mine) == 2 and all(isinstance(p, RevolutePair) for p in mine):
             ja, jb = mine[0].joint, mine[1].joint
             if abs(link.points[ja] - link.points[jb]) <= _COINCIDENT * scale:
-                raise LinkageFileError(f"link {link.name!r}: joints {ja!r} and {jb!r} are at the same point (zero length)")
+                raise LinkageFileError(
+                    f"link {link.name!r}: joints {ja!r} and {jb!r} are at the same point (zero length)"
+                )
 
 
 def _input(k: int, spec: Mapping, links: list[Link], index: Mapping[str, int], pairs: tuple) -> Input:
@@ -443,7 +461,9 @@ def _input(k: int, spec: Mapping, links: list[Link], index: Mapping[str, int], p
     if isinstance(first, PrismaticPair):
         for key in ("link", "relative_to"):
             if key in spec:
-                raise LinkageFileError(f"{where}: a prismatic input takes no {key!r} (it drives the block along its guide)")
+                raise LinkageFileError(
+                    f"{where}: a prismatic input takes no {key!r} (it drives the block along its guide)"
+                )
         return Input(candidates[0], "slide", first.block, first.guide, value, sweep)
     at = sorted({i for c in candidates for i in pairs[c].links})
     if "link" in spec:
@@ -473,7 +493,9 @@ def _configuration(value: Any) -> int | None:
     if value is None:
         return None
     if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_CONFIGURATIONS:
-        raise LinkageFileError(f"'configuration' must be an integer from 1 to {MAX_CONFIGURATIONS}, got {_shown(value)}")
+        raise LinkageFileError(
+            f"'configuration' must be an integer from 1 to {MAX_CONFIGURATIONS}, got {_shown(value)}"
+        )
     return value
 
 
@@ -484,7 +506,9 @@ def _output(spec: Any, links: list[Link], index: Mapping[str, int], pairs: tuple
         raise LinkageFileError("[output] must be a table with 'link' or 'joint'")
     _no_unknown_keys(spec, _OUTPUT_KEYS, "[output]")
     if ("link" in spec) == ("joint" in spec):
-        raise LinkageFileError("[output]: give exactly one of 'link' (its angle) or 'joint' (a prismatic pair's displacement)")
+        raise LinkageFileError(
+            "[output]: give exactly one of 'link' (its angle) or 'joint' (a prismatic pair's displacement)"
+        )
     if "link" in spec:
         i = _link_ref(spec["link"], index, "[output] 'link'")
         if i == 0:
@@ -503,7 +527,9 @@ def _output(spec: Any, links: list[Link], index: Mapping[str, int], pairs: tuple
         return Output("angle", i, links[i].name, band, int(dwells))
     for key in ("band", "dwells"):
         if key in spec:
-            raise LinkageFileError(f"[output] {key!r} applies to a link's angle, not to a prismatic pair's displacement")
+            raise LinkageFileError(
+                f"[output] {key!r} applies to a link's angle, not to a prismatic pair's displacement"
+            )
     name = spec["joint"]
     for i, pair in enumerate(pairs):
         if isinstance(pair, PrismaticPair) and pair.joint == name:
@@ -518,10 +544,15 @@ def _check_dof(linkage: Linkage) -> None:
         return
     grubler = f"Grübler: 3·({n} − 1) − 2·{j} = {f}"
     if f < 0:
-        raise LinkageFileError(f"the linkage has {f} degrees of freedom ({grubler}): it is overconstrained; "
-                               "remove a joint or add a link")
+        raise LinkageFileError(
+            f"the linkage has {f} degrees of freedom ({grubler}): it is overconstrained; remove a joint or add a link"
+        )
     if k > f:
-        raise LinkageFileError(f"the linkage has {f} degree(s) of freedom ({grubler}) but {k} inputs: "
-                               "remove an input (a joint driven too many overconstrains it)")
-    raise LinkageFileError(f"the linkage has {f} degree(s) of freedom ({grubler}) but {k} input(s) are given; "
-                           "every degree of freedom needs one [[inputs]] entry")
+        raise LinkageFileError(
+            f"the linkage has {f} degree(s) of freedom ({grubler}) but {k} inputs: "
+            "remove an input (a joint driven too many overconstrains it)"
+        )
+    raise LinkageFileError(
+        f"the linkage has {f} degree(s) of freedom ({grubler}) but {k} input(s) are given; "
+        "every degree of freedom needs one [[inputs]] entry"
+    )

@@ -18,7 +18,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Joint", "Pin", "Sleeve", "Slide", "link_from_two_points", "sleeve", "slide_from_block", "slide_from_guide", "unit"]
+__all__ = [
+    "Joint",
+    "Pin",
+    "Sleeve",
+    "Slide",
+    "link_from_two_points",
+    "sleeve",
+    "slide_from_block",
+    "slide_from_guide",
+    "unit",
+]
 
 
 def unit(z: np.ndarray) -> np.ndarray:

@@ -25,8 +25,15 @@ from kinematics.assur.topology import AssurGroup, Decomposition, decompose
 from kinematics.assur.triads import leg_equation, leg_pose, solve_triad
 from kinematics.status import AssemblyError, Status
 
-__all__ = ["MAX_CONFIGURATIONS", "MAX_PARTIAL_CONFIGURATIONS", "Assembly", "ConfigurationLimit", "assemble",
-           "configurations", "loop_closure"]
+__all__ = [
+    "MAX_CONFIGURATIONS",
+    "MAX_PARTIAL_CONFIGURATIONS",
+    "Assembly",
+    "ConfigurationLimit",
+    "assemble",
+    "configurations",
+    "loop_closure",
+]
 
 #: Most configurations :func:`configurations` lists at one position (a chain of n dyads has 2ⁿ:
 #: 18 dyads took 75 s and 600 MB to list 262 144 of them).
@@ -39,6 +46,7 @@ MAX_PARTIAL_CONFIGURATIONS = 100_000
 class ConfigurationLimit(AssemblyError):
     """The configurations at a position are more than can be listed (one line: how many groups,
     the limit, and how to follow one configuration instead)."""
+
 
 _DYAD_SOLVERS = {
     "RRR": dyads.solve_rrr,
@@ -197,11 +205,19 @@ def _external(state: _State, k: int, body: int) -> Pin | Slide:
         return Pin(state.world(a, pa), state.local(b, pb))
     if mine[pair.block] == body:  # the known link carries the guide
         g = pair.guide
-        return slide_from_guide(state.world(g, pair.through), state.e[:, g] * pair.direction,
-                                state.local(pair.block, pair.block_point), state.turn(pair.block, pair.block_direction))
+        return slide_from_guide(
+            state.world(g, pair.through),
+            state.e[:, g] * pair.direction,
+            state.local(pair.block, pair.block_point),
+            state.turn(pair.block, pair.block_direction),
+        )
     b = pair.block
-    return slide_from_block(state.world(b, pair.block_point), state.e[:, b] * pair.block_direction,
-                            state.local(pair.guide, pair.through), state.turn(pair.guide, pair.direction))
+    return slide_from_block(
+        state.world(b, pair.block_point),
+        state.e[:, b] * pair.block_direction,
+        state.local(pair.guide, pair.through),
+        state.turn(pair.guide, pair.direction),
+    )
 
 
 def _internal(state: _State, k: int, body1: int) -> Joint | Sleeve:
@@ -213,9 +229,13 @@ def _internal(state: _State, k: int, body1: int) -> Joint | Sleeve:
         if mine[a] != body1:
             a, b, pa, pb = b, a, pb, pa
         return Joint(state.local(a, pa), state.local(b, pb))
-    return sleeve(mine[pair.guide] == body1,
-                  state.local(pair.guide, pair.through), state.turn(pair.guide, pair.direction),
-                  state.local(pair.block, pair.block_point), state.turn(pair.block, pair.block_direction))
+    return sleeve(
+        mine[pair.guide] == body1,
+        state.local(pair.guide, pair.through),
+        state.turn(pair.guide, pair.direction),
+        state.local(pair.block, pair.block_point),
+        state.turn(pair.block, pair.block_direction),
+    )
 
 
 def _solve_dyad(state: _State, group: AssurGroup, branch: int) -> np.ndarray:
@@ -263,8 +283,9 @@ def _prepare(linkage: Linkage, inputs) -> tuple[Decomposition, np.ndarray]:
 # -- all configurations at one position ---------------------------------------------------------
 
 
-def configurations(linkage: Linkage, inputs, *, decomposition: Decomposition | None = None,
-                   limit: int = MAX_CONFIGURATIONS) -> list[Assembly]:
+def configurations(
+    linkage: Linkage, inputs, *, decomposition: Decomposition | None = None, limit: int = MAX_CONFIGURATIONS
+) -> list[Assembly]:
     """The configurations that assemble at one input position (``inputs``: k values): all of
     them, or the first ``limit`` (the list then has exactly ``limit`` items; the caller can tell).
 
@@ -272,7 +293,11 @@ def configurations(linkage: Linkage, inputs, *, decomposition: Decomposition | N
     An empty list means the linkage cannot assemble there. Raises :class:`ConfigurationLimit`
     when more than :data:`MAX_PARTIAL_CONFIGURATIONS` partial choices would have to be tried.
     """
-    dec, values = _prepare(linkage, inputs) if decomposition is None else (decomposition, np.asarray(inputs, float).reshape(1, -1))
+    dec, values = (
+        _prepare(linkage, inputs)
+        if decomposition is None
+        else (decomposition, np.asarray(inputs, float).reshape(1, -1))
+    )
     if values.shape[0] != 1:
         raise ValueError("configurations() takes one input position")
     out: list[Assembly] = []
@@ -286,7 +311,9 @@ def configurations(linkage: Linkage, inputs, *, decomposition: Decomposition | N
     return out
 
 
-def _branches(linkage, dec, values, g, state: _State, choice, tried: list[int]) -> Iterator[tuple[_State, tuple[int, ...]]]:
+def _branches(
+    linkage, dec, values, g, state: _State, choice, tried: list[int]
+) -> Iterator[tuple[_State, tuple[int, ...]]]:
     """Depth first over the groups' choices; ``tried`` counts partial configurations."""
     tried[0] += 1
     if tried[0] > MAX_PARTIAL_CONFIGURATIONS:
@@ -294,7 +321,8 @@ def _branches(linkage, dec, values, g, state: _State, choice, tried: list[int]) 
         raise ConfigurationLimit(
             f"{linkage.name}: its {dyads} dyad(s) and {len(dec.groups) - dyads} triad(s) have up to "
             f"2^{dyads}·6^{len(dec.groups) - dyads} assembly configurations; {MAX_PARTIAL_CONFIGURATIONS} partial "
-            "ones were tried without finding enough that assemble (it may not assemble at this position)")
+            "ones were tried without finding enough that assemble (it may not assemble at this position)"
+        )
     if g == len(dec.groups):
         yield state, choice
         return
@@ -313,7 +341,7 @@ def _branches(linkage, dec, values, g, state: _State, choice, tried: list[int]) 
     for n in range(roots.position.size):
         trial = _copy(state)
         rows = np.zeros(1, int)
-        _set_triad(trial, group, views, rows, roots.X[n:n + 1], roots.e[n:n + 1])
+        _set_triad(trial, group, views, rows, roots.X[n : n + 1], roots.e[n : n + 1])
         yield from _branches(linkage, dec, values, g + 1, trial, choice + (n + 1,), tried)
 
 
@@ -371,13 +399,19 @@ def assemble(linkage: Linkage, inputs, start: Assembly, *, decomposition: Decomp
     keep = np.flatnonzero(original)
     out = Assembly(values, state.r[keep], state.e[keep], state.status[keep], start.choice)
     open_loop = loop_closure(linkage, out) > _CLOSURE * linkage.length_scale
-    return Assembly(values, out.r, out.e, out.status | np.where(open_loop, np.uint8(Status.NOT_ASSEMBLABLE), 0).astype(np.uint8),
-                    start.choice)
+    return Assembly(
+        values,
+        out.r,
+        out.e,
+        out.status | np.where(open_loop, np.uint8(Status.NOT_ASSEMBLABLE), 0).astype(np.uint8),
+        start.choice,
+    )
 
 
 def _track_steps(linkage: Linkage) -> np.ndarray:
-    return np.array([_TRACK_STEP_ANGLE if i.kind == "angle" else _TRACK_STEP_LENGTH * linkage.length_scale
-                     for i in linkage.inputs])
+    return np.array(
+        [_TRACK_STEP_ANGLE if i.kind == "angle" else _TRACK_STEP_LENGTH * linkage.length_scale for i in linkage.inputs]
+    )
 
 
 def _subdivide(linkage: Linkage, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -424,7 +458,11 @@ def _track(roots, path: np.ndarray, steps: np.ndarray, X_prev: complex, e_prev: 
             k = int(order[0])
             if m > 0 and order.size > 1 and dist[k] > _AMBIGUOUS * dist[order[1]]:
                 trusted = False
-            if moved is not None and size[m - 2] > 0 and dist[k] > 10 * moved * size[m - 1] / size[m - 2] + 1e-6 * scale:
+            if (
+                moved is not None
+                and size[m - 2] > 0
+                and dist[k] > 10 * moved * size[m - 1] / size[m - 2] + 1e-6 * scale
+            ):
                 trusted = False
         if not trusted:
             if m > 0 and size[m - 1] > _MIN_STEP:

@@ -31,7 +31,6 @@ from kinematics.assur.model import Linkage, LinkageFileError
 __all__ = ["AssurGroup", "Body", "Decomposition", "decompose"]
 
 
-
 @dataclass(frozen=True, slots=True)
 class Body:
     """Links that move as one because the pairs between them are driven.
@@ -147,7 +146,9 @@ def _bodies(linkage: Linkage) -> tuple[list[Body], list[int]]:
         driven_inside = {k for m in members for _, k in adjacency[m]}
         if len(driven_inside) > len(members) - 1:
             joints = ", ".join(repr(linkage.pairs[linkage.inputs[k].pair].joint) for k in sorted(driven_inside))
-            raise LinkageFileError(f"the inputs at joints {joints} close a loop of driven joints: their values could not all hold")
+            raise LinkageFileError(
+                f"the inputs at joints {joints} close a loop of driven joints: their values could not all hold"
+            )
         bodies.append(Body(start, tuple(members), tuple(tree)))
     return bodies, body_of
 
@@ -160,7 +161,9 @@ def _find_dyad(linkage, edges, known, unknown) -> AssurGroup | None:
     for k, a, b in edges:
         if a not in unknown or b not in unknown:
             continue
-        inside = [e for e in edges if (e[1] in (a, b) or e[2] in (a, b)) and e[1] in known | {a, b} and e[2] in known | {a, b}]
+        inside = [
+            e for e in edges if (e[1] in (a, b) or e[2] in (a, b)) and e[1] in known | {a, b} and e[2] in known | {a, b}
+        ]
         if len(inside) != 3:
             continue
         ext_a = [e for e in inside if a in e[1:] and b not in e[1:]]
@@ -190,7 +193,9 @@ def _find_triad(edges, known, unknown, linkage) -> AssurGroup | None:
             if len(set(legs)) != 3 or t in legs:
                 continue
             group = set(legs) | {t}
-            inside = [e for e in edges if (e[1] in group or e[2] in group) and e[1] in known | group and e[2] in known | group]
+            inside = [
+                e for e in edges if (e[1] in group or e[2] in group) and e[1] in known | group and e[2] in known | group
+            ]
             if len(inside) != 6:
                 continue
             pairs: list[int] = []
@@ -207,9 +212,7 @@ def _find_triad(edges, known, unknown, linkage) -> AssurGroup | None:
                 continue
             if "PP" in kinds:
                 j = kinds.index("PP")
-                joints = " and ".join(repr(linkage.pairs[k].joint) for k in pairs[2 * j: 2 * j + 2])
-                raise LinkageFileError(
-                    f"a class III triad leg with two prismatic pairs ({joints}) is not supported"
-                )
+                joints = " and ".join(repr(linkage.pairs[k].joint) for k in pairs[2 * j : 2 * j + 2])
+                raise LinkageFileError(f"a class III triad leg with two prismatic pairs ({joints}) is not supported")
             return AssurGroup("triad", (t, *legs), tuple(pairs), tuple(kinds))
     return None

@@ -29,6 +29,7 @@ from kinematics.status import Status
 
 __all__ = ["TransmissionMinimum", "transmission_angles", "transmission_minima"]
 
+
 @dataclass(frozen=True, slots=True)
 class TransmissionMinimum:
     """The smallest transmission angle of one RRR dyad over the input range.
@@ -60,8 +61,9 @@ def _joint(linkage: Linkage, assembly: Assembly, pair: int) -> np.ndarray:
     return assembly.point(p.links[0], p.at[0])
 
 
-def transmission_angles(linkage: Linkage, assembly: Assembly, *,
-                        decomposition: Decomposition | None = None) -> list[tuple[str, np.ndarray]]:
+def transmission_angles(
+    linkage: Linkage, assembly: Assembly, *, decomposition: Decomposition | None = None
+) -> list[tuple[str, np.ndarray]]:
     """Per RRR dyad (solving order): its middle joint's name and the folded transmission angle
     at every position of ``assembly`` (rad, (M,); 0 where it does not assemble)."""
     dec = decompose(linkage) if decomposition is None else decomposition
@@ -78,8 +80,15 @@ def transmission_angles(linkage: Linkage, assembly: Assembly, *,
     return out
 
 
-def transmission_minima(linkage: Linkage, start: Assembly, first: float, last: float, *,
-                        samples: int = 3600, decomposition: Decomposition | None = None) -> list[TransmissionMinimum]:
+def transmission_minima(
+    linkage: Linkage,
+    start: Assembly,
+    first: float,
+    last: float,
+    *,
+    samples: int = 3600,
+    decomposition: Decomposition | None = None,
+) -> list[TransmissionMinimum]:
     """Each RRR dyad's smallest transmission angle as the first input runs over
     [``first``, ``last``] in the configuration of ``start`` (other inputs at its values).
 

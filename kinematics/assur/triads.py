@@ -147,7 +147,7 @@ class TriadSolutions:
 def _pmul(p, q):
     out = np.zeros(np.broadcast_shapes(p.shape[:-1], q.shape[:-1]) + (p.shape[-1] + q.shape[-1] - 1,), complex)
     for i in range(p.shape[-1]):
-        out[..., i:i + q.shape[-1]] += p[..., i:i + 1] * q
+        out[..., i : i + q.shape[-1]] += p[..., i : i + 1] * q
     return out
 
 
@@ -190,7 +190,9 @@ def _eliminate(legs: list[LegEquation], order: tuple[int, int, int], theta0: flo
     delta = _im_conj_mul(A1, A2)
     N = 1j * _padd(_pmul(D1, A2), -_pmul(D2, A1))
     if kq:
-        F = _padd(_pmul(_W + 0j, _pmul(N, np.conj(N))), _pmul(delta, _re_conj_mul(A[q], N)), _pmul(_pmul(delta, delta), D[q]))
+        F = _padd(
+            _pmul(_W + 0j, _pmul(N, np.conj(N))), _pmul(delta, _re_conj_mul(A[q], N)), _pmul(_pmul(delta, delta), D[q])
+        )
     else:
         F = _padd(_re_conj_mul(A[q], N), _pmul(delta, D[q]))
     return F.real
@@ -312,7 +314,7 @@ def solve_triad(legs: list[LegEquation], scale: float) -> TriadSolutions:
         idx = np.flatnonzero(full)
         comp = np.zeros((idx.size, n, n))
         comp[:, np.arange(1, n), np.arange(n - 1)] = 1.0
-        comp[:, :, -1] = -F[idx, :n] / F[idx, n:n + 1]
+        comp[:, :, -1] = -F[idx, :n] / F[idx, n : n + 1]
         roots = np.linalg.eigvals(comp)
         _add_roots(add, np.repeat(idx, n), roots.ravel())
     for i in np.flatnonzero(alive & ~full):  # degree drops: a root at t = ∞ (θ = θ₀ + π)
@@ -324,8 +326,9 @@ def solve_triad(legs: list[LegEquation], scale: float) -> TriadSolutions:
         cand_theta.append(np.array([theta0[i] + np.pi]))
     if not cand_row:
         return TriadSolutions(np.zeros(0, int), np.zeros(0, complex), np.zeros(0, complex), np.zeros(0))
-    row, theta, X0 = _starts([L.rows(np.concatenate(cand_row)) for L in legs], order,
-                             np.concatenate(cand_row), np.concatenate(cand_theta))
+    row, theta, X0 = _starts(
+        [L.rows(np.concatenate(cand_row)) for L in legs], order, np.concatenate(cand_row), np.concatenate(cand_theta)
+    )
     sub = [L.rows(row) for L in legs]
     X, theta, resid = _polish(sub, X0, theta)
     # a root at which X runs off to infinity (parallel lines) is no assembly

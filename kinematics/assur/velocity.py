@@ -224,4 +224,6 @@ def linkage_motion(linkage: Linkage, assembly: Assembly, rates=None, acceleratio
         ds[:, c] = (np.conj(dU) * d + np.conj(U) * dd).real
         dds[:, c] = (np.conj(ddU) * d + 2 * np.conj(dU) * dd + np.conj(U) * ddd).real
     status = assembly.status | np.where(singular, np.uint8(Status.TOGGLE), np.uint8(0))
-    return LinkageMotion(assembly, v, acc, omega, alpha, s, ds * good[:, None], dds * good[:, None], status.astype(np.uint8), condition)
+    return LinkageMotion(
+        assembly, v, acc, omega, alpha, s, ds * good[:, None], dds * good[:, None], status.astype(np.uint8), condition
+    )

@@ -127,8 +127,11 @@ def ball_point(pole: Pole, *, on_degenerate: str = "flag") -> BallPoint:
     at_inf = (np.abs(E) * np.abs(n) > FAR * pole.size * abs_m) & ~bad
     at_pole = ((t1 * t1) * np.abs(g) <= RAY_EPS * abs_m) & ~bad & ~at_inf
     flagged = bad | at_inf | at_pole
-    status = (pole.status | np.where(at_inf, np.uint16(Status.AT_INFINITY), np.uint16(0))
-              | np.where(at_pole, np.uint16(Status.AT_POLE), np.uint16(0))).astype(np.uint16)
+    status = (
+        pole.status
+        | np.where(at_inf, np.uint16(Status.AT_INFINITY), np.uint16(0))
+        | np.where(at_pole, np.uint16(Status.AT_POLE), np.uint16(0))
+    ).astype(np.uint16)
     w = E * np.divide(n, m, out=np.zeros_like(n * E), where=~flagged)
     # z′ = iE(1 + θ′ŵ) = iE·G(θ′ − θ′² + iθ″)/k with m = θ′k
     velocity = 1j * E * (t1 * g) * ((t1 - t1 * t1) + 1j * t2) / np.where(flagged, 1.0, m)

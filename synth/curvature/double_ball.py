@@ -125,8 +125,11 @@ def theta4(motion: FourBarMotion) -> F64:
     g1, g2, g3 = motion.dgamma
     b, c = np.asarray(motion.b, float), np.asarray(motion.c, float)
     e_th, e_ga = motion.e_theta, motion.e_gamma
-    q4 = (-motion.A + b * ((4 * t1 * t3 + 3 * t2 * t2 - t1**4) + 6j * t1 * t1 * t2) * e_th
-          - c * ((4 * g1 * g3 + 3 * g2 * g2 - g1**4) + 6j * g1 * g1 * g2) * e_ga)
+    q4 = (
+        -motion.A
+        + b * ((4 * t1 * t3 + 3 * t2 * t2 - t1**4) + 6j * t1 * t1 * t2) * e_th
+        - c * ((4 * g1 * g3 + 3 * g2 * g2 - g1**4) + 6j * g1 * g1 * g2) * e_ga
+    )
     s = b * motion.sin_theta_gamma
     ok = motion.status == 0
     return np.divide(-(q4 * np.conj(e_ga)).real, s, out=np.zeros_like(s), where=ok & (s != 0))

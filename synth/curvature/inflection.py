@@ -123,8 +123,12 @@ def euler_savary(pole: Pole, z: ArrayLike, *, on_degenerate: str = "flag") -> Cu
     # |d| ≤ RAY_EPS·diameter: the point is the pole; |c − I| ≥ FAR·L: on the inflection circle.
     at_pole = d2 * (t1 * t1) ** 2 <= (RAY_EPS**2) * (pole.z2 * np.conj(pole.z2)).real
     at_inf = np.abs(shift) >= (FAR * pole.size) * np.abs(den)
-    status = pole.status | np.where(bad, np.uint16(0), np.where(at_pole, np.uint16(Status.AT_POLE), np.uint16(0))
-                                    | np.where(at_inf & ~at_pole, np.uint16(Status.CENTER_POINT_AT_INFINITY), np.uint16(0)))
+    status = pole.status | np.where(
+        bad,
+        np.uint16(0),
+        np.where(at_pole, np.uint16(Status.AT_POLE), np.uint16(0))
+        | np.where(at_inf & ~at_pole, np.uint16(Status.CENTER_POINT_AT_INFINITY), np.uint16(0)),
+    )
     flagged = bad | at_pole | at_inf
     center = pole.point + np.divide(shift, den, out=np.zeros_like(shift), where=~flagged)
     center = np.where(flagged, 0j, center)

@@ -190,12 +190,27 @@ def line_scan(pole: Pole, alpha: ArrayLike, *, on_degenerate: str = "flag") -> C
     err = _error_terms(pole, abs_z2, abs_z3)
     gate_c, gate_0 = _gates(err, abs_z2, cancel, (pole.status & INVALID) != 0)
     inst = {
-        "z2x": z2.real, "z2y": z2.imag, "z2x3": 3.0 * z2.real, "z2y3": 3.0 * z2.imag,
-        "vx": v.real, "vy": v.imag, "wx": w.real, "wy": w.imag,
-        "ix": pole.point.real, "iy": pole.point.imag, "pwx": pw.real, "pwy": pw.imag,
-        "ct": pole.e_theta.real, "st": pole.e_theta.imag,
-        "thr": thr, "thr9": 9.0 * thr, "reach": np.broadcast_to(FAR * pole.size, pole.shape), "cancel": cancel,
-        "gate_c": gate_c, "gate_0": gate_0, **{k: x for k, x in err.items() if k != "inv_t1"},
+        "z2x": z2.real,
+        "z2y": z2.imag,
+        "z2x3": 3.0 * z2.real,
+        "z2y3": 3.0 * z2.imag,
+        "vx": v.real,
+        "vy": v.imag,
+        "wx": w.real,
+        "wy": w.imag,
+        "ix": pole.point.real,
+        "iy": pole.point.imag,
+        "pwx": pw.real,
+        "pwy": pw.imag,
+        "ct": pole.e_theta.real,
+        "st": pole.e_theta.imag,
+        "thr": thr,
+        "thr9": 9.0 * thr,
+        "reach": np.broadcast_to(FAR * pole.size, pole.shape),
+        "cancel": cancel,
+        "gate_c": gate_c,
+        "gate_0": gate_0,
+        **{k: x for k, x in err.items() if k != "inv_t1"},
     }
     inst = {k: as_rows(np.asarray(x, float)) for k, x in inst.items()}
     status_in = as_rows(pole.status)
@@ -217,14 +232,26 @@ def line_scan(pole: Pole, alpha: ArrayLike, *, on_degenerate: str = "flag") -> C
             sl = slice(i, i + step)
             pick = lambda x: x[sl] if x.shape[0] > 1 else x  # noqa: E731
             c = {k: pick(x) for k, x in inst.items()}
-            found = _scan_block(pick(ux), pick(uy), c, pick(status_in), pick(invalid_in),
-                                zc[sl], uv[sl], z0[sl], radius[sl], status[sl], ws)
+            found = _scan_block(
+                pick(ux),
+                pick(uy),
+                c,
+                pick(status_in),
+                pick(invalid_in),
+                zc[sl],
+                uv[sl],
+                z0[sl],
+                radius[sl],
+                status[sl],
+                ws,
+            )
             if found is not None:
                 candidates.append(found + i * rays)
         if candidates:
             _refine(np.concatenate(candidates), ux, uy, inst, zc, uv, z0, radius, status)
-    out = ConjugatePairs(alpha, zc.reshape(shape), uv.reshape(shape), z0.reshape(shape),
-                         radius.reshape(shape), status.reshape(shape))
+    out = ConjugatePairs(
+        alpha, zc.reshape(shape), uv.reshape(shape), z0.reshape(shape), radius.reshape(shape), status.reshape(shape)
+    )
     if mode == "raise":
         raise_on_flags(out.status, "line scanning", ANY_FLAG)
     return out
@@ -356,7 +383,8 @@ def _scan_block(ux, uy, c, status_in, invalid_in, zc, uv, z0, radius, status, ws
     n = radius.shape[0]
     r2, i2, num, den, rc, r0, tmp = (ws[k][:n] for k in ("r2", "i2", "num", "den", "rc", "r0", "tmp"))
     tangent, normal, circle_inf, center_inf, bad, cand = (
-        ws[k][:n] for k in ("m_t", "m_n", "m_c", "m_0", "m_bad", "m_cand"))
+        ws[k][:n] for k in ("m_t", "m_n", "m_c", "m_0", "m_bad", "m_cand")
+    )
 
     def dot(cx, cy, out):  # out = ux·cx + uy·cy
         np.multiply(ux, cx, out=out)
@@ -393,7 +421,12 @@ def _scan_block(ux, uy, c, status_in, invalid_in, zc, uv, z0, radius, status, ws
     any_bad = bool(bad.any())
     if any_bad:
         valid = ~invalid_in
-        for mask, flag in ((tangent, _TANGENT), (normal, _NORMAL), (circle_inf, _CIRCLE_INF), (center_inf, _CENTER_INF)):
+        for mask, flag in (
+            (tangent, _TANGENT),
+            (normal, _NORMAL),
+            (circle_inf, _CIRCLE_INF),
+            (center_inf, _CENTER_INF),
+        ):
             mask &= valid
             status |= mask * flag
         at_pole = tangent | normal

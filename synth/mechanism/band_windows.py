@@ -72,8 +72,9 @@ def _windows(upper, lower, band, m, length, w_max, w_min):
             w_min[r, s] = lo
 
 
-def longest_windows(upper: np.ndarray, lower: np.ndarray, band: np.ndarray, m: int
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def longest_windows(
+    upper: np.ndarray, lower: np.ndarray, band: np.ndarray, m: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(length, max, min), each ``(R, m)``: from every start s < ``m`` of each row of ``upper``
     and ``lower`` (``(R, T)`` float64, T ≥ 2m − 1, ``lower`` ≤ ``upper``), the longest window
     of at most ``m`` samples whose spread is within ``band`` (``(R,)``, ≥ 0; see the module
@@ -85,6 +86,11 @@ def longest_windows(upper: np.ndarray, lower: np.ndarray, band: np.ndarray, m: i
     length = np.empty((R, m), np.int64)
     w_max = np.empty((R, m))
     w_min = np.empty((R, m))
-    over_rows(R, lambda lo, hi: _windows(upper[lo:hi], lower[lo:hi], band[lo:hi], int(m), length[lo:hi],
-                                         w_max[lo:hi], w_min[lo:hi]), 5 * R * upper.shape[1])  # ~5 ns a sample
+    over_rows(
+        R,
+        lambda lo, hi: _windows(
+            upper[lo:hi], lower[lo:hi], band[lo:hi], int(m), length[lo:hi], w_max[lo:hi], w_min[lo:hi]
+        ),
+        5 * R * upper.shape[1],
+    )  # ~5 ns a sample
     return length, w_max, w_min

@@ -57,9 +57,13 @@ class Buildability:
 
     def scaled(self, scale: float) -> Buildability:
         """The figures of the six-bar scaled by ``scale`` (lengths; rates are unchanged)."""
-        return Buildability(None if self.arm is None else self.arm * scale,
-                            None if self.slot is None else (self.slot[0] * scale, self.slot[1] * scale),
-                            self.clearance * scale, self.clearance_between, self.peak_rates)
+        return Buildability(
+            None if self.arm is None else self.arm * scale,
+            None if self.slot is None else (self.slot[0] * scale, self.slot[1] * scale),
+            self.clearance * scale,
+            self.clearance_between,
+            self.peak_rates,
+        )
 
     def dynamics(self, rpm: float) -> tuple[float, float, float]:
         """Peak output angular velocity (rad/s), acceleration (rad/s²) and jerk (rad/s³) at a
@@ -81,12 +85,29 @@ def output_rates(dpsi2: np.ndarray) -> np.ndarray:
 
 
 #: The pairs :func:`clearances` measures, in the order of its ``which`` index.
-CLEARANCE_PAIRS = ("joint A / B0", "joint A / D", "joint B / A0", "joint B / D", "joint P / A0", "joint P / B0",
-                   "joint P / D", "joint Q / A0", "joint Q / B0", "rod P-Q / A0", "rod P-Q / B0", "rod P-Q / D",
-                   "rocker D-Q / A0", "rocker D-Q / B0", "slot / A0", "slot / B0")
+CLEARANCE_PAIRS = (
+    "joint A / B0",
+    "joint A / D",
+    "joint B / A0",
+    "joint B / D",
+    "joint P / A0",
+    "joint P / B0",
+    "joint P / D",
+    "joint Q / A0",
+    "joint Q / B0",
+    "rod P-Q / A0",
+    "rod P-Q / B0",
+    "rod P-Q / D",
+    "rocker D-Q / A0",
+    "rocker D-Q / B0",
+    "slot / A0",
+    "slot / B0",
+)
 
 
-def clearances(batch: SixBars, motion: SixBarMotion, every: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def clearances(
+    batch: SixBars, motion: SixBarMotion, every: int = 1
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Torque arm, clearance and slot use of every six-bar of ``batch`` as arrays, from
     ``motion`` (any order, a uniform crank grid over the whole turn, shape (N, M)), on every
     ``every``-th sample (1: all; more is a cheaper estimate, as in synth.query.refine's loop).
@@ -105,8 +126,9 @@ def clearances(batch: SixBars, motion: SixBarMotion, every: int = 1) -> tuple[np
     from synth.mechanism.clearance_kernel import pair_clearances  # numba: imported on first use
 
     n, m = motion.psi.shape
-    A, B, P, Q = (np.broadcast_to(x, (n, m)) for x in (motion.fourbar.A, motion.fourbar.B, motion.z[0],
-                                                        motion.moving_pivot))
+    A, B, P, Q = (
+        np.broadcast_to(x, (n, m)) for x in (motion.fourbar.A, motion.fourbar.B, motion.z[0], motion.moving_pivot)
+    )
     # the pairs in the order of CLEARANCE_PAIRS: joints to pivots they are not pinned to,
     # output links to pivots off them; a dyad kind's pairs on its rows only (inf elsewhere)
     smallest, reach = pair_clearances(A, B, P, Q, motion.psi, batch.d, batch.pivot, batch.rpr, every)
@@ -126,6 +148,13 @@ def buildability(batch: SixBars, motion: SixBarMotion) -> list[Buildability]:
     # reductions for the whole batch, then Python floats row by row (a per-row ``min`` costs more
     # than the kernel for a batch of a hundred)
     arm, far = reach.min(axis=1).tolist(), reach.max(axis=1).tolist()
-    return [Buildability(arm=arm[k] if slotted else None, slot=(arm[k], far[k]) if slotted else None,
-                         clearance=c, clearance_between=names[w], peak_rates=tuple(peaks[k]))
-            for k, (c, w, slotted) in enumerate(zip(clearance.tolist(), which.tolist(), rpr.tolist()))]
+    return [
+        Buildability(
+            arm=arm[k] if slotted else None,
+            slot=(arm[k], far[k]) if slotted else None,
+            clearance=c,
+            clearance_between=names[w],
+            peak_rates=tuple(peaks[k]),
+        )
+        for k, (c, w, slotted) in enumerate(zip(clearance.tolist(), which.tolist(), rpr.tolist()))
+    ]

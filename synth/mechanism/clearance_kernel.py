@@ -96,8 +96,19 @@ def pair_clearances(A, B, P, Q, psi, d, pivot, rpr, every: int):
     d, pivot, rpr = np.asarray(d, float), np.asarray(pivot, complex), np.asarray(rpr, np.bool_)
 
     def block(lo: int, hi: int) -> None:
-        _clearances(A[lo:hi], B[lo:hi], P[lo:hi], Q[lo:hi], psi[lo:hi], d[lo:hi], pivot[lo:hi], rpr[lo:hi],
-                    int(every), reach[lo:hi], smallest[lo:hi])
+        _clearances(
+            A[lo:hi],
+            B[lo:hi],
+            P[lo:hi],
+            Q[lo:hi],
+            psi[lo:hi],
+            d[lo:hi],
+            pivot[lo:hi],
+            rpr[lo:hi],
+            int(every),
+            reach[lo:hi],
+            smallest[lo:hi],
+        )
 
     over_rows(N, block, 25 * N * M)  # ~25 ns a sample
     return smallest, reach

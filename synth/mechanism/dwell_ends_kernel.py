@@ -110,8 +110,9 @@ def _refine(params, rpr, six, E, upper, lower, band, phi0, h, cs, ok, nn, pin_ep
                     hi_in, lo_in = range_max_min(upper, lower, r, s + 1, n_in)
                 _fine_path(params, rpr, i, pin_eps, E, r, m, net, s - 1, 1, K, phi0, h, left_at, lv, keys, memo)
                 _fine_path(params, rpr, i, pin_eps, E, r, m, net, e0, 2, K, phi0, h, right_at, rv, keys, memo)
-                _, _, s1, e1, l1, h1, _, _, reach = pair_query(left_at, lv, right_at, rv, hi_in, lo_in, b,
-                                                               scratch, last_of)
+                _, _, s1, e1, l1, h1, _, _, reach = pair_query(
+                    left_at, lv, right_at, rv, hi_in, lo_in, b, scratch, last_of
+                )
                 if reach - s1 > best:
                     best, start, end, low, high = reach - s1, s1, e1, l1, h1
             # the best pair again at 2/K of its spacing, twice (re-centred)
@@ -130,8 +131,9 @@ def _refine(params, rpr, six, E, upper, lower, band, phi0, h, cs, ok, nn, pin_ep
                     right_at[j] = end + step * t_pair[j]
                     lv[j] = _psi(params, rpr, i, left_at[j], pin_eps, level)
                     rv[j] = _psi(params, rpr, i, right_at[j], pin_eps, level)
-                _, _, s2, e2, l2, h2, _, _, _ = pair_query(left_at, lv, right_at[: K + 1], rv[: K + 1],
-                                                           inner_hi, inner_lo, b, scratch, last_of)
+                _, _, s2, e2, l2, h2, _, _, _ = pair_query(
+                    left_at, lv, right_at[: K + 1], rv[: K + 1], inner_hi, inner_lo, b, scratch, last_of
+                )
                 if e2 - s2 > end - start:
                     start, end, low, high = s2, e2, l2, h2
             # each end pushed outwards while the band holds: the start, then the end
@@ -156,9 +158,23 @@ def _refine(params, rpr, six, E, upper, lower, band, phi0, h, cs, ok, nn, pin_ep
             out[r, c, 0], out[r, c, 1], out[r, c, 2], out[r, c, 3] = start, end, low, high
 
 
-def refine_windows(params: F64, rpr: np.ndarray, six: np.ndarray, E: F64, upper: F64, lower: F64, band: F64,
-                   phi0: float, h: float, cs: np.ndarray, ok: np.ndarray, nn: np.ndarray, pin_eps: float,
-                   fine: int, extend_points: int) -> tuple[F64, F64, F64, F64]:
+def refine_windows(
+    params: F64,
+    rpr: np.ndarray,
+    six: np.ndarray,
+    E: F64,
+    upper: F64,
+    lower: F64,
+    band: F64,
+    phi0: float,
+    h: float,
+    cs: np.ndarray,
+    ok: np.ndarray,
+    nn: np.ndarray,
+    pin_eps: float,
+    fine: int,
+    extend_points: int,
+) -> tuple[F64, F64, F64, F64]:
     """The refinement of :func:`synth.mechanism.output_range.dwell_intervals` after its grid search, for
     rows whose exact ψ is six-bar ``six[r]``'s (``params``, ``rpr``: the kernel's rows,
     :func:`synth.mechanism.sixbar.kernel_inputs`): ``E`` ``(R, 2M)`` the samples over two turns,
@@ -171,13 +187,33 @@ def refine_windows(params: F64, rpr: np.ndarray, six: np.ndarray, E: F64, upper:
         raise ValueError(f"{cs.shape[-1]} windows of {fine} points a step overflow the memo of {_MEMO} points")
     out = np.empty((R, C, 4))
     args = [np.ascontiguousarray(x) for x in (E, upper, lower)]
-    cs, ok, nn = np.ascontiguousarray(cs, np.int64), np.ascontiguousarray(ok, np.bool_), np.ascontiguousarray(nn, np.int64)
+    cs, ok, nn = (
+        np.ascontiguousarray(cs, np.int64),
+        np.ascontiguousarray(ok, np.bool_),
+        np.ascontiguousarray(nn, np.int64),
+    )
     six = np.ascontiguousarray(six, np.int64)
     band = np.ascontiguousarray(band, float)
 
     def block(lo: int, hi: int) -> None:
-        _refine(params, rpr, six[lo:hi], args[0][lo:hi], args[1][lo:hi], args[2][lo:hi], band[lo:hi], phi0, h,
-                cs[lo:hi], ok[lo:hi], nn[lo:hi], pin_eps, fine, extend_points, out[lo:hi])
+        _refine(
+            params,
+            rpr,
+            six[lo:hi],
+            args[0][lo:hi],
+            args[1][lo:hi],
+            args[2][lo:hi],
+            band[lo:hi],
+            phi0,
+            h,
+            cs[lo:hi],
+            ok[lo:hi],
+            nn[lo:hi],
+            pin_eps,
+            fine,
+            extend_points,
+            out[lo:hi],
+        )
 
     # ~500 exact points a dwell at ~80 ns each
     over_rows(R, block, 40_000 * R * C)
@@ -195,8 +231,9 @@ def _slab_ref(slab, r, i_lo, x, phi0, h):
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def _best_split(params, rpr, i, pin_eps, slab, r, i_lo, f, L, c, phi0, h, mid_hi, mid_lo,
-                fv, gv, sf_max, sf_min, pg_max, pg_min):
+def _best_split(
+    params, rpr, i, pin_eps, slab, r, i_lo, f, L, c, phi0, h, mid_hi, mid_lo, fv, gv, sf_max, sf_min, pg_max, pg_min
+):
     """ψ at the window starts ``f`` and ends f + L, the suffix extremes of the starts' values
     and prefix extremes of the ends', and the allowed start (within [c − L, c]) whose window
     has the least range with ``mid_hi``/``mid_lo`` between them: (index, range), (−1, inf) if
@@ -223,15 +260,26 @@ def _best_split(params, rpr, i, pin_eps, slab, r, i_lo, f, L, c, phi0, h, mid_hi
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def _windows(params, rpr, six, slab, i_lo, k, nL, L, c, dev, s_best, phi0, h, pin_eps, K2, fine, out_dev,
-             out_start):
+def _windows(params, rpr, six, slab, i_lo, k, nL, L, c, dev, s_best, phi0, h, pin_eps, K2, fine, out_dev, out_start):
     R = slab.shape[0]
     n1, n3 = K2 + 1, fine + 1
     f, f3 = np.empty(n1), np.empty(n3)
-    fv, gv, sf_max, sf_min, pg_max, pg_min = (np.empty(n1), np.empty(n1), np.empty(n1), np.empty(n1),
-                                              np.empty(n1), np.empty(n1))
-    fv3, gv3, sf3_max, sf3_min, pg3_max, pg3_min = (np.empty(n3), np.empty(n3), np.empty(n3), np.empty(n3),
-                                                    np.empty(n3), np.empty(n3))
+    fv, gv, sf_max, sf_min, pg_max, pg_min = (
+        np.empty(n1),
+        np.empty(n1),
+        np.empty(n1),
+        np.empty(n1),
+        np.empty(n1),
+        np.empty(n1),
+    )
+    fv3, gv3, sf3_max, sf3_min, pg3_max, pg3_min = (
+        np.empty(n3),
+        np.empty(n3),
+        np.empty(n3),
+        np.empty(n3),
+        np.empty(n3),
+        np.empty(n3),
+    )
     t3 = np.empty(n3)  # np.linspace(-1, 1, fine + 1)
     for j in range(n3):
         t3[j] = -1.0 + j * (2.0 / fine)
@@ -249,8 +297,28 @@ def _windows(params, rpr, six, slab, i_lo, k, nL, L, c, dev, s_best, phi0, h, pi
         hi_in, lo_in = -np.inf, np.inf
         if n_in >= 1:
             hi_in, lo_in = range_max_min(slab, slab, r, k[r] + 2, n_in)
-        j, fine_range = _best_split(params, rpr, i, pin_eps, slab, r, i_lo[r], f, L[r], c[r], phi0, h,
-                                    hi_in, lo_in, fv, gv, sf_max, sf_min, pg_max, pg_min)
+        j, fine_range = _best_split(
+            params,
+            rpr,
+            i,
+            pin_eps,
+            slab,
+            r,
+            i_lo[r],
+            f,
+            L[r],
+            c[r],
+            phi0,
+            h,
+            hi_in,
+            lo_in,
+            fv,
+            gv,
+            sf_max,
+            sf_min,
+            pg_max,
+            pg_min,
+        )
         if j < 0:
             continue
         f_best = f[j]
@@ -269,16 +337,52 @@ def _windows(params, rpr, six, slab, i_lo, k, nL, L, c, dev, s_best, phi0, h, pi
             mid_hi, mid_lo = max(mid_hi, sf_max[j + 1]), min(mid_lo, sf_min[j + 1])
         if j >= 1:
             mid_hi, mid_lo = max(mid_hi, pg_max[j - 1]), min(mid_lo, pg_min[j - 1])
-        j3, fine3 = _best_split(params, rpr, i, pin_eps, slab, r, i_lo[r], f3, L[r], c[r], phi0, h,
-                                mid_hi, mid_lo, fv3, gv3, sf3_max, sf3_min, pg3_max, pg3_min)
+        j3, fine3 = _best_split(
+            params,
+            rpr,
+            i,
+            pin_eps,
+            slab,
+            r,
+            i_lo[r],
+            f3,
+            L[r],
+            c[r],
+            phi0,
+            h,
+            mid_hi,
+            mid_lo,
+            fv3,
+            gv3,
+            sf3_max,
+            sf3_min,
+            pg3_max,
+            pg3_min,
+        )
         if j3 >= 0 and fine3 < fine_range and nL[r] >= 4:
             out_dev[r], out_start[r] = fine3, f3[j3]
         else:
             out_dev[r], out_start[r] = fine_range, f_best
 
 
-def refine_deviation_windows(params: F64, rpr: np.ndarray, six: np.ndarray, slab: F64, i_lo, k, nL, L, c, dev, s_best,
-                             phi0: float, h: float, pin_eps: float, steps: int, fine: int) -> tuple[F64, F64]:
+def refine_deviation_windows(
+    params: F64,
+    rpr: np.ndarray,
+    six: np.ndarray,
+    slab: F64,
+    i_lo,
+    k,
+    nL,
+    L,
+    c,
+    dev,
+    s_best,
+    phi0: float,
+    h: float,
+    pin_eps: float,
+    steps: int,
+    fine: int,
+) -> tuple[F64, F64]:
     """The refinement of :func:`synth.mechanism.output_range.output_deviation`'s best grid window
     (``_refine_window``) for rows whose exact ψ is six-bar ``six[r]``'s: ``slab`` ``(R, W)``
     the samples from i_lo − 1 on, the best grid start at slab offset ``k``, ``nL`` samples per
@@ -292,8 +396,21 @@ def refine_deviation_windows(params: F64, rpr: np.ndarray, six: np.ndarray, slab
     floats = [np.ascontiguousarray(x, float) for x in (slab, L, c, dev, s_best)]
 
     def block(lo: int, hi: int) -> None:
-        _windows(params, rpr, *(x[lo:hi] for x in ints[:1]), floats[0][lo:hi], *(x[lo:hi] for x in ints[1:]),
-                 *(x[lo:hi] for x in floats[1:]), phi0, h, pin_eps, steps, fine, out_dev[lo:hi], out_start[lo:hi])
+        _windows(
+            params,
+            rpr,
+            *(x[lo:hi] for x in ints[:1]),
+            floats[0][lo:hi],
+            *(x[lo:hi] for x in ints[1:]),
+            *(x[lo:hi] for x in floats[1:]),
+            phi0,
+            h,
+            pin_eps,
+            steps,
+            fine,
+            out_dev[lo:hi],
+            out_start[lo:hi],
+        )
 
     # ~2·(steps + fine + 2) exact points a row at ~80 ns each
     over_rows(R, block, 160 * (steps + fine + 2) * R)

@@ -155,12 +155,23 @@ class RprFit:
 
     def dyads(self, index: tuple[int, ...] = ()) -> list[OutputDyad]:
         """The found pivots of one segment (``index`` into the leading shape) as RPR dyads."""
-        return [OutputDyad.rpr(complex(self.pivot[index + (j,)])) for j in range(self.found.shape[-1])
-                if self.found[index + (j,)]]
+        return [
+            OutputDyad.rpr(complex(self.pivot[index + (j,)]))
+            for j in range(self.found.shape[-1])
+            if self.found[index + (j,)]
+        ]
 
 
-def fit_rpr(line_point: ArrayLike, line_direction: ArrayLike, phi: ArrayLike, path_z: ArrayLike,
-            interval: tuple[ArrayLike, ArrayLike], swing: ArrayLike, *, clearance: float = 0.1) -> RprFit:
+def fit_rpr(
+    line_point: ArrayLike,
+    line_direction: ArrayLike,
+    phi: ArrayLike,
+    path_z: ArrayLike,
+    interval: tuple[ArrayLike, ArrayLike],
+    swing: ArrayLike,
+    *,
+    clearance: float = 0.1,
+) -> RprFit:
     """Slot pivots on a straight segment's line that give the requested output swing.
 
     Parameters
@@ -230,8 +241,9 @@ def fit_rpr(line_point: ArrayLike, line_direction: ArrayLike, phi: ArrayLike, pa
 
         # the swing and ∂S/∂u, ∂ψ/∂t_D = Im(−1/(P − D)) at the extreme samples
         t_s, n_s = np.ascontiguousarray(path_tn.real), np.ascontiguousarray(path_tn.imag)
-        return solve_rpr(t_s, n_s, row_of, side, t_end_f, lo, hi, u0, target, active, check_far, SWING_TOL,
-                         SWING_MAX_ITER)
+        return solve_rpr(
+            t_s, n_s, row_of, side, t_end_f, lo, hi, u0, target, active, check_far, SWING_TOL, SWING_MAX_ITER
+        )
 
     target2 = np.broadcast_to(target[:, None], (R, 2))
     u0 = target2 / np.maximum(width, 1e-12)[:, None]
@@ -271,8 +283,9 @@ class DoubleRprPivot:
         return OutputDyad.rpr(complex(self.pivot[index])) if self.found[index] else None
 
 
-def rpr_double(line1: tuple[ArrayLike, ArrayLike], line2: tuple[ArrayLike, ArrayLike], *,
-               max_distance: float = 1e3) -> DoubleRprPivot:
+def rpr_double(
+    line1: tuple[ArrayLike, ArrayLike], line2: tuple[ArrayLike, ArrayLike], *, max_distance: float = 1e3
+) -> DoubleRprPivot:
     """Slot pivot of a double Ball point: the intersection of its two straight-line fits.
 
     Parameters
@@ -382,14 +395,26 @@ class RrrFit:
         for j in range(self.found.shape[-1]):
             k = index + (j,)
             if self.found[k]:
-                out.append(OutputDyad.rrr(complex(self.pivot[k]), float(self.rocker[k]), float(self.rod[k]),
-                                          int(self.branch[k])))
+                out.append(
+                    OutputDyad.rrr(
+                        complex(self.pivot[k]), float(self.rocker[k]), float(self.rod[k]), int(self.branch[k])
+                    )
+                )
         return out
 
 
-def fit_rrr(circle_center: ArrayLike, radius: ArrayLike, phi: ArrayLike, path_z: ArrayLike,
-            interval: tuple[ArrayLike, ArrayLike], swing: ArrayLike, min_transmission: float, *,
-            directions: int = 24, keep: int = 3) -> RrrFit:
+def fit_rrr(
+    circle_center: ArrayLike,
+    radius: ArrayLike,
+    phi: ArrayLike,
+    path_z: ArrayLike,
+    interval: tuple[ArrayLike, ArrayLike],
+    swing: ArrayLike,
+    min_transmission: float,
+    *,
+    directions: int = 24,
+    keep: int = 3,
+) -> RrrFit:
     """RRR output dyads on a circular segment: swing as requested, best transmission angle.
 
     Parameters
@@ -475,26 +500,58 @@ def fit_rrr(circle_center: ArrayLike, radius: ArrayLike, phi: ArrayLike, path_z:
     # nothing (its solves are inactive), so only the others are scanned finely and solved:
     # on the atlas, 2–9 % of the arcs' rows.
     blocks = range(0, R, _CHUNK_ROWS)
-    coarse = [_rrr_coarse_scan(w[k : k + _CHUNK_ROWS], rho[k : k + _CHUNK_ROWS], cm, q_mid_w[k : k + _CHUNK_ROWS],
-                               target[k : k + _CHUNK_ROWS], m, K, n_keep) for k in blocks]
+    coarse = [
+        _rrr_coarse_scan(
+            w[k : k + _CHUNK_ROWS],
+            rho[k : k + _CHUNK_ROWS],
+            cm,
+            q_mid_w[k : k + _CHUNK_ROWS],
+            target[k : k + _CHUNK_ROWS],
+            m,
+            K,
+            n_keep,
+        )
+        for k in blocks
+    ]
     centre = np.concatenate([c for c, _ in coarse]) if R else np.zeros((0, n_keep))
     peak_ok = np.concatenate([p for _, p in coarse]) if R else np.zeros((0, n_keep), bool)
     live = np.flatnonzero(peak_ok.any(axis=1))
     # rows (and slots) that find nothing: pivot C₀, every other figure 0
-    out = [np.repeat(C0[:, None], n_keep, axis=1), np.zeros((R, n_keep)), np.repeat(rho[:, None], n_keep, axis=1),
-           np.zeros((R, n_keep), np.int8), np.zeros((R, n_keep)), np.zeros((R, n_keep)), np.zeros((R, n_keep)),
-           np.zeros((R, n_keep), bool)]
+    out = [
+        np.repeat(C0[:, None], n_keep, axis=1),
+        np.zeros((R, n_keep)),
+        np.repeat(rho[:, None], n_keep, axis=1),
+        np.zeros((R, n_keep), np.int8),
+        np.zeros((R, n_keep)),
+        np.zeros((R, n_keep)),
+        np.zeros((R, n_keep)),
+        np.zeros((R, n_keep), bool),
+    ]
     for k in range(0, live.size, _CHUNK_ROWS):
         rows = live[k : k + _CHUNK_ROWS]
-        for field, value in zip(out, _rrr_fine_fit(C0[rows], w[rows], rho[rows], min_transmission, q_mid_w[rows],
-                                                   target[rows], m, K, centre[rows], peak_ok[rows])):
+        for field, value in zip(
+            out,
+            _rrr_fine_fit(
+                C0[rows],
+                w[rows],
+                rho[rows],
+                min_transmission,
+                q_mid_w[rows],
+                target[rows],
+                m,
+                K,
+                centre[rows],
+                peak_ok[rows],
+            ),
+        ):
             field[rows] = value
     shape = lead + (n_keep,)
     return RrrFit(*(x.reshape(shape) for x in out))
 
 
-def _rrr_coarse_scan(w: C128, rho: F64, cm: float, q_mid_w: C128, target: F64, m: int, K: int,
-                     n_keep: int) -> tuple[F64, NDArray[np.bool_]]:
+def _rrr_coarse_scan(
+    w: C128, rho: F64, cm: float, q_mid_w: C128, target: F64, m: int, K: int, n_keep: int
+) -> tuple[F64, NDArray[np.bool_]]:
     """:func:`fit_rrr`'s coarse scan of ``K`` rocker directions for rows ``w = P − C₀``:
     the ``n_keep`` best local maxima of the estimated transmission angle per row (R, n_keep)
     and which of them are feasible peaks."""
@@ -508,8 +565,18 @@ def _rrr_coarse_scan(w: C128, rho: F64, cm: float, q_mid_w: C128, target: F64, m
     return coarse[np.arange(R)[:, None], order], np.take_along_axis(is_peak, order, 1)
 
 
-def _rrr_fine_fit(C0: C128, w: C128, rho: F64, min_transmission: float, q_mid_w: C128, target: F64, m: int, K: int,
-                  centre: F64, peak_ok: NDArray[np.bool_]) -> tuple[np.ndarray, ...]:
+def _rrr_fine_fit(
+    C0: C128,
+    w: C128,
+    rho: F64,
+    min_transmission: float,
+    q_mid_w: C128,
+    target: F64,
+    m: int,
+    K: int,
+    centre: F64,
+    peak_ok: NDArray[np.bool_],
+) -> tuple[np.ndarray, ...]:
     """:func:`fit_rrr` after the coarse scan (``centre``, ``peak_ok`` from
     :func:`_rrr_coarse_scan`) for rows ``w = P − C₀``: the fine scans around the coarse peaks,
     the swing solves and the choice among them, as the fields of :class:`RrrFit` (R, n_keep)."""
@@ -547,8 +614,9 @@ def _rrr_fine_fit(C0: C128, w: C128, rho: F64, min_transmission: float, q_mid_w:
     alpha, branch, u, S, mu, found, _ = (np.where(better, y, x) for x, y in zip(first, second))
     # Two peaks whose refinements met on one direction are one candidate: keep the better.
     gap = np.abs(np.angle(np.exp(1j * (alpha[:, :, None] - alpha[:, None, :]))))
-    worse = (mu[:, :, None] < mu[:, None, :]) | ((mu[:, :, None] == mu[:, None, :])
-                                                  & (np.arange(n_keep)[:, None] > np.arange(n_keep)[None, :]))
+    worse = (mu[:, :, None] < mu[:, None, :]) | (
+        (mu[:, :, None] == mu[:, None, :]) & (np.arange(n_keep)[:, None] > np.arange(n_keep)[None, :])
+    )
     duplicate = np.any((gap < 0.25 * step) & worse & found[:, None, :], axis=2)
     found = found & ~duplicate
     mu = np.where(found, mu, -1.0)
@@ -557,8 +625,16 @@ def _rrr_fine_fit(C0: C128, w: C128, rho: F64, min_transmission: float, q_mid_w:
     # Best first among the found ones.
     rank = np.argsort(np.where(found, -mu, np.inf), axis=1, kind="stable")
     take = lambda x: np.take_along_axis(x, rank, 1)
-    return (take(D), take(L), np.broadcast_to(rho[:, None], (R, n_keep)).copy(), take(branch).astype(np.int8),
-            take(np.mod(alpha, _TWO_PI)), take(S), take(np.where(found, mu, 0.0)), take(found))
+    return (
+        take(D),
+        take(L),
+        np.broadcast_to(rho[:, None], (R, n_keep)).copy(),
+        take(branch).astype(np.int8),
+        take(np.mod(alpha, _TWO_PI)),
+        take(S),
+        take(np.where(found, mu, 0.0)),
+        take(found),
+    )
 
 
 #: Rows fitted at a time by :func:`fit_rrr` (cache blocking; the result does not depend on it).
@@ -582,7 +658,7 @@ class RrrTerms:
     def __init__(self, w: C128, rho: F64, cm: float, w_mid: C128):
         self.wx, self.wy = w.real[:, None, :], w.imag[:, None, :]
         self.rho = rho[:, None, None]
-        A = (rho[:, None] ** 2 - (w.real ** 2 + w.imag ** 2)) / (2 * rho[:, None])
+        A = (rho[:, None] ** 2 - (w.real**2 + w.imag**2)) / (2 * rho[:, None])
         self.A = A[:, None, :]
         tiny = 1e-280
         inv_a = 1.0 / np.where(np.abs(A) < tiny, tiny, A)
@@ -590,8 +666,10 @@ class RrrTerms:
         self.half = (cm * np.abs(inv_a))[:, None, :]
         self.w_mid = w_mid
         # the compiled ranking's inputs: the samples' terms (R, S) and the radii (R,), contiguous
-        self.flat = (*(np.ascontiguousarray(x[:, 0, :]) for x in (self.wx, self.wy, self.A, self.inv_a_rho, self.half)),
-                     np.ascontiguousarray(rho, dtype=float))
+        self.flat = (
+            *(np.ascontiguousarray(x[:, 0, :]) for x in (self.wx, self.wy, self.A, self.inv_a_rho, self.half)),
+            np.ascontiguousarray(rho, dtype=float),
+        )
 
     def _pq(self, alpha):
         c, s = np.cos(alpha)[..., None], np.sin(alpha)[..., None]
@@ -608,9 +686,13 @@ class RrrTerms:
         branch = np.where(q_mid > 0, -1, 1)
         ratio = np.ascontiguousarray(np.broadcast_to(np.asarray(ratio, dtype=float), alpha.shape))
         u_lo, u_hi, u_est, cos_max, feasible = direction_estimates(
-            *self.flat, np.ascontiguousarray(np.cos(alpha)),
-            np.ascontiguousarray(np.sin(alpha)), branch.astype(float), np.ascontiguousarray(target, dtype=float),
-            ratio)
+            *self.flat,
+            np.ascontiguousarray(np.cos(alpha)),
+            np.ascontiguousarray(np.sin(alpha)),
+            branch.astype(float),
+            np.ascontiguousarray(target, dtype=float),
+            ratio,
+        )
         mu = np.arccos(np.minimum(cos_max, 1.0))
         return branch, u_lo, u_hi, u_est, np.where(feasible, mu, -1.0)
 
@@ -637,8 +719,9 @@ def _solve_rrr(w, rho, alpha, branch, u_lo, u_hi, u_est, target, active):
 
     def solve(wk, lo, hi, u0, target, active, check_far):
         wx, wy = np.ascontiguousarray(wk.real), np.ascontiguousarray(wk.imag)
-        return solve_rrr(wx, wy, row_of, ex, ey, br_f, rho_f, lo, hi, u0, target, active, check_far, SWING_TOL,
-                         SWING_MAX_ITER)
+        return solve_rrr(
+            wx, wy, row_of, ex, ey, br_f, rho_f, lo, hi, u0, target, active, check_far, SWING_TOL, SWING_MAX_ITER
+        )
 
     # Rows without a feasible u-interval get a harmless dummy bracket and stay inactive.
     act = active & (u_hi > 0) & (u_lo <= u_hi)

@@ -72,8 +72,13 @@ def direction_estimates(wx, wy, A, inv_a_rho, half, rho, c, s, branch, target, r
     R, J = c.shape
     out = [np.empty((R, J)) for _ in range(4)] + [np.empty((R, J), np.bool_)]
     # ~4 ns a sample and direction
-    over_rows(R, lambda lo, hi: _estimates(*(x[lo:hi] for x in (wx, wy, A, inv_a_rho, half, rho, c, s, branch, target,
-                                                               ratio, *out))), 4 * R * J * wx.shape[1])
+    over_rows(
+        R,
+        lambda lo, hi: _estimates(
+            *(x[lo:hi] for x in (wx, wy, A, inv_a_rho, half, rho, c, s, branch, target, ratio, *out))
+        ),
+        4 * R * J * wx.shape[1],
+    )
     return tuple(out)
 
 
@@ -110,8 +115,10 @@ def _angle_swing(xa, ya, order, angle):
     # a step of more than π between neighbours needs the angle to change sides of the axis
     for k in range(M):
         j = (k + 1) % M
-        if (math.copysign(1.0, ya[k]) != math.copysign(1.0, ya[j])
-                and abs(math.atan2(ya[j], xa[j]) - math.atan2(ya[k], xa[k])) > math.pi):
+        if (
+            math.copysign(1.0, ya[k]) != math.copysign(1.0, ya[j])
+            and abs(math.atan2(ya[j], xa[j]) - math.atan2(ya[k], xa[k])) > math.pi
+        ):
             return khi, klo, swing, True
     return khi, klo, swing, False
 
@@ -151,7 +158,7 @@ def _rrr_one(wx, wy, r, ex, ey, br, rho, u, scratch):
         order[k] = pseudo_angle(ya[k], xa[k])
         any_sing = any_sing or status != 0
     khi, klo, S, jump = _angle_swing(xa, ya, order, eta)
-    scale = L * u ** 2
+    scale = L * u**2
     # ∂ψ/∂u = −∂ψ/∂L / u², ∂ψ/∂L = −Re((e + e^{iψ}) e^{−iχ}) / (L sin(χ − ψ)), at the two
     # extremes (the loop closed there again: the same numbers as in the pass, not stored for
     # every sample); k2 is 1/height, L sin(χ − ψ) = −height, 0 at a flagged sample
@@ -171,8 +178,9 @@ def _rrr_swing(wx, wy, rows, ex, ey, br, rho, u, S, dS, invalid):
 
 
 @numba.njit(cache=True, nogil=True)
-def _solve_rrr(wx, wy, rows, ex, ey, br, rho, lo, hi, u0, target, active, check_far, tol, max_iter,
-               u_out, S_out, conv_out):
+def _solve_rrr(
+    wx, wy, rows, ex, ey, br, rho, lo, hi, u0, target, active, check_far, tol, max_iter, u_out, S_out, conv_out
+):
     scratch = np.empty((4, wx.shape[1]))
     for i in range(rows.shape[0]):
         r, exi, eyi, bri, rhoi = rows[i], ex[i], ey[i], br[i], rho[i]
@@ -205,8 +213,11 @@ def rrr_swing(wx, wy, rows, ex, ey, branch, rho, u):
     :func:`kinematics.loop.sampled_extreme` finds them."""
     n = rows.shape[0]
     S, dS, invalid = np.empty(n), np.empty(n), np.empty(n, np.bool_)
-    over_rows(n, lambda lo, hi: _rrr_swing(wx, wy, *(x[lo:hi] for x in (rows, ex, ey, branch, rho, u, S, dS, invalid))),
-              15 * n * wx.shape[1])  # ~15 ns a sample
+    over_rows(
+        n,
+        lambda lo, hi: _rrr_swing(wx, wy, *(x[lo:hi] for x in (rows, ex, ey, branch, rho, u, S, dS, invalid))),
+        15 * n * wx.shape[1],
+    )  # ~15 ns a sample
     return S, dS, invalid
 
 
@@ -237,8 +248,9 @@ def _rpr_swing(t_s, n_s, rows, side, t_end, u, S, dS, invalid):
 
 
 @numba.njit(cache=True, nogil=True)
-def _solve_rpr(t_s, n_s, rows, side, t_end, lo, hi, u0, target, active, check_far, tol, max_iter,
-               u_out, S_out, conv_out):
+def _solve_rpr(
+    t_s, n_s, rows, side, t_end, lo, hi, u0, target, active, check_far, tol, max_iter, u_out, S_out, conv_out
+):
     scratch = np.empty((4, t_s.shape[1]))
     for i in range(rows.shape[0]):
         r, sg, te = rows[i], side[i], t_end[i]
@@ -259,8 +271,9 @@ def _solve_rpr(t_s, n_s, rows, side, t_end, lo, hi, u0, target, active, check_fa
         u_out[i], S_out[i], conv_out[i] = u, S if conv else 0.0, conv
 
 
-def solve_rrr(wx, wy, rows, ex, ey, branch, rho, lo, hi, u0, target, active, check_far: bool, tol: float,
-              max_iter: int):
+def solve_rrr(
+    wx, wy, rows, ex, ey, branch, rho, lo, hi, u0, target, active, check_far: bool, tol: float, max_iter: int
+):
     """S(u) = target solved for every RRR dyad of :func:`rrr_swing`'s arguments by safeguarded
     Newton on [lo, hi] (:func:`_rtsafe_step`; with ``check_far`` a dyad that falls short of
     the swing at ``hi`` is not iterated); only ``active`` dyads. Returns (u, S, converged),
@@ -270,8 +283,11 @@ def solve_rrr(wx, wy, rows, ex, ey, branch, rho, lo, hi, u0, target, active, che
     u, S, conv = np.empty(n), np.empty(n), np.empty(n, np.bool_)
     dyads = (rows, ex, ey, branch, rho, lo, hi, u0, target, active)
     # ~56 ns a sample, the iterations included
-    over_rows(n, lambda a, b: _solve_rrr(wx, wy, *(x[a:b] for x in dyads), check_far, tol, max_iter, u[a:b], S[a:b],
-                                         conv[a:b]), 56 * n * wx.shape[1])
+    over_rows(
+        n,
+        lambda a, b: _solve_rrr(wx, wy, *(x[a:b] for x in dyads), check_far, tol, max_iter, u[a:b], S[a:b], conv[a:b]),
+        56 * n * wx.shape[1],
+    )
     return u, S, conv
 
 
@@ -285,8 +301,11 @@ def rpr_swing(t_s, n_s, rows, side, t_end, u):
     extremes as :func:`kinematics.loop.sampled_extreme` finds them."""
     n = rows.shape[0]
     S, dS, invalid = np.empty(n), np.empty(n), np.empty(n, np.bool_)
-    over_rows(n, lambda lo, hi: _rpr_swing(t_s, n_s, *(x[lo:hi] for x in (rows, side, t_end, u, S, dS, invalid))),
-              5 * n * t_s.shape[1])  # ~5 ns a sample
+    over_rows(
+        n,
+        lambda lo, hi: _rpr_swing(t_s, n_s, *(x[lo:hi] for x in (rows, side, t_end, u, S, dS, invalid))),
+        5 * n * t_s.shape[1],
+    )  # ~5 ns a sample
     return S, dS, invalid
 
 
@@ -296,6 +315,11 @@ def solve_rpr(t_s, n_s, rows, side, t_end, lo, hi, u0, target, active, check_far
     u, S, conv = np.empty(n), np.empty(n), np.empty(n, np.bool_)
     dyads = (rows, side, t_end, lo, hi, u0, target, active)
     # ~17 ns a sample, the iterations included
-    over_rows(n, lambda a, b: _solve_rpr(t_s, n_s, *(x[a:b] for x in dyads), check_far, tol, max_iter, u[a:b], S[a:b],
-                                         conv[a:b]), 17 * n * t_s.shape[1])
+    over_rows(
+        n,
+        lambda a, b: _solve_rpr(
+            t_s, n_s, *(x[a:b] for x in dyads), check_far, tol, max_iter, u[a:b], S[a:b], conv[a:b]
+        ),
+        17 * n * t_s.shape[1],
+    )
     return u, S, conv

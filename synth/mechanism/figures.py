@@ -25,8 +25,15 @@ from kinematics.loop import sampled_extreme
 from kinematics.status import Status
 from synth.mechanism.buildability import Buildability, buildability
 from synth.mechanism.link_ratio import link_ratio, segment_links
-from synth.mechanism.output_range import (REST_LEAVE, Dwell, dwell_angle_bounds, dwell_intervals, output_deviation, output_swing,
-                                rests_separated)
+from synth.mechanism.output_range import (
+    REST_LEAVE,
+    Dwell,
+    dwell_angle_bounds,
+    dwell_intervals,
+    output_deviation,
+    output_swing,
+    rests_separated,
+)
 from synth.mechanism.sixbar import ExactOutput, SixBar, SixBarMotion, SixBars, as_batch, crank_grid, simulate
 from synth.types import C128, F64
 
@@ -115,9 +122,17 @@ class SixBarFigures:
         return self.status == 0 and self.turns == 0
 
 
-def sixbar_figures(sixbar: SixBar | SixBars, *, band: float, dwell_length: float | None = None,
-                   dwells: int = 1, samples: int = 720, motion: SixBarMotion | None = None,
-                   footprint: bool = True, leave: float = REST_LEAVE) -> SixBarFigures | list[SixBarFigures]:
+def sixbar_figures(
+    sixbar: SixBar | SixBars,
+    *,
+    band: float,
+    dwell_length: float | None = None,
+    dwells: int = 1,
+    samples: int = 720,
+    motion: SixBarMotion | None = None,
+    footprint: bool = True,
+    leave: float = REST_LEAVE,
+) -> SixBarFigures | list[SixBarFigures]:
     """Figures of one six-bar (or a batch, vectorised) from its exact simulation.
 
     Parameters
@@ -152,21 +167,32 @@ def sixbar_figures(sixbar: SixBar | SixBars, *, band: float, dwell_length: float
     found = dwell_intervals(phi, psi, band, count=dwells, psi_at=psi_at, dpsi1=dpsi[0], leave=leave)
     if dwell_length is not None:
         centre = 0.5 * (found.start + found.end)  # (N, C)
-        dev, _ = output_deviation(phi, np.repeat(psi[:, None, :], dwells, axis=1), centre, dwell_length,
-                                  psi_at=psi_at,
-                                  dpsi1=np.repeat(dpsi[0][:, None, :], dwells, axis=1))
+        dev, _ = output_deviation(
+            phi,
+            np.repeat(psi[:, None, :], dwells, axis=1),
+            centre,
+            dwell_length,
+            psi_at=psi_at,
+            dpsi1=np.repeat(dpsi[0][:, None, :], dwells, axis=1),
+        )
     else:
         dev = np.zeros((N, 0))
     both = found.found.all(axis=1)
-    out = [dataclasses.replace(f, dwells=tuple(found.dwells((k,))),
-                               deviations=tuple(float(x) for x, ok in zip(dev[k], found.found[k]) if ok),
-                               gaps=tuple(zip(found.gap[k].tolist(), found.leave[k].tolist())) if both[k] and dwells == 2 else ())
-           for k, f in enumerate(_figures_but_dwells(batch, phi, motion, psi_at, footprint))]
+    out = [
+        dataclasses.replace(
+            f,
+            dwells=tuple(found.dwells((k,))),
+            deviations=tuple(float(x) for x, ok in zip(dev[k], found.found[k]) if ok),
+            gaps=tuple(zip(found.gap[k].tolist(), found.leave[k].tolist())) if both[k] and dwells == 2 else (),
+        )
+        for k, f in enumerate(_figures_but_dwells(batch, phi, motion, psi_at, footprint))
+    ]
     return out[0] if single else out
 
 
-def figures_with_dwell_bounds(sixbars: SixBars, *, band: float, samples: int = 720
-                              ) -> tuple[list[SixBarFigures], F64, F64]:
+def figures_with_dwell_bounds(
+    sixbars: SixBars, *, band: float, samples: int = 720
+) -> tuple[list[SixBarFigures], F64, F64]:
     """What :func:`sixbar_figures` gives for a single dwell without refining the dwell's ends:
     every figure but the dwell (``dwells`` and ``deviations`` empty; no footprint) — each
     exactly as :func:`sixbar_figures` computes it — and bounds (low, high) on the dwell's angle
@@ -207,11 +233,32 @@ def _figures_but_dwells(batch: SixBars, phi: F64, motion: SixBarMotion, psi_at, 
     boxes = _bounding_boxes(batch, motion)
     area = _footprints(batch, motion) if footprint else np.zeros(N)
     build = buildability(batch, motion)
-    return [SixBarFigures(
-        dwells=(), deviations=(), swing=sw, turns=tu, transmission_fourbar=m1, transmission_output=m2,
-        link_ratio=lr, footprint=ar, bounds=tuple(box), status=st, build=bu,
-    ) for sw, tu, m1, m2, lr, ar, box, st, bu in zip(swing.tolist(), turns.tolist(), mu_fb.tolist(), mu_out.tolist(),
-                                                     ratio.tolist(), area.tolist(), boxes, status.tolist(), build)]
+    return [
+        SixBarFigures(
+            dwells=(),
+            deviations=(),
+            swing=sw,
+            turns=tu,
+            transmission_fourbar=m1,
+            transmission_output=m2,
+            link_ratio=lr,
+            footprint=ar,
+            bounds=tuple(box),
+            status=st,
+            build=bu,
+        )
+        for sw, tu, m1, m2, lr, ar, box, st, bu in zip(
+            swing.tolist(),
+            turns.tolist(),
+            mu_fb.tolist(),
+            mu_out.tolist(),
+            ratio.tolist(),
+            area.tolist(),
+            boxes,
+            status.tolist(),
+            build,
+        )
+    ]
 
 
 def link_ratios(batch: SixBars, motion: SixBarMotion) -> F64:
@@ -241,8 +288,12 @@ def _outline_parts(batch: SixBars, motion: SixBarMotion, every: int = 1) -> list
     """The parts of :func:`_outline`, each ``(N, k)``: the fixed pivots, then the four paths."""
     N = len(batch)
     fixed = np.stack([np.zeros(N, complex), batch.d.astype(complex), batch.pivot], axis=1)
-    paths = [motion.fourbar.A, motion.fourbar.B, motion.z[0],
-             np.where(batch.rpr[:, None], motion.z[0], motion.moving_pivot)]
+    paths = [
+        motion.fourbar.A,
+        motion.fourbar.B,
+        motion.z[0],
+        np.where(batch.rpr[:, None], motion.z[0], motion.moving_pivot),
+    ]
     return [fixed] + [np.broadcast_to(p, motion.psi.shape)[:, ::every] for p in paths]
 
 
@@ -266,14 +317,25 @@ def _as_batch_motion(motion: SixBarMotion) -> SixBarMotion:
     if motion.psi.ndim == 2:
         return motion
     fb = motion.fourbar
-    fb1 = FourBarMotion(*(np.asarray(x)[None] if np.ndim(x) else np.asarray(x) for x in
-                          (fb.a, fb.b, fb.c, fb.d, fb.phi, fb.branch)),
-                        fb.e_theta[None], tuple(x[None] for x in fb.dtheta), tuple(x[None] for x in fb.dgamma),
-                        fb.status[None])
-    return SixBarMotion(np.asarray(motion.phi)[None], fb1, tuple(x[None] for x in motion.z),
-                        np.asarray(motion.pivot).reshape(1, 1), motion.moving_pivot[None], motion.psi[None],
-                        tuple(x[None] for x in motion.dpsi), motion.transmission_fourbar[None],
-                        motion.transmission_output[None], motion.status[None])
+    fb1 = FourBarMotion(
+        *(np.asarray(x)[None] if np.ndim(x) else np.asarray(x) for x in (fb.a, fb.b, fb.c, fb.d, fb.phi, fb.branch)),
+        fb.e_theta[None],
+        tuple(x[None] for x in fb.dtheta),
+        tuple(x[None] for x in fb.dgamma),
+        fb.status[None],
+    )
+    return SixBarMotion(
+        np.asarray(motion.phi)[None],
+        fb1,
+        tuple(x[None] for x in motion.z),
+        np.asarray(motion.pivot).reshape(1, 1),
+        motion.moving_pivot[None],
+        motion.psi[None],
+        tuple(x[None] for x in motion.dpsi),
+        motion.transmission_fourbar[None],
+        motion.transmission_output[None],
+        motion.status[None],
+    )
 
 
 def _refined_min(x: F64) -> F64:

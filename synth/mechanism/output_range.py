@@ -129,8 +129,9 @@ def _rewrap(values, ref):
     return ref + wrap_angle(values - ref)
 
 
-def output_swing(phi: ArrayLike, psi: ArrayLike, *, dpsi: tuple[F64, ...] | None = None,
-                 psi_at: PsiAt | None = None) -> tuple[F64, NDArray[np.int64]]:
+def output_swing(
+    phi: ArrayLike, psi: ArrayLike, *, dpsi: tuple[F64, ...] | None = None, psi_at: PsiAt | None = None
+) -> tuple[F64, NDArray[np.int64]]:
     """Swing max ψ − min ψ over the crank turn, and the net output revolutions per turn.
 
     Parameters
@@ -260,8 +261,14 @@ class DwellIntervals:
         for j in range(self.start.shape[-1]):
             if self.found[index + (j,)]:
                 k = index + (j,)
-                out.append(Dwell(float(self.start[k]), float(self.end[k]), float(self.angle[k]),
-                                 0.5 * float(self.low[k] + self.high[k])))
+                out.append(
+                    Dwell(
+                        float(self.start[k]),
+                        float(self.end[k]),
+                        float(self.angle[k]),
+                        0.5 * float(self.low[k] + self.high[k]),
+                    )
+                )
         return out
 
 
@@ -271,9 +278,16 @@ def _fine_count(h: float) -> int:
     return min(MAX_FINE, max(2, math.ceil(h / REFINE_STEP)))
 
 
-def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: int = 1,
-                    psi_at: PsiAt | None = None, dpsi1: ArrayLike | None = None,
-                    leave: float = REST_LEAVE) -> DwellIntervals:
+def dwell_intervals(
+    phi: ArrayLike,
+    psi: ArrayLike,
+    band: ArrayLike,
+    *,
+    count: int = 1,
+    psi_at: PsiAt | None = None,
+    dpsi1: ArrayLike | None = None,
+    leave: float = REST_LEAVE,
+) -> DwellIntervals:
     """Longest crank interval(s), cyclic over the turn, on which ψ stays within a band of
     total width ``band`` (max ψ − min ψ ≤ band).
 
@@ -377,8 +391,23 @@ def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: i
         if compiled is not None:  # the same stages in one compiled pass (synth.mechanism.dwell_ends_kernel)
             from synth.mechanism.dwell_ends_kernel import refine_windows  # numba: imported on first use
 
-            start, end, low, high = refine_windows(psi_at.params, psi_at.rpr, compiled, E, upper, lower, band_r,
-                                                   phi0, h, cs, ok, n, psi_at.pin_eps, DWELL_FINE, EXTEND_POINTS)
+            start, end, low, high = refine_windows(
+                psi_at.params,
+                psi_at.rpr,
+                compiled,
+                E,
+                upper,
+                lower,
+                band_r,
+                phi0,
+                h,
+                cs,
+                ok,
+                n,
+                psi_at.pin_eps,
+                DWELL_FINE,
+                EXTEND_POINTS,
+            )
         else:
             start, end, low, high = _refine_candidates(E, cs, ok, n, band_r, phi0, h, psi_at, lead, upper, lower)
         start, end = np.where(whole, phi0 + s * h, start), np.where(whole, end, end)
@@ -402,9 +431,16 @@ def dwell_intervals(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, count: i
         gap, leave_by = (np.where(fnd[:, 1:], x, 0.0) for x in (gap, leave_by))
     zero = lambda x: np.where(fnd, x, 0.0)
     shape = lead + (count,)
-    return DwellIntervals(zero(start_n).reshape(shape), zero(end).reshape(shape), zero(angle).reshape(shape),
-                          zero(low).reshape(shape), zero(high).reshape(shape), fnd.reshape(shape),
-                          gap.reshape(shape), leave_by.reshape(shape))
+    return DwellIntervals(
+        zero(start_n).reshape(shape),
+        zero(end).reshape(shape),
+        zero(angle).reshape(shape),
+        zero(low).reshape(shape),
+        zero(high).reshape(shape),
+        fnd.reshape(shape),
+        gap.reshape(shape),
+        leave_by.reshape(shape),
+    )
 
 
 def _separable_windows(E, upper, lower, length, s1, n1, h, m, leave):
@@ -462,7 +498,8 @@ def _refine_candidates(E, cs, ok, n, band, phi0, h, psi_at, lead, upper, lower):
     for _ in range(2):
         inner_hi, inner_lo = _samples_between(upper, lower, start + step, end - step, phi0, h)
         start2, end2, low2, high2, _, _, _ = _refine_pair(
-            start, end, 0.5 * (low + high), inner_hi, inner_lo, band, step, psi_at, lead)
+            start, end, 0.5 * (low + high), inner_hi, inner_lo, band, step, psi_at, lead
+        )
         better = end2 - start2 > end - start
         start, end = np.where(better, start2, start), np.where(better, end2, end)
         low, high = np.where(better, low2, low), np.where(better, high2, high)
@@ -497,8 +534,9 @@ def _two_turns(phi, psi, band, dpsi1):
     return phi0, h, m, lead, np.concatenate([P, P + _net_change(P, d1, h)[:, None]], axis=1), band_r
 
 
-def dwell_angle_bounds(phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *,
-                       dpsi1: ArrayLike | None = None) -> tuple[F64, F64]:
+def dwell_angle_bounds(
+    phi: ArrayLike, psi: ArrayLike, band: ArrayLike, *, dpsi1: ArrayLike | None = None
+) -> tuple[F64, F64]:
     """Bounds (low, high) on the angle (rad) of the longest dwell :func:`dwell_intervals`
     reports when it refines on the exact path (``psi_at`` given), from the grid samples alone.
 
@@ -696,9 +734,10 @@ def _refine_pair(start, end, level, inner_hi, inner_lo, band, step, psi_at, lead
     ref = np.broadcast_to(level[..., None], start.shape + t.shape)
     left_at = start[..., None] + step * t
     right_at = end[..., None] + step * t
-    both = _eval_rewrapped(psi_at, np.concatenate([left_at, right_at], axis=-1),
-                           np.concatenate([ref, ref], axis=-1), lead)
-    lv, rv = both[..., : t.size], both[..., t.size:]
+    both = _eval_rewrapped(
+        psi_at, np.concatenate([left_at, right_at], axis=-1), np.concatenate([ref, ref], axis=-1), lead
+    )
+    lv, rv = both[..., : t.size], both[..., t.size :]
     return _pair_search(left_at, lv, right_at, rv, inner_hi, inner_lo, band)
 
 
@@ -734,8 +773,15 @@ def _extend_ends(start, end, low, high, band, spacing, psi_at, lead):
     return start, end, low, high
 
 
-def output_deviation(phi: ArrayLike, psi: ArrayLike, center: ArrayLike, length: ArrayLike, *,
-                     psi_at: PsiAt | None = None, dpsi1: ArrayLike | None = None) -> tuple[F64, F64]:
+def output_deviation(
+    phi: ArrayLike,
+    psi: ArrayLike,
+    center: ArrayLike,
+    length: ArrayLike,
+    *,
+    psi_at: PsiAt | None = None,
+    dpsi1: ArrayLike | None = None,
+) -> tuple[F64, F64]:
     """Smallest peak-to-peak of ψ over a crank window of the requested length around a dwell.
 
     The window [s, s + length] slides over every position that contains the crank angle
@@ -803,12 +849,26 @@ def output_deviation(phi: ArrayLike, psi: ArrayLike, center: ArrayLike, length: 
     if compiled is not None:  # the same stages in one compiled pass (synth.mechanism.dwell_ends_kernel)
         from synth.mechanism.dwell_ends_kernel import refine_deviation_windows  # numba: imported on first use
 
-        dev, s_best = refine_deviation_windows(psi_at.params, psi_at.rpr, compiled, slab, i_lo, jbest + 1, nL, L, c,
-                                               dev, s_best, phi0, h, psi_at.pin_eps,
-                                               2 * min(_fine_count(h), DWELL_FINE), DWELL_FINE)
+        dev, s_best = refine_deviation_windows(
+            psi_at.params,
+            psi_at.rpr,
+            compiled,
+            slab,
+            i_lo,
+            jbest + 1,
+            nL,
+            L,
+            c,
+            dev,
+            s_best,
+            phi0,
+            h,
+            psi_at.pin_eps,
+            2 * min(_fine_count(h), DWELL_FINE),
+            DWELL_FINE,
+        )
     elif psi_at is not None:
-        dev, s_best = _refine_window(slab, i_lo, jbest + 1, nL, L, c, dev, s_best, phi0, h,
-                                     psi_at, lead)
+        dev, s_best = _refine_window(slab, i_lo, jbest + 1, nL, L, c, dev, s_best, phi0, h, psi_at, lead)
     s_best = phi0 + np.mod(s_best - phi0, _TWO_PI)
     return dev.reshape(lead), s_best.reshape(lead)
 
@@ -833,7 +893,7 @@ def _refine_window(slab, i_lo, k, nL, L, c, dev, s_best, phi0, h, psi_at, lead):
 
     at = np.concatenate([f, g], axis=1)
     vals = _eval_rewrapped(psi_at, at, ref_at(at), lead)
-    fv, gv = vals[:, : K2 + 1], vals[:, K2 + 1:]
+    fv, gv = vals[:, : K2 + 1], vals[:, K2 + 1 :]
     # Samples strictly between the start region [φ_{i−1}, φ_{i+1}] and the end region
     # [φ_{i−1} + L, φ_{i+1} + L]: i+2 .. i−1+nL, i.e. slab offsets k+2 .. k−1+nL.
     n_in = nL - 2
@@ -865,7 +925,7 @@ def _refine_window(slab, i_lo, k, nL, L, c, dev, s_best, phi0, h, psi_at, lead):
     allowed3 = (f3 >= (c - L)[:, None] - 1e-12) & (f3 <= c[:, None] + 1e-12)
     at3 = np.concatenate([f3, g3], axis=1)
     vals3 = _eval_rewrapped(psi_at, at3, ref_at(at3), lead)
-    fv3, gv3 = vals3[:, : t3.size], vals3[:, t3.size:]
+    fv3, gv3 = vals3[:, : t3.size], vals3[:, t3.size :]
     a_off = (f_best + d - phi0) / h - (i_lo - 1)
     b_off = (f_best - d + L - phi0) / h - (i_lo - 1)
     i0 = np.floor(a_off).astype(np.int64) + 1
@@ -878,10 +938,14 @@ def _refine_window(slab, i_lo, k, nL, L, c, dev, s_best, phi0, h, psi_at, lead):
     mid_lo = np.minimum(mid_lo, np.where(j + 1 <= K2, sf_min[rr, nxt], np.inf))
     mid_hi = np.maximum(mid_hi, np.where(j >= 1, pg_max[rr, prv], -np.inf))
     mid_lo = np.minimum(mid_lo, np.where(j >= 1, pg_min[rr, prv], np.inf))
-    top3 = np.maximum(np.maximum(np.maximum.accumulate(fv3[:, ::-1], axis=1)[:, ::-1],
-                                 np.maximum.accumulate(gv3, axis=1)), mid_hi[:, None])
-    bot3 = np.minimum(np.minimum(np.minimum.accumulate(fv3[:, ::-1], axis=1)[:, ::-1],
-                                 np.minimum.accumulate(gv3, axis=1)), mid_lo[:, None])
+    top3 = np.maximum(
+        np.maximum(np.maximum.accumulate(fv3[:, ::-1], axis=1)[:, ::-1], np.maximum.accumulate(gv3, axis=1)),
+        mid_hi[:, None],
+    )
+    bot3 = np.minimum(
+        np.minimum(np.minimum.accumulate(fv3[:, ::-1], axis=1)[:, ::-1], np.minimum.accumulate(gv3, axis=1)),
+        mid_lo[:, None],
+    )
     rng3 = np.where(allowed3, top3 - bot3, np.inf)
     j3 = np.argmin(rng3, axis=1)
     fine3 = rng3[rr, j3]

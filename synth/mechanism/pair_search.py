@@ -81,7 +81,8 @@ def _pairs(left_at, lv, right_at, rv, hi_in, lo_in, band, out_i, out_f):
     last_of = np.empty(nl, np.int64)
     for q in range(Q):
         jl, jr, start, end, low, high, inner_hi, inner_lo, reach = pair_query(
-            left_at[q], lv[q], right_at[q], rv[q], hi_in[q], lo_in[q], band[q], scratch, last_of)
+            left_at[q], lv[q], right_at[q], rv[q], hi_in[q], lo_in[q], band[q], scratch, last_of
+        )
         out_i[q, 0], out_i[q, 1] = jl, jr
         out_f[q, 0], out_f[q, 1], out_f[q, 2], out_f[q, 3] = start, end, low, high
         out_f[q, 4], out_f[q, 5], out_f[q, 6] = inner_hi, inner_lo, reach

@@ -35,7 +35,7 @@ def parabola_rise(ym, y0, yp):
     if den == 0:
         return den, 0.0
     diff = ym - yp
-    return den, -(diff ** 2 / (8 * den))
+    return den, -(diff**2 / (8 * den))
 
 
 @numba.njit(cache=True, nogil=True)

@@ -109,8 +109,9 @@ class OutputDyad:
             # a member as it is (the fits make dyads by the hundred thousand); text by name
             kind = self.kind if isinstance(self.kind, OutputKind) else OutputKind(str(self.kind).upper())
         except ValueError:
-            raise ValueError(f"dyad kind must be one of {', '.join(repr(k.value) for k in OutputKind)}, "
-                             f"not {self.kind!r}") from None
+            raise ValueError(
+                f"dyad kind must be one of {', '.join(repr(k.value) for k in OutputKind)}, not {self.kind!r}"
+            ) from None
         pivot = self.pivot
         if not isinstance(pivot, (complex, float, int, np.number)):
             x, y = pivot  # (x, y)
@@ -193,9 +194,16 @@ class SixBar:
     def scaled(self, scale: float) -> SixBar:
         """The same mechanism with every length multiplied by ``scale`` (> 0)."""
         dy = self.dyad
-        return SixBar(self.a * scale, self.b * scale, self.c * scale, self.d * scale, self.branch,
-                      self.u * scale, self.v * scale,
-                      OutputDyad(dy.kind, dy.pivot * scale, dy.rocker * scale, dy.rod * scale, dy.branch))
+        return SixBar(
+            self.a * scale,
+            self.b * scale,
+            self.c * scale,
+            self.d * scale,
+            self.branch,
+            self.u * scale,
+            self.v * scale,
+            OutputDyad(dy.kind, dy.pivot * scale, dy.rocker * scale, dy.rod * scale, dy.branch),
+        )
 
 
 @dataclass(frozen=True, slots=True)
@@ -224,11 +232,18 @@ class SixBars:
             raise ValueError("a batch needs at least one six-bar")
         f = lambda get: np.array([get(s) for s in sixbars], dtype=float)
         return cls(
-            f(lambda s: s.a), f(lambda s: s.b), f(lambda s: s.c), f(lambda s: s.d), f(lambda s: s.branch),
-            f(lambda s: s.u), f(lambda s: s.v),
+            f(lambda s: s.a),
+            f(lambda s: s.b),
+            f(lambda s: s.c),
+            f(lambda s: s.d),
+            f(lambda s: s.branch),
+            f(lambda s: s.u),
+            f(lambda s: s.v),
             np.array([s.dyad.kind is OutputKind.RPR for s in sixbars]),
             np.array([s.dyad.pivot for s in sixbars], dtype=complex),
-            f(lambda s: s.dyad.rocker), f(lambda s: s.dyad.rod), f(lambda s: s.dyad.branch),
+            f(lambda s: s.dyad.rocker),
+            f(lambda s: s.dyad.rod),
+            f(lambda s: s.dyad.branch),
         )
 
     def __len__(self) -> int:
@@ -236,10 +251,19 @@ class SixBars:
 
     def __getitem__(self, i: int) -> SixBar:
         kind = OutputKind.RPR if self.rpr[i] else OutputKind.RRR
-        dyad = OutputDyad(kind, complex(self.pivot[i]), float(self.rocker[i]), float(self.rod[i]),
-                          int(self.dyad_branch[i]))
-        return SixBar(float(self.a[i]), float(self.b[i]), float(self.c[i]), float(self.d[i]), int(self.branch[i]),
-                      float(self.u[i]), float(self.v[i]), dyad)
+        dyad = OutputDyad(
+            kind, complex(self.pivot[i]), float(self.rocker[i]), float(self.rod[i]), int(self.dyad_branch[i])
+        )
+        return SixBar(
+            float(self.a[i]),
+            float(self.b[i]),
+            float(self.c[i]),
+            float(self.d[i]),
+            int(self.branch[i]),
+            float(self.u[i]),
+            float(self.v[i]),
+            dyad,
+        )
 
 
 def as_batch(sixbar: SixBar | SixBars) -> tuple[SixBars, bool]:
@@ -432,12 +456,31 @@ def kernel_inputs(sixbar: SixBar | SixBars) -> tuple[F64, NDArray[np.bool_]]:
     pivot y, rocker, rod, dyad branch — and which rows are RPR."""
     if isinstance(sixbar, SixBar):  # one row straight from the fields: the single call stays cheap
         dy = sixbar.dyad
-        params = np.array([[sixbar.a, sixbar.b, sixbar.c, sixbar.d, sixbar.branch, sixbar.u, sixbar.v,
-                            dy.pivot.real, dy.pivot.imag, dy.rocker, dy.rod, dy.branch]])
+        params = np.array(
+            [
+                [
+                    sixbar.a,
+                    sixbar.b,
+                    sixbar.c,
+                    sixbar.d,
+                    sixbar.branch,
+                    sixbar.u,
+                    sixbar.v,
+                    dy.pivot.real,
+                    dy.pivot.imag,
+                    dy.rocker,
+                    dy.rod,
+                    dy.branch,
+                ]
+            ]
+        )
         return params, np.array([dy.kind is OutputKind.RPR])
     s = sixbar
-    params = np.stack([s.a, s.b, s.c, s.d, s.branch, s.u, s.v, s.pivot.real, s.pivot.imag, s.rocker, s.rod,
-                       s.dyad_branch], axis=1, dtype=float)
+    params = np.stack(
+        [s.a, s.b, s.c, s.d, s.branch, s.u, s.v, s.pivot.real, s.pivot.imag, s.rocker, s.rod, s.dyad_branch],
+        axis=1,
+        dtype=float,
+    )
     return params, np.ascontiguousarray(s.rpr, dtype=bool)
 
 
@@ -502,8 +545,14 @@ def simulate_numpy(batch: SixBars, single: bool, phi: F64, order: int, mode: str
             if rpr:
                 res = _rpr(zr, pivot[rows], size[rows], order)
             else:
-                res = _rrr(zr, pivot[rows], batch.rocker[rows, None], batch.rod[rows, None],
-                           batch.dyad_branch[rows, None], order)
+                res = _rrr(
+                    zr,
+                    pivot[rows],
+                    batch.rocker[rows, None],
+                    batch.rod[rows, None],
+                    batch.dyad_branch[rows, None],
+                    order,
+                )
             Q[rows], e_psi[rows], mu_out[rows], st[rows] = res[0], res[1], res[3], res[4]
             for k in range(order):
                 dpsi[k][rows] = res[2][k]

@@ -145,8 +145,15 @@ def output_phasor(params, rpr, i, phi, pin_eps):
     """Six-bar ``i``'s output direction e^{iψ} = (cos ψ, sin ψ) at one crank angle ``phi``
     (rad) and its :class:`~kinematics.status.Status` flags: :func:`_positions`' order-0 path
     for one position (the refinements' pointwise ψ, taken as atan2 of it)."""
-    ai, bi, ci, di, bri, ui, vi = (params[i, 0], params[i, 1], params[i, 2], params[i, 3], params[i, 4],
-                                   params[i, 5], params[i, 6])
+    ai, bi, ci, di, bri, ui, vi = (
+        params[i, 0],
+        params[i, 1],
+        params[i, 2],
+        params[i, 3],
+        params[i, 4],
+        params[i, 5],
+        params[i, 6],
+    )
     dxi, dyi, li, rhoi, dbri = params[i, 7], params[i, 8], params[i, 9], params[i, 10], params[i, 11]
     out = _coupler_point(ai, bi, ci, di, bri, ui, vi, math.cos(phi), math.sin(phi))
     fb, zx, zy = out[4], out[11], out[12]
@@ -175,8 +182,15 @@ def _positions(params, rpr, phi, pin_eps, order, full, points, angles, derivs, s
     half_pi = 0.5 * math.pi
     two_pi = 2.0 * math.pi
     for i in range(n):
-        ai, bi, ci, di, bri, ui, vi = (params[i, 0], params[i, 1], params[i, 2], params[i, 3], params[i, 4],
-                                       params[i, 5], params[i, 6])
+        ai, bi, ci, di, bri, ui, vi = (
+            params[i, 0],
+            params[i, 1],
+            params[i, 2],
+            params[i, 3],
+            params[i, 4],
+            params[i, 5],
+            params[i, 6],
+        )
         dxi, dyi, li, rhoi, dbri = params[i, 7], params[i, 8], params[i, 9], params[i, 10], params[i, 11]
         size = _size(ai, bi, ci, di, dxi, dyi)
         base0 = 0.0
@@ -188,8 +202,9 @@ def _positions(params, rpr, phi, pin_eps, order, full, points, angles, derivs, s
                 cphi, sphi = cos_phi[j], sin_phi[j]
             else:
                 cphi, sphi = math.cos(phi[row, j]), math.sin(phi[row, j])
-            ct, st, cg, sg, fb, fk1, fk2, ax, ay, wx, wy, zx, zy = _coupler_point(ai, bi, ci, di, bri, ui, vi,
-                                                                                 cphi, sphi)
+            ct, st, cg, sg, fb, fk1, fk2, ax, ay, wx, wy, zx, zy = _coupler_point(
+                ai, bi, ci, di, bri, ui, vi, cphi, sphi
+            )
             status_fourbar[i, j] = fb
             # up to ``order``, P′ and P″ (docs/curvature.md §1: P′ = iA + iθ′w, P″ = −A + (iθ″ − θ′²)w)
             if full:
@@ -275,8 +290,19 @@ def output_angles(params: np.ndarray, rpr: np.ndarray, phi: np.ndarray, pin_eps:
     none_c, none_f = np.empty((3, 0, 0), np.complex128), np.empty((0, 0, 0))
 
     def block(lo: int, hi: int) -> None:
-        _positions(params[lo:hi], rpr[lo:hi], _rows(phi, lo, hi), pin_eps, 0, False, none_c, angles[:, lo:hi],
-                   none_f, status_fourbar[lo:hi], status[lo:hi])
+        _positions(
+            params[lo:hi],
+            rpr[lo:hi],
+            _rows(phi, lo, hi),
+            pin_eps,
+            0,
+            False,
+            none_c,
+            angles[:, lo:hi],
+            none_f,
+            status_fourbar[lo:hi],
+            status[lo:hi],
+        )
 
     over_rows(n, block, 85 * n * m)  # ~85 ns a point (its crank angle's sine and cosine included)
     return angles[0]
@@ -308,8 +334,19 @@ def sixbar_positions(params: np.ndarray, rpr: np.ndarray, phi: np.ndarray, pin_e
     status = np.empty((n, m), np.uint16)
 
     def block(lo: int, hi: int) -> None:
-        _positions(params[lo:hi], rpr[lo:hi], _rows(phi, lo, hi), pin_eps, order, True, points[:, lo:hi],
-                   angles[:, lo:hi], derivs[:, lo:hi], status_fourbar[lo:hi], status[lo:hi])
+        _positions(
+            params[lo:hi],
+            rpr[lo:hi],
+            _rows(phi, lo, hi),
+            pin_eps,
+            order,
+            True,
+            points[:, lo:hi],
+            angles[:, lo:hi],
+            derivs[:, lo:hi],
+            status_fourbar[lo:hi],
+            status[lo:hi],
+        )
 
     over_rows(n, block, 75 * n * m)  # ~75 ns a position (order 2)
     return points, angles, derivs, status_fourbar, status

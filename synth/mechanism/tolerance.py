@@ -79,15 +79,26 @@ def perturbed(sixbar: SixBar, tolerance: float, unit: F64) -> tuple[SixBars, F64
     pivot = (dy.pivot + dev[:, 11] + 1j * dev[:, 12] - a0) * turn
     rrr = dy.kind is OutputKind.RRR
     ones = np.ones(n)
-    batch = SixBars(sixbar.a + dev[:, 0], sixbar.b + dev[:, 1], sixbar.c + dev[:, 2], d, sixbar.branch * ones,
-                    sixbar.u + dev[:, 3], sixbar.v + dev[:, 4], np.full(n, not rrr), pivot,
-                    (dy.rocker + dev[:, 5]) if rrr else 0.0 * ones, (dy.rod + dev[:, 6]) if rrr else 0.0 * ones,
-                    dy.branch * ones)
+    batch = SixBars(
+        sixbar.a + dev[:, 0],
+        sixbar.b + dev[:, 1],
+        sixbar.c + dev[:, 2],
+        d,
+        sixbar.branch * ones,
+        sixbar.u + dev[:, 3],
+        sixbar.v + dev[:, 4],
+        np.full(n, not rrr),
+        pivot,
+        (dy.rocker + dev[:, 5]) if rrr else 0.0 * ones,
+        (dy.rod + dev[:, 6]) if rrr else 0.0 * ones,
+        dy.branch * ones,
+    )
     return batch, np.angle(ground)
 
 
-def deviation_draws(sixbar: SixBar, tolerance: float, centres: Sequence[float], length: float, *,
-                    draws: int = DRAWS, seed: int = SEED) -> F64:
+def deviation_draws(
+    sixbar: SixBar, tolerance: float, centres: Sequence[float], length: float, *, draws: int = DRAWS, seed: int = SEED
+) -> F64:
     """The output deviation (rad) of each of ``draws`` six-bars made within ±``tolerance`` of
     ``sixbar``: per draw the largest over the dwells of the smallest peak-to-peak of ψ over a
     window of ``length`` (rad) containing the dwell middle ``centres[k]`` (crank angles of the
@@ -114,9 +125,20 @@ def deviation_draws(sixbar: SixBar, tolerance: float, centres: Sequence[float], 
     made = np.all(np.stack(lengths) > 0, axis=0)  # a tolerance as large as a link: no such part
     if not made.all():  # those draws are simulated as placeholders (crank-sized links) and flagged
         fix = lambda x: np.where(made, x, 1.0)  # noqa: E731
-        batch = SixBars(fix(batch.a), fix(batch.b), fix(batch.c), fix(batch.d), batch.branch, batch.u, batch.v,
-                        batch.rpr, batch.pivot, fix(batch.rocker) if rrr else batch.rocker,
-                        fix(batch.rod) if rrr else batch.rod, batch.dyad_branch)
+        batch = SixBars(
+            fix(batch.a),
+            fix(batch.b),
+            fix(batch.c),
+            fix(batch.d),
+            batch.branch,
+            batch.u,
+            batch.v,
+            batch.rpr,
+            batch.pivot,
+            fix(batch.rocker) if rrr else batch.rocker,
+            fix(batch.rod) if rrr else batch.rod,
+            batch.dyad_branch,
+        )
     phi = crank_grid(SAMPLES)
     motion = simulate(batch, phi, order=1)
     psi, dpsi1 = motion.psi, motion.dpsi[0]
@@ -130,8 +152,9 @@ def deviation_draws(sixbar: SixBar, tolerance: float, centres: Sequence[float], 
     return np.where(ok, worst, math.inf)
 
 
-def toleranced_deviation(sixbar: SixBar, tolerance: float, centres: Sequence[float], length: float, *,
-                         draws: int = DRAWS, seed: int = SEED) -> float | None:
+def toleranced_deviation(
+    sixbar: SixBar, tolerance: float, centres: Sequence[float], length: float, *, draws: int = DRAWS, seed: int = SEED
+) -> float | None:
     """The :data:`PERCENTILE`-th percentile (rad) of :func:`deviation_draws` (numpy's linear
     interpolation between order statistics), or None where it falls on draws that do not
     assemble (more than 5 % of them)."""

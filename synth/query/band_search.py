@@ -34,14 +34,27 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from synth.query.candidates import Request
 from synth.mechanism.figures import sixbar_figures
-from synth.query import QueryResult, SegmentSource, answer
 from synth.mechanism.sixbar import SixBars
+from synth.query import QueryResult, SegmentSource, answer
+from synth.query.candidates import Request
 
-__all__ = ["FLOOR", "LADDER", "MEET", "REFERENCE_BAND", "RESOLUTION", "BandAnswer", "BandProbe",
-           "answer_tightest", "ladder", "needed", "probe", "reference_dwells", "tighter_band",
-           "tightest_band"]
+__all__ = [
+    "FLOOR",
+    "LADDER",
+    "MEET",
+    "REFERENCE_BAND",
+    "RESOLUTION",
+    "BandAnswer",
+    "BandProbe",
+    "answer_tightest",
+    "ladder",
+    "needed",
+    "probe",
+    "reference_dwells",
+    "tighter_band",
+    "tightest_band",
+]
 
 #: The narrowest band searched (rad): 1e-4°, the ``--band`` option's own floor.
 FLOOR = math.radians(1e-4)
@@ -139,8 +152,9 @@ def ladder(ceiling: float, floor: float) -> np.ndarray:
     return np.geomspace(ceiling, floor, steps + 1)
 
 
-def tightest_band(request: Request, count: Callable[[float], BandProbe], *, floor: float = FLOOR
-                  ) -> tuple[float | None, tuple[BandProbe, ...]]:
+def tightest_band(
+    request: Request, count: Callable[[float], BandProbe], *, floor: float = FLOOR
+) -> tuple[float | None, tuple[BandProbe, ...]]:
     """The tightest band (rad) in [``floor``, ``request.band``] at which ``count(band).met``
     reaches :func:`needed`, within :data:`RESOLUTION` (None if no probe does), and the probes.
 
@@ -175,21 +189,31 @@ def tightest_band(request: Request, count: Callable[[float], BandProbe], *, floo
     return good, tuple(probes)
 
 
-def reference_dwells(request: Request, result: QueryResult, band: float = REFERENCE_BAND
-                     ) -> tuple[tuple[float, ...], ...]:
+def reference_dwells(
+    request: Request, result: QueryResult, band: float = REFERENCE_BAND
+) -> tuple[tuple[float, ...], ...]:
     """Per candidate of ``result``, its dwells (rad, at most ``request.dwells``) at ``band``
     (rad) from the exact simulation (the query's 720 samples, refined ends)."""
     if not result.candidates:
         return ()
-    figures = sixbar_figures(SixBars.from_sixbars([c.sixbar for c in result.candidates]), band=band,
-                             dwell_length=request.dwell, dwells=request.dwells, footprint=False,
-                             leave=request.swing_tol)
+    figures = sixbar_figures(
+        SixBars.from_sixbars([c.sixbar for c in result.candidates]),
+        band=band,
+        dwell_length=request.dwell,
+        dwells=request.dwells,
+        footprint=False,
+        leave=request.swing_tol,
+    )
     return tuple(tuple(d.angle for d in f.dwells[: request.dwells]) for f in figures)
 
 
-def answer_tightest(request: Request, source: SegmentSource, *,
-                    answer_at: Callable[[Request], QueryResult] | None = None,
-                    floor: float = FLOOR) -> BandAnswer:
+def answer_tightest(
+    request: Request,
+    source: SegmentSource,
+    *,
+    answer_at: Callable[[Request], QueryResult] | None = None,
+    floor: float = FLOOR,
+) -> BandAnswer:
     """``request`` answered at the tightest band it can be met at (:func:`tightest_band`,
     searched from ``request.band`` down to ``floor``, rad), or at ``request.band`` if no
     probe meets it.

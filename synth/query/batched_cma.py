@@ -52,9 +52,18 @@ def _whiten(B: np.ndarray, D: np.ndarray, v: np.ndarray) -> np.ndarray:
     return np.einsum("kij,kj,klj,k...l->k...i", B, 1.0 / D, B, v)
 
 
-def cma_es(evaluate: Callable[[np.ndarray, np.ndarray], np.ndarray], start: np.ndarray, sigma: float,
-           rngs: Sequence[np.random.Generator], *, population: int = 16, iterations: int = 100,
-           box: float = math.inf, stop_below: float = -math.inf, tol_sigma: float = 1e-12) -> CMAResult:
+def cma_es(
+    evaluate: Callable[[np.ndarray, np.ndarray], np.ndarray],
+    start: np.ndarray,
+    sigma: float,
+    rngs: Sequence[np.random.Generator],
+    *,
+    population: int = 16,
+    iterations: int = 100,
+    box: float = math.inf,
+    stop_below: float = -math.inf,
+    tol_sigma: float = 1e-12,
+) -> CMAResult:
     """Minimise K problems from ``start`` (K, n), all at once.
 
     Parameters
@@ -114,8 +123,8 @@ def cma_es(evaluate: Callable[[np.ndarray, np.ndarray], np.ndarray], start: np.n
         who = np.flatnonzero(active)
         if not len(who):
             break
-        z = np.stack([rngs[k].standard_normal((lam, n)) for k in who])          # (W, λ, n)
-        y = np.einsum("kij,kj,klj->kli", B[who], D[who], z)                      # B·diag(D)·z
+        z = np.stack([rngs[k].standard_normal((lam, n)) for k in who])  # (W, λ, n)
+        y = np.einsum("kij,kj,klj->kli", B[who], D[who], z)  # B·diag(D)·z
         x = np.clip(mean[who, None, :] + step[who, None, None] * y, -box, box)  # repaired
         y = (x - mean[who, None, :]) / step[who, None, None]
         f = evaluate(x, who)
@@ -126,7 +135,7 @@ def cma_es(evaluate: Callable[[np.ndarray, np.ndarray], np.ndarray], start: np.n
         best_x[who[better]] = x[better, order[better, 0]]
         best_f[who[better]] = top[better]
 
-        ranked = np.take_along_axis(y, order[:, :, None], axis=1)               # (W, λ, n), best first
+        ranked = np.take_along_axis(y, order[:, :, None], axis=1)  # (W, λ, n), best first
         yw = np.einsum("i,kin->kn", w[:mu], ranked[:, :mu])
         mean[who] = mean[who] + step[who, None] * yw
         g[who] += 1
@@ -136,11 +145,10 @@ def cma_es(evaluate: Callable[[np.ndarray, np.ndarray], np.ndarray], start: np.n
         pc[who] = (1 - cc) * pc[who] + (hs * math.sqrt(cc * (2 - cc) * mueff))[:, None] * yw
         # the negative weights act on steps rescaled to the length n has under C (eq. 46)
         length2 = np.sum(_whiten(B[who], D[who], ranked) ** 2, axis=2)
-        wo = np.where(w >= 0, w, w * n / np.maximum(length2, 1e-300))            # (W, λ)
+        wo = np.where(w >= 0, w, w * n / np.maximum(length2, 1e-300))  # (W, λ)
         rank_mu = np.einsum("ki,kin,kim->knm", wo, ranked, ranked)
         keep = 1 + (~hs) * c1 * cc * (2 - cc) - c1 - cmu * w.sum()
-        C[who] = (keep[:, None, None] * C[who] + c1 * np.einsum("kn,km->knm", pc[who], pc[who])
-                  + cmu * rank_mu)
+        C[who] = keep[:, None, None] * C[who] + c1 * np.einsum("kn,km->knm", pc[who], pc[who]) + cmu * rank_mu
         step[who] *= np.exp(np.minimum(1.0, (cs / ds) * (norm / chin - 1)))
         sym = 0.5 * (C[who] + np.swapaxes(C[who], 1, 2))
         ev, vec = np.linalg.eigh(sym)

@@ -28,10 +28,23 @@ from synth.mechanism.figures import SixBarFigures, link_ratios
 from synth.mechanism.sixbar import OutputDyad, SixBar, SixBars, crank_grid, simulate
 from synth.query.pareto import pareto_layers
 
-__all__ = ["Candidate", "Request", "candidate_dimensions", "candidate_id", "decode_dimensions", "dimension_vector",
-           "encode_dimensions",
-           "output_may_meet", "parse_candidate_id", "rank", "round_dimensions", "screen", "sixbar_from_vector",
-           "with_dimensions", "within_band"]
+__all__ = [
+    "Candidate",
+    "Request",
+    "candidate_dimensions",
+    "candidate_id",
+    "decode_dimensions",
+    "dimension_vector",
+    "encode_dimensions",
+    "output_may_meet",
+    "parse_candidate_id",
+    "rank",
+    "round_dimensions",
+    "screen",
+    "sixbar_from_vector",
+    "with_dimensions",
+    "within_band",
+]
 
 #: The --output choices: an output tag, or any single-dwell one.
 OUTPUTS = (OutputTag.RPR.value, OutputTag.RRR.value, "any")
@@ -116,13 +129,16 @@ class Request:
         if not (math.isfinite(self.rpm) and self.rpm > 0):
             raise bad(f"--rpm must be > 0, got {self.rpm:g}")
         if self.step is not None and not (math.isfinite(self.step) and 0 < self.step < math.pi and self.dwells == 2):
-            raise bad("--step (the turn between two rests) must be between 0 and 180 degrees (exclusive) and "
-                      "needs --dwells 2")
+            raise bad(
+                "--step (the turn between two rests) must be between 0 and 180 degrees (exclusive) and needs --dwells 2"
+            )
         if not (math.isfinite(self.tolerance) and self.tolerance >= 0):
             raise bad(f"--tolerance must be a length >= 0, got {self.tolerance:g}")
         if self.step is not None and self.step - self.swing_tol > self.swing + self.swing_tol:
-            raise bad(f"--step {math.degrees(self.step):g} is more than --swing {math.degrees(self.swing):g} "
-                      f"(± --swing-tol): both rests lie within the output's swing")
+            raise bad(
+                f"--step {math.degrees(self.step):g} is more than --swing {math.degrees(self.swing):g} "
+                f"(± --swing-tol): both rests lie within the output's swing"
+            )
         if self.max_accel is not None and not (math.isfinite(self.max_accel) and self.max_accel > 0):
             raise bad(f"--max-accel must be > 0 rad/s^2, got {self.max_accel:g}")
 
@@ -168,8 +184,8 @@ def screen(request: Request, sixbars: SixBars, samples: int = 720) -> np.ndarray
     motion = simulate(sixbars, crank_grid(samples), order=0)
     psi = motion.psi
     ok = np.all(motion.status == 0, axis=1) & (np.abs(psi[:, -1] - psi[:, 0]) < math.pi)  # rocks, not revolves
-    ok &= (motion.transmission_fourbar.min(axis=1) >= request.min_transmission)
-    ok &= (motion.transmission_output.min(axis=1) >= request.min_transmission)
+    ok &= motion.transmission_fourbar.min(axis=1) >= request.min_transmission
+    ok &= motion.transmission_output.min(axis=1) >= request.min_transmission
     ok &= output_may_meet(request, psi)
     # the figures' link ratio, clearance and torque arm are read off the positions of their
     # grid — this one: exact tests, not bounds
@@ -204,7 +220,9 @@ def output_may_meet(request: Request, psi: np.ndarray) -> np.ndarray:
     ok = np.ones(psi.shape[0], bool)
     if request.swing is not None:
         swing = psi.max(axis=1) - psi.min(axis=1)
-        ok &= (swing <= request.swing + request.swing_tol) & (swing + 2 * _stray(psi) >= request.swing - request.swing_tol)
+        ok &= (swing <= request.swing + request.swing_tol) & (
+            swing + 2 * _stray(psi) >= request.swing - request.swing_tol
+        )
     shortest, longest = dwell_runs(request, psi.shape[1])
     if shortest >= 2:
         ok &= within_band(psi, shortest, request.band)
@@ -219,8 +237,10 @@ def dwell_runs(request: Request, samples: int) -> tuple[int, int]:
     (tested from 2 on), and ⌈(dwell + tol)/h⌉ + 2 that none within the narrowed band may
     (tested below ``samples``)."""
     h = 2 * math.pi / samples
-    return (math.floor((request.dwell - request.dwell_tol) / h) - 1,
-            math.ceil((request.dwell + request.dwell_tol) / h) + 2)
+    return (
+        math.floor((request.dwell - request.dwell_tol) / h) - 1,
+        math.ceil((request.dwell + request.dwell_tol) / h) + 2,
+    )
 
 
 #: Separates a refined candidate's id from the id of the six-bar it was refined from.
@@ -228,8 +248,9 @@ REFINED_MARK = "~"
 _FLAG_BRANCH, _FLAG_DYAD_BRANCH, _FLAG_RRR = 1, 2, 4
 
 
-def candidate_id(segment_id: int, output: str, slot: int, level: int, swing: float | None,
-                 dimensions: SixBar | None = None) -> str:
+def candidate_id(
+    segment_id: int, output: str, slot: int, level: int, swing: float | None, dimensions: SixBar | None = None
+) -> str:
     """``<segment>-<rpr|rrr|dbl><slot>.<level>@<swing°>``: enough to rebuild the six-bar from
     the atlas (the fit is deterministic; ``slot`` indexes the fit's candidates, found or not;
     ``level`` is the tolerance level whose fitted line or circle was used). A refined six-bar
@@ -284,7 +305,7 @@ def encode_dimensions(sixbar: SixBar) -> str:
     7 significant digits): :func:`round_dimensions` gives what the text holds."""
     dy = sixbar.dyad
     rrr = dy.kind == OutputKind.RRR
-    flags = (_FLAG_BRANCH * (sixbar.branch == -1) | _FLAG_DYAD_BRANCH * (dy.branch == -1) | _FLAG_RRR * rrr)
+    flags = _FLAG_BRANCH * (sixbar.branch == -1) | _FLAG_DYAD_BRANCH * (dy.branch == -1) | _FLAG_RRR * rrr
     values = dimension_vector(sixbar)[: 9 if rrr else 7]
     raw = struct.pack(f">B{len(values)}f", flags, *values)
     return base64.urlsafe_b64encode(raw).decode("ascii").rstrip("=")
@@ -315,8 +336,10 @@ def dimension_vector(sixbar: SixBar) -> list[float]:
     """A six-bar's free dimensions over its crank: b, c, d, u, v, D.x, D.y, L, ρ (L = ρ = 0 for
     an RPR) — what an id carries and what refinement varies."""
     dy, a = sixbar.dyad, sixbar.a
-    return [x / a for x in (sixbar.b, sixbar.c, sixbar.d, sixbar.u, sixbar.v, dy.pivot.real, dy.pivot.imag,
-                            dy.rocker, dy.rod)]
+    return [
+        x / a
+        for x in (sixbar.b, sixbar.c, sixbar.d, sixbar.u, sixbar.v, dy.pivot.real, dy.pivot.imag, dy.rocker, dy.rod)
+    ]
 
 
 def sixbar_from_vector(p, branch: int, dyad_branch: int, rrr: bool) -> SixBar:
@@ -363,6 +386,4 @@ def rank(request: Request, candidates: list[Candidate]) -> list[Candidate]:
     score = (obj + np.array([0.0, 0.0, math.pi / 2, 0.0, 0.0])) / scale
     total = np.round(score.sum(axis=1), 10)
     order = sorted(range(len(candidates)), key=lambda i: (layer[i], total[i], candidates[i].id))
-    return [
-        dataclasses.replace(candidates[i], rank=r + 1) for r, i in enumerate(order)
-    ]
+    return [dataclasses.replace(candidates[i], rank=r + 1) for r, i in enumerate(order)]

@@ -15,7 +15,6 @@ from synth.query.fitting import fit_arrays, fits_of, prescreen
 from synth.query.segment_rows import SegmentRow
 from synth.query.windows import kinds_for
 
-
 #: (segment, level) rows the complete search reads, fits and simulates at a time.
 BATCH = 4000
 
@@ -39,8 +38,9 @@ def fit_key(request: Request) -> tuple:
     return (kinds_for(request), request.swing, request.min_transmission, request.max_link_ratio)
 
 
-def search_batch(job: tuple[Sequence[Request], str, Sequence[SegmentRow]]
-                 ) -> tuple[list[list[Candidate]], int, int, list[int]]:
+def search_batch(
+    job: tuple[Sequence[Request], str, Sequence[SegmentRow]],
+) -> tuple[list[list[Candidate]], int, int, list[int]]:
     """One batch of :func:`search_many`: ``job = (requests, kind, rows)`` → per request the
     six-bars that meet it, then the rows, the fitted dyads and per request the simulated
     six-bars. The dyads are fitted once for all the requests (they share :func:`fit_key`).
@@ -55,9 +55,13 @@ def search_batch(job: tuple[Sequence[Request], str, Sequence[SegmentRow]]
     return met, len(rows), fits.index.size, simulated
 
 
-def search(request: Request, source: SegmentSource, *,
-           on_progress: Callable[[int, int], None] | None = None,
-           map_batches: BatchMap | None = None) -> tuple[list[Candidate], SearchCount]:
+def search(
+    request: Request,
+    source: SegmentSource,
+    *,
+    on_progress: Callable[[int, int], None] | None = None,
+    map_batches: BatchMap | None = None,
+) -> tuple[list[Candidate], SearchCount]:
     """Every six-bar the atlas yields for ``request`` that meets it, unranked (in the
     crank-normalised fit's terms, scaled to ``request.crank``).
 
@@ -74,22 +78,34 @@ def search(request: Request, source: SegmentSource, *,
     return search_many([request], source, on_progress=on_progress, map_batches=map_batches)[0]
 
 
-def search_many(requests: Sequence[Request], source: SegmentSource, *,
-                on_progress: Callable[[int, int], None] | None = None,
-                map_batches: BatchMap | None = None) -> list[tuple[list[Candidate], SearchCount]]:
+def search_many(
+    requests: Sequence[Request],
+    source: SegmentSource,
+    *,
+    on_progress: Callable[[int, int], None] | None = None,
+    map_batches: BatchMap | None = None,
+) -> list[tuple[list[Candidate], SearchCount]]:
     """:func:`search` for several requests with one :func:`fit_key` (say, every dwell of one
     swing): one walk of the atlas, each row fitted once; per request the same answer as its
     own :func:`search`."""
     requests = list(requests)
     if not requests or any(fit_key(r) != fit_key(requests[0]) for r in requests):
-        raise ValueError("search_many needs one or more requests with the same kinds, swing, transmission and link ratio")
+        raise ValueError(
+            "search_many needs one or more requests with the same kinds, swing, transmission and link ratio"
+        )
     first = requests[0]
-    limits = {"min_transmission": first.min_transmission, "max_length": first.max_link_ratio,
-              "min_radius_ratio": 1.0 / first.max_link_ratio}
+    limits = {
+        "min_transmission": first.min_transmission,
+        "max_length": first.max_link_ratio,
+        "min_radius_ratio": 1.0 / first.max_link_ratio,
+    }
     jobs = [(kind, lv) for kind in kinds_for(first) for lv, _ in source.tolerance_levels()]
     total = sum(source.count_segments(kind, lv, **limits) for kind, lv in jobs)
-    batches = ((tuple(requests), kind, rows) for kind, lv in jobs
-               for rows in source.scan_segments(kind, lv, batch=BATCH, **limits))
+    batches = (
+        (tuple(requests), kind, rows)
+        for kind, lv in jobs
+        for rows in source.scan_segments(kind, lv, batch=BATCH, **limits)
+    )
     out: list[list[Candidate]] = [[] for _ in requests]
     simulated = [0] * len(requests)
     rows_n = fitted_n = 0

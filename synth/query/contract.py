@@ -35,8 +35,15 @@ class SegmentSource(Protocol):
     def tolerance_levels(self) -> list[tuple[int, float]]:
         """(level, path tolerance in crank lengths) pairs, in level order."""
 
-    def select_segments(self, kinds: tuple[SegmentKind, ...], windows: Sequence[DwellWindow], *,
-                        min_transmission: float, max_length: float, min_radius_ratio: float) -> list[SegmentRow]:
+    def select_segments(
+        self,
+        kinds: tuple[SegmentKind, ...],
+        windows: Sequence[DwellWindow],
+        *,
+        min_transmission: float,
+        max_length: float,
+        min_radius_ratio: float,
+    ) -> list[SegmentRow]:
         """Segments of ``kinds`` whose dwell key lies in one of ``windows`` (each window's
         closest first, a segment once, at the level of its first match), of linkages whose
         transmission angle stays ≥ ``min_transmission`` (rad) and whose links are ≤
@@ -50,13 +57,22 @@ class SegmentSource(Protocol):
     def nearest_dwell_angles(self, kinds: tuple[SegmentKind, ...], target: float) -> tuple[float | None, float | None]:
         """The stored dwell angles (rad) of ``kinds`` just below and just above ``target``."""
 
-    def scan_segments(self, kind: SegmentKind, level: int, *, min_transmission: float, max_length: float,
-                      min_radius_ratio: float, batch: int) -> Iterator[SegmentBatch]:
+    def scan_segments(
+        self,
+        kind: SegmentKind,
+        level: int,
+        *,
+        min_transmission: float,
+        max_length: float,
+        min_radius_ratio: float,
+        batch: int,
+    ) -> Iterator[SegmentBatch]:
         """Every segment of ``kind`` with a dwell at ``level`` (filtered as in
         :meth:`select_segments`), in batches of up to ``batch`` rows as columns."""
 
-    def count_segments(self, kind: SegmentKind, level: int, *, min_transmission: float, max_length: float,
-                       min_radius_ratio: float) -> int:
+    def count_segments(
+        self, kind: SegmentKind, level: int, *, min_transmission: float, max_length: float, min_radius_ratio: float
+    ) -> int:
         """How many segments :meth:`scan_segments` yields."""
 
 

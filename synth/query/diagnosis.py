@@ -14,6 +14,7 @@ from collections.abc import Sequence
 from synth.kinds import SegmentKind
 from synth.mechanism.figures import SixBarFigures, figures_with_dwell_bounds, footprints
 from synth.mechanism.output_range import Dwell
+from synth.mechanism.sixbar import SixBars
 from synth.query.candidates import Request
 from synth.query.contract import SegmentSource
 from synth.query.evaluate import (
@@ -25,7 +26,6 @@ from synth.query.evaluate import (
     total_excess,
     violations,
 )
-from synth.mechanism.sixbar import SixBars
 from synth.query.fitting import Fitted
 from synth.query.result import CONSTRAINTS, NoMatch
 from synth.query.windows import select
@@ -65,8 +65,9 @@ def _loosened(request: Request, f: SixBarFigures) -> Request:
         return request
 
 
-def misses_of(request: Request, fitted: Sequence[Fitted], known: dict[tuple, SixBarFigures] | None = None
-              ) -> list[tuple[float, Fitted, SixBarFigures, dict]]:
+def misses_of(
+    request: Request, fitted: Sequence[Fitted], known: dict[tuple, SixBarFigures] | None = None
+) -> list[tuple[float, Fitted, SixBarFigures, dict]]:
     """Every fitted six-bar with its figures (no footprint; ``known``: figures at hand by
     :attr:`~synth.query.fitting.Fitted.key`) and excesses over the limits (:func:`violations`), nearest first by
     their sum (inf for one that does not assemble)."""
@@ -74,8 +75,11 @@ def misses_of(request: Request, fitted: Sequence[Fitted], known: dict[tuple, Six
         return []
     known = known or {}
     rest = [f for f in fitted if f.key not in known]
-    computed = (dict(zip((f.key for f in rest), figures_of(request, [f.sixbar() for f in rest], footprint=False)))
-                if rest else {})
+    computed = (
+        dict(zip((f.key for f in rest), figures_of(request, [f.sixbar() for f in rest], footprint=False)))
+        if rest
+        else {}
+    )
     out = []
     for fit_ in fitted:
         fig = known[fit_.key] if fit_.key in known else computed[fit_.key]
@@ -84,8 +88,9 @@ def misses_of(request: Request, fitted: Sequence[Fitted], known: dict[tuple, Six
     return sorted(out, key=lambda t: t[0])  # stable: ties keep the fit order
 
 
-def diagnose(request: Request, fitted: Sequence[Fitted],
-             misses: list[tuple[float, Fitted, SixBarFigures, dict]] | None = None) -> NoMatch:
+def diagnose(
+    request: Request, fitted: Sequence[Fitted], misses: list[tuple[float, Fitted, SixBarFigures, dict]] | None = None
+) -> NoMatch:
     """Why none of ``fitted`` meets ``request`` (see :class:`NoMatch`); simulates them all
     unless their :func:`misses_of` are given."""
     rejected = dict.fromkeys(CONSTRAINTS, 0)
@@ -100,8 +105,9 @@ def diagnose(request: Request, fitted: Sequence[Fitted],
     return dataclasses.replace(found, reach=_reach(request, misses))
 
 
-def unfitted_reach(request: Request, source: SegmentSource, kinds: tuple[SegmentKind, ...]
-                   ) -> tuple[str, float, float] | None:
+def unfitted_reach(
+    request: Request, source: SegmentSource, kinds: tuple[SegmentKind, ...]
+) -> tuple[str, float, float] | None:
     """:attr:`NoMatch.reach` of a request whose sample held no segment: the four-bars'
     transmission angle, when the sample without that limit holds segments — with the largest
     smallest transmission angle (°) among their four-bars (RRR 10° at a 30° swing on
@@ -111,15 +117,22 @@ def unfitted_reach(request: Request, source: SegmentSource, kinds: tuple[Segment
     rows = select(source, dataclasses.replace(request, min_transmission=0.0), kinds)
     if not rows:
         return None
-    return ("transmission", math.degrees(max(r.fourbar_transmission_min for r in rows)),
-            math.degrees(request.min_transmission))
+    return (
+        "transmission",
+        math.degrees(max(r.fourbar_transmission_min for r in rows)),
+        math.degrees(request.min_transmission),
+    )
 
 
-def _reach(request: Request, misses: list[tuple[float, Fitted, SixBarFigures, dict]]
-           ) -> tuple[str, float, float] | None:
+def _reach(
+    request: Request, misses: list[tuple[float, Fitted, SixBarFigures, dict]]
+) -> tuple[str, float, float] | None:
     """:attr:`NoMatch.reach` of ``misses`` (:func:`misses_of`, nearest first)."""
-    alone = [(next(k for k, x in excess.items() if x > 0), fig) for total, _, fig, excess in misses
-             if total < math.inf and sum(x > 0 for x in excess.values()) == 1]
+    alone = [
+        (next(k for k, x in excess.items() if x > 0), fig)
+        for total, _, fig, excess in misses
+        if total < math.inf and sum(x > 0 for x in excess.values()) == 1
+    ]
     if not alone:
         return None
     key = alone[0][0]
@@ -130,7 +143,11 @@ def _reach(request: Request, misses: list[tuple[float, Fitted, SixBarFigures, di
         return deg(min(values, key=lambda v: abs(v - target)))
 
     if key == "dwell":
-        return key, nearest([d.angle for f in figs for d in f.dwells[: request.dwells]], request.dwell), deg(request.dwell)
+        return (
+            key,
+            nearest([d.angle for f in figs for d in f.dwells[: request.dwells]], request.dwell),
+            deg(request.dwell),
+        )
     if key == "swing":
         return key, nearest([f.swing for f in figs], request.swing), deg(request.swing)
     if key == "step":
@@ -147,8 +164,9 @@ def _reach(request: Request, misses: list[tuple[float, Fitted, SixBarFigures, di
     return key, max(f.build.clearance for f in figs), request.min_clearance
 
 
-def _no_match(request: Request, fitted: int, rejected: dict[str, int],
-              nearest: tuple[Fitted, SixBarFigures] | None) -> NoMatch:
+def _no_match(
+    request: Request, fitted: int, rejected: dict[str, int], nearest: tuple[Fitted, SixBarFigures] | None
+) -> NoMatch:
     if nearest is None:
         return NoMatch(fitted, rejected, None, None)
     fit_, fig = nearest
@@ -158,8 +176,9 @@ def _no_match(request: Request, fitted: int, rejected: dict[str, int],
     return NoMatch(fitted, rejected, dataclasses.replace(candidate_of(loose, fit_, fig), rank=1), loose)
 
 
-def diagnose_by_bounds(request: Request, fitted: Sequence[Fitted],
-                       known: dict[tuple, SixBarFigures] | None = None) -> NoMatch:
+def diagnose_by_bounds(
+    request: Request, fitted: Sequence[Fitted], known: dict[tuple, SixBarFigures] | None = None
+) -> NoMatch:
     """:func:`diagnose`, the same :class:`NoMatch`, refining the dwell ends only of the
     six-bars whose dwell decides something (single dwells; a double dwell is diagnosed by
     :func:`diagnose`).
@@ -175,16 +194,18 @@ def diagnose_by_bounds(request: Request, fitted: Sequence[Fitted],
     if request.dwells != 1 or not fitted:
         return diagnose(request, fitted, misses_of(request, fitted, known))
     rest = [k for k, f in enumerate(fitted) if f.key not in known]
-    excess: dict[int, dict[str, float]] = {k: violations(request, known[f.key])
-                                          for k, f in enumerate(fitted) if f.key in known}
+    excess: dict[int, dict[str, float]] = {
+        k: violations(request, known[f.key]) for k, f in enumerate(fitted) if f.key in known
+    }
     figures = {k: known[f.key] for k, f in enumerate(fitted) if f.key in known}
     low_total: dict[int, float] = {}
     high_total: dict[int, float] = {}
     undecided: list[int] = []
     bound: dict[int, dict[str, float]] = {}  # excesses of the decided ones (dwell: its lower bound)
     if rest:
-        rough, low, high = figures_with_dwell_bounds(SixBars.from_sixbars([fitted[k].sixbar() for k in rest]),
-                                                     band=request.band, samples=SAMPLES)
+        rough, low, high = figures_with_dwell_bounds(
+            SixBars.from_sixbars([fitted[k].sixbar() for k in rest]), band=request.band, samples=SAMPLES
+        )
         for j, k in enumerate(rest):
             nearest = min(max(request.dwell, low[j]), high[j])  # the excess is convex in the angle
             least = violations(request, dataclasses.replace(rough[j], dwells=(Dwell(0.0, nearest, nearest),)))
@@ -240,7 +261,13 @@ def either_no_match(request: Request, diagnoses: Sequence[NoMatch | None]) -> No
     if reach is not None:  # the best figure of both types on that constraint
         mine = [r[1] for r in reaches if r[0] == reach[0]]
         pick = {"transmission": max, "arm": max, "clearance": max, "link_ratio": min, "acceleration": min}.get(
-            reach[0], lambda xs: min(xs, key=lambda x: abs(x - reach[2])))
+            reach[0], lambda xs: min(xs, key=lambda x: abs(x - reach[2]))
+        )
         reach = (reach[0], pick(mine), reach[2])
-    return NoMatch(sum(d.fitted for d in known), rejected, None if best is None else best.nearest,
-                   None if best is None else dataclasses.replace(best.would_meet, output=request.output), reach)
+    return NoMatch(
+        sum(d.fitted for d in known),
+        rejected,
+        None if best is None else best.nearest,
+        None if best is None else dataclasses.replace(best.would_meet, output=request.output),
+        reach,
+    )

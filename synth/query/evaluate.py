@@ -20,7 +20,6 @@ from synth.query.candidates import Candidate, Request, candidate_id, screen
 from synth.query.fitting import Fitted
 from synth.query.result import CONSTRAINTS
 
-
 #: Crank samples of the exact simulation (0.5°); the figures refine beyond it.
 SAMPLES = 720
 
@@ -40,8 +39,9 @@ def violations(request: Request, f: SixBarFigures) -> dict[str, float]:
         out["swing"] = max(0.0, math.degrees(abs(f.swing - request.swing) - request.swing_tol))
     if request.step is not None:
         out["step"] = max(0.0, math.degrees(abs(f.step - request.step) - request.swing_tol))
-    out["transmission"] = max(0.0, math.degrees(request.min_transmission
-                                                - min(f.transmission_fourbar, f.transmission_output)))
+    out["transmission"] = max(
+        0.0, math.degrees(request.min_transmission - min(f.transmission_fourbar, f.transmission_output))
+    )
     out["link_ratio"] = max(0.0, 100.0 * (f.link_ratio / request.max_link_ratio - 1.0))
     b = f.build
     if b is not None:
@@ -94,15 +94,20 @@ def total_excess(excess: dict[str, float]) -> float:
 
 
 def scaled_figures(f: SixBarFigures, scale: float) -> SixBarFigures:
-    return dataclasses.replace(f, footprint=f.footprint * scale**2, bounds=tuple(x * scale for x in f.bounds),
-                               build=None if f.build is None else f.build.scaled(scale))
+    return dataclasses.replace(
+        f,
+        footprint=f.footprint * scale**2,
+        bounds=tuple(x * scale for x in f.bounds),
+        build=None if f.build is None else f.build.scaled(scale),
+    )
 
 
 def candidate_of(request: Request, fitted: Fitted, f: SixBarFigures) -> Candidate:
     r = fitted.row
     return Candidate(
-        id=candidate_id(r.segment_id, fitted.output, fitted.slot, r.level, request.swing,
-                        fitted.sixbar() if fitted.moved else None),
+        id=candidate_id(
+            r.segment_id, fitted.output, fitted.slot, r.level, request.swing, fitted.sixbar() if fitted.moved else None
+        ),
         segment_id=r.segment_id,
         sixbar=fitted.sixbar().scaled(request.crank),
         figures=scaled_figures(f, request.crank),
@@ -111,8 +116,15 @@ def candidate_of(request: Request, fitted: Fitted, f: SixBarFigures) -> Candidat
 
 
 def figures_of(request: Request, sixbars: list[SixBar], *, footprint: bool = True) -> list[SixBarFigures]:
-    return sixbar_figures(SixBars.from_sixbars(sixbars), band=request.band, dwell_length=request.dwell,
-                          dwells=request.dwells, samples=SAMPLES, footprint=footprint, leave=request.swing_tol)
+    return sixbar_figures(
+        SixBars.from_sixbars(sixbars),
+        band=request.band,
+        dwell_length=request.dwell,
+        dwells=request.dwells,
+        samples=SAMPLES,
+        footprint=footprint,
+        leave=request.swing_tol,
+    )
 
 
 def simulate(request: Request, fitted: Sequence[Fitted]) -> tuple[list[Candidate], int]:

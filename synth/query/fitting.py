@@ -16,7 +16,6 @@ from synth.mechanism.sixbar import OutputDyad, SixBar, crank_grid
 from synth.query.candidates import Request, dwell_runs, round_dimensions
 from synth.query.segment_rows import SegmentBatch, SegmentRow
 
-
 #: Crank samples of the path the dyads are fitted to (1°): a fitted swing is within ~0.01° of
 #: the simulated one, which is what the request is checked against.
 FIT_SAMPLES = 360
@@ -93,8 +92,7 @@ class FitArrays:
     branch: np.ndarray | None = None
 
 
-def fit_arrays(request: Request, rows: Sequence[SegmentRow], kind: SegmentKind | str
-               ) -> tuple[FitArrays, np.ndarray]:
+def fit_arrays(request: Request, rows: Sequence[SegmentRow], kind: SegmentKind | str) -> tuple[FitArrays, np.ndarray]:
     """The dyads found for ``rows`` (all of kind ``kind``; a :class:`SegmentBatch` or a list of
     rows) and the rows' coupler-point paths on the fit's crank grid."""
     from synth.mechanism.dyad import fit_rpr, fit_rrr, rpr_double
@@ -110,8 +108,9 @@ def fit_arrays(request: Request, rows: Sequence[SegmentRow], kind: SegmentKind |
     point = batch.point(0)
     if kind == SegmentKind.DOUBLE_LINE:
         two = np.flatnonzero(batch.has_parts == 2)  # a double line holds both stretches at the level
-        found = rpr_double((point[two], batch.part(0, "direction")[two]),
-                           (batch.point(1)[two], batch.part(1, "direction")[two]))
+        found = rpr_double(
+            (point[two], batch.part(0, "direction")[two]), (batch.point(1)[two], batch.part(1, "direction")[two])
+        )
         (hit,) = np.nonzero(found.found)
         index = two[hit]
         return FitArrays(OutputTag.DOUBLE_RPR, index, np.zeros_like(index), found.pivot[hit], point[index]), paths
@@ -120,11 +119,20 @@ def fit_arrays(request: Request, rows: Sequence[SegmentRow], kind: SegmentKind |
         found = fit_rpr(point, batch.part(0, "direction"), phi, paths, interval, request.swing)
         index, slot = np.nonzero(found.found)  # row-major: row, then slot order
         return FitArrays(OutputTag.RPR, index, slot, found.pivot[index, slot], point[index]), paths
-    found = fit_rrr(point, batch.part(0, "radius"), phi, paths, interval, request.swing, request.min_transmission,
-                    keep=2)
+    found = fit_rrr(
+        point, batch.part(0, "radius"), phi, paths, interval, request.swing, request.min_transmission, keep=2
+    )
     index, slot = np.nonzero(found.found)
-    return FitArrays(OutputTag.RRR, index, slot, found.pivot[index, slot], point[index], found.rocker[index, slot],
-                      found.rod[index, slot], found.branch[index, slot]), paths
+    return FitArrays(
+        OutputTag.RRR,
+        index,
+        slot,
+        found.pivot[index, slot],
+        point[index],
+        found.rocker[index, slot],
+        found.rod[index, slot],
+        found.branch[index, slot],
+    ), paths
 
 
 def fits_of(rows: Sequence[SegmentRow], found: FitArrays, keep: np.ndarray | None = None) -> list[Fitted]:
@@ -136,8 +144,10 @@ def fits_of(rows: Sequence[SegmentRow], found: FitArrays, keep: np.ndarray | Non
     if found.output != OutputTag.RRR:
         return [Fitted(rows[i], found.output, k, OutputDyad.rpr(D)) for i, k, D in zip(index, slot, pivot)]
     rocker, rod, branch, rest = (x[pick].tolist() for x in (found.rocker, found.rod, found.branch, found.point))
-    return [Fitted(rows[i], OutputTag.RRR, k, OutputDyad.rrr(D, L, rho, int(br)), Q)
-            for i, k, D, L, rho, br, Q in zip(index, slot, pivot, rocker, rod, branch, rest)]
+    return [
+        Fitted(rows[i], OutputTag.RRR, k, OutputDyad.rrr(D, L, rho, int(br)), Q)
+        for i, k, D, L, rho, br, Q in zip(index, slot, pivot, rocker, rod, branch, rest)
+    ]
 
 
 def prescreen(request: Request, found: FitArrays, paths: np.ndarray) -> np.ndarray:
@@ -152,8 +162,9 @@ def prescreen(request: Request, found: FitArrays, paths: np.ndarray) -> np.ndarr
     arc centre (RRR) seen from D, and unwrapped along the turn."""
     if not found.index.size:
         return np.zeros(0, bool)
-    links = (None if found.output != OutputTag.RRR else
-             tuple(x[:, None] for x in (found.rod, found.rocker, found.branch)))
+    links = (
+        None if found.output != OutputTag.RRR else tuple(x[:, None] for x in (found.rod, found.rocker, found.branch))
+    )
     return _output_screen(request, paths[found.index], found.pivot[:, None], found.point[:, None], links)
 
 
@@ -167,8 +178,13 @@ def _rrr_links(fitted: Sequence[Fitted]) -> tuple[np.ndarray, np.ndarray, np.nda
     return tuple(np.array([getattr(f.dyad, k) for f in fitted])[:, None] for k in ("rod", "rocker", "branch"))
 
 
-def _output_screen(request: Request, P: np.ndarray, D: np.ndarray, rest: np.ndarray,
-                   rrr: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+def _output_screen(
+    request: Request,
+    P: np.ndarray,
+    D: np.ndarray,
+    rest: np.ndarray,
+    rrr: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+) -> np.ndarray:
     """:func:`prescreen`'s tests for coupler points ``P`` (n, M) on the fit's crank grid,
     output pivots ``D`` and references ``rest`` (n, 1): a slot's angle (``rrr`` None) or, with
     ``rrr`` = (rod, rocker, branch), the rocker's, Q from the loop's circle intersection, which
@@ -194,8 +210,14 @@ def reseat(request: Request, fitted: Sequence[Fitted]) -> list[Fitted]:
         return []
     paths = coupler_paths([f.row for f in fitted], crank_grid(FIT_SAMPLES))
     rest = np.array([_reference(f) for f in fitted])
-    reach = np.array([f.dyad.rocker if f.dyad.kind == OutputKind.RRR else
-                      np.mean([abs(f.dyad.pivot - p.point) for p in f.row.parts]) for f in fitted])
+    reach = np.array(
+        [
+            f.dyad.rocker
+            if f.dyad.kind == OutputKind.RRR
+            else np.mean([abs(f.dyad.pivot - p.point) for p in f.row.parts])
+            for f in fitted
+        ]
+    )
     pivots = pivots_around(np.array([f.dyad.pivot for f in fitted]), reach)  # (n, K)
     rrr = np.array([f.dyad.kind == OutputKind.RRR for f in fitted])
     links = _rrr_links(fitted)  # every fit's (an RPR's are unused), read once
@@ -208,8 +230,13 @@ def reseat(request: Request, fitted: Sequence[Fitted]) -> list[Fitted]:
             of_kind = np.flatnonzero(rrr[i] == kind)
             for b in (of_kind[s : s + _BLOCK] for s in range(0, of_kind.size, _BLOCK)):
                 fits = i[b]
-                ok[b] = _output_screen(request, paths[fits, ::every], pivots[fits, k[b]][:, None], rest[fits, None],
-                                       tuple(x[fits] for x in links) if kind else None)
+                ok[b] = _output_screen(
+                    request,
+                    paths[fits, ::every],
+                    pivots[fits, k[b]][:, None],
+                    rest[fits, None],
+                    tuple(x[fits] for x in links) if kind else None,
+                )
         return ok
 
     # first on a 4° grid, then the survivors on the fit's 1° grid
@@ -221,9 +248,14 @@ def reseat(request: Request, fitted: Sequence[Fitted]) -> list[Fitted]:
     # a search, not a bound: the screen ran on the dimensions before the rounding to the id's.
     # Where a moved RRR rests is not known before its simulation (its reference direction,
     # the arc's centre, stays the row's).
-    return [_as_stored(dataclasses.replace(fitted[i], dyad=dataclasses.replace(fitted[i].dyad, pivot=complex(pivots[i, k])),
-                                           rest=None, moved=True))
-            for i, k in zip(*np.nonzero(keep))]
+    return [
+        _as_stored(
+            dataclasses.replace(
+                fitted[i], dyad=dataclasses.replace(fitted[i].dyad, pivot=complex(pivots[i, k])), rest=None, moved=True
+            )
+        )
+        for i, k in zip(*np.nonzero(keep))
+    ]
 
 
 def _as_stored(fitted: Fitted) -> Fitted:

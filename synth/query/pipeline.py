@@ -26,7 +26,6 @@ from synth.query.result import NoMatch, QueryResult
 from synth.query.segment_rows import SegmentRow
 from synth.query.windows import PER_LEVEL, kinds_for, select
 
-
 #: An answer with fewer candidates than this (or than ``--top``) is topped up from the
 #: nearest misses, refined to meet the request (with refinement on).
 FILL = 3
@@ -54,10 +53,14 @@ RESEAT_LONGER = (2.0, 4.0)
 RESEAT_BATCH = 128
 
 
-def answer(request: Request, source: SegmentSource, *,
-           on_progress: Callable[[int, int], None] | None = None,
-           map_batches: BatchMap | None = None,
-           searched: tuple[list[Candidate], SearchCount] | None = None) -> QueryResult:
+def answer(
+    request: Request,
+    source: SegmentSource,
+    *,
+    on_progress: Callable[[int, int], None] | None = None,
+    map_batches: BatchMap | None = None,
+    searched: tuple[list[Candidate], SearchCount] | None = None,
+) -> QueryResult:
     """Ranked candidates for ``request`` from ``source`` (a pure read): from the sample of
     segments :func:`select` takes, or with ``request.complete`` from every six-bar the atlas
     yields (:func:`search`, which reports ``on_progress`` and runs its batches through
@@ -83,10 +86,14 @@ class _Answered:
     reseated: frozenset[str]
 
 
-def _best_of_both(request: Request, source: SegmentSource, *,
-                  on_progress: Callable[[int, int], None] | None,
-                  map_batches: BatchMap | None,
-                  searched: tuple[list[Candidate], SearchCount] | None) -> QueryResult:
+def _best_of_both(
+    request: Request,
+    source: SegmentSource,
+    *,
+    on_progress: Callable[[int, int], None] | None,
+    map_batches: BatchMap | None,
+    searched: tuple[list[Candidate], SearchCount] | None,
+) -> QueryResult:
     """``request`` (``output="any"``, one dwell) answered as RPR and as RRR, then the best
     ``request.top`` of the union of the two answers by :func:`~synth.query.candidates.rank` (Pareto
     layer, score, id, over the union: a six-bar's layer depends on what it is ranked with).
@@ -101,10 +108,19 @@ def _best_of_both(request: Request, source: SegmentSource, *,
         if searched is not None:
             found, count = searched
             met = [c for c in found if c.sixbar.dyad.kind == output.dyad]
-            mine = (met, dataclasses.replace(count, met=len(met)) if output == OutputTag.RPR
-                    else SearchCount(met=len(met)))
-        parts.append(_answer_one(dataclasses.replace(request, output=output.value), source, on_progress=on_progress,
-                                 map_batches=map_batches, searched=mine))
+            mine = (
+                met,
+                dataclasses.replace(count, met=len(met)) if output == OutputTag.RPR else SearchCount(met=len(met)),
+            )
+        parts.append(
+            _answer_one(
+                dataclasses.replace(request, output=output.value),
+                source,
+                on_progress=on_progress,
+                map_batches=map_batches,
+                searched=mine,
+            )
+        )
     t = time.perf_counter()
     top = rank(request, [c for p in parts for c in p.result.candidates])[: request.top]
     clock: dict[str, float] = {}
@@ -118,12 +134,19 @@ def _best_of_both(request: Request, source: SegmentSource, *,
     above = [r.nearest[1] for r in results if r.nearest[1] is not None]
     nearest = (None, None) if top else (max(below, default=None), min(above, default=None))
     ids = {c.id for c in top}
-    return QueryResult(request, top, sum(r.considered for r in results), sum(r.simulated for r in results),
-                       nearest, clock, no_match,
-                       (sum(r.refined[0] for r in results), sum(r.refined[1] for r in results)),
-                       from_misses=bool(top) and all(r.from_misses or not r.candidates for r in results),
-                       misses_met=sum(len(p.misses & ids) for p in parts),
-                       reseated=sum(len(p.reseated & ids) for p in parts))
+    return QueryResult(
+        request,
+        top,
+        sum(r.considered for r in results),
+        sum(r.simulated for r in results),
+        nearest,
+        clock,
+        no_match,
+        (sum(r.refined[0] for r in results), sum(r.refined[1] for r in results)),
+        from_misses=bool(top) and all(r.from_misses or not r.candidates for r in results),
+        misses_met=sum(len(p.misses & ids) for p in parts),
+        reseated=sum(len(p.reseated & ids) for p in parts),
+    )
 
 
 @dataclass(slots=True)
@@ -174,8 +197,9 @@ class Answering:
         return {(r.segment_id, r.level) for r in self.rows}
 
 
-def _sampled(state: Answering, per_level: int = PER_LEVEL, kinds: tuple[SegmentKind, ...] | None = None
-             ) -> list[Fitted]:
+def _sampled(
+    state: Answering, per_level: int = PER_LEVEL, kinds: tuple[SegmentKind, ...] | None = None
+) -> list[Fitted]:
     """The sample's rows and fits added to ``state`` (all of them are what a no-match is
     diagnosed and refined from); a wider sample adds the rows the narrower one did not have.
     Returns the new fits past the prescreen."""
@@ -222,8 +246,13 @@ def _moved_pivots(state: Answering, answered: list[Candidate]) -> list[Candidate
         if k > 1:
             if request.dwells * k * request.dwell >= 2 * math.pi:
                 break
-            longer = [r for r in select(state.source, dataclasses.replace(request, dwell=k * request.dwell),
-                                        state.kinds, WIDER * PER_LEVEL) if (r.segment_id, r.level) not in had]
+            longer = [
+                r
+                for r in select(
+                    state.source, dataclasses.replace(request, dwell=k * request.dwell), state.kinds, WIDER * PER_LEVEL
+                )
+                if (r.segment_id, r.level) not in had
+            ]
             had |= {(r.segment_id, r.level) for r in longer}
             origins = [f for kind in state.kinds for f in fit(request, [r for r in longer if r.kind == kind], kind)]
             if k == RESEAT_LONGER[0]:
@@ -296,8 +325,9 @@ def _fill_from_misses(state: Answering, top: list[Candidate], refined: tuple[int
         # as long miss it by a few degrees and are refined toward it with the others
         misses = sorted([*misses, *misses_of(request, state.longer_fits, state.known)], key=lambda m: m[0])
     t = time.perf_counter()
-    found, tried, better = refined_misses(request, misses, {c.id.split(REFINED_MARK)[0] for c in top},
-                                          min(FILL, request.top) - len(top))
+    found, tried, better = refined_misses(
+        request, misses, {c.id.split(REFINED_MARK)[0] for c in top}, min(FILL, request.top) - len(top)
+    )
     if found:
         top = _ranked(request, [*top, *toleranced(request, found)])
         miss_ids = frozenset(c.id for c in found) & {c.id for c in top}
@@ -306,18 +336,25 @@ def _fill_from_misses(state: Answering, top: list[Candidate], refined: tuple[int
     return _Filled(top, (refined[0] + tried, refined[1] + better), miss_ids, no_match)
 
 
-def _answer_one(request: Request, source: SegmentSource, *,
-                on_progress: Callable[[int, int], None] | None = None,
-                map_batches: BatchMap | None = None,
-                searched: tuple[list[Candidate], SearchCount] | None = None) -> _Answered:
+def _answer_one(
+    request: Request,
+    source: SegmentSource,
+    *,
+    on_progress: Callable[[int, int], None] | None = None,
+    map_batches: BatchMap | None = None,
+    searched: tuple[list[Candidate], SearchCount] | None = None,
+) -> _Answered:
     """:func:`answer` for one output type (or a double dwell): candidates (the complete
     search's or the sample's), ranked, the top refined, filled from the near misses while
     sparse, and diagnosed when empty."""
     t = time.perf_counter()
     state = Answering(request, source, kinds_for(request))
     if request.complete:
-        candidates, count = (searched if searched is not None else
-                             search(request, source, on_progress=on_progress, map_batches=map_batches))
+        candidates, count = (
+            searched
+            if searched is not None
+            else search(request, source, on_progress=on_progress, map_batches=map_batches)
+        )
         state.clock["search"] = time.perf_counter() - t
         considered, state.simulated = count.rows, count.simulated
     else:
@@ -350,6 +387,20 @@ def _answer_one(request: Request, source: SegmentSource, *,
             nearest = source.nearest_dwell_angles(state.kinds, request.dwell)
             no_match = dataclasses.replace(no_match, reach=unfitted_reach(request, source, state.kinds))
     reseated = frozenset(c.id for c in top if c.id.split(REFINED_MARK)[0] in state.moved_ids)
-    return _Answered(QueryResult(request, top, considered, state.simulated, nearest, state.clock, no_match,
-                                 filled.refined, from_misses=bool(top) and not met_in_atlas,
-                                 misses_met=len(filled.miss_ids), reseated=len(reseated)), filled.miss_ids, reseated)
+    return _Answered(
+        QueryResult(
+            request,
+            top,
+            considered,
+            state.simulated,
+            nearest,
+            state.clock,
+            no_match,
+            filled.refined,
+            from_misses=bool(top) and not met_in_atlas,
+            misses_met=len(filled.miss_ids),
+            reseated=len(reseated),
+        ),
+        filled.miss_ids,
+        reseated,
+    )

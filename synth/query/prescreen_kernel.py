@@ -117,8 +117,17 @@ def _screen(P, D, rest, rod, rocker, branch, rrr, has_swing, swing, swing_tol, b
         ok[i] = True
 
 
-def screen_outputs(P: np.ndarray, D: np.ndarray, rest: np.ndarray, rrr: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
-                   swing: float | None, swing_tol: float, band: float, shortest: int, longest: int) -> np.ndarray:
+def screen_outputs(
+    P: np.ndarray,
+    D: np.ndarray,
+    rest: np.ndarray,
+    rrr: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
+    swing: float | None,
+    swing_tol: float,
+    band: float,
+    shortest: int,
+    longest: int,
+) -> np.ndarray:
     """Which dyads may meet a request: coupler points ``P`` ``(n, M)`` on a uniform full-turn
     grid, output pivots ``D`` and references ``rest`` ``(n,)``, ``rrr`` = (rod, rocker, branch)
     ``(n,)`` for RRR dyads (None: slots); the request's swing (rad, None: any) and tolerance,
@@ -137,8 +146,22 @@ def screen_outputs(P: np.ndarray, D: np.ndarray, rest: np.ndarray, rrr: tuple[np
     s = 0.0 if swing is None else float(swing)
 
     def block(lo: int, hi: int) -> None:
-        _screen(P[lo:hi], D[lo:hi], rest[lo:hi], rod[lo:hi], rocker[lo:hi], branch[lo:hi], rrr is not None,
-                has_swing, s, float(swing_tol), float(band), int(shortest), int(longest), ok[lo:hi])
+        _screen(
+            P[lo:hi],
+            D[lo:hi],
+            rest[lo:hi],
+            rod[lo:hi],
+            rocker[lo:hi],
+            branch[lo:hi],
+            rrr is not None,
+            has_swing,
+            s,
+            float(swing_tol),
+            float(band),
+            int(shortest),
+            int(longest),
+            ok[lo:hi],
+        )
 
     over_rows(n, block, 40 * P.size)  # ~40 ns a sample (RRR), less where a dyad stops early
     return ok

@@ -37,9 +37,12 @@ def rebuild(ids: Sequence[str], source: SegmentSource, request: Request) -> list
             continue
         # a double dwell's id from before --swing was required holds no swing ("@free"): its
         # fit does not use one
-        req = dataclasses.replace(request, swing=request.swing if swing is None else swing,
-                                  dwells=2 if output == OutputTag.DOUBLE_RPR else 1,
-                                  output=(OutputTag.RRR if output == OutputTag.RRR else OutputTag.RPR).value)
+        req = dataclasses.replace(
+            request,
+            swing=request.swing if swing is None else swing,
+            dwells=2 if output == OutputTag.DOUBLE_RPR else 1,
+            output=(OutputTag.RRR if output == OutputTag.RRR else OutputTag.RPR).value,
+        )
         row = source.segment(seg_id, level)
         if row is None:
             raise RebuildError(f"no segment {seg_id} in this atlas (candidate {text!r})")
@@ -48,8 +51,15 @@ def rebuild(ids: Sequence[str], source: SegmentSource, request: Request) -> list
             fitted = [f for f in fit(req, [row], row.kind) if f.output == output and f.slot == slot]
             # whatever its figures — a fit a six-bar was moved or refined from may revolve, or
             # have one rest where two were asked —, but a six-bar that assembles and rests
-            cands = [candidate_of(req, f, fig) for f, fig in zip(fitted, figures_of(req, [f.sixbar() for f in fitted]))
-                     if fig.assembled and fig.dwells] if fitted else []
+            cands = (
+                [
+                    candidate_of(req, f, fig)
+                    for f, fig in zip(fitted, figures_of(req, [f.sixbar() for f in fitted]))
+                    if fig.assembled and fig.dwells
+                ]
+                if fitted
+                else []
+            )
             found = dataclasses.replace(cands[0], id=text.strip()) if cands else None
         if found is None:
             raise RebuildError(f"candidate {text!r} cannot be rebuilt from this atlas (no fit for that slot and level)")
@@ -72,5 +82,11 @@ def _rebuild_refined(text: str, dims: SixBar, source: SegmentSource, request: Re
         base = None
     rest = rest_position(dims, fig)
     s = request.crank
-    return Candidate(id=text.strip(), segment_id=seg_id, sixbar=dims.scaled(s), figures=scaled_figures(fig, s),
-                     dwell_position=None if rest is None else rest * s, refined_from=base)
+    return Candidate(
+        id=text.strip(),
+        segment_id=seg_id,
+        sixbar=dims.scaled(s),
+        figures=scaled_figures(fig, s),
+        dwell_position=None if rest is None else rest * s,
+        refined_from=base,
+    )

@@ -139,13 +139,25 @@ def _sixbar(p: np.ndarray, like: SixBar) -> SixBar:
 def _batch(p: np.ndarray, branch: np.ndarray, rpr: np.ndarray, dyad_branch: np.ndarray) -> SixBars:
     """Rows of dimension vectors (R, 9) as a batch (no validation: the box keeps lengths > 0)."""
     n = p.shape[0]
-    return SixBars(np.ones(n), p[:, 0], p[:, 1], p[:, 2], branch.astype(float), p[:, 3], p[:, 4], rpr,
-                   p[:, 5] + 1j * p[:, 6], np.where(rpr, 0.0, p[:, 7]), np.where(rpr, 0.0, p[:, 8]),
-                   dyad_branch.astype(float))
+    return SixBars(
+        np.ones(n),
+        p[:, 0],
+        p[:, 1],
+        p[:, 2],
+        branch.astype(float),
+        p[:, 3],
+        p[:, 4],
+        rpr,
+        p[:, 5] + 1j * p[:, 6],
+        np.where(rpr, 0.0, p[:, 7]),
+        np.where(rpr, 0.0, p[:, 8]),
+        dyad_branch.astype(float),
+    )
 
 
-def _objective(request: Request, p: np.ndarray, branch, rpr, dyad_branch, centres: np.ndarray,
-               bounds: np.ndarray, phi: np.ndarray) -> np.ndarray:
+def _objective(
+    request: Request, p: np.ndarray, branch, rpr, dyad_branch, centres: np.ndarray, bounds: np.ndarray, phi: np.ndarray
+) -> np.ndarray:
     """(R,) objective of the dimension rows ``p`` (R, 9) whose dwells should sit around crank
     angles ``centres`` (R, C) rad, held to ``bounds`` (R, 4: :func:`_bounds`) (see the module
     docstring); lower is better."""
@@ -172,15 +184,20 @@ def _bounds(request: Request, before: Sequence[SixBarFigures]) -> np.ndarray:
     for k, f in enumerate(before):
         if meets(request, f):
             error = max(abs(d.angle - request.dwell) for d in f.dwells[: request.dwells])
-            out[k] = (min(0.5 * request.dwell_tol, error), min(f.transmission_fourbar, f.transmission_output),
-                      min(cap, f.build.peak_rates[1]) if f.build is not None else cap, 0.0)
+            out[k] = (
+                min(0.5 * request.dwell_tol, error),
+                min(f.transmission_fourbar, f.transmission_output),
+                min(cap, f.build.peak_rates[1]) if f.build is not None else cap,
+                0.0,
+            )
         else:
             out[k] = (0.5 * request.dwell_tol, request.min_transmission, cap, _BAND_MARGIN)
     return out
 
 
-def _objective_rows(request: Request, batch: SixBars, rpr: np.ndarray, centres: np.ndarray, bounds: np.ndarray,
-                    phi: np.ndarray) -> np.ndarray:
+def _objective_rows(
+    request: Request, batch: SixBars, rpr: np.ndarray, centres: np.ndarray, bounds: np.ndarray, phi: np.ndarray
+) -> np.ndarray:
     margin, mu_floor, accel_cap, band_margin = bounds.T
     capped = np.isfinite(accel_cap)
     order = 2 if capped.any() else 0
@@ -192,16 +209,28 @@ def _objective_rows(request: Request, batch: SixBars, rpr: np.ndarray, centres: 
 
     band = request.band
     longest = 2 * math.pi - 2 * h
-    lengths = np.stack([np.clip(request.dwell - margin, 2 * h, longest), np.full(R, min(request.dwell, longest)),
-                        np.minimum(request.dwell + margin, longest)], axis=1)  # (R, 3)
+    lengths = np.stack(
+        [
+            np.clip(request.dwell - margin, 2 * h, longest),
+            np.full(R, min(request.dwell, longest)),
+            np.minimum(request.dwell + margin, longest),
+        ],
+        axis=1,
+    )  # (R, 3)
     C = centres.shape[1]
-    dev, _ = output_deviation(phi, np.broadcast_to(psi[:, None, None, :], (R, C, 3, M)),
-                              np.broadcast_to(centres[:, :, None], (R, C, 3)),
-                              np.broadcast_to(lengths[:, None, :], (R, C, 3)))
+    dev, _ = output_deviation(
+        phi,
+        np.broadcast_to(psi[:, None, None, :], (R, C, 3, M)),
+        np.broadcast_to(centres[:, :, None], (R, C, 3)),
+        np.broadcast_to(lengths[:, None, :], (R, C, 3)),
+    )
     objective = dev[:, :, 1].max(axis=1) / band
     excess = np.maximum(0.0, dev[:, :, 0] - (band * (1 - band_margin))[:, None]).sum(axis=1) / band
-    excess += np.where(request.dwell + margin < longest,
-                       np.maximum(0.0, (band * (1 + band_margin))[:, None] - dev[:, :, 2]).sum(axis=1) / band, 0.0)
+    excess += np.where(
+        request.dwell + margin < longest,
+        np.maximum(0.0, (band * (1 + band_margin))[:, None] - dev[:, :, 2]).sum(axis=1) / band,
+        0.0,
+    )
     if request.swing is not None:
         swing = psi.max(axis=1) - psi.min(axis=1)
         unit = max(request.swing_tol, math.radians(0.01))
@@ -236,8 +265,9 @@ def better_or_equal(request: Request, new: SixBarFigures, old: SixBarFigures) ->
 Evaluate = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
-def _descend(evaluate: Evaluate, start: np.ndarray, radius: float, iterations: int, population: int,
-             seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _descend(
+    evaluate: Evaluate, start: np.ndarray, radius: float, iterations: int, population: int, seed: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The polish: the batched elitist (1 + λ) evolution strategy of the module docstring, from
     x = 0 (the dimension rows ``start``, (K, 9)) for every candidate at once. Returns the steps
     x (K, 9) in the scaled space, the objective there and the six-bars each candidate simulated."""
@@ -273,8 +303,9 @@ def _descend(evaluate: Evaluate, start: np.ndarray, radius: float, iterations: i
     return x, fx, count
 
 
-def _reach(evaluate: Evaluate, start: np.ndarray, radius: float, iterations: int, population: int,
-           seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _reach(
+    evaluate: Evaluate, start: np.ndarray, radius: float, iterations: int, population: int, seed: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The reach: a CMA-ES per candidate (:func:`synth.query.batched_cma.cma_es`: all candidates'
     populations simulated in one call per iteration; box [−radius, radius]), from x = 0 at the
     dimension rows ``start`` (K, 9), until it is ``REACHED`` or stops. Each candidate's steps
@@ -288,15 +319,33 @@ def _reach(evaluate: Evaluate, start: np.ndarray, radius: float, iterations: int
     point), where an isotropic step size collapses; CMA-ES learns that valley's shape. At RRR
     150°/30° on ``standard`` the polish brought none of 16 misses to the request, this 13."""
     rngs = [np.random.default_rng([seed, *row.view(np.uint64).tolist()]) for row in start]
-    result = cma_es(evaluate, np.zeros_like(start), REACH_SIGMA * radius, rngs, population=population,
-                    iterations=iterations, box=radius, stop_below=REACHED, tol_sigma=1e-3 * radius)
+    result = cma_es(
+        evaluate,
+        np.zeros_like(start),
+        REACH_SIGMA * radius,
+        rngs,
+        population=population,
+        iterations=iterations,
+        box=radius,
+        stop_below=REACHED,
+        tol_sigma=1e-3 * radius,
+    )
     return result.x, result.f, result.evaluations
 
 
-def refine(request: Request, sixbars: Sequence[SixBar], before: Sequence[SixBarFigures], *,
-           reach: bool = False, radius: float = RADIUS, iterations: int = ITERATIONS,
-           population: int = POPULATION, samples: int = SAMPLES, check_samples: int = 720,
-           seed: int = 0) -> list[Refinement]:
+def refine(
+    request: Request,
+    sixbars: Sequence[SixBar],
+    before: Sequence[SixBarFigures],
+    *,
+    reach: bool = False,
+    radius: float = RADIUS,
+    iterations: int = ITERATIONS,
+    population: int = POPULATION,
+    samples: int = SAMPLES,
+    check_samples: int = 720,
+    seed: int = 0,
+) -> list[Refinement]:
     """Refine each six-bar of ``sixbars`` toward ``request`` (see the module docstring).
 
     Parameters
@@ -345,8 +394,9 @@ def refine(request: Request, sixbars: Sequence[SixBar], before: Sequence[SixBarF
     bounds = _bounds(request, [before[k] for k in rows])
     phi = crank_grid(samples)
 
-    def steps(search: Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray]], start: np.ndarray,
-              only: np.ndarray, *args) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def steps(
+        search: Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray]], start: np.ndarray, only: np.ndarray, *args
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``search`` run for the candidates ``only`` from their dimension rows in ``start``
         (K, 9), in the space scaled at them: every candidate's rows after it (the others as
         they were), its objective there (inf for the others) and the six-bars it simulated."""
@@ -383,8 +433,13 @@ def refine(request: Request, sixbars: Sequence[SixBar], before: Sequence[SixBarF
     if not moved:
         return out
     refined = [round_dimensions(_sixbar(p[k], sixbars[rows[k]])) for k in moved]
-    figures = sixbar_figures(SixBars.from_sixbars(refined), band=request.band, dwell_length=request.dwell,
-                             dwells=dwells, samples=check_samples)
+    figures = sixbar_figures(
+        SixBars.from_sixbars(refined),
+        band=request.band,
+        dwell_length=request.dwell,
+        dwells=dwells,
+        samples=check_samples,
+    )
     for k, sb, f in zip(moved, refined, figures):
         i = rows[k]
         old = out[i]

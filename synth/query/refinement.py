@@ -16,7 +16,6 @@ from synth.query.evaluate import candidate_of, distinct, figures_of, rest_positi
 from synth.query.fitting import Fitted
 from synth.query.refine import better_or_equal, refine
 
-
 #: Nearest misses refined toward a request that fewer than FILL six-bars met, this many at a
 #: time (nearest first), for at most MISS_ROUNDS rounds while the answer still holds fewer.
 MISSES = 16
@@ -30,12 +29,16 @@ def no_worse_than_fits(request: Request, moved: list[Candidate], answered: list[
     objective of the ranking (:func:`synth.query.refine.better_or_equal`) where that fit met the
     request itself (it is then among the ``answered``); beside a fit that missed, it is new."""
     met = {c.id: c.figures for c in answered}
-    return [c for c in moved
-            if (fit_ := met.get(c.id.split(REFINED_MARK)[0])) is None or better_or_equal(request, c.figures, fit_)]
+    return [
+        c
+        for c in moved
+        if (fit_ := met.get(c.id.split(REFINED_MARK)[0])) is None or better_or_equal(request, c.figures, fit_)
+    ]
 
 
-def with_origins(request: Request, found: list[Candidate], fitted: Sequence[Fitted],
-                 known: dict[tuple, SixBarFigures]) -> list[Candidate]:
+def with_origins(
+    request: Request, found: list[Candidate], fitted: Sequence[Fitted], known: dict[tuple, SixBarFigures]
+) -> list[Candidate]:
     """Reseated candidates (:func:`reseat`) with ``refined_from``: the figures of the fit they
     were moved from (``known`` by the fit's :attr:`~synth.query.fitting.Fitted.key`, or
     computed), in the user's units; and an
@@ -48,14 +51,23 @@ def with_origins(request: Request, found: list[Candidate], fitted: Sequence[Fitt
     if todo:
         computed = figures_of(request, [f.sixbar() for f in todo], footprint=False)
         known = {**known, **dict(zip((f.key for f in todo), computed))}
-    return [dataclasses.replace(c, refined_from=scaled_figures(known[base[c.id.split(REFINED_MARK)[0]].key], request.crank),
-                                dwell_position=rest_position(c.sixbar, c.figures))
-            for c in found]
+    return [
+        dataclasses.replace(
+            c,
+            refined_from=scaled_figures(known[base[c.id.split(REFINED_MARK)[0]].key], request.crank),
+            dwell_position=rest_position(c.sixbar, c.figures),
+        )
+        for c in found
+    ]
 
 
-def refined_candidates(request: Request, candidates: Sequence[Candidate],
-                       before: Sequence[SixBarFigures] | None = None, *, reach: bool = False
-                       ) -> tuple[list[Candidate], int]:
+def refined_candidates(
+    request: Request,
+    candidates: Sequence[Candidate],
+    before: Sequence[SixBarFigures] | None = None,
+    *,
+    reach: bool = False,
+) -> tuple[list[Candidate], int]:
     """``candidates`` (the user's units) refined toward ``request`` (:func:`synth.query.refine.refine`,
     its reach for near misses): the refined ones with their new id, six-bar and figures and
     ``refined_from``, the others as they were; and how many were refined. ``before``: their
@@ -72,15 +84,23 @@ def refined_candidates(request: Request, candidates: Sequence[Candidate],
             continue
         count += 1
         rest = rest_position(r.sixbar, r.figures)
-        out.append(dataclasses.replace(
-            c, id=with_dimensions(c.id, r.sixbar), sixbar=r.sixbar.scaled(s), figures=scaled_figures(r.figures, s),
-            # a reseated six-bar keeps the fit it was moved from as "before" (as a rebuild does)
-            dwell_position=None if rest is None else rest * s, refined_from=c.refined_from or c.figures))
+        out.append(
+            dataclasses.replace(
+                c,
+                id=with_dimensions(c.id, r.sixbar),
+                sixbar=r.sixbar.scaled(s),
+                figures=scaled_figures(r.figures, s),
+                # a reseated six-bar keeps the fit it was moved from as "before" (as a rebuild does)
+                dwell_position=None if rest is None else rest * s,
+                refined_from=c.refined_from or c.figures,
+            )
+        )
     return out, count
 
 
-def refined_misses(request: Request, misses: list[tuple[float, Fitted, SixBarFigures, dict]],
-                   taken: set[str], wanted: int) -> tuple[list[Candidate], int, int]:
+def refined_misses(
+    request: Request, misses: list[tuple[float, Fitted, SixBarFigures, dict]], taken: set[str], wanted: int
+) -> tuple[list[Candidate], int, int]:
     """The nearest distinct misses (:func:`miss_pool`, not one of the ``taken`` ids) refined
     toward ``request``, ``MISSES`` at a time, nearest first, until ``wanted`` distinct six-bars
     meet it or ``MISS_ROUNDS`` rounds are done: (those that now meet it, how many were tried,
@@ -89,8 +109,8 @@ def refined_misses(request: Request, misses: list[tuple[float, Fitted, SixBarFig
     met: list[Candidate] = []
     better = tried = 0
     for start in range(0, len(pool), MISSES):
-        part = pool[start:start + MISSES]
-        refined, improved = refined_candidates(request, part, figures[start:start + MISSES], reach=True)
+        part = pool[start : start + MISSES]
+        refined, improved = refined_candidates(request, part, figures[start : start + MISSES], reach=True)
         met += [c for c in refined if c.refined_from is not None]
         tried, better = tried + len(part), better + improved
         if len(distinct(met)) >= wanted:
@@ -98,8 +118,9 @@ def refined_misses(request: Request, misses: list[tuple[float, Fitted, SixBarFig
     return met, tried, better
 
 
-def miss_pool(request: Request, misses: list[tuple[float, Fitted, SixBarFigures, dict]], taken: set[str],
-              n: int) -> tuple[list[Candidate], list[SixBarFigures]]:
+def miss_pool(
+    request: Request, misses: list[tuple[float, Fitted, SixBarFigures, dict]], taken: set[str], n: int
+) -> tuple[list[Candidate], list[SixBarFigures]]:
     """The ``n`` nearest distinct ``misses`` (:func:`misses_of`' order; one per segment and
     output type, one of a mirror pair; none that does not assemble, none of the ``taken``
     ids) as candidates, with their figures crank-normalised (the candidates' own are in the

@@ -8,7 +8,6 @@ from dataclasses import dataclass
 
 from synth.query.candidates import Candidate, Request
 
-
 #: The request's constraints, in the order a no-match names them (see :func:`violations`).
 CONSTRAINTS = ("assembly", "dwell", "swing", "step", "transmission", "link_ratio", "arm", "clearance", "acceleration")
 

@@ -118,14 +118,30 @@ class SegmentBatch(Sequence[SegmentRow]):
     def _spelled(self, lo: int, hi: int) -> list[SegmentRow]:
         """Rows ``lo`` to ``hi`` (exclusive) as :class:`SegmentRow`: plain Python values
         (``tolist``), None for a NaN direction or radius."""
-        columns = [x[lo:hi].tolist() for x in (self.segment_id, self.level, self.tolerance, self.b, self.c, self.d,
-                                               self.branch, self.u, self.v, self.phi_gen,
-                                               self.fourbar_transmission_min, self.has_parts)]
+        columns = [
+            x[lo:hi].tolist()
+            for x in (
+                self.segment_id,
+                self.level,
+                self.tolerance,
+                self.b,
+                self.c,
+                self.d,
+                self.branch,
+                self.u,
+                self.v,
+                self.phi_gen,
+                self.fourbar_transmission_min,
+                self.has_parts,
+            )
+        ]
         parts = [p[lo:hi].tolist() for p in self.parts]
         out = []
         for k, (sid, level, tol, b, c, d, branch, u, v, phi_gen, mu, n_parts) in enumerate(zip(*columns)):
-            spelled = tuple(Part(s, e, x, y, None if dr != dr else dr, None if r != r else r)  # x != x: NaN
-                            for s, e, x, y, dr, r in (part[k] for part in parts[:n_parts]))
+            spelled = tuple(
+                Part(s, e, x, y, None if dr != dr else dr, None if r != r else r)  # x != x: NaN
+                for s, e, x, y, dr, r in (part[k] for part in parts[:n_parts])
+            )
             out.append(SegmentRow(sid, self.kind, level, tol, b, c, d, branch, u, v, phi_gen, spelled, mu))
         return out
 
@@ -153,14 +169,30 @@ class SegmentBatch(Sequence[SegmentRow]):
         width = max((len(r.parts) for r in rows), default=1) or 1
         nan = math.nan
         none = (nan,) * 6
-        parts = [np.array([(p[0], p[1], p[2], p[3], nan if p[4] is None else p[4], nan if p[5] is None else p[5])
-                           if (p := (r.parts[k] if k < len(r.parts) else None)) is not None else none for r in rows],
-                          np.float64).reshape(n, 6) for k in range(width)]
+        parts = [
+            np.array(
+                [
+                    (p[0], p[1], p[2], p[3], nan if p[4] is None else p[4], nan if p[5] is None else p[5])
+                    if (p := (r.parts[k] if k < len(r.parts) else None)) is not None
+                    else none
+                    for r in rows
+                ],
+                np.float64,
+            ).reshape(n, 6)
+            for k in range(width)
+        ]
 
         def column(name: str, dtype) -> np.ndarray:
             return np.array([getattr(r, name) for r in rows], dtype).reshape(n)
 
-        return cls(kind, column("segment_id", np.int64), column("level", np.int64), column("tolerance", np.float64),
-                   *(column(name, np.float64) for name in ("b", "c", "d")), column("branch", np.int64),
-                   *(column(name, np.float64) for name in ("u", "v", "phi_gen", "fourbar_transmission_min")),
-                   tuple(parts), np.array([len(r.parts) for r in rows], np.int64).reshape(n))
+        return cls(
+            kind,
+            column("segment_id", np.int64),
+            column("level", np.int64),
+            column("tolerance", np.float64),
+            *(column(name, np.float64) for name in ("b", "c", "d")),
+            column("branch", np.int64),
+            *(column(name, np.float64) for name in ("u", "v", "phi_gen", "fourbar_transmission_min")),
+            tuple(parts),
+            np.array([len(r.parts) for r in rows], np.int64).reshape(n),
+        )

@@ -14,7 +14,6 @@ from synth.query.contract import DwellWindow, SegmentSource
 from synth.query.segment_rows import SegmentRow
 from synth.segment_search.dwell_key import arc_key_target
 
-
 #: Segments taken from the atlas per kind and tolerance level, closest to that level's target first.
 PER_LEVEL = 10
 
@@ -33,8 +32,9 @@ def kinds_for(request: Request) -> tuple[SegmentKind, ...]:
     return (SegmentKind.LINE, SegmentKind.ARC)
 
 
-def select(source: SegmentSource, request: Request, kinds: tuple[SegmentKind, ...],
-           per_level: int = PER_LEVEL) -> list[SegmentRow]:
+def select(
+    source: SegmentSource, request: Request, kinds: tuple[SegmentKind, ...], per_level: int = PER_LEVEL
+) -> list[SegmentRow]:
     """Segments worth fitting, per kind and tolerance level (each kind's rows in the order of
     its windows, :func:`_line_windows` and :func:`_arc_windows`). Only constraints the four-bar
     alone decides are applied here (crank = 1, the shortest link); an arc's radius becomes the
@@ -42,9 +42,13 @@ def select(source: SegmentSource, request: Request, kinds: tuple[SegmentKind, ..
     rows = []
     for kind in kinds:
         windows = (_arc_windows if kind == SegmentKind.ARC else _line_windows)(source, request, per_level)
-        rows += source.select_segments((kind,), windows, min_transmission=request.min_transmission,
-                                       max_length=request.max_link_ratio,
-                                       min_radius_ratio=1.0 / request.max_link_ratio)
+        rows += source.select_segments(
+            (kind,),
+            windows,
+            min_transmission=request.min_transmission,
+            max_length=request.max_link_ratio,
+            min_radius_ratio=1.0 / request.max_link_ratio,
+        )
     return rows
 
 

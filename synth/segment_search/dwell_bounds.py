@@ -175,18 +175,29 @@ def _minimum_width(z: C128) -> F64:
     out = np.empty(n)
     rows = max(1, (1 << 21) // (i.size * m))  # bounded temporaries
     for k in range(0, n, rows):
-        zk = z[k:k + rows]
+        zk = z[k : k + rows]
         edge = zk[:, j] - zk[:, i]  # (r, pairs)
         length = np.abs(edge)
         normal = np.where(length > 0, 1j * edge / np.where(length > 0, length, 1.0), 1j)
         proj = (zk[:, None, :] * np.conj(normal)[:, :, None]).real  # (r, pairs, s)
-        out[k:k + rows] = (proj.max(axis=2) - proj.min(axis=2)).min(axis=1)
+        out[k : k + rows] = (proj.max(axis=2) - proj.min(axis=2)).min(axis=1)
     return out
 
 
-def deviation_profile(b: float, c: float, d: float, branch: int, uv: complex, phi_gen: float, kind: int, *,
-                      levels: ArrayLike = PROFILE_LEVELS, step: float = math.radians(1.0),
-                      reach: float = math.pi, samples: int = 21) -> DeviationProfile:
+def deviation_profile(
+    b: float,
+    c: float,
+    d: float,
+    branch: int,
+    uv: complex,
+    phi_gen: float,
+    kind: int,
+    *,
+    levels: ArrayLike = PROFILE_LEVELS,
+    step: float = math.radians(1.0),
+    reach: float = math.pi,
+    samples: int = 21,
+) -> DeviationProfile:
     """The deviation profile L(ε) of one segment on its exact path.
 
     Parameters
@@ -228,7 +239,7 @@ def deviation_profile(b: float, c: float, d: float, branch: int, uv: complex, ph
     w = np.empty(i.size)
     chunk = 8192
     for s in range(0, i.size, chunk):
-        w[s:s + chunk] = minimum_zone_halfwidth(z[s:s + chunk], kind)
+        w[s : s + chunk] = minimum_zone_halfwidth(z[s : s + chunk], kind)
     span = (i + j) * step
     ok = w[:, None] <= lv[None, :]
     longest = np.where(ok, span[:, None], 0.0).max(axis=0)
@@ -236,10 +247,20 @@ def deviation_profile(b: float, c: float, d: float, branch: int, uv: complex, ph
     return DeviationProfile(lv, length, float(step))
 
 
-def deviation_profiles(b: ArrayLike, c: ArrayLike, d: ArrayLike, branch: ArrayLike, uv: ArrayLike,
-                       phi_gen: ArrayLike, kind: int, *, levels: ArrayLike = PROFILE_LEVELS,
-                       step: float = math.radians(1.0), reach: float = math.pi,
-                       samples: int = 21) -> DeviationProfile:
+def deviation_profiles(
+    b: ArrayLike,
+    c: ArrayLike,
+    d: ArrayLike,
+    branch: ArrayLike,
+    uv: ArrayLike,
+    phi_gen: ArrayLike,
+    kind: int,
+    *,
+    levels: ArrayLike = PROFILE_LEVELS,
+    step: float = math.radians(1.0),
+    reach: float = math.pi,
+    samples: int = 21,
+) -> DeviationProfile:
     """:func:`deviation_profile` for a batch of segments of one ``kind`` (arguments (S,)), by
     a staircase walk instead of every interval: O(n) fits per segment and level, n = reach/h.
 
@@ -337,8 +358,11 @@ def _hull(z: C128) -> C128:
     def half(seq):
         out: list = []
         for p in seq:
-            while len(out) >= 2 and ((out[-1][0] - out[-2][0]) * (p[1] - out[-2][1])
-                                     - (out[-1][1] - out[-2][1]) * (p[0] - out[-2][0])) <= 0:
+            while (
+                len(out) >= 2
+                and ((out[-1][0] - out[-2][0]) * (p[1] - out[-2][1]) - (out[-1][1] - out[-2][1]) * (p[0] - out[-2][0]))
+                <= 0
+            ):
                 out.pop()
             out.append(p)
         return out
@@ -360,6 +384,7 @@ def rrr_min_swing(diameter: ArrayLike, rod: ArrayLike, max_link_ratio: ArrayLike
     """Smallest swing (rad) of an RRR output with rod ρ and rocker ≤ ρ_max·m on a curve of
     diameter Δ: 2·arcsin((Δ − 2ρ)/(2ρ_max·m)) clipped to [0, π]. ``shortest`` = m as in
     :func:`path_tolerance`: the rocker is a link of the ratio."""
-    x = (np.asarray(diameter, float) - 2 * np.asarray(rod, float)) / (2 * np.asarray(max_link_ratio, float)
-                                                                     * np.asarray(shortest, float))
+    x = (np.asarray(diameter, float) - 2 * np.asarray(rod, float)) / (
+        2 * np.asarray(max_link_ratio, float) * np.asarray(shortest, float)
+    )
     return 2 * np.arcsin(np.clip(x, 0.0, 1.0))

@@ -69,8 +69,9 @@ def _run(absdev, band, centre, size, z, kind, point, direction, radius, have_lo,
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def measure_dwells(A, E, link, centre, uv, kind, width, point, direction, radius, levels, tries, iterations,
-                   spread, margin, safety):
+def measure_dwells(
+    A, E, link, centre, uv, kind, width, point, direction, radius, levels, tries, iterations, spread, margin, safety
+):
     """Measure candidates at ``levels`` (band half-widths, crank lengths, in measuring order).
 
     ``A`` (mf,): the crank pin over the fine grid; ``E`` (N, mf): e^{iθ} of each linkage;

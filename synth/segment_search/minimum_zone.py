@@ -30,15 +30,21 @@ def path_deviation(z: C128, kind: NDArray[np.integer] | int, point: C128, direct
     kind = np.asarray(kind)
     if kind.size and np.all(kind == kind.flat[0]):  # one kind: compute only its distance
         if kind.flat[0] == _LINE:
-            return np.broadcast_to(np.imag(np.conj(direction) * (z - point)), np.broadcast_shapes(np.shape(z), kind.shape, np.shape(point), np.shape(direction)))
-        return np.broadcast_to(np.abs(z - point) - radius, np.broadcast_shapes(np.shape(z), kind.shape, np.shape(point), np.shape(radius)))
+            return np.broadcast_to(
+                np.imag(np.conj(direction) * (z - point)),
+                np.broadcast_shapes(np.shape(z), kind.shape, np.shape(point), np.shape(direction)),
+            )
+        return np.broadcast_to(
+            np.abs(z - point) - radius, np.broadcast_shapes(np.shape(z), kind.shape, np.shape(point), np.shape(radius))
+        )
     line = np.imag(np.conj(direction) * (z - point))
     circle = np.abs(z - point) - radius
     return np.where(kind == _LINE, line, circle)
 
 
-def minimum_zone_fit(z: C128, kind: int, point: C128, direction: C128, radius: F64,
-                     iterations: int) -> tuple[C128, C128, F64]:
+def minimum_zone_fit(
+    z: C128, kind: int, point: C128, direction: C128, radius: F64, iterations: int
+) -> tuple[C128, C128, F64]:
     """Minimum-zone line (``kind`` ``SegmentKind.LINE.code``) or circle (``ARC.code``) through
     each row of path samples ``z`` (n, samples), started from the given one (each (n,)):
     :func:`synth.segment_search.minimum_zone_kernel.fit_row` per row."""
@@ -46,6 +52,8 @@ def minimum_zone_fit(z: C128, kind: int, point: C128, direction: C128, radius: F
 
     z = np.ascontiguousarray(z, dtype=complex)
     n = z.shape[0]
-    point, direction, radius = (np.ascontiguousarray(np.broadcast_to(x, (n,)), dtype=t)
-                                for x, t in ((point, complex), (direction, complex), (radius, float)))
+    point, direction, radius = (
+        np.ascontiguousarray(np.broadcast_to(x, (n,)), dtype=t)
+        for x, t in ((point, complex), (direction, complex), (radius, float))
+    )
     return fit_rows(z, int(kind), point, direction, radius, int(iterations))

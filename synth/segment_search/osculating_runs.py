@@ -63,8 +63,10 @@ def osculating_scores(A, E, uv, point, direction, radius, ok, kind, half, band):
                     continue
                 s = minus + plus
                 for t in range(2, steps.size, 2):
-                    s += (abs(deviation_at(pin[t] + turn[t] * u, kind, p, d, r))
-                          + abs(deviation_at(pin[t + 1] + turn[t + 1] * u, kind, p, d, r))) / power[t]
+                    s += (
+                        abs(deviation_at(pin[t] + turn[t] * u, kind, p, d, r))
+                        + abs(deviation_at(pin[t + 1] + turn[t + 1] * u, kind, p, d, r))
+                    ) / power[t]
                 alive[i, j, q] = True
                 score[i, j, q] = -s
     return alive, score

@@ -229,7 +229,9 @@ def _grid_candidates(b: F64, c: F64, d: F64, br: I64, search: SegmentSearch, ski
     for lo in range(0, b.size, _BLOCK):
         s = slice(lo, lo + _BLOCK)
         n = b[s].size
-        motion = fourbar_motion(1.0, b[s, None, None], c[s, None, None], d[s, None, None], phi[:, None], br[s, None, None])
+        motion = fourbar_motion(
+            1.0, b[s, None, None], c[s, None, None], d[s, None, None], phi[:, None], br[s, None, None]
+        )
         pl = pole(motion)
         A = np.broadcast_to(motion.A, motion.shape)[..., 0]  # (n, m): A does not depend on the linkage
         E = motion.e_theta[..., 0]
@@ -242,10 +244,24 @@ def _grid_candidates(b: F64, c: F64, d: F64, br: I64, search: SegmentSearch, ski
                     skipped[f"candidate skipped: {f.name.lower().replace('_', ' ')}"] += cnt
         # --- lines: Ball points, grid (n, m)
         kinds = [
-            (SegmentKind.LINE.code, ball.uv[..., 0], ball.point[..., 0], ball.tangent[..., 0], np.zeros((n, m)), ball.status[..., 0] == 0,
-             np.zeros((n, m))),
-            (SegmentKind.ARC.code, pairs.circle_point_uv, pairs.center_point, np.ones_like(pairs.center_point), pairs.radius,
-             pairs.status == 0, np.broadcast_to(alpha, pairs.radius.shape)),
+            (
+                SegmentKind.LINE.code,
+                ball.uv[..., 0],
+                ball.point[..., 0],
+                ball.tangent[..., 0],
+                np.zeros((n, m)),
+                ball.status[..., 0] == 0,
+                np.zeros((n, m)),
+            ),
+            (
+                SegmentKind.ARC.code,
+                pairs.circle_point_uv,
+                pairs.center_point,
+                np.ones_like(pairs.center_point),
+                pairs.radius,
+                pairs.status == 0,
+                np.broadcast_to(alpha, pairs.radius.shape),
+            ),
         ]
         for kind, uv, point, direction, radius, ok, ray in kinds:
             shape = uv.shape  # (n, m) or (n, m, K)
@@ -260,8 +276,9 @@ def _grid_candidates(b: F64, c: F64, d: F64, br: I64, search: SegmentSearch, ski
             # interval, good enough to tell near-duplicates apart before measuring them
             cell = np.flatnonzero(best)
             ci = np.unravel_index(cell, shape)
-            left, right, in_left, in_right = osculating_runs(A, E, ci[0], ci[1], uv[ci], point[ci], direction[ci],
-                                                             radius[ci], kind, reach, band, eps_max)
+            left, right, in_left, in_right = osculating_runs(
+                A, E, ci[0], ci[1], uv[ci], point[ci], direction[ci], radius[ci], kind, reach, band, eps_max
+            )
             whole = (left == reach) & (right == reach)
             long_enough = (left + right >= min_extent) & ~whole
             skipped["candidate skipped: path within tolerance over the whole turn"] += int(np.count_nonzero(whole))
@@ -290,10 +307,17 @@ def _grid_candidates(b: F64, c: F64, d: F64, br: I64, search: SegmentSearch, ski
                 )
             )
     if not out:
-        empty = (np.zeros(0, np.int64),) * 3 + (np.zeros(0),) * 2 + (np.zeros(0, complex),) * 3 + (np.zeros(0), np.zeros(0, np.int64))
+        empty = (
+            (np.zeros(0, np.int64),) * 3
+            + (np.zeros(0),) * 2
+            + (np.zeros(0, complex),) * 3
+            + (np.zeros(0), np.zeros(0, np.int64))
+        )
         return _Candidates(*empty, partner=np.zeros(0, np.int64), osc_start=np.zeros(0), osc_end=np.zeros(0))
     cols = [np.concatenate([o[k] for o in out]) for k in range(12)]
-    return _Candidates(*cols[:10], partner=np.full(cols[0].size, -1, dtype=np.int64), osc_start=cols[10], osc_end=cols[11])
+    return _Candidates(
+        *cols[:10], partner=np.full(cols[0].size, -1, dtype=np.int64), osc_start=cols[10], osc_end=cols[11]
+    )
 
 
 def _double_candidates(b: F64, c: F64, d: F64, br: I64, search: SegmentSearch, skipped: Counter) -> _Candidates:
@@ -335,10 +359,23 @@ def _measure(A: C128, E: C128, cand: _Candidates, rows: I64, width: I64, search:
     from synth.segment_search.dwell_measure import measure_dwells  # numba: imported on first use
 
     lo, hi, truncated, p, dr, r = measure_dwells(
-        np.ascontiguousarray(A[0]), np.ascontiguousarray(E), cand.linkage[rows], cand.center[rows], cand.uv[rows],
-        cand.kind[rows], np.asarray(width, np.int64), cand.point[rows], cand.direction[rows], cand.radius[rows],
-        np.array([search.tolerances[level] for level in levels]), search.window_tries, search.lawson_iterations,
-        _FIT_SPREAD, _BAND_MARGIN, _GROWTH_SAFETY)
+        np.ascontiguousarray(A[0]),
+        np.ascontiguousarray(E),
+        cand.linkage[rows],
+        cand.center[rows],
+        cand.uv[rows],
+        cand.kind[rows],
+        np.asarray(width, np.int64),
+        cand.point[rows],
+        cand.direction[rows],
+        cand.radius[rows],
+        np.array([search.tolerances[level] for level in levels]),
+        search.window_tries,
+        search.lawson_iterations,
+        _FIT_SPREAD,
+        _BAND_MARGIN,
+        _GROWTH_SAFETY,
+    )
     return lo, hi, truncated, (p, dr, r)
 
 
@@ -374,7 +411,11 @@ def find_segments(b: F64, c: F64, d: F64, branch: I64, search: SegmentSearch) ->
     if b.size:
         shift = len(grid.linkage)
         cand = _Candidates(
-            **{f: np.r_[getattr(grid, f), getattr(double, f)] for f in _Candidates.__dataclass_fields__ if f != "partner"},
+            **{
+                f: np.r_[getattr(grid, f), getattr(double, f)]
+                for f in _Candidates.__dataclass_fields__
+                if f != "partner"
+            },
             partner=np.r_[grid.partner, np.where(double.partner >= 0, double.partner + shift, -1)],
         )
     else:
@@ -394,8 +435,9 @@ def find_segments(b: F64, c: F64, d: F64, branch: I64, search: SegmentSearch) ->
     window = np.minimum(cand.window, mf // 2 - 1)
     # Near-duplicates judged on their osculating runs are not measured at all (the same rule
     # is applied again to the measured dwells below): about a third of the work.
-    early = _near_duplicates(cand, cand.osc_end - cand.osc_start, cand.osc_start, cand.osc_end, np.ones(n_cand, bool),
-                             search.tolerances[-1])
+    early = _near_duplicates(
+        cand, cand.osc_end - cand.osc_start, cand.osc_start, cand.osc_end, np.ones(n_cand, bool), search.tolerances[-1]
+    )
     skipped["candidate merged: a near-duplicate follows the path longer"] += int(np.count_nonzero(early))
     every = np.flatnonzero(~early)
     _measure_rows(m, A, E, cand, every, window[every], [top], search)
@@ -417,8 +459,9 @@ def find_segments(b: F64, c: F64, d: F64, branch: I64, search: SegmentSearch) ->
             _refine_ends(m, b, c, d, br, cand, rows[m.has[rows, level] & ~m.truncated[rows, level]], level, search)
     # a narrower band whose run still reached the widest window's edge: no dwell stored there
     np.logical_and(m.has, ~m.truncated, out=m.has)
-    return _assemble(A, E, cand, keep, search, m.start, np.where(m.has, m.dwell, 0.0), m.point, m.direction,
-                     m.radius, skipped)
+    return _assemble(
+        A, E, cand, keep, search, m.start, np.where(m.has, m.dwell, 0.0), m.point, m.direction, m.radius, skipped
+    )
 
 
 @dataclass(frozen=True, slots=True)
@@ -440,17 +483,27 @@ class _Measured:
     @classmethod
     def empty(cls, n: int, levels: int) -> _Measured:
         shape = (n, levels)
-        return cls(np.zeros(shape, bool), np.zeros(shape, np.int64), np.full(shape, -1, np.int64),
-                   np.zeros(shape, bool), np.zeros(shape, complex), np.ones(shape, complex), np.zeros(shape),
-                   np.zeros(shape), np.zeros(shape), np.zeros(n, np.int64))
+        return cls(
+            np.zeros(shape, bool),
+            np.zeros(shape, np.int64),
+            np.full(shape, -1, np.int64),
+            np.zeros(shape, bool),
+            np.zeros(shape, complex),
+            np.ones(shape, complex),
+            np.zeros(shape),
+            np.zeros(shape),
+            np.zeros(shape),
+            np.zeros(n, np.int64),
+        )
 
     @property
     def dwell(self) -> F64:
         return np.where(self.has, self.end - self.start, 0.0)
 
 
-def _measure_rows(m: _Measured, A: C128, E: C128, cand: _Candidates, rows: I64, window: I64, levels: list[int],
-                  search: SegmentSearch) -> None:
+def _measure_rows(
+    m: _Measured, A: C128, E: C128, cand: _Candidates, rows: I64, window: I64, levels: list[int], search: SegmentSearch
+) -> None:
     """Measure candidates ``rows`` at ``levels`` into ``m``, each in the narrowest window class
     that holds its ``window``; a run cut short by its window is measured again in the widest."""
     mf = A.shape[1]
@@ -460,7 +513,10 @@ def _measure_rows(m: _Measured, A: C128, E: C128, cand: _Candidates, rows: I64, 
 
     def run(sel: I64, width: I64) -> None:
         lo, hi, truncated, (p, dr, r) = _measure(A, E, cand, sel, width, search, levels)
-        m.lo[sel[:, None], cols], m.hi[sel[:, None], cols] = lo - width[:, None], hi - width[:, None]  # offsets from the centre
+        m.lo[sel[:, None], cols], m.hi[sel[:, None], cols] = (
+            lo - width[:, None],
+            hi - width[:, None],
+        )  # offsets from the centre
         m.truncated[sel[:, None], cols] = truncated
         m.has[sel[:, None], cols] = hi >= lo
         m.point[sel[:, None], cols], m.direction[sel[:, None], cols], m.radius[sel[:, None], cols] = p, dr, r
@@ -492,7 +548,9 @@ def _pairs_kept(cand: _Candidates, keep: NDArray[np.bool_], skipped: Counter) ->
     """``keep`` with the double Ball points that lost one stretch dropped (both are needed)."""
     dbl = cand.partner >= 0
     kept = keep & np.where(dbl, keep[np.maximum(cand.partner, 0)], True)
-    skipped["double Ball point dropped: one stretch shorter than the minimum"] += int(np.count_nonzero(dbl & keep & ~kept))
+    skipped["double Ball point dropped: one stretch shorter than the minimum"] += int(
+        np.count_nonzero(dbl & keep & ~kept)
+    )
     return kept
 
 
@@ -501,7 +559,9 @@ def _window_classes(mf: int) -> list[int]:
     return [w for w in widths if w < mf // 2 - 1] + [mf // 2 - 1]
 
 
-def _near_duplicates(cand: _Candidates, dwell: F64, start: F64, end: F64, keep: NDArray[np.bool_], eps: float) -> NDArray[np.bool_]:
+def _near_duplicates(
+    cand: _Candidates, dwell: F64, start: F64, end: F64, keep: NDArray[np.bool_], eps: float
+) -> NDArray[np.bool_]:
     """Segments of one linkage and kind whose coupler points lie within 50 tolerances of each
     other and whose widest intervals overlap by more than half: all but the longest."""
     drop = np.zeros(keep.size, bool)
@@ -529,8 +589,9 @@ def _arc_excursion(A, E, cand, first, kind, has, gp, gr) -> F64:
         r = first[at]
         z = A[cand.linkage[r]] + E[cand.linkage[r]] * cand.uv[r][:, None]
         for level in range(has.shape[1]):
-            far = np.abs(path_deviation(z, SegmentKind.ARC.code, gp[r, level][:, None], 1.0,
-                                        gr[r, level][:, None])).max(axis=1)
+            far = np.abs(
+                path_deviation(z, SegmentKind.ARC.code, gp[r, level][:, None], 1.0, gr[r, level][:, None])
+            ).max(axis=1)
             out[at, level] = np.where(has[at, level], far, 0.0)
     return out
 
@@ -588,4 +649,3 @@ def _assemble(A, E, cand, keep, search, start, dwell, gp, gd, gr, skipped) -> Fo
         excursion=excursion[sel],
         skipped=dict(sorted((k, v) for k, v in skipped.items() if v)),
     )
-

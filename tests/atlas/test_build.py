@@ -21,8 +21,9 @@ from db.rows import TableColumns
 from db.writes import ShardWriteError
 
 #: a small sweep with demo-like search settings: a few dozen linkages in several shards
-SPEC = SweepSpec(name="test", b=(1.5, 4.5), c=(1.5, 4.5), d=(1.5, 4.5), samples=32, crank_step_deg=3.0, rays=24,
-                 shard_size=4)
+SPEC = SweepSpec(
+    name="test", b=(1.5, 4.5), c=(1.5, 4.5), d=(1.5, 4.5), samples=32, crank_step_deg=3.0, rays=24, shard_size=4
+)
 N_SHARDS = sweep_linkages(SPEC).n_shards(SPEC.shard_size)
 
 
@@ -37,7 +38,9 @@ def digest_of(path) -> str:
 def shard_rows(path) -> dict[int, tuple]:
     con = sqlite3.connect(path)
     try:
-        return {r[0]: r for r in con.execute("select shard_index, n_linkages, n_segments, skipped_json, seconds from shard")}
+        return {
+            r[0]: r for r in con.execute("select shard_index, n_linkages, n_segments, skipped_json, seconds from shard")
+        }
     finally:
         con.close()
 

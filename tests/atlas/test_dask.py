@@ -111,12 +111,16 @@ def drained(client: Client, timeout: float = 10.0) -> bool:
 
 def test_a_dask_build_equals_the_local_build(tmp_path, cluster, client, reference, capsys):
     path = tmp_path / "dask.sqlite"
-    rc, out, err = dwell(capsys, "build", "--db", str(path), *SMALL, "--engine", "dask",
-                         "--scheduler", cluster.scheduler_address)
+    rc, out, err = dwell(
+        capsys, "build", "--db", str(path), *SMALL, "--engine", "dask", "--scheduler", cluster.scheduler_address
+    )
     assert rc == 0, err
     assert err == f"dwell: dask: 2 worker(s), 2 thread(s) at {cluster.scheduler_address}\n"
-    assert re.fullmatch(rf"atlas {re.escape(str(path))} complete: \d+ linkages; segments: line \d+, arc \d+, "
-                        rf"double_line \d+; {N_SHARDS} shard\(s\) in [\d.]+ s \(\d+ linkages/s\)\n", out)
+    assert re.fullmatch(
+        rf"atlas {re.escape(str(path))} complete: \d+ linkages; segments: line \d+, arc \d+, "
+        rf"double_line \d+; {N_SHARDS} shard\(s\) in [\d.]+ s \(\d+ linkages/s\)\n",
+        out,
+    )
     assert shard_indices(path) == list(range(N_SHARDS))
     assert digest_of(path) == reference[1]
     assert drained(client)
@@ -142,14 +146,14 @@ def test_an_interrupted_build_resumes_on_the_cluster_to_the_same_content(tmp_pat
     path = tmp_path / "resumed.sqlite"
     notes: list[str] = []
     with pytest.raises(KeyboardInterrupt):
-        build_atlas(str(path), SPEC, runner=stop_after(DaskRunner(client, in_flight=4), 3),
-                    log=notes.append)
+        build_atlas(str(path), SPEC, runner=stop_after(DaskRunner(client, in_flight=4), 3), log=notes.append)
     assert notes == [f"interrupted: 3 of {N_SHARDS} shards are stored; run the same command again to resume"]
     assert len(shard_indices(path)) == 3
     assert drained(client), "pending shards were not cancelled"
 
-    rc, out, err = dwell(capsys, "build", "--db", str(path), *SMALL, "--engine", "dask",
-                         "--scheduler", cluster.scheduler_address)
+    rc, out, err = dwell(
+        capsys, "build", "--db", str(path), *SMALL, "--engine", "dask", "--scheduler", cluster.scheduler_address
+    )
     assert rc == 0, err
     assert f"dwell: resuming: 3 of {N_SHARDS} shards already built\n" in err
     assert f"; {N_SHARDS - 3} shard(s) in " in out
@@ -230,8 +234,11 @@ def test_workers_get_glibcs_malloc_thresholds_back(client):
 def test_a_worker_with_another_version_is_refused(tmp_path, client, monkeypatch):
     monkeypatch.setattr(dask_engine, "_installed_version", lambda: "0.0-other")  # the driver's view only
     path = tmp_path / "mixed-versions.sqlite"
-    with pytest.raises(ClusterError, match=r"^dask worker tcp://\S+ runs dwell-atlas \S+, this builder 0\.0-other: "
-                                           r"install the same version on every node$"):
+    with pytest.raises(
+        ClusterError,
+        match=r"^dask worker tcp://\S+ runs dwell-atlas \S+, this builder 0\.0-other: "
+        r"install the same version on every node$",
+    ):
         build_atlas(str(path), SPEC, runner=DaskRunner(client))
     assert shard_indices(path) == []
     assert drained(client)
@@ -250,13 +257,24 @@ def build_on_an_unreachable_scheduler(folder: Path, capsys) -> float:
     port = free_port()
     t0 = time.perf_counter()
     with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
-        rc, out, err = dwell(capsys, "build", "--db", str(folder / "new.sqlite"), *SMALL, "--engine", "dask",
-                             "--scheduler", f"tcp://127.0.0.1:{port}")
+        rc, out, err = dwell(
+            capsys,
+            "build",
+            "--db",
+            str(folder / "new.sqlite"),
+            *SMALL,
+            "--engine",
+            "dask",
+            "--scheduler",
+            f"tcp://127.0.0.1:{port}",
+        )
     seconds = time.perf_counter() - t0
     assert rc == 2 and out == ""
     assert err.count("\n") == 1, err
-    assert err.startswith(f"dwell: error: cannot connect to the dask scheduler at tcp://127.0.0.1:{port}: "
-                          f"Timed out trying to connect to tcp://127.0.0.1:{port} after 1 s")
+    assert err.startswith(
+        f"dwell: error: cannot connect to the dask scheduler at tcp://127.0.0.1:{port}: "
+        f"Timed out trying to connect to tcp://127.0.0.1:{port} after 1 s"
+    )
     assert list(folder.iterdir()) == []
     return seconds
 
@@ -270,16 +288,23 @@ def test_an_unreachable_scheduler_is_refused_within_10_s(tmp_path, capsys):
     assert build_on_an_unreachable_scheduler(tmp_path, capsys) < 10
 
 
-@pytest.mark.parametrize("args, message", [
-    (["--engine", "dask"], "dwell atlas build: --engine dask needs --scheduler ADDR"),
-    (["--scheduler", "tcp://127.0.0.1:8786"], "dwell atlas build: --scheduler needs --engine dask"),
-    (["--engine", "local", "--scheduler", "tcp://h:8786"], "dwell atlas build: --scheduler needs --engine dask"),
-    (["--engine", "spark"], "Invalid value for '--engine': 'spark' is not one of 'local', 'dask'"),
-    (["--engine", "dask", "--scheduler", "scheduler"],
-     "not a dask scheduler address: 'scheduler' (missing port number in address 'scheduler')"),
-    (["--engine", "dask", "--scheduler", "udp://h:1"],
-     "not a dask scheduler address: 'udp://h:1' (unknown address scheme 'udp'"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--engine", "dask"], "dwell atlas build: --engine dask needs --scheduler ADDR"),
+        (["--scheduler", "tcp://127.0.0.1:8786"], "dwell atlas build: --scheduler needs --engine dask"),
+        (["--engine", "local", "--scheduler", "tcp://h:8786"], "dwell atlas build: --scheduler needs --engine dask"),
+        (["--engine", "spark"], "Invalid value for '--engine': 'spark' is not one of 'local', 'dask'"),
+        (
+            ["--engine", "dask", "--scheduler", "scheduler"],
+            "not a dask scheduler address: 'scheduler' (missing port number in address 'scheduler')",
+        ),
+        (
+            ["--engine", "dask", "--scheduler", "udp://h:1"],
+            "not a dask scheduler address: 'udp://h:1' (unknown address scheme 'udp'",
+        ),
+    ],
+)
 def test_bad_engine_options_write_nothing(tmp_path, capsys, monkeypatch, args, message):
     monkeypatch.chdir(tmp_path)  # the default --db lives in the cwd
     rc, out, err = dwell(capsys, "build", *SMALL, *args)
@@ -307,9 +332,31 @@ def test_ctrl_c_cancels_the_cluster_work_and_exits_130(tmp_path, cluster, client
     # the demo sweep in 80 shards of 16 linkages: still running when the first shard is stored
     n_shards = sweep_linkages(PRESETS["demo"]).n_shards(8)
     proc = subprocess.Popen(
-        [sys.executable, "-m", "cli.main", "atlas", "build", "--db", str(db), "--preset", "demo", "--shard-size", "8",
-         "--no-progress", "--engine", "dask", "--scheduler", cluster.scheduler_address],
-        cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+        [
+            sys.executable,
+            "-m",
+            "cli.main",
+            "atlas",
+            "build",
+            "--db",
+            str(db),
+            "--preset",
+            "demo",
+            "--shard-size",
+            "8",
+            "--no-progress",
+            "--engine",
+            "dask",
+            "--scheduler",
+            cluster.scheduler_address,
+        ],
+        cwd=tmp_path,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
     deadline = time.monotonic() + 60
     while not (db.exists() and _shards_stored(db)):
         assert proc.poll() is None, proc.communicate()

@@ -19,8 +19,26 @@ def run(capsys, *args):
 
 
 def test_json_matches_the_kernel(capsys):
-    code, out, err = run(capsys, "analyze", "fourbar", "--a", "1", "--b", "3", "--c", "2.5", "--d", "3",
-                         "--point", "1", "0.5", "--rpm", "120", "--cw", "--json")
+    code, out, err = run(
+        capsys,
+        "analyze",
+        "fourbar",
+        "--a",
+        "1",
+        "--b",
+        "3",
+        "--c",
+        "2.5",
+        "--d",
+        "3",
+        "--point",
+        "1",
+        "0.5",
+        "--rpm",
+        "120",
+        "--cw",
+        "--json",
+    )
     assert code == 0, err
     doc = json.loads(out)
     rows = doc["positions"]
@@ -42,9 +60,32 @@ def test_json_matches_the_kernel(capsys):
 
 def test_table_plot_and_drawing(tmp_path, capsys):
     plot, draw = tmp_path / "m.png", tmp_path / "m.svg"
-    code, out, err = run(capsys, "analyze", "fourbar", "--a", "1", "--b", "3", "--c", "2.5", "--d", "3",
-                         "--point", "1", "1", "--from", "0", "--to", "90", "--step", "45",
-                         "--plot", str(plot), "--draw", str(draw))
+    code, out, err = run(
+        capsys,
+        "analyze",
+        "fourbar",
+        "--a",
+        "1",
+        "--b",
+        "3",
+        "--c",
+        "2.5",
+        "--d",
+        "3",
+        "--point",
+        "1",
+        "1",
+        "--from",
+        "0",
+        "--to",
+        "90",
+        "--step",
+        "45",
+        "--plot",
+        str(plot),
+        "--draw",
+        str(draw),
+    )
     assert code == 0, err
     assert "omega_rocker[rad/s]" in out and "time_ratio" in out
     assert len([ln for ln in out.splitlines() if ln.strip().startswith(("0 ", "45 ", "90 "))]) == 3
@@ -99,23 +140,61 @@ def test_a_linkage_at_1e_minus_150_reads_as_at_unit_scale(capsys, tmp_path, monk
     for scale in ("1e-150", "1"):
         with warnings.catch_warnings():
             warnings.simplefilter("error")
-            code, out, err = run(capsys, "analyze", "fourbar", "--a", scale, "--b", scale, "--c", scale, "--d", scale,
-                                 "--phi", "5.7e-8", "--json")
+            code, out, err = run(
+                capsys,
+                "analyze",
+                "fourbar",
+                "--a",
+                scale,
+                "--b",
+                scale,
+                "--c",
+                scale,
+                "--d",
+                scale,
+                "--phi",
+                "5.7e-8",
+                "--json",
+            )
         assert code == 0 and err == "", err
         docs.append(json.loads(out)["positions"][0])
     tiny, unit = docs
-    for key in ("theta_deg", "gamma_deg", "omega_coupler_rad_s", "omega_rocker_rad_s", "alpha_coupler_rad_s2",
-                "transmission_deg"):
+    for key in (
+        "theta_deg",
+        "gamma_deg",
+        "omega_coupler_rad_s",
+        "omega_rocker_rad_s",
+        "alpha_coupler_rad_s2",
+        "transmission_deg",
+    ):
         assert tiny[key] is not None and tiny[key] == pytest.approx(unit[key], rel=1e-6, abs=1e-12), key
     assert tiny["Bx_mm"] == pytest.approx(unit["Bx_mm"] * 1e-150, rel=1e-9)
 
 
 def test_non_grashof_range_inside_reach_works(capsys):
     # triple rocker: reachable crank angles only; inside them the analysis runs
-    code, out, err = run(capsys, "analyze", "fourbar", "--a", "2", "--b", "3", "--c", "3.5", "--d", "5",
-                         "--from", "-30", "--to", "30", "--step", "10", "--json")
+    code, out, err = run(
+        capsys,
+        "analyze",
+        "fourbar",
+        "--a",
+        "2",
+        "--b",
+        "3",
+        "--c",
+        "3.5",
+        "--d",
+        "5",
+        "--from",
+        "-30",
+        "--to",
+        "30",
+        "--step",
+        "10",
+        "--json",
+    )
     assert code == 0, err
     doc = json.loads(out)
     assert doc["summary"]["grashof"] == "triple-rocker"
-    (lo, hi), = doc["summary"]["crank_range_deg"]
+    ((lo, hi),) = doc["summary"]["crank_range_deg"]
     assert lo < -30 and hi > 30

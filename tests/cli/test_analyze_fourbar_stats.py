@@ -39,20 +39,25 @@ def test_json_matches_the_kernel(capsys):
 
 def test_table_and_plot(tmp_path, capsys):
     plot = tmp_path / "stats.png"
-    code, out, err = run(capsys, "--crank-lengths", "10,30", "--cv-bounds", "a=10:40", "--cv-bounds", "c=50:70", "--plot", plot)
+    code, out, err = run(
+        capsys, "--crank-lengths", "10,30", "--cv-bounds", "a=10:40", "--cv-bounds", "c=50:70", "--plot", plot
+    )
     assert code == 0, err
     assert "cv_minimum" in out and "mean_out[rpm]" in out
     assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
-@pytest.mark.parametrize("args, message", [
-    (["--crank-lengths", "10,x"], "--crank-lengths"),
-    (["--rpms", "-5"], "--rpms"),
-    (["--cv-bounds", "e=1:2"], "--cv-bounds"),
-    (["--cv-bounds", "a=3:1"], "--cv-bounds"),
-    (["--phases", "0"], "--phases"),
-    (["--clutch", "ratchet"], "--clutch"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--crank-lengths", "10,x"], "--crank-lengths"),
+        (["--rpms", "-5"], "--rpms"),
+        (["--cv-bounds", "e=1:2"], "--cv-bounds"),
+        (["--cv-bounds", "a=3:1"], "--cv-bounds"),
+        (["--phases", "0"], "--phases"),
+        (["--clutch", "ratchet"], "--clutch"),
+    ],
+)
 def test_bad_input_exits_2(capsys, args, message):
     code, out, err = run(capsys, *args)
     assert code == 2 and message in err and err.count("\n") == 1

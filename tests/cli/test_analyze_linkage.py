@@ -38,7 +38,11 @@ def test_fourbar_json_matches_the_closed_form(capsys):
         assert row["Px_mm"] == pytest.approx(float(z[0].real), abs=1e-11)
         assert row["vPy_mm_s"] == pytest.approx(float(z[1].imag) * w, abs=1e-10)
     mech = doc["mechanism"]
-    assert mech["dof"] == 1 and mech["groups"] == ["RRR dyad (coupler-rocker)"] and mech["configurations_at_first_position"] == 2
+    assert (
+        mech["dof"] == 1
+        and mech["groups"] == ["RRR dyad (coupler-rocker)"]
+        and mech["configurations_at_first_position"] == 2
+    )
     assert doc["summary"]["loop_closure_max"] < 1e-12
 
 
@@ -64,7 +68,9 @@ def test_all_configurations_of_the_class3_sixbar(capsys):
     assert [r["configuration"] for r in rows] == [1, 2, 3, 4, 5, 6]
     assert all(r["loop_closure_mm"] < 1e-12 for r in rows)
     assert len({round(r["theta_ternary_deg"], 6) for r in rows}) == 6
-    code, out, err = run(capsys, EXAMPLES / "eightbar.toml", "--from", "0", "--to", "60", "--step", "30", "--all-configurations")
+    code, out, err = run(
+        capsys, EXAMPLES / "eightbar.toml", "--from", "0", "--to", "60", "--step", "30", "--all-configurations"
+    )
     assert code == 0, err
     assert "configurations: 36" in out
 
@@ -93,11 +99,27 @@ def test_slide_input_and_speed(capsys):
 
 def test_text_tables_plot_drawing_animation(tmp_path, capsys):
     plot, draw, anim, svg = tmp_path / "m.png", tmp_path / "d.svg", tmp_path / "a.html", tmp_path / "a.svg"
-    code, out, err = run(capsys, EXAMPLES / "shaper.toml", "--from", "0", "--to", "90", "--step", "45",
-                         "--plot", plot, "--draw", draw, "--animate", anim)
+    code, out, err = run(
+        capsys,
+        EXAMPLES / "shaper.toml",
+        "--from",
+        "0",
+        "--to",
+        "90",
+        "--step",
+        "45",
+        "--plot",
+        plot,
+        "--draw",
+        draw,
+        "--animate",
+        anim,
+    )
     assert code == 0, err
     assert "positions:" in out and "velocities:" in out and "accelerations:" in out
-    assert "v_s5[mm/s]" in out and len([ln for ln in out.splitlines() if ln.strip().startswith(("0 ", "45 ", "90 "))]) == 9
+    assert (
+        "v_s5[mm/s]" in out and len([ln for ln in out.splitlines() if ln.strip().startswith(("0 ", "45 ", "90 "))]) == 9
+    )
     assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert b"<svg" in draw.read_bytes()[:2000]
     html = anim.read_text()
@@ -132,11 +154,15 @@ def test_bad_input_exits_2_with_one_line(tmp_path, capsys, args, message):
     bad = tmp_path / "bad.toml"
     bad.write_text("[links.a\n")
     dof = tmp_path / "dof.toml"
-    dof.write_text((EXAMPLES / "fourbar.toml").read_text().replace('[[inputs]]\njoint = "A"\nlink = "crank"\nvalue = 50\n', ""))
+    dof.write_text(
+        (EXAMPLES / "fourbar.toml").read_text().replace('[[inputs]]\njoint = "A"\nlink = "crank"\nvalue = 50\n', "")
+    )
     triple = tmp_path / "triple.toml"
-    triple.write_text('[ground]\nA = [0, 0]\nD = [3, 0]\n[links.crank]\njoints = ["A", "B"]\nlength = 2\n'
-                      '[links.coupler]\njoints = ["B", "C"]\nlength = 2\n[links.rocker]\njoints = ["D", "C"]\nlength = 2\n'
-                      '[[inputs]]\njoint = "A"\nlink = "crank"\n')
+    triple.write_text(
+        '[ground]\nA = [0, 0]\nD = [3, 0]\n[links.crank]\njoints = ["A", "B"]\nlength = 2\n'
+        '[links.coupler]\njoints = ["B", "C"]\nlength = 2\n[links.rocker]\njoints = ["D", "C"]\nlength = 2\n'
+        '[[inputs]]\njoint = "A"\nlink = "crank"\n'
+    )
     names = {"{bad}": bad, "{dof}": dof, "{fourbar}": EXAMPLES / "fourbar.toml", "{triple}": triple}
     args = [str(names.get(a, a)) for a in args]
     plot = tmp_path / "never.png"
@@ -181,8 +207,9 @@ def test_the_file_configuration_is_followed_and_the_option_overrides_it(tmp_path
     doc = json.loads(out)
     assert doc["mechanism"]["configuration_from"] == "option"
     # the option's configuration 1 puts C on the other side: a different mechanism
-    assert doc["positions"][1]["Cy_mm"] == pytest.approx(-own["positions"][1]["Cy_mm"], abs=1e-9) or \
-        doc["positions"][1]["Cy_mm"] != pytest.approx(own["positions"][1]["Cy_mm"], abs=1e-6)
+    assert doc["positions"][1]["Cy_mm"] == pytest.approx(-own["positions"][1]["Cy_mm"], abs=1e-9) or doc["positions"][
+        1
+    ]["Cy_mm"] != pytest.approx(own["positions"][1]["Cy_mm"], abs=1e-6)
     code, out, _ = run(capsys, EXAMPLES / "fourbar.toml", "--json")
     assert json.loads(out)["mechanism"]["configuration_from"] == "default"
 
@@ -191,18 +218,42 @@ def test_the_file_configuration_is_numbered_at_the_inputs_values(tmp_path, capsy
     """A triad's configurations are listed by the ternary link's angle, an order that changes
     with the crank: the file's number is the one at the input's value, followed to the sweep."""
     path = tmp_path / "class3.toml"
-    path.write_text((EXAMPLES / "class3_sixbar.toml").read_text().replace('units = "mm"\n', 'units = "mm"\nconfiguration = 4\n'))
+    path.write_text(
+        (EXAMPLES / "class3_sixbar.toml").read_text().replace('units = "mm"\n', 'units = "mm"\nconfiguration = 4\n')
+    )
     code, out, err = run(capsys, path, "--from", "120", "--to", "180", "--step", "30", "--json")
     assert code == 0, err
     rows = json.loads(out)["positions"]
-    code, out, err = run(capsys, EXAMPLES / "class3_sixbar.toml", "--configuration", "4", "--from", "0", "--to", "180",
-                         "--step", "30", "--json")
+    code, out, err = run(
+        capsys,
+        EXAMPLES / "class3_sixbar.toml",
+        "--configuration",
+        "4",
+        "--from",
+        "0",
+        "--to",
+        "180",
+        "--step",
+        "30",
+        "--json",
+    )
     assert code == 0, err
     followed = json.loads(out)["positions"][4:]
     assert [r["theta_ternary_deg"] for r in rows] == pytest.approx([r["theta_ternary_deg"] for r in followed], abs=1e-9)
     # numbered at 120° instead, configuration 4 is another branch of the triad
-    code, out, _ = run(capsys, EXAMPLES / "class3_sixbar.toml", "--configuration", "4", "--from", "120", "--to", "180",
-                       "--step", "30", "--json")
+    code, out, _ = run(
+        capsys,
+        EXAMPLES / "class3_sixbar.toml",
+        "--configuration",
+        "4",
+        "--from",
+        "120",
+        "--to",
+        "180",
+        "--step",
+        "30",
+        "--json",
+    )
     other = json.loads(out)["positions"]
     assert other[0]["theta_ternary_deg"] != pytest.approx(rows[0]["theta_ternary_deg"], abs=1e-3)
 
@@ -232,7 +283,9 @@ def test_limits_give_transmission_angles_and_dwells(tmp_path, capsys):
     m = fourbar_motion(50, 80, 80, 100, phi, 1)
     (mu,) = lim["transmission"]
     assert mu["joint"] == "C"
-    assert mu["min_deg"] == pytest.approx(math.degrees(float(np.minimum(transmission_angle(m), np.pi - transmission_angle(m)).min())), abs=1e-6)
+    assert mu["min_deg"] == pytest.approx(
+        math.degrees(float(np.minimum(transmission_angle(m), np.pi - transmission_angle(m)).min())), abs=1e-6
+    )
     assert lim["band_deg"] == band and len(lim["dwells"]) == 2
     psi = np.degrees(np.unwrap(m.gamma))
     deg = np.degrees(phi)

@@ -58,8 +58,10 @@ def test_shaper_json_is_the_reference_table(capsys, reference_cases):
     assert s["reversals_per_turn"] == 2
 
 
-@pytest.mark.parametrize("base, velocities", [(SLIDER, ["omega2_rad_s", "v3_mm_s"]),
-                                              (SHAPER, ["v2_mm_s", "omega3_rad_s", "omega4_rad_s", "v5_mm_s"])])
+@pytest.mark.parametrize(
+    "base, velocities",
+    [(SLIDER, ["omega2_rad_s", "v3_mm_s"]), (SHAPER, ["v2_mm_s", "omega3_rad_s", "omega4_rad_s", "v5_mm_s"])],
+)
 def test_clockwise_flips_every_velocity(capsys, base, velocities):
     ccw = run_json(capsys, *base, "--phi", "40")["positions"][0]
     cw = run_json(capsys, *base, "--phi", "40", "--cw")["positions"][0]
@@ -70,16 +72,48 @@ def test_clockwise_flips_every_velocity(capsys, base, velocities):
 def test_p204101_inclined_guide(capsys, reference_cases):
     case = reference_cases["P204101_offset_slider_crank"]
     for branch, row in zip(("1", "-1"), case["rows"]):
-        doc = run_json(capsys, "analyze", "slider-crank", "--crank", "50", "--rod", "100", "--offset", "40",
-                       "--guide-angle", "30", "--phi", "60", "--branch", branch)
+        doc = run_json(
+            capsys,
+            "analyze",
+            "slider-crank",
+            "--crank",
+            "50",
+            "--rod",
+            "100",
+            "--offset",
+            "40",
+            "--guide-angle",
+            "30",
+            "--phi",
+            "60",
+            "--branch",
+            branch,
+        )
         got = doc["positions"][0]
         assert [got["phi2_deg"], got["s3_mm"]] == pytest.approx(row["solver"], rel=1e-9)
 
 
 def test_slider_crank_inside_a_partial_reach(capsys):
     # l1 + |e| > l2: no full turn, no limit positions, but reachable angles analyse fine.
-    doc = run_json(capsys, "analyze", "slider-crank", "--crank", "50", "--rod", "30", "--offset", "10",
-                   "--from", "-50", "--to", "20", "--step", "10", "--units", "in")
+    doc = run_json(
+        capsys,
+        "analyze",
+        "slider-crank",
+        "--crank",
+        "50",
+        "--rod",
+        "30",
+        "--offset",
+        "10",
+        "--from",
+        "-50",
+        "--to",
+        "20",
+        "--step",
+        "10",
+        "--units",
+        "in",
+    )
     assert doc["summary"]["full_turn"] is False and "limit_positions" not in doc["summary"]
     assert len(doc["summary"]["crank_range_deg"]) == 2
     assert len(doc["positions"]) == 8 and "v3_in_s" in doc["positions"][0]
@@ -88,8 +122,9 @@ def test_slider_crank_inside_a_partial_reach(capsys):
 @pytest.mark.parametrize("base, plotted", [(SLIDER, "v3[mm/s]"), (SHAPER, "v5[mm/s]")])
 def test_table_plot_and_drawing(tmp_path, capsys, base, plotted):
     plot, draw = tmp_path / "m.png", tmp_path / "m.svg"
-    code, out, err = run(capsys, *base, "--from", "0", "--to", "90", "--step", "45",
-                         "--plot", str(plot), "--draw", str(draw))
+    code, out, err = run(
+        capsys, *base, "--from", "0", "--to", "90", "--step", "45", "--plot", str(plot), "--draw", str(draw)
+    )
     assert code == 0, err
     assert plotted in out and "time_ratio" in out and "stroke_mm" in out
     assert len([ln for ln in out.splitlines() if ln.strip().startswith(("0 ", "45 ", "90 "))]) == 3
@@ -106,13 +141,21 @@ def test_table_plot_and_drawing(tmp_path, capsys, base, plotted):
         (["slider-crank", "--crank", "50", "--rod", "150", "--guide-angle", "inf"], "--guide-angle"),
         (["slider-crank", "--crank", "50", "--rod", "150", "--branch", "0"], "--branch"),
         (["slider-crank", "--rod", "150"], "--crank"),
-        (["slider-crank", "--crank", "50", "--rod", "30", "--offset", "10"], "reachable crank angles [deg]: [-53.1301, 23.5782]"),
-        (["slider-crank", "--crank", "50", "--rod", "70", "--offset", "20", "--phi", "90"], "perpendicular to the guide"),
+        (
+            ["slider-crank", "--crank", "50", "--rod", "30", "--offset", "10"],
+            "reachable crank angles [deg]: [-53.1301, 23.5782]",
+        ),
+        (
+            ["slider-crank", "--crank", "50", "--rod", "70", "--offset", "20", "--phi", "90"],
+            "perpendicular to the guide",
+        ),
         (["shaper", "--crank", "60", "--rod", "300", "--link", "150", "--height", "50"], "l1 < h"),
         (["shaper", "--crank", "60", "--rod", "250", "--link", "150", "--height", "200"], "l1 + h < l3"),
         (["shaper", "--crank", "60", "--rod", "300", "--link", "100", "--height", "200"], "l3 + e - h < l4"),
-        (["shaper", "--crank", "190", "--rod", "400", "--link", "150", "--height", "200", "--offset", "-100"],
-         "h - e - l3*sqrt(1 - (l1/h)^2) < l4"),
+        (
+            ["shaper", "--crank", "190", "--rod", "400", "--link", "150", "--height", "200", "--offset", "-100"],
+            "h - e - l3*sqrt(1 - (l1/h)^2) < l4",
+        ),
         (["shaper", "--crank", "60", "--rod", "300", "--link", "-150", "--height", "200"], "--link"),
         (["shaper", "--crank", "60", "--rod", "300", "--link", "150", "--height", "200", "--bogus"], "No such option"),
     ],

@@ -106,7 +106,9 @@ def test_killed_build_resumes_to_the_same_content(tmp_path, reference, capsys):
     assert f"resuming: {len(kept)} of {N_SHARDS} shards already built" in err
     assert re.fullmatch(
         rf"atlas {re.escape(str(db))} complete: \d+ linkages; segments: line \d+, arc \d+, double_line \d+; "
-        rf"{N_SHARDS - len(kept)} shard\(s\) in [\d.]+ s \(\d+ linkages/s\)\n", out)
+        rf"{N_SHARDS - len(kept)} shard\(s\) in [\d.]+ s \(\d+ linkages/s\)\n",
+        out,
+    )
     after = shard_table(db)
     assert {i: after[i] for i in kept} == kept  # what was committed was kept, not recomputed
     doc = info_json(capsys, db)
@@ -125,8 +127,9 @@ def test_ctrl_c_and_a_concurrent_builder(tmp_path, reference, capsys):
     before = shard_table(db)
     rc, out, err = dwell(capsys, "build", "--db", str(db), *SMALL, "--workers", "1")
     assert rc == 2 and out == ""
-    assert err.count("\n") == 1 and err.startswith(f"dwell: error: atlas {str(db)!r} is being built by another process "
-                                                   f"(pid {proc.pid} on ")
+    assert err.count("\n") == 1 and err.startswith(
+        f"dwell: error: atlas {str(db)!r} is being built by another process (pid {proc.pid} on "
+    )
     assert set(shard_table(db)) >= set(before)
     # info works while it builds
     doc = info_json(capsys, db)
@@ -159,8 +162,10 @@ def test_info_json_is_consistent_with_the_database(reference, capsys):
     hist = doc["dwell_histogram"]
     assert hist["bin_deg"] == 10 and len(hist["edges_deg"]) == 37 and hist["edges_deg"][-1] == 360
     assert set(hist["kinds"]) == {"line", "arc", "double_line"}
-    per_level = dict(((("line", "arc", "double_line")[k], lvl), n)
-                     for k, lvl, n in query(db, "select kind, level, count(*) from dwell group by kind, level"))
+    per_level = dict(
+        ((("line", "arc", "double_line")[k], lvl), n)
+        for k, lvl, n in query(db, "select kind, level, count(*) from dwell group by kind, level")
+    )
     for kind, levels in hist["kinds"].items():
         assert [lv["level"] for lv in levels] == [0, 1, 2]
         assert [lv["tolerance"] for lv in levels] == list(SPEC.tolerances)
@@ -173,8 +178,12 @@ def test_info_json_is_consistent_with_the_database(reference, capsys):
     assert doc["skipped"] == skipped
     build = doc["build"]
     assert build["spec"] == json.loads(SPEC.to_json()) and build["spec_digest"] == SPEC.digest
-    assert (build["status"], build["shards_done"], build["n_shards"], build["schema_version"]) == ("complete", N_SHARDS, N_SHARDS,
-                                                                                            SCHEMA_VERSION)
+    assert (build["status"], build["shards_done"], build["n_shards"], build["schema_version"]) == (
+        "complete",
+        N_SHARDS,
+        N_SHARDS,
+        SCHEMA_VERSION,
+    )
     assert build["code_version"] and doc["builds"] == 1
     assert doc["content_digest"] == digest and re.fullmatch(r"[0-9a-f]{64}", digest)
     # storage: the file's pages (no -wal beside a complete atlas), per linkage
@@ -183,9 +192,15 @@ def test_info_json_is_consistent_with_the_database(reference, capsys):
 
     rc, out, err = dwell(capsys, "info", "--db", str(db))
     assert rc == 0 and err == ""
-    assert f"linkages: {doc['linkages']}\n" in out and f"content digest (stored, unchecked; --verify recomputes it): {digest}" in out
+    assert (
+        f"linkages: {doc['linkages']}\n" in out
+        and f"content digest (stored, unchecked; --verify recomputes it): {digest}" in out
+    )
     assert f"build 1: complete, {N_SHARDS}/{N_SHARDS} shards" in out
-    assert f"storage: {db.stat().st_size / 2**20:.1f} MiB ({db.stat().st_size / doc['linkages'] / 1024:.1f} KiB per linkage)" in out
+    assert (
+        f"storage: {db.stat().st_size / 2**20:.1f} MiB ({db.stat().st_size / doc['linkages'] / 1024:.1f} KiB per linkage)"
+        in out
+    )
 
 
 def test_another_sweep_is_refused_then_replaced(tmp_path, capsys):
@@ -199,8 +214,10 @@ def test_another_sweep_is_refused_then_replaced(tmp_path, capsys):
     rc, out, err = dwell(capsys, "build", "--db", str(db), *tiny, "--seed", "1", "--workers", "1")
     spec_digest = old["build"]["spec_digest"]
     assert rc == 2 and out == ""
-    assert err == (f"dwell: error: atlas {str(db)!r} was built with a different sweep (preset demo+custom, digest "
-                   f"{spec_digest[:8]}…); use --replace to rebuild it\n")
+    assert err == (
+        f"dwell: error: atlas {str(db)!r} was built with a different sweep (preset demo+custom, digest "
+        f"{spec_digest[:8]}…); use --replace to rebuild it\n"
+    )
     assert hashlib.sha256(db.read_bytes()).hexdigest() == before
 
     rc, out, err = dwell(capsys, "build", "--db", str(db), *tiny, "--seed", "1", "--workers", "1", "--replace")
@@ -214,22 +231,25 @@ def test_another_sweep_is_refused_then_replaced(tmp_path, capsys):
     assert query(db, "select count(*) from shard where build_id != (select id from build)") == [(0,)]
 
 
-@pytest.mark.parametrize("args, message", [
-    (["--preset", "nope"], "Invalid value for '--preset': 'nope' is not one of 'demo', 'large', 'standard'"),
-    (["--samples", "-5"], "Invalid value for '--samples': must be a whole number from 1 to 2147483648"),
-    (["--b", "3", "2"], "range b must satisfy 0.001 <= low <= high <= 1000 (crank = 1), got (3, 2)"),
-    (["--c", "-1", "2"], "Invalid value for '--c': must be 0.001 <= x <= 1000 (a length in cranks), got -1"),
-    (["--d", "nan", "2"], "Invalid value for '--d': must be a finite number"),
-    (["--crank-step", "0"], "Invalid value for '--crank-step': must be 0.05 <= x <= 30"),
-    (["--crank-step", "1e-320"], "Invalid value for '--crank-step': must be 0.05 <= x <= 30"),
-    (["--samples", "2147483648"], "would need about 460 GiB of memory"),
-    (["--tolerances", "0.01,abc"], "--tolerances must be comma-separated numbers"),
-    (["--tolerances", "0.01,0.001"], "tolerances must be in increasing order"),
-    (["--min-dwell", "400"], "Invalid value for '--min-dwell': must be 0 < x < 360"),
-    (["--shard-size", "0"], "Invalid value for '--shard-size': must be a whole number from 1 to 1000000"),
-    (["--workers", "0"], "Invalid value for '--workers'"),
-    (["--samples", "many"], "Invalid value for '--samples'"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--preset", "nope"], "Invalid value for '--preset': 'nope' is not one of 'demo', 'large', 'standard'"),
+        (["--samples", "-5"], "Invalid value for '--samples': must be a whole number from 1 to 2147483648"),
+        (["--b", "3", "2"], "range b must satisfy 0.001 <= low <= high <= 1000 (crank = 1), got (3, 2)"),
+        (["--c", "-1", "2"], "Invalid value for '--c': must be 0.001 <= x <= 1000 (a length in cranks), got -1"),
+        (["--d", "nan", "2"], "Invalid value for '--d': must be a finite number"),
+        (["--crank-step", "0"], "Invalid value for '--crank-step': must be 0.05 <= x <= 30"),
+        (["--crank-step", "1e-320"], "Invalid value for '--crank-step': must be 0.05 <= x <= 30"),
+        (["--samples", "2147483648"], "would need about 460 GiB of memory"),
+        (["--tolerances", "0.01,abc"], "--tolerances must be comma-separated numbers"),
+        (["--tolerances", "0.01,0.001"], "tolerances must be in increasing order"),
+        (["--min-dwell", "400"], "Invalid value for '--min-dwell': must be 0 < x < 360"),
+        (["--shard-size", "0"], "Invalid value for '--shard-size': must be a whole number from 1 to 1000000"),
+        (["--workers", "0"], "Invalid value for '--workers'"),
+        (["--samples", "many"], "Invalid value for '--samples'"),
+    ],
+)
 def test_bad_sweep_options_write_nothing(tmp_path, capsys, monkeypatch, args, message):
     monkeypatch.chdir(tmp_path)  # the default --db lives in the cwd
     rc, out, err = dwell(capsys, "build", *args)
@@ -246,17 +266,25 @@ def _foreign(path: Path) -> None:
     con.close()
 
 
-@pytest.mark.parametrize("case, message", [
-    ("foreign", "is a database of another application"),
-    ("text", "is not an SQLite database"),
-    ("folder", "is a folder, not an atlas file"),
-    ("no-folder", "does not exist"),
-    ("unwritable", "cannot be written"),  # said before SQLite's "unable to open database file"
-])
+@pytest.mark.parametrize(
+    "case, message",
+    [
+        ("foreign", "is a database of another application"),
+        ("text", "is not an SQLite database"),
+        ("folder", "is a folder, not an atlas file"),
+        ("no-folder", "does not exist"),
+        ("unwritable", "cannot be written"),  # said before SQLite's "unable to open database file"
+    ],
+)
 @pytest.mark.parametrize("command", ["build", "info"])
 def test_bad_atlas_paths_are_refused_untouched(tmp_path, capsys, case, message, command):
-    target = {"foreign": tmp_path / "other.sqlite", "text": tmp_path / "notes.txt", "folder": tmp_path,
-              "no-folder": tmp_path / "none" / "a.sqlite", "unwritable": Path("/proc/dwell-atlas-test.sqlite")}[case]
+    target = {
+        "foreign": tmp_path / "other.sqlite",
+        "text": tmp_path / "notes.txt",
+        "folder": tmp_path,
+        "no-folder": tmp_path / "none" / "a.sqlite",
+        "unwritable": Path("/proc/dwell-atlas-test.sqlite"),
+    }[case]
     if case == "foreign":
         _foreign(target)
     elif case == "text":
@@ -291,6 +319,7 @@ def test_default_db_is_atlas_sqlite_in_the_cwd(tmp_path, capsys, monkeypatch):
 
 # --------------------------------------------------------------- PostgreSQL (tests/postgres.py)
 
+
 def shown(url: str) -> str:
     from db.engine import display_target
 
@@ -321,7 +350,10 @@ def test_killed_build_on_postgresql_resumes_to_the_same_content(tmp_path, refere
 
     rc, text_out, err = dwell(capsys, "info", "--db", postgres_url)
     assert rc == 0 and err == ""
-    assert text_out.startswith(f"atlas {shown(postgres_url)}\n") and f"content digest (stored, unchecked; --verify recomputes it): {reference[1]}" in text_out
+    assert (
+        text_out.startswith(f"atlas {shown(postgres_url)}\n")
+        and f"content digest (stored, unchecked; --verify recomputes it): {reference[1]}" in text_out
+    )
     rc, again, err = dwell(capsys, "build", "--db", postgres_url, *SMALL)
     assert rc == 0 and again.startswith(f"atlas {shown(postgres_url)} is already complete: ")
     password = make_url(postgres_url).password
@@ -330,11 +362,14 @@ def test_killed_build_on_postgresql_resumes_to_the_same_content(tmp_path, refere
 
 
 @pytest.mark.postgres
-@pytest.mark.parametrize("case, message", [
-    ("unreachable", "cannot connect to 'postgresql+psycopg://"),
-    ("missing", 'database "dwell_no_such_database" does not exist; create it first'),
-    ("foreign", "is a database of another application"),
-])
+@pytest.mark.parametrize(
+    "case, message",
+    [
+        ("unreachable", "cannot connect to 'postgresql+psycopg://"),
+        ("missing", 'database "dwell_no_such_database" does not exist; create it first'),
+        ("foreign", "is a database of another application"),
+    ],
+)
 @pytest.mark.parametrize("command", ["build", "info"])
 def test_bad_postgresql_targets_exit_2_with_one_line(capsys, postgres_url, case, message, command):
     import socket

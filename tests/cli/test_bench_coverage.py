@@ -31,22 +31,28 @@ def test_coverage_grid_matches_the_query_cell_by_cell(capsys, atlas_path, tmp_pa
     plot = tmp_path / "coverage.png"
     # without refinement: the grid's 148 cells in seconds (refined, minutes); the cells are
     # held to `dwell query` below in the same mode
-    code, out, err = run(capsys, "bench", "coverage", "--db", atlas_path, "--top", "5", "--no-refine", "--json",
-                         "--plot", str(plot))
+    code, out, err = run(
+        capsys, "bench", "coverage", "--db", atlas_path, "--top", "5", "--no-refine", "--json", "--plot", str(plot)
+    )
     assert code == 0, err
     summary = err
     doc = json.loads(out)
     cells = doc["cells"]
     assert len(cells) == 2 * len(SINGLE_DWELLS) * len(SWINGS) + len(DOUBLE_DWELLS) * len(DOUBLE_SWINGS)
     assert {(c["dwell_deg"], c["swing_deg"]) for c in cells if c["family"] == "rrr"} == {
-        (d, s) for d in SINGLE_DWELLS for s in SWINGS}
+        (d, s) for d in SINGLE_DWELLS for s in SWINGS
+    }
     # two dwells name the output's swing (issue #41)
     assert [(c["dwell_deg"], c["swing_deg"]) for c in cells if c["family"] == "double"] == [
-        (d, s) for d in DOUBLE_DWELLS for s in DOUBLE_SWINGS]
+        (d, s) for d in DOUBLE_DWELLS for s in DOUBLE_SWINGS
+    ]
     for fam, v in doc["summary"].items():
         mine = [c for c in cells if c["family"] == fam]
-        assert v == {"cells": len(mine), "answered": sum(c["candidates"] >= 1 for c in mine),
-                     "three_or_more": sum(c["candidates"] >= 3 for c in mine)}
+        assert v == {
+            "cells": len(mine),
+            "answered": sum(c["candidates"] >= 1 for c in mine),
+            "three_or_more": sum(c["candidates"] >= 3 for c in mine),
+        }
     assert all(0 <= c["candidates"] <= 5 and c["ms"] > 0 for c in cells)
     assert all((c["best_deviation_deg"] is None) == (c["candidates"] == 0) for c in cells)
     assert doc["summary"]["rpr"]["answered"] >= 10, "the demo sweep answers many RPR cells"
@@ -60,8 +66,19 @@ def test_coverage_grid_matches_the_query_cell_by_cell(capsys, atlas_path, tmp_pa
         (next(c for c in doubles if c["candidates"] > 0), ["--dwells", "2", "--dwell-tol", "5"]),
     ):
         extra = ["--swing", f"{cell['swing_deg']:g}", "--output", "rpr"]
-        code, out, _ = run(capsys, "query", "--db", atlas_path, "--dwell", f"{cell['dwell_deg']:g}", *extra, *args,
-                           "--top", "5", "--json")
+        code, out, _ = run(
+            capsys,
+            "query",
+            "--db",
+            atlas_path,
+            "--dwell",
+            f"{cell['dwell_deg']:g}",
+            *extra,
+            *args,
+            "--top",
+            "5",
+            "--json",
+        )
         got = json.loads(out)["candidates"]
         assert len(got) == cell["candidates"] and got[0]["id"] == cell["best"]
         best = min(max(d["output_deviation_deg"] for d in c["dwells"]) for c in got)
@@ -80,12 +97,26 @@ def test_coverage_table_and_bad_input(capsys, atlas_path, tmp_path):
     code, out, err = run(capsys, "bench", "coverage", "--db", str(tmp_path / "none.sqlite"))
     assert code == 2 and out == ""
     # --dwell keeps the grid's rows of those dwells; one that is no row is bad input
-    code, out, err = run(capsys, "bench", "coverage", "--db", atlas_path, "--family", "rrr", "--dwell", "10",
-                         "--dwell", "180", "--no-refine", "--json")
+    code, out, err = run(
+        capsys,
+        "bench",
+        "coverage",
+        "--db",
+        atlas_path,
+        "--family",
+        "rrr",
+        "--dwell",
+        "10",
+        "--dwell",
+        "180",
+        "--no-refine",
+        "--json",
+    )
     assert code == 0, err
     rows = json.loads(out)["cells"]
     assert [(c["family"], c["dwell_deg"], c["swing_deg"]) for c in rows] == [
-        ("rrr", d, s) for d in (10, 180) for s in SWINGS]
+        ("rrr", d, s) for d in (10, 180) for s in SWINGS
+    ]
     assert all(c["in_the_way"] is None or c["in_the_way"][0] in CONSTRAINTS for c in rows)
     code, out, err = run(capsys, "bench", "coverage", "--db", atlas_path, "--dwell", "11")
     assert code == 2 and out == "" and len(err.strip().splitlines()) == 1 and "--dwell" in err
@@ -97,8 +128,20 @@ def test_complete_coverage_measures_the_sampled_query_against_it(capsys, atlas_p
     family."""
     plot = tmp_path / "double.png"
     rows = (30, 60)  # four of the sixteen cells: the complete search over the rest is the same code
-    code, out, err = run(capsys, "bench", "coverage", "--db", atlas_path, "--family", "double", "--complete", "--json",
-                         "--plot", str(plot), *(f"--dwell={d}" for d in rows))
+    code, out, err = run(
+        capsys,
+        "bench",
+        "coverage",
+        "--db",
+        atlas_path,
+        "--family",
+        "double",
+        "--complete",
+        "--json",
+        "--plot",
+        str(plot),
+        *(f"--dwell={d}" for d in rows),
+    )
     assert code == 0, err
     doc = json.loads(out)
     assert doc["complete"] is True and list(doc["summary"]) == ["double"]
@@ -125,8 +168,20 @@ def test_query_complete_holds_every_sampled_answer(capsys, atlas_path):
     """``dwell query --complete``: every six-bar the default (sampled) query returns meets the
     request, so the complete search returns it too (or its mirror image, or a better-ranked
     six-bar of the same segment)."""
-    args = ["query", "--db", atlas_path, "--dwell", "45", "--swing", "40", "--output", "rpr", "--top", "1000",
-            "--no-refine"]
+    args = [
+        "query",
+        "--db",
+        atlas_path,
+        "--dwell",
+        "45",
+        "--swing",
+        "40",
+        "--output",
+        "rpr",
+        "--top",
+        "1000",
+        "--no-refine",
+    ]
     code, out, err = run(capsys, *args, "--json")
     assert code == 0, err
     sampled = json.loads(out)["candidates"]
@@ -134,8 +189,13 @@ def test_query_complete_holds_every_sampled_answer(capsys, atlas_path):
     assert code == 0, err
     complete = json.loads(out)["candidates"]
     assert len(complete) > len(sampled) >= 1
-    curve = lambda c: (round(c["fourbar"]["b_mm"], 6), round(c["fourbar"]["c_mm"], 6), round(c["fourbar"]["d_mm"], 6),  # noqa: E731
-                       round(c["coupler_point_mm"][0], 3), round(abs(c["coupler_point_mm"][1]), 3))
+    curve = lambda c: (
+        round(c["fourbar"]["b_mm"], 6),
+        round(c["fourbar"]["c_mm"], 6),
+        round(c["fourbar"]["d_mm"], 6),  # noqa: E731
+        round(c["coupler_point_mm"][0], 3),
+        round(abs(c["coupler_point_mm"][1]), 3),
+    )
     assert {curve(c) for c in sampled} <= {curve(c) for c in complete}
     code, out, err = run(capsys, *args, "--complete")
     assert code == 0 and "segment levels searched: all" in out.splitlines()[0]

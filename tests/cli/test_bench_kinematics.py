@@ -19,7 +19,10 @@ def test_bench_kinematics_json(capsys):
         # the yardstick computes the same coupler angle, and the ratio is its time over ours
         assert r["plain_numpy_max_abs_theta_difference_rad"] < 1e-12
         best = max(r["streamed_positions_per_s"], r["single_call_positions_per_s"])
-        assert abs(r["ratio_to_plain_numpy"] - best / r["plain_numpy_positions_only_per_s"]) < 1e-9 * r["ratio_to_plain_numpy"]
+        assert (
+            abs(r["ratio_to_plain_numpy"] - best / r["plain_numpy_positions_only_per_s"])
+            < 1e-9 * r["ratio_to_plain_numpy"]
+        )
     errors = doc["max_error_vs_extended_precision"]
     assert set(errors) >= {"theta", "dtheta1", "dtheta2", "dtheta3", "dgamma3", "loop_residual"}
     # float64 closed form against extended precision: a few ulps, scaled by the derivatives

@@ -54,17 +54,27 @@ def test_the_unit_of_length_only_scales_the_answer(capsys, scale):
     """Every length times ``scale`` (the command takes 1e-150 … 1e150): every point and length
     of the answer times ``scale``, no NaN. Before the fix, Heron's product overflowed (NaN
     pole at 1e100) or underflowed (every position a toggle at 1e-150)."""
+
     def doc(k):
-        code, out, err = run(capsys, "curvature", *(f"{float(x) * k!r}" if x[0].isdigit() else x for x in LINKAGE),
-                             "--phi", "60", "--rays", "4", "--json")
+        code, out, err = run(
+            capsys,
+            "curvature",
+            *(f"{float(x) * k!r}" if x[0].isdigit() else x for x in LINKAGE),
+            "--phi",
+            "60",
+            "--rays",
+            "4",
+            "--json",
+        )
         assert code == 0, err
         assert "NaN" not in out and "Infinity" not in out
         return json.loads(out)
 
     unit, scaled = doc(1.0), doc(scale)
     assert scaled["pole"] == pytest.approx([x * scale for x in unit["pole"]], rel=1e-12)
-    assert scaled["inflection_circle"]["diameter"] == pytest.approx(unit["inflection_circle"]["diameter"] * scale,
-                                                                    rel=1e-12)
+    assert scaled["inflection_circle"]["diameter"] == pytest.approx(
+        unit["inflection_circle"]["diameter"] * scale, rel=1e-12
+    )
     assert scaled["ball_point"]["xy"] == pytest.approx([x * scale for x in unit["ball_point"]["xy"]], rel=1e-12)
     for p, q in zip(scaled["conjugate_pairs"], unit["conjugate_pairs"]):
         assert p["center_point"] == pytest.approx([x * scale for x in q["center_point"]], rel=1e-9, abs=1e-9 * scale)
@@ -105,7 +115,9 @@ def test_pole_at_infinity_gives_nulls_with_their_reason(capsys):
 
 def test_text_output_and_plot(tmp_path, capsys):
     png, svg = tmp_path / "c.png", tmp_path / "c.svg"
-    code, out, err = run(capsys, "curvature", *LINKAGE, "--phi", "60", "--rays", "3", "--double-ball", "--plot", str(png))
+    code, out, err = run(
+        capsys, "curvature", *LINKAGE, "--phi", "60", "--rays", "3", "--double-ball", "--plot", str(png)
+    )
     assert code == 0, err
     assert "inflection circle" in out and "Ball's point" in out and "double Ball points" in out
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 20_000
@@ -114,15 +126,18 @@ def test_text_output_and_plot(tmp_path, capsys):
     assert b"<svg" in svg.read_bytes()[:2000]
 
 
-@pytest.mark.parametrize("args, message", [
-    (["--phi", "60", "--a", "0"], "--a"),
-    (["--phi", "nan"], "--phi"),
-    (["--rays", "-1", "--phi", "0"], "--rays"),
-    (["--branch", "2", "--phi", "0"], "--branch"),
-    (["--phi", "0", "--plot", "out.pdf"], "--plot"),
-    (["--phi", "0", "--bogus"], "No such option"),
-    ([], "--phi"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--phi", "60", "--a", "0"], "--a"),
+        (["--phi", "nan"], "--phi"),
+        (["--rays", "-1", "--phi", "0"], "--rays"),
+        (["--branch", "2", "--phi", "0"], "--branch"),
+        (["--phi", "0", "--plot", "out.pdf"], "--plot"),
+        (["--phi", "0", "--bogus"], "No such option"),
+        ([], "--phi"),
+    ],
+)
 def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys, monkeypatch, args, message):
     monkeypatch.chdir(tmp_path)
     code, out, err = run(capsys, "curvature", *LINKAGE, *args)
@@ -133,15 +148,27 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys, monkeypatch, args, m
 
 def test_position_that_cannot_assemble_is_refused(tmp_path, capsys):
     plot = tmp_path / "x.png"
-    code, out, err = run(capsys, "curvature", "--a", "1", "--b", "1.2", "--c", "1.5", "--d", "2.5", "--phi", "180",
-                         "--plot", str(plot))
+    code, out, err = run(
+        capsys, "curvature", "--a", "1", "--b", "1.2", "--c", "1.5", "--d", "2.5", "--phi", "180", "--plot", str(plot)
+    )
     assert code == 2 and "cannot assemble" in err and len(err.strip().splitlines()) == 1
     assert not plot.exists()
 
 
 def test_bench_curvature_json(capsys):
-    code, out, err = run(capsys, "bench", "curvature", "--linkages", "3", "--angles", "20", "--repeat", "1",
-                         "--double-ball-linkages", "2")
+    code, out, err = run(
+        capsys,
+        "bench",
+        "curvature",
+        "--linkages",
+        "3",
+        "--angles",
+        "20",
+        "--repeat",
+        "1",
+        "--double-ball-linkages",
+        "2",
+    )
     assert code == 0, err
     doc = json.loads(out)
     assert doc["rays"] == 36 and doc["instants"] == 60 and doc["instants_per_s"] > 0

@@ -30,6 +30,7 @@ def test_demo_answers_every_request_and_writes_reports(tmp_path, capsys):
         (s0, e0), (s1, e1) = (d["interval_deg"] for d in cand["dwells"])
         assert min((s1 - e0) % 360, (s0 - e1) % 360) >= 5
         assert cand["buildability"]["peak_output_accel_rad_s2"] < 100
+
     # every candidate's linkage file, solved by dwell analyze linkage, gives its figures (issue 14)
     def run(argv):
         assert main(argv) == 0

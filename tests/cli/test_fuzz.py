@@ -62,10 +62,23 @@ LEAVES = [p for p, c in COMMANDS.items() if not isinstance(c, click.Group)]
 
 def test_every_command_is_found():
     assert {(), ("analyze",), ("atlas",), ("bench",)} <= set(GROUPS)
-    assert {("demo",), ("query",), ("report",), ("curvature",), ("analyze", "fourbar"), ("analyze", "linkage"),
-            ("analyze", "slider-crank"), ("analyze", "shaper"), ("atlas", "build"), ("atlas", "info"),
-            ("bench", "kinematics"), ("bench", "curvature"), ("bench", "stability"), ("bench", "atlas"),
-            ("bench", "faults")} <= set(LEAVES)
+    assert {
+        ("demo",),
+        ("query",),
+        ("report",),
+        ("curvature",),
+        ("analyze", "fourbar"),
+        ("analyze", "linkage"),
+        ("analyze", "slider-crank"),
+        ("analyze", "shaper"),
+        ("atlas", "build"),
+        ("atlas", "info"),
+        ("bench", "kinematics"),
+        ("bench", "curvature"),
+        ("bench", "stability"),
+        ("bench", "atlas"),
+        ("bench", "faults"),
+    } <= set(LEAVES)
 
 
 # ------------------------------------------------------------------------ the example's world
@@ -93,36 +106,139 @@ class World:
 
 
 #: ``--db`` values: the valid atlas, and everything that is not one
-DB_VALUES = ["atlas.sqlite", "new.sqlite", "foreign.sqlite", "notes.txt", "empty.sqlite", "sub", "none/a.sqlite",
-             "", ":memory:", "sqlite://", "nosuchdialect://x/y", "postgresql://u@127.0.0.1:1/x", "sqlite:///new2.sqlite",
-             "/proc/dwell.sqlite", "ätlas.sqlite", "-", "--db"]
+DB_VALUES = [
+    "atlas.sqlite",
+    "new.sqlite",
+    "foreign.sqlite",
+    "notes.txt",
+    "empty.sqlite",
+    "sub",
+    "none/a.sqlite",
+    "",
+    ":memory:",
+    "sqlite://",
+    "nosuchdialect://x/y",
+    "postgresql://u@127.0.0.1:1/x",
+    "sqlite:///new2.sqlite",
+    "/proc/dwell.sqlite",
+    "ätlas.sqlite",
+    "-",
+    "--db",
+]
 #: What no output may show: the password of the connection strings below.
 SECRET = "S3cret"
 #: ``--db`` values shaped like connection strings (a libpq key/value string, URLs with a typo
 #: in the scheme or none): refused before anything is made, without the password
-CONNECTION_STRINGS = [f"host=127.0.0.1 port=1 user=u password={SECRET} dbname=db",
-                      f"dbname=db password='{SECRET} x'", f"postgresql:/u:{SECRET}@h/db", f"postgres//u:{SECRET}@h/db",
-                      f"postgresql:u:{SECRET}@h/db", f"postgresql+psycopg:/u:{SECRET}@h/db", f"u:{SECRET}@h/db",
-                      f"postgresql;//u:{SECRET}@h/db"]
+CONNECTION_STRINGS = [
+    f"host=127.0.0.1 port=1 user=u password={SECRET} dbname=db",
+    f"dbname=db password='{SECRET} x'",
+    f"postgresql:/u:{SECRET}@h/db",
+    f"postgres//u:{SECRET}@h/db",
+    f"postgresql:u:{SECRET}@h/db",
+    f"postgresql+psycopg:/u:{SECRET}@h/db",
+    f"u:{SECRET}@h/db",
+    f"postgresql;//u:{SECRET}@h/db",
+]
 #: damaged atlases, and atlases with another database's side file beside them (World)
-HOSTILE_ATLASES = ["journal.sqlite", "wal.sqlite", "numeric-kind.sqlite", "many-samples.sqlite",
-                   "no-shard-row.sqlite", "paused.sqlite"]
+HOSTILE_ATLASES = [
+    "journal.sqlite",
+    "wal.sqlite",
+    "numeric-kind.sqlite",
+    "many-samples.sqlite",
+    "no-shard-row.sqlite",
+    "paused.sqlite",
+]
 DB_VALUES += [*CONNECTION_STRINGS, *HOSTILE_ATLASES, "loop.sqlite"]
 #: refused by every command that opens an atlas, whatever else the line does (``none/a.sqlite``
 #: is not: ``--out none`` makes its folder): ``dwell demo`` gets one of these, never a build
-BAD_DB_VALUES = ["foreign.sqlite", "notes.txt", "sub", "nosuchdialect://x/y", *CONNECTION_STRINGS, *HOSTILE_ATLASES,
-                 "loop.sqlite"]
-PATH_VALUES = ["out.png", "out.svg", "out.html", "out.pdf", "existing.png", "notes.txt", "sub", "sub/x.svg",
-               "none/x.png", "", ".", "/proc/dwell.png", "ünïcode.svg", "out", "sub/deeper/out", "-"]
-EDGE_NUMBERS = ["0", "-0", "1", "-1", "2", "0.5", "1e-320", "1e308", "-1e308", "1e999", "nan", "-nan", "NaN", "inf",
-                "-inf", "Infinity", "9" * 40, "2147483648", "-2147483649", "9223372036854775808", "360", "-360", "720",
-                "1e-9", "1e150", "1e151", "1e-150", "1e-151", "1e50", "-1e51", "1e100", "1e75"]  # and the CLI's limits
-NOT_NUMBERS = ["", " ", "abc", "1,5", "1.2.3", "٣", "1_000", "0x10", "-", "½", "1e", "e5", "\u00a0", "🙂", "None",
-               "true", "[1]"]
+BAD_DB_VALUES = [
+    "foreign.sqlite",
+    "notes.txt",
+    "sub",
+    "nosuchdialect://x/y",
+    *CONNECTION_STRINGS,
+    *HOSTILE_ATLASES,
+    "loop.sqlite",
+]
+PATH_VALUES = [
+    "out.png",
+    "out.svg",
+    "out.html",
+    "out.pdf",
+    "existing.png",
+    "notes.txt",
+    "sub",
+    "sub/x.svg",
+    "none/x.png",
+    "",
+    ".",
+    "/proc/dwell.png",
+    "ünïcode.svg",
+    "out",
+    "sub/deeper/out",
+    "-",
+]
+EDGE_NUMBERS = [
+    "0",
+    "-0",
+    "1",
+    "-1",
+    "2",
+    "0.5",
+    "1e-320",
+    "1e308",
+    "-1e308",
+    "1e999",
+    "nan",
+    "-nan",
+    "NaN",
+    "inf",
+    "-inf",
+    "Infinity",
+    "9" * 40,
+    "2147483648",
+    "-2147483649",
+    "9223372036854775808",
+    "360",
+    "-360",
+    "720",
+    "1e-9",
+    "1e150",
+    "1e151",
+    "1e-150",
+    "1e-151",
+    "1e50",
+    "-1e51",
+    "1e100",
+    "1e75",
+]  # and the CLI's limits
+NOT_NUMBERS = [
+    "",
+    " ",
+    "abc",
+    "1,5",
+    "1.2.3",
+    "٣",
+    "1_000",
+    "0x10",
+    "-",
+    "½",
+    "1e",
+    "e5",
+    "\u00a0",
+    "🙂",
+    "None",
+    "true",
+    "[1]",
+]
 UNKNOWN = ["--nope", "-x", "--", "--a=1", "--db=", "-h", "--HELP", "--json=1", "---", "--é"]
 
-numbers = st.sampled_from(EDGE_NUMBERS) | st.sampled_from(NOT_NUMBERS) | st.floats(allow_nan=True).map(repr) \
-    | st.integers(-10**6, 10**6).map(str)
+numbers = (
+    st.sampled_from(EDGE_NUMBERS)
+    | st.sampled_from(NOT_NUMBERS)
+    | st.floats(allow_nan=True).map(repr)
+    | st.integers(-(10**6), 10**6).map(str)
+)
 small_ints = st.sampled_from(["1", "2", "3", "4", "8", "0", "-1", "-5", "1.5", "", "x", "99999999999999999999", "nan"])
 texts = st.text(max_size=12) | st.sampled_from(["", "-", "--json", "rpr", "rrr", "any", "demo", "standard", "mm"])
 
@@ -137,20 +253,56 @@ STRUCTURED = {
     "--crank-lengths": _lists(numbers),
     "--rpms": _lists(numbers),
     "--tolerances": _lists(st.sampled_from(["1e-4", "1e-3", "0.01", "0.1", "0", "-1", "nan", "x", "2"])),
-    "--resolutions": _lists(st.tuples(st.sampled_from(["10", "6", "0", "-1", "nan", "x"]),
-                                      st.sampled_from(["6", "0", "-2", "x", "8"])).map(":".join)) | texts,
-    "--cv-bounds": st.tuples(st.sampled_from(["a", "b", "c", "d", "e", ""]), numbers, numbers)
-    .map(lambda t: f"{t[0]}={t[1]}:{t[2]}") | texts,
-    "--candidates": st.sampled_from(["{candidate}", "1-rpr0.0@20", "x", "", "{candidate} {candidate}",
-                                     "99999999999-rrr0.0@30", "1-dbl0.9@nan", "1-rpr0.0@1e999"]) | texts,
+    "--resolutions": _lists(
+        st.tuples(st.sampled_from(["10", "6", "0", "-1", "nan", "x"]), st.sampled_from(["6", "0", "-2", "x", "8"])).map(
+            ":".join
+        )
+    )
+    | texts,
+    "--cv-bounds": st.tuples(st.sampled_from(["a", "b", "c", "d", "e", ""]), numbers, numbers).map(
+        lambda t: f"{t[0]}={t[1]}:{t[2]}"
+    )
+    | texts,
+    "--candidates": st.sampled_from(
+        [
+            "{candidate}",
+            "1-rpr0.0@20",
+            "x",
+            "",
+            "{candidate} {candidate}",
+            "99999999999-rrr0.0@30",
+            "1-dbl0.9@nan",
+            "1-rpr0.0@1e999",
+        ]
+    )
+    | texts,
     "--output": st.sampled_from(["rpr", "rrr", "any", "RPR", "dbl", ""]) | texts,
     "--preset": st.sampled_from(["demo", "standard", "large", "nope", ""]),
     "--db-kind": st.sampled_from(["sqlite", "postgresql", "both", "x"]),
 }
 #: options whose values set how much work a run does: mostly small, sometimes invalid
-SIZES = {"--samples", "--shard-size", "--rays", "--workers", "--angles", "--repeat", "--linkages", "--batch",
-         "--double-ball-linkages", "--proportions", "--dwell-samples", "--build", "--ingest", "--reference-rays", "--top",
-         "--trials", "--kills", "--phases", "--configuration", "--dwells"}
+SIZES = {
+    "--samples",
+    "--shard-size",
+    "--rays",
+    "--workers",
+    "--angles",
+    "--repeat",
+    "--linkages",
+    "--batch",
+    "--double-ball-linkages",
+    "--proportions",
+    "--dwell-samples",
+    "--build",
+    "--ingest",
+    "--reference-rays",
+    "--top",
+    "--trials",
+    "--kills",
+    "--phases",
+    "--configuration",
+    "--dwells",
+}
 
 
 def _value(param: click.Parameter, name: str) -> st.SearchStrategy:
@@ -192,17 +344,50 @@ BASE = {
     ("analyze", "slider-crank"): ["--crank", "50", "--rod", "150"],
     ("analyze", "shaper"): ["--crank", "60", "--rod", "300", "--link", "150", "--height", "200"],
     ("curvature",): [["--a", a, "--b", b, "--c", c, "--d", d, "--phi", "60"] for a, b, c, d in SHAPES],
-    ("atlas", "build"): ["--db", "built.sqlite", "--samples", "8", "--shard-size", "4", "--crank-step", "10", "--rays", "8", "--workers", "1",
-                         "--no-progress"],
+    ("atlas", "build"): [
+        "--db",
+        "built.sqlite",
+        "--samples",
+        "8",
+        "--shard-size",
+        "4",
+        "--crank-step",
+        "10",
+        "--rays",
+        "8",
+        "--workers",
+        "1",
+        "--no-progress",
+    ],
     ("atlas", "info"): ["--db", "atlas.sqlite"],
     ("query",): ["--db", "atlas.sqlite", "--dwell", "40", "--swing", "20", "--dwell-tol", "10", "--swing-tol", "5"],
     ("report",): ["--db", "atlas.sqlite", "--candidates", "{candidate}", "--out", "report"],
     ("bench", "kinematics"): ["--n", "1,10", "--angles", "36", "--repeat", "1"],
-    ("bench", "curvature"): ["--linkages", "5", "--angles", "10", "--rays", "6", "--repeat", "1",
-                             "--double-ball-linkages", "1"],
+    ("bench", "curvature"): [
+        "--linkages",
+        "5",
+        "--angles",
+        "10",
+        "--rays",
+        "6",
+        "--repeat",
+        "1",
+        "--double-ball-linkages",
+        "1",
+    ],
     ("bench", "stability"): ["--n", "200"],
-    ("bench", "atlas"): ["--proportions", "1", "--resolutions", "10:6", "--reference-step", "10", "--reference-rays",
-                         "8", "--dwell-samples", "1"],
+    ("bench", "atlas"): [
+        "--proportions",
+        "1",
+        "--resolutions",
+        "10:6",
+        "--reference-step",
+        "10",
+        "--reference-rays",
+        "8",
+        "--dwell-samples",
+        "1",
+    ],
 }
 
 
@@ -242,15 +427,30 @@ def _atlas_build_ok(p: dict) -> bool:
     from cli.atlas import parse_range, parse_tolerances, sweep_spec_from_options
 
     try:
-        spec = sweep_spec_from_options(p["preset"], {
-            "samples": p["samples"], "seed": p["seed"], "b": parse_range(p["b_range"]), "c": parse_range(p["c_range"]),
-            "d": parse_range(p["d_range"]), "crank_step_deg": p["crank_step"], "rays": p["rays"],
-            "tolerances": parse_tolerances(p["tolerances"]), "min_dwell_deg": p["min_dwell"], "shard_size": p["shard_size"],
-        })
+        spec = sweep_spec_from_options(
+            p["preset"],
+            {
+                "samples": p["samples"],
+                "seed": p["seed"],
+                "b": parse_range(p["b_range"]),
+                "c": parse_range(p["c_range"]),
+                "d": parse_range(p["d_range"]),
+                "crank_step_deg": p["crank_step"],
+                "rays": p["rays"],
+                "tolerances": parse_tolerances(p["tolerances"]),
+                "min_dwell_deg": p["min_dwell"],
+                "shard_size": p["shard_size"],
+            },
+        )
     except SweepSpecError:
         return True  # refused at once
-    return (p["workers"] == 1 and spec.samples <= 16 and spec.crank_step_deg >= 5 and spec.rays <= 16
-            and len(spec.tolerances) <= 4)
+    return (
+        p["workers"] == 1
+        and spec.samples <= 16
+        and spec.crank_step_deg >= 5
+        and spec.rays <= 16
+        and len(spec.tolerances) <= 4
+    )
 
 
 def _sizes(text: str | None, limit: int) -> bool:
@@ -282,12 +482,18 @@ AFFORDABLE = {
     ("report",): lambda p: len(p["ids"]) + len(p["more_ids"]) <= 2,
     ("demo",): lambda p: p["target"] in BAD_DB_VALUES,
     ("bench", "kinematics"): lambda p: _sizes(p["sizes"], 100) and p["angles"] <= 360 and p["repeat"] <= 2,
-    ("bench", "curvature"): lambda p: p["linkages"] * p["angles"] <= 2000 and p["rays"] <= 50 and p["repeat"] <= 2
-    and p["n_double"] <= 2,
+    ("bench", "curvature"): lambda p: (
+        p["linkages"] * p["angles"] <= 2000 and p["rays"] <= 50 and p["repeat"] <= 2 and p["n_double"] <= 2
+    ),
     ("bench", "stability"): lambda p: p["n_cases"] <= 2000,
-    ("bench", "atlas"): lambda p: p["proportions"] <= 2 and _resolutions_ok(p["resolutions"])
-    and p["reference_step"] >= 5 and p["reference_rays"] <= 12 and p["dwell_samples"] <= 2
-    and (p["build_samples"] <= 8 and p["workers"] == 1 or p["build_samples"] == 0),
+    ("bench", "atlas"): lambda p: (
+        p["proportions"] <= 2
+        and _resolutions_ok(p["resolutions"])
+        and p["reference_step"] >= 5
+        and p["reference_rays"] <= 12
+        and p["dwell_samples"] <= 2
+        and (p["build_samples"] <= 8 and p["workers"] == 1 or p["build_samples"] == 0)
+    ),
 }
 
 
@@ -314,9 +520,16 @@ FOLDER = b"<folder>"
 def snapshot(folder: Path) -> dict[str, bytes]:
     """Every file (its sha256), folder and symbolic link (where it points) under ``folder``,
     by relative name."""
-    return {str(p.relative_to(folder)): (b"<link>" + os.readlink(p).encode() if p.is_symlink() else FOLDER if p.is_dir()
-                                         else hashlib.sha256(p.read_bytes()).digest())
-            for p in sorted(folder.rglob("*"))}
+    return {
+        str(p.relative_to(folder)): (
+            b"<link>" + os.readlink(p).encode()
+            if p.is_symlink()
+            else FOLDER
+            if p.is_dir()
+            else hashlib.sha256(p.read_bytes()).digest()
+        )
+        for p in sorted(folder.rglob("*"))
+    }
 
 
 def _strict_json(text: str):
@@ -333,7 +546,9 @@ def _complete(path: Path) -> str | None:
     if not data:
         return "empty"
     if suffix == ".png":
-        return None if data.startswith(b"\x89PNG\r\n\x1a\n") and data.rstrip().endswith(b"IEND\xaeB`\x82") else "cut PNG"
+        return (
+            None if data.startswith(b"\x89PNG\r\n\x1a\n") and data.rstrip().endswith(b"IEND\xaeB`\x82") else "cut PNG"
+        )
     if suffix == ".svg":
         try:
             ET.fromstring(data)
@@ -415,8 +630,9 @@ def small_atlas(tmp_path_factory) -> tuple[Path, str, dict[str, bytes]]:
     from db import open_atlas
 
     path = tmp_path_factory.mktemp("fuzz") / "atlas.sqlite"
-    spec = SweepSpec(name="fuzz", b=(1.5, 4.5), c=(1.5, 4.5), d=(1.5, 4.5), samples=16, crank_step_deg=3.0, rays=24,
-                     shard_size=8)
+    spec = SweepSpec(
+        name="fuzz", b=(1.5, 4.5), c=(1.5, 4.5), d=(1.5, 4.5), samples=16, crank_step_deg=3.0, rays=24, shard_size=8
+    )
     build_atlas(str(path), spec, workers=1)
     engine = open_atlas(str(path), readonly=True)
     try:
@@ -442,11 +658,13 @@ def _hostile(atlas: Path, work: Path) -> dict[str, bytes]:
     con.commit()
     con.close()
     # another database's hot journal: its writer killed after changed pages reached the file
-    writer = ("import os, signal, sqlite3, sys\n"
-              "con = sqlite3.connect(sys.argv[1], isolation_level=None)\n"
-              "con.execute('PRAGMA cache_size=1'); con.execute('BEGIN'); con.execute('PRAGMA user_version=9')\n"
-              "con.execute(\"update t set x = 'y' || x\")\n"
-              "os.kill(os.getpid(), signal.SIGKILL)\n")
+    writer = (
+        "import os, signal, sqlite3, sys\n"
+        "con = sqlite3.connect(sys.argv[1], isolation_level=None)\n"
+        "con.execute('PRAGMA cache_size=1'); con.execute('BEGIN'); con.execute('PRAGMA user_version=9')\n"
+        "con.execute(\"update t set x = 'y' || x\")\n"
+        "os.kill(os.getpid(), signal.SIGKILL)\n"
+    )
     assert subprocess.run([sys.executable, "-c", writer, str(other)]).returncode == -9
     journal = Path(f"{other}-journal").read_bytes()
     # another database's write-ahead log with the atlas's page size
@@ -477,9 +695,13 @@ def _hostile(atlas: Path, work: Path) -> dict[str, bytes]:
 
     kind = ("UPDATE sqlite_master SET sql = replace(sql, 'kind VARCHAR(12)', 'kind INTEGER') WHERE name = 'segment'",)
     return {
-        "journal.sqlite": atlas.read_bytes(), "journal.sqlite-journal": journal,
-        "wal.sqlite": spoiled("UPDATE build SET status = 'building', content_digest = NULL", "DELETE FROM shard "
-                              "WHERE shard_index = (SELECT max(shard_index) FROM shard)", wal_mode=True),
+        "journal.sqlite": atlas.read_bytes(),
+        "journal.sqlite-journal": journal,
+        "wal.sqlite": spoiled(
+            "UPDATE build SET status = 'building', content_digest = NULL",
+            "DELETE FROM shard WHERE shard_index = (SELECT max(shard_index) FROM shard)",
+            wal_mode=True,
+        ),
         "wal.sqlite-wal": wal,
         "numeric-kind.sqlite": _numeric_kind(spoiled(*kind), work),
         "many-samples.sqlite": spoiled("UPDATE build SET spec_json = json_set(spec_json, '$.samples', 'many')"),
@@ -498,7 +720,9 @@ def _numeric_kind(data: bytes, work: Path) -> bytes:
     con.execute("UPDATE segment SET kind = 7 WHERE id = (SELECT min(id) FROM segment)")
     con.commit()
     con.execute("PRAGMA writable_schema=ON")
-    con.execute("UPDATE sqlite_master SET sql = replace(sql, 'kind INTEGER', 'kind VARCHAR(12)') WHERE name = 'segment'")
+    con.execute(
+        "UPDATE sqlite_master SET sql = replace(sql, 'kind INTEGER', 'kind VARCHAR(12)') WHERE name = 'segment'"
+    )
     con.commit()
     con.close()
     data = path.read_bytes()
@@ -514,11 +738,21 @@ def world_for(small_atlas):
 
 #: ``DWELL_FUZZ_SCALE=10`` multiplies every example budget below (a long local hunt)
 SCALE = float(os.environ.get("DWELL_FUZZ_SCALE") or 1)
-FUZZ = settings(deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture,
-                                                      HealthCheck.filter_too_much])
+FUZZ = settings(
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture, HealthCheck.filter_too_much],
+)
 #: examples per command: commands that run for real in an example get fewer
-BUDGET = {("atlas", "build"): 25, ("query",): 25, ("report",): 15, ("bench", "kinematics"): 6,
-          ("bench", "atlas"): 12, ("bench", "curvature"): 20, ("analyze", "linkage"): 25, ("demo",): 25}
+BUDGET = {
+    ("atlas", "build"): 25,
+    ("query",): 25,
+    ("report",): 15,
+    ("bench", "kinematics"): 6,
+    ("bench", "atlas"): 12,
+    ("bench", "curvature"): 20,
+    ("analyze", "linkage"): 25,
+    ("demo",): 25,
+}
 
 
 @pytest.mark.parametrize("path", LEAVES, ids=" ".join)
@@ -530,7 +764,11 @@ def test_random_arguments_exit_0_or_2_and_write_all_or_nothing(path, small_atlas
     budget = round(BUDGET.get(path, 40) * SCALE)
 
     @settings(FUZZ, max_examples=budget)
-    @given(argv=arguments(path), db=st.sampled_from(BAD_DB_VALUES), linkage=st.sampled_from(sorted(EXAMPLES.glob("*.toml"))))
+    @given(
+        argv=arguments(path),
+        db=st.sampled_from(BAD_DB_VALUES),
+        linkage=st.sampled_from(sorted(EXAMPLES.glob("*.toml"))),
+    )
     def fuzz(argv, db, linkage):
         if path == ("demo",):
             argv = [*argv, "--db", db]  # a refused atlas: the demo never builds here
@@ -557,8 +795,12 @@ def test_random_arguments_to_groups(path, small_atlas):
     names = sorted(command.list_commands(click.Context(command)))
 
     @settings(FUZZ, max_examples=round(30 * SCALE))
-    @given(tokens=st.lists(st.sampled_from(names) | st.sampled_from(UNKNOWN) | st.sampled_from(["--version", "--help"])
-                           | texts, max_size=3))
+    @given(
+        tokens=st.lists(
+            st.sampled_from(names) | st.sampled_from(UNKNOWN) | st.sampled_from(["--version", "--help"]) | texts,
+            max_size=3,
+        )
+    )
     def fuzz(tokens):
         with world_for(small_atlas) as world:
             # whatever subcommand the tokens name stops at its parser: nothing long runs here
@@ -573,31 +815,63 @@ FOURBAR = ["--a", "1", "--b", "3", "--c", "2.5", "--d", "3"]
 #: lines that gave a traceback or left files behind, with the one error line they give now
 #: (None: they now succeed)
 FOUND = [
-    (["analyze", "slider-crank", "--crank", "1e-150", "--rod", "150"],
-     "the slider's stroke is below floating-point resolution (it stops at s = 150 only)"),
-    (["analyze", "shaper", "--crank", "1e-150", "--rod", "300", "--link", "150", "--height", "200"],
-     "the slider's stroke is below floating-point resolution"),
-    (["analyze", "slider-crank", "--crank", "50", "--rod", "150", "--guide-angle", "9223372036854775808"],
-     "Invalid value for '--guide-angle': must be -36000 <= x <= 36000"),
+    (
+        ["analyze", "slider-crank", "--crank", "1e-150", "--rod", "150"],
+        "the slider's stroke is below floating-point resolution (it stops at s = 150 only)",
+    ),
+    (
+        ["analyze", "shaper", "--crank", "1e-150", "--rod", "300", "--link", "150", "--height", "200"],
+        "the slider's stroke is below floating-point resolution",
+    ),
+    (
+        ["analyze", "slider-crank", "--crank", "50", "--rod", "150", "--guide-angle", "9223372036854775808"],
+        "Invalid value for '--guide-angle': must be -36000 <= x <= 36000",
+    ),
     (["bench", "stability", "--n", "200", "--seed", "-2147483649"], "Invalid value for '--seed'"),
     (["bench", "stability", "--n", "1"], None),  # no near-toggle case drawn
     (["bench", "kinematics", "--n", "1", "--seed", "-1"], "Invalid value for '--seed'"),
     (["bench", "curvature", "--linkages", "1", "--seed", "-1"], "Invalid value for '--seed'"),
-    (["atlas", "build", "--db", "new.sqlite", "--samples", "4", "--seed", "-1"], "Invalid value for '--seed': must be a whole number from 0"),
-    (["atlas", "build", "--db", "new.sqlite", "--samples", "4", "--tolerances",
-      ",".join(f"{0.001 + 0.01 * i:g}" for i in range(40))], "at most 32 tolerances, got 40"),
+    (
+        ["atlas", "build", "--db", "new.sqlite", "--samples", "4", "--seed", "-1"],
+        "Invalid value for '--seed': must be a whole number from 0",
+    ),
+    (
+        [
+            "atlas",
+            "build",
+            "--db",
+            "new.sqlite",
+            "--samples",
+            "4",
+            "--tolerances",
+            ",".join(f"{0.001 + 0.01 * i:g}" for i in range(40)),
+        ],
+        "at most 32 tolerances, got 40",
+    ),
     (["demo", "--out", "made/here", "--db", "foreign.sqlite"], "is a database of another application"),
     (["demo", "--out", "/proc/dwell-out", "--db", "foreign.sqlite"], "--out: cannot write into '/proc/dwell-out'"),
-    (["report", "--db", "atlas.sqlite", "--candidates", "{candidate}", "--out", "/proc/dwell-report"],
-     "--out: cannot write into '/proc/dwell-report'"),
-    (["query", "--db", "atlas.sqlite", "--dwell", "40", "--swing", "20", "--report", "/proc/dwell-report"],
-     "--report: cannot write into '/proc/dwell-report'"),
+    (
+        ["report", "--db", "atlas.sqlite", "--candidates", "{candidate}", "--out", "/proc/dwell-report"],
+        "--out: cannot write into '/proc/dwell-report'",
+    ),
+    (
+        ["query", "--db", "atlas.sqlite", "--dwell", "40", "--swing", "20", "--report", "/proc/dwell-report"],
+        "--report: cannot write into '/proc/dwell-report'",
+    ),
     (["analyze", "fourbar", *FOURBAR, "--plot", "/proc/dwell.png"], "cannot write '/proc/dwell.png'"),
-    (["analyze", "fourbar", *FOURBAR, "--b", "1e308"], "Invalid value for '--b': must be 1e-150 <= x <= 1e+150 (a length)"),
-    (["analyze", "fourbar", *FOURBAR, "--a", "1e-320", "--d", "1e-320"], "Invalid value for '--a': must be 1e-150 <= x"),
+    (
+        ["analyze", "fourbar", *FOURBAR, "--b", "1e308"],
+        "Invalid value for '--b': must be 1e-150 <= x <= 1e+150 (a length)",
+    ),
+    (
+        ["analyze", "fourbar", *FOURBAR, "--a", "1e-320", "--d", "1e-320"],
+        "Invalid value for '--a': must be 1e-150 <= x",
+    ),
     (["curvature", *FOURBAR, "--phi", "10", "--b", "1e200", "--c", "1e200"], "Invalid value for '--b'"),
-    (["analyze", "linkage", str(EXAMPLES / "class3_sixbar.toml"), "--rpm", "1e308", "--json"],
-     "Invalid value for '--rpm': must be -1e+50 <= x <= 1e+50"),
+    (
+        ["analyze", "linkage", str(EXAMPLES / "class3_sixbar.toml"), "--rpm", "1e308", "--json"],
+        "Invalid value for '--rpm': must be -1e+50 <= x <= 1e+50",
+    ),
     (["analyze", "fourbar", *FOURBAR, "--omega", "1e200", "--json"], "Invalid value for '--omega'"),
     (["analyze", "slider-crank", "--crank", "1", "--rod", "3", "--alpha", "-1e300"], "Invalid value for '--alpha'"),
     # a range of a sliver of a degree was taken for a whole turn, and its only angle dropped
@@ -605,20 +879,28 @@ FOUND = [
     (["analyze", "fourbar", *FOURBAR, "--from", "10", "--to", "10.0000000001"], None),
     (["analyze", "linkage", str(EXAMPLES / "fourbar.toml"), "--to", "1e-150"], None),
     # a deviation window shorter than the simulation's crank step held no sample
-    (["report", "--db", "atlas.sqlite", "--candidates", "{candidate}", "--out", "report", "--dwell", "1e-9"],
-     "--dwell must be at least 1°"),
-    (["query", "--db", "atlas.sqlite", "--dwell", "0.3", "--dwell-tol", "50", "--swing", "20"],
-     "--dwell must be at least 1°"),
+    (
+        ["report", "--db", "atlas.sqlite", "--candidates", "{candidate}", "--out", "report", "--dwell", "1e-9"],
+        "--dwell must be at least 1°",
+    ),
+    (
+        ["query", "--db", "atlas.sqlite", "--dwell", "0.3", "--dwell-tol", "50", "--swing", "20"],
+        "--dwell must be at least 1°",
+    ),
     # the linkage file's assembly configuration was matched at the user's scale: at 1e100 the
     # assembly solver's squares overflowed and no configuration matched (a traceback)
     (["report", "--db", "atlas.sqlite", "--candidates", "{candidate}", "--out", "report", "--crank", "1e100"], None),
     # the rhombus's Ball-point track lies on a line: every piece overlapped every other (40 GB)
     (["curvature", "--a", "1", "--b", "1", "--c", "1", "--d", "1", "--phi", "10", "--double-ball"], None),
     # click's "unexpected extra arguments" echoed a connection string's password as typed
-    (["demo", "--", "--db", "host=127.0.0.1 port=1 user=u password=S3cret dbname=db"],
-     "Got unexpected extra arguments (--db <a libpq connection string"),
-    (["query", "--db", "atlas.sqlite", "--dwell", "40", "--swing", "20", "extra", "postgresql://u:S3cret@h/db"],
-     "Got unexpected extra arguments (extra postgresql://u:***@h/db)"),
+    (
+        ["demo", "--", "--db", "host=127.0.0.1 port=1 user=u password=S3cret dbname=db"],
+        "Got unexpected extra arguments (--db <a libpq connection string",
+    ),
+    (
+        ["query", "--db", "atlas.sqlite", "--dwell", "40", "--swing", "20", "extra", "postgresql://u:S3cret@h/db"],
+        "Got unexpected extra arguments (extra postgresql://u:***@h/db)",
+    ),
 ]
 
 
@@ -627,7 +909,7 @@ FOUND = [
 def test_what_fuzzing_found(small_atlas, argv, message):
     with world_for(small_atlas) as world:
         path = next(p for p in sorted(COMMANDS, key=len, reverse=True) if tuple(argv[: len(p)]) == p)
-        rc, out, err = run_and_check(world, path, argv[len(path):])
+        rc, out, err = run_and_check(world, path, argv[len(path) :])
         if message is None:
             assert rc == 0, err
         else:
@@ -636,14 +918,20 @@ def test_what_fuzzing_found(small_atlas, argv, message):
 
 #: mechanism files (an example with one value replaced) that gave a traceback, and the error now
 FOUND_FILES = [
-    ("scotch_yoke.toml", "length = 40", "length = 1e308", "'length' must be a finite number of magnitude at most 1e+150"),
+    (
+        "scotch_yoke.toml",
+        "length = 40",
+        "length = 1e308",
+        "'length' must be a finite number of magnitude at most 1e+150",
+    ),
     ("fourbar.toml", "D = [100, 0]", "D = [100, 1e200]", "ground point 'D' y must be a finite number of magnitude"),
     ("fourbar.toml", "length = 50", f"length = {10**400}", "'length' must be a finite number of magnitude"),
 ]
 
 
-@pytest.mark.parametrize("example, old, new, message", FOUND_FILES, ids=[f"{i}-{e}" for i, (e, *_) in
-                                                                         enumerate(FOUND_FILES)])
+@pytest.mark.parametrize(
+    "example, old, new, message", FOUND_FILES, ids=[f"{i}-{e}" for i, (e, *_) in enumerate(FOUND_FILES)]
+)
 def test_what_fuzzing_found_in_mechanism_files(small_atlas, example, old, new, message):
     text = (EXAMPLES / example).read_text()
     assert old in text
@@ -655,11 +943,29 @@ def test_what_fuzzing_found_in_mechanism_files(small_atlas, example, old, new, m
 
 # ------------------------------------------------------------------------- mechanism files
 
-EVIL_TOML = ["nan", "inf", "-inf", "0", "-1", "1e308", "1e-320", '"x"', "[]", "{}", "true", "[1, 2, 3]", "[nan, 0]",
-             '"🙂"', "-0.0", "9" * 30]
-EVIL_JSON = st.recursive(st.none() | st.booleans() | st.floats() | st.integers(-10**20, 10**20) | st.text(max_size=5),
-                         lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=5), inner, max_size=3),
-                         max_leaves=6)
+EVIL_TOML = [
+    "nan",
+    "inf",
+    "-inf",
+    "0",
+    "-1",
+    "1e308",
+    "1e-320",
+    '"x"',
+    "[]",
+    "{}",
+    "true",
+    "[1, 2, 3]",
+    "[nan, 0]",
+    '"🙂"',
+    "-0.0",
+    "9" * 30,
+]
+EVIL_JSON = st.recursive(
+    st.none() | st.booleans() | st.floats() | st.integers(-(10**20), 10**20) | st.text(max_size=5),
+    lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=5), inner, max_size=3),
+    max_leaves=6,
+)
 _NUMBER = re.compile(r"(?<![\w.\"])-?\d+(\.\d+)?(?![\w.\"])")
 
 
@@ -673,7 +979,7 @@ def linkage_files(draw) -> tuple[str, bytes]:
         spots = list(_NUMBER.finditer(text))
         for _ in range(draw(st.integers(1, 3))):
             m = draw(st.sampled_from(spots))
-            text = text[: m.start()] + draw(st.sampled_from(EVIL_TOML)) + text[m.end():]
+            text = text[: m.start()] + draw(st.sampled_from(EVIL_TOML)) + text[m.end() :]
             spots = list(_NUMBER.finditer(text)) or spots[:0]
             if not spots:
                 break
@@ -712,7 +1018,9 @@ def linkage_files(draw) -> tuple[str, bytes]:
         return name, json.dumps(data).encode()
     if kind == "bytes":
         return draw(st.sampled_from(["mech.toml", "mech.json", "mech"])), draw(st.binary(max_size=200))
-    return draw(st.sampled_from(["mech.toml", "mech.json"])), draw(st.text(max_size=200)).encode("utf-8", "surrogatepass")
+    return draw(st.sampled_from(["mech.toml", "mech.json"])), draw(st.text(max_size=200)).encode(
+        "utf-8", "surrogatepass"
+    )
 
 
 @settings(FUZZ, max_examples=round(120 * SCALE))
@@ -735,15 +1043,20 @@ def test_random_mechanism_files_exit_0_or_2(small_atlas, file, options):
 DWELL = [sys.executable, "-c", "import sys; from cli.main import main; sys.exit(main())"]
 
 
-@pytest.mark.parametrize("argv", [
-    [b"analyze", b"fourbar", b"--a", b"\xff\xfe", b"--b", b"3", b"--c", b"2.5", b"--d", b"3"],  # not UTF-8
-    [b"curvature", b"--a", b"1", b"--b", b"3", b"--c", b"2.5", b"--d", b"3", b"--phi", "٣٠".encode()],
-    [b"atlas", b"info", b"--db", b"\xff.sqlite"],
-], ids=["non-utf8-value", "arabic-digits", "non-utf8-path"])
+@pytest.mark.parametrize(
+    "argv",
+    [
+        [b"analyze", b"fourbar", b"--a", b"\xff\xfe", b"--b", b"3", b"--c", b"2.5", b"--d", b"3"],  # not UTF-8
+        [b"curvature", b"--a", b"1", b"--b", b"3", b"--c", b"2.5", b"--d", b"3", b"--phi", "٣٠".encode()],
+        [b"atlas", b"info", b"--db", b"\xff.sqlite"],
+    ],
+    ids=["non-utf8-value", "arabic-digits", "non-utf8-path"],
+)
 def test_odd_bytes_in_a_real_process(tmp_path, argv):
     env = {k: v for k, v in os.environ.items() if not k.startswith(("LC_", "PYTHONIOENCODING", "DWELL_ATLAS"))}
-    proc = subprocess.run([*map(str.encode, DWELL), *argv], cwd=tmp_path, capture_output=True, timeout=120,
-                          env={**env, "LANG": "C"})
+    proc = subprocess.run(
+        [*map(str.encode, DWELL), *argv], cwd=tmp_path, capture_output=True, timeout=120, env={**env, "LANG": "C"}
+    )
     err = proc.stderr.decode("utf-8", "replace")
     assert proc.returncode in (0, 2) and "Traceback" not in err, err
     if proc.returncode == 2:
@@ -753,9 +1066,30 @@ def test_odd_bytes_in_a_real_process(tmp_path, argv):
 
 def test_a_closed_stdout_is_not_a_traceback(tmp_path):
     # `dwell analyze ... | head -1`: the reader goes away while the table is printed
-    proc = subprocess.Popen([*DWELL, "analyze", "fourbar", "--a", "1", "--b", "3", "--c", "2.5", "--d", "3",
-                             "--from", "0", "--to", "360", "--step", "0.5"], cwd=tmp_path, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE)
+    proc = subprocess.Popen(
+        [
+            *DWELL,
+            "analyze",
+            "fourbar",
+            "--a",
+            "1",
+            "--b",
+            "3",
+            "--c",
+            "2.5",
+            "--d",
+            "3",
+            "--from",
+            "0",
+            "--to",
+            "360",
+            "--step",
+            "0.5",
+        ],
+        cwd=tmp_path,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
     proc.stdout.readline()
     proc.stdout.close()
     err = proc.stderr.read().decode()

@@ -23,8 +23,14 @@ VALUES = ["5e-324", "1e-320", "0", "-0", "-1", "1e308", "-1e308", "inf", "-inf",
 #: Refused by every option, whatever its range (a subnormal float has lost its precision).
 SUBNORMALS = ("5e-324", "1e-320")
 #: Text options that hold numbers, and how a value is placed in them.
-NUMBER_LISTS = {"--n": "1,{v}", "--crank-lengths": "1,{v}", "--rpms": "{v}", "--tolerances": "0.001,{v}",
-                "--resolutions": "{v}:6", "--cv-bounds": "a={v}:2"}
+NUMBER_LISTS = {
+    "--n": "1,{v}",
+    "--crank-lengths": "1,{v}",
+    "--rpms": "{v}",
+    "--tolerances": "0.001,{v}",
+    "--resolutions": "{v}:6",
+    "--cv-bounds": "a={v}:2",
+}
 #: The analyze commands' list options act only with --stats.
 NEEDS = {"--crank-lengths": ["--stats"], "--rpms": ["--stats"], "--cv-bounds": ["--stats"]}
 
@@ -34,16 +40,32 @@ def _numeric(param: click.Parameter) -> bool:
     return isinstance(kind, click.types.FloatParamType | click.types.IntParamType) or param.opts[0] in NUMBER_LISTS
 
 
-CASES = [(path, param) for path, command in COMMANDS.items() if not isinstance(command, click.Group)
-         for param in command.params if isinstance(param, click.Option) and not param.is_flag and _numeric(param)]
+CASES = [
+    (path, param)
+    for path, command in COMMANDS.items()
+    if not isinstance(command, click.Group)
+    for param in command.params
+    if isinstance(param, click.Option) and not param.is_flag and _numeric(param)
+]
 
 
 def test_every_numeric_option_is_found():
     names = {(" ".join(path), param.opts[0]) for path, param in CASES}
-    assert {("query", "--crank"), ("report", "--crank"), ("analyze fourbar", "--step"), ("analyze linkage", "--from"),
-            ("atlas build", "--crank-step"), ("atlas build", "--samples"), ("bench atlas", "--reference-step"),
-            ("bench atlas", "--resolutions"), ("bench kinematics", "--n"), ("bench curvature", "--rays"),
-            ("bench query", "--repeat"), ("query", "--min-transmission"), ("curvature", "--phi")} <= names
+    assert {
+        ("query", "--crank"),
+        ("report", "--crank"),
+        ("analyze fourbar", "--step"),
+        ("analyze linkage", "--from"),
+        ("atlas build", "--crank-step"),
+        ("atlas build", "--samples"),
+        ("bench atlas", "--reference-step"),
+        ("bench atlas", "--resolutions"),
+        ("bench kinematics", "--n"),
+        ("bench curvature", "--rays"),
+        ("bench query", "--repeat"),
+        ("query", "--min-transmission"),
+        ("curvature", "--phi"),
+    } <= names
     assert len(CASES) >= 90
 
 
@@ -73,8 +95,12 @@ def test_hostile_values_of_every_numeric_option(small_atlas, path, capsys):  # n
             subnormal = value in SUBNORMALS
             if parsed is not None and (affordable is None or not affordable(parsed)):
                 # (a list option is text to the parser: the command checks its numbers)
-                assert not subnormal or param.opts[0] in NUMBER_LISTS, (path, param.opts[0], value,
-                                                                         "a subnormal passed the parser")
+                assert not subnormal or param.opts[0] in NUMBER_LISTS, (
+                    path,
+                    param.opts[0],
+                    value,
+                    "a subnormal passed the parser",
+                )
                 tally["parser only"] += 1  # accepted by the parser, too long to run here
                 continue
             with world_for(small_atlas) as world:

@@ -87,8 +87,17 @@ def test_status_lines_of_a_log(monkeypatch):
     assert log.getvalue().splitlines() == lines  # nothing more
 
 
-@pytest.mark.parametrize("text, seconds", [("0.5", 0.5), ("", STATUS_INTERVAL), ("soon", STATUS_INTERVAL),
-                                           ("-1", STATUS_INTERVAL), ("nan", STATUS_INTERVAL), ("inf", STATUS_INTERVAL)])
+@pytest.mark.parametrize(
+    "text, seconds",
+    [
+        ("0.5", 0.5),
+        ("", STATUS_INTERVAL),
+        ("soon", STATUS_INTERVAL),
+        ("-1", STATUS_INTERVAL),
+        ("nan", STATUS_INTERVAL),
+        ("inf", STATUS_INTERVAL),
+    ],
+)
 def test_the_status_interval(monkeypatch, text, seconds):
     monkeypatch.setenv("DWELL_STATUS_INTERVAL", text)
     assert status_interval() == seconds

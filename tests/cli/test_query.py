@@ -12,15 +12,13 @@ import math
 
 import numpy as np
 import pytest
+from harness.plain_sixbar import reference_psi
 
 from atlas.build import build_atlas
 from atlas.sweep import PRESETS
 from cli.main import main
 from report.candidate_json import sixbar_from_json
 from synth.mechanism.sixbar import simulate
-
-from harness.plain_sixbar import reference_psi
-
 
 SPEC = PRESETS["demo"].replace(samples=384)
 STEP = 0.05  # degrees
@@ -67,8 +65,9 @@ def _independent(doc: dict, band_deg: float) -> dict:
 
 
 def test_rpr_request_candidates_resimulated_independently(capsys, atlas_path):
-    code, out, err = run(capsys, "query", "--db", atlas_path, "--dwell", "45", "--swing", "40", "--output", "rpr",
-                         "--top", "3", "--json")
+    code, out, err = run(
+        capsys, "query", "--db", atlas_path, "--dwell", "45", "--swing", "40", "--output", "rpr", "--top", "3", "--json"
+    )
     assert code == 0, err
     doc = json.loads(out)
     assert doc["request"]["dwell_deg"] == 45
@@ -76,8 +75,20 @@ def test_rpr_request_candidates_resimulated_independently(capsys, atlas_path):
     assert cands, "the demo sweep must answer an RPR 45°/40° request"
     for rank, cand in enumerate(cands, start=1):
         assert cand["rank"] == rank
-        assert set(cand) >= {"rank", "id", "length_unit", "fourbar", "coupler_point_mm", "output", "dwells",
-                             "swing_deg", "transmission_deg", "link_ratio", "footprint_mm2", "segment_id"}
+        assert set(cand) >= {
+            "rank",
+            "id",
+            "length_unit",
+            "fourbar",
+            "coupler_point_mm",
+            "output",
+            "dwells",
+            "swing_deg",
+            "transmission_deg",
+            "link_ratio",
+            "footprint_mm2",
+            "segment_id",
+        }
         assert set(cand["fourbar"]) == {"a_mm", "b_mm", "c_mm", "d_mm", "branch"}
         assert all(0 <= x < 360 for dw in cand["dwells"] for x in dw["interval_deg"])
         assert cand["output"]["type"] == "RPR"
@@ -121,8 +132,25 @@ def test_double_dwell_request(capsys, atlas_path, dwell, swing, min_arm):
     """The demo's double dwell (50°, two rests 12° ± 2° apart), and 30° (issue 13's example)
     once the slider may run over its own pivot (--min-arm 0: issue 14's unbuildable candidate).
     Every answer swings as asked and its two rests are two (issue #41): ≥ 5° of crank apart."""
-    code, out, err = run(capsys, "query", "--db", atlas_path, "--dwell", str(dwell), "--dwell-tol", "5", "--dwells", "2",
-                         "--swing", str(swing), "--swing-tol", "2", "--min-arm", min_arm, "--json")
+    code, out, err = run(
+        capsys,
+        "query",
+        "--db",
+        atlas_path,
+        "--dwell",
+        str(dwell),
+        "--dwell-tol",
+        "5",
+        "--dwells",
+        "2",
+        "--swing",
+        str(swing),
+        "--swing-tol",
+        "2",
+        "--min-arm",
+        min_arm,
+        "--json",
+    )
     assert code == 0, err
     cands = json.loads(out)["candidates"]
     assert cands, f"the demo atlas answers a {dwell}° double dwell"
@@ -141,7 +169,20 @@ def test_double_dwell_request(capsys, atlas_path, dwell, swing, min_arm):
 def test_double_dwell_step_between_the_rests(capsys, atlas_path):
     """--step asks for the output's turn between its two rests: every answer has it within
     --swing-tol, checked on an independent simulation (ψ at the middle of each dwell)."""
-    base = ("query", "--db", atlas_path, "--dwell", "50", "--dwell-tol", "5", "--dwells", "2", "--swing", "12", "--json")
+    base = (
+        "query",
+        "--db",
+        atlas_path,
+        "--dwell",
+        "50",
+        "--dwell-tol",
+        "5",
+        "--dwells",
+        "2",
+        "--swing",
+        "12",
+        "--json",
+    )
     code, out, err = run(capsys, *base, "--swing-tol", "2")
     assert code == 0, err
     steps = [c["step_deg"] for c in json.loads(out)["candidates"]]
@@ -171,8 +212,9 @@ def test_double_dwell_step_between_the_rests(capsys, atlas_path):
 
 
 def test_table_output_and_no_match(capsys, atlas_path):
-    code, out, err = run(capsys, "query", "--db", atlas_path, "--dwell", "45", "--swing", "40", "--output", "rpr",
-                         "--top", "2")
+    code, out, err = run(
+        capsys, "query", "--db", atlas_path, "--dwell", "45", "--swing", "40", "--output", "rpr", "--top", "2"
+    )
     assert code == 0, err
     assert "rank" in out and "RPR" in out
     code, out, err = run(capsys, "query", "--db", atlas_path, "--dwell", "300", "--swing", "40", "--json")
@@ -250,8 +292,27 @@ def test_complete_query_on_postgresql_answers_as_on_sqlite(capsys, demo_atlases)
     """The complete search's keyset walk of the dwell index gives the same rows on both backends."""
     docs = {}
     for backend, target in demo_atlases.items():
-        code, out, err = run(capsys, "query", "--db", target, "--dwell", "50", "--dwell-tol", "5", "--dwells", "2",
-                             "--swing", "12", "--swing-tol", "2", "--complete", "--no-refine", "--top", "100", "--json")
+        code, out, err = run(
+            capsys,
+            "query",
+            "--db",
+            target,
+            "--dwell",
+            "50",
+            "--dwell-tol",
+            "5",
+            "--dwells",
+            "2",
+            "--swing",
+            "12",
+            "--swing-tol",
+            "2",
+            "--complete",
+            "--no-refine",
+            "--top",
+            "100",
+            "--json",
+        )
         assert code == 0, err
         docs[backend] = json.loads(out)
     assert len(docs["postgresql"]["candidates"]) >= 5  # two separated rests at a 12° swing: 8 on the test atlas
@@ -266,34 +327,72 @@ def test_report_on_postgresql(capsys, demo_atlases, tmp_path):
     first = json.loads(out)["candidates"][0]
     exported = {}
     for backend, target in demo_atlases.items():
-        code, out, err = run(capsys, "report", "--db", target, "--candidates", first["id"], "--out",
-                             str(tmp_path / backend), "--dwell", "45")
+        code, out, err = run(
+            capsys,
+            "report",
+            "--db",
+            target,
+            "--candidates",
+            first["id"],
+            "--out",
+            str(tmp_path / backend),
+            "--dwell",
+            "45",
+        )
         assert code == 0, err
         assert f"1. {first['id']}: RPR" in out
         exported[backend] = json.loads((tmp_path / backend / "candidates.json").read_text())["candidates"]
         assert (tmp_path / backend / "index.html").stat().st_size > 0
     assert exported["postgresql"] == exported["sqlite"]
     assert exported["postgresql"][0]["swing_deg"] == pytest.approx(first["swing_deg"], abs=1e-9)
-    code, out, err = run(capsys, "report", "--db", url, "--candidates", "999999999-rpr0.0@40", "--out",
-                         str(tmp_path / "x"))
+    code, out, err = run(
+        capsys, "report", "--db", url, "--candidates", "999999999-rpr0.0@40", "--out", str(tmp_path / "x")
+    )
     assert code == 2 and out == "" and len(err.strip().splitlines()) == 1 and not (tmp_path / "x").exists()
     assert "no segment 999999999 in this atlas" in err
 
 
 def test_report_rebuilds_the_queried_six_bar(capsys, atlas_path, tmp_path):
-    code, out, err = run(capsys, "query", "--db", atlas_path, "--dwell", "45", "--swing", "40", "--output", "rpr",
-                         "--top", "2", "--json", "--report", str(tmp_path / "q"))
+    code, out, err = run(
+        capsys,
+        "query",
+        "--db",
+        atlas_path,
+        "--dwell",
+        "45",
+        "--swing",
+        "40",
+        "--output",
+        "rpr",
+        "--top",
+        "2",
+        "--json",
+        "--report",
+        str(tmp_path / "q"),
+    )
     assert code == 0, err
     queried = json.loads(out)["candidates"]
     assert json.loads((tmp_path / "q" / "candidates.json").read_text())["candidates"][0]["id"] == queried[0]["id"]
-    code, out, err = run(capsys, "report", "--db", atlas_path, "--candidates", queried[0]["id"], "--out",
-                         str(tmp_path / "r"), "--dwell", "45")
+    code, out, err = run(
+        capsys,
+        "report",
+        "--db",
+        atlas_path,
+        "--candidates",
+        queried[0]["id"],
+        "--out",
+        str(tmp_path / "r"),
+        "--dwell",
+        "45",
+    )
     assert code == 0, err
     rebuilt = json.loads((tmp_path / "r" / "candidates.json").read_text())["candidates"][0]
     assert rebuilt["output"]["pivot_mm"] == pytest.approx(queried[0]["output"]["pivot_mm"], abs=1e-9)
     assert rebuilt["dwells"][0]["dwell_deg"] == pytest.approx(queried[0]["dwells"][0]["dwell_deg"], abs=1e-9)
     assert rebuilt["swing_deg"] == pytest.approx(queried[0]["swing_deg"], abs=1e-9)
-    code, out, err = run(capsys, "report", "--db", atlas_path, "--candidates", "12-rpr0@40", "--out", str(tmp_path / "x"))
+    code, out, err = run(
+        capsys, "report", "--db", atlas_path, "--candidates", "12-rpr0@40", "--out", str(tmp_path / "x")
+    )
     assert code == 2 and "not a candidate id" in err and not (tmp_path / "x").exists()
 
 
@@ -301,7 +400,9 @@ def test_bench_query_reports_latency_and_answers(atlas_path, capsys, tmp_path):
     from cli.bench.query import REQUESTS
 
     plot = tmp_path / "latency.png"
-    code, out, err = run(capsys, "bench", "query", "--db", atlas_path, "--repeat", "2", "--top", "3", "--plot", str(plot))
+    code, out, err = run(
+        capsys, "bench", "query", "--db", atlas_path, "--repeat", "2", "--top", "3", "--plot", str(plot)
+    )
     assert code == 0, err
     doc = json.loads(out)
     assert doc["queries"] == 2 * len(REQUESTS)
@@ -372,8 +473,10 @@ def test_no_match_names_the_failed_constraint_and_the_nearest_six_bar(capsys, at
     # the dwell alone is in the way: the rest nearest 150° of the six-bars meeting every other limit
     way = nm["in_the_way"]
     assert way["constraint"] == "dwell" and way["asked"] == pytest.approx(150) and 60 <= way["best"] < 148
-    assert lines[3].strip() == (f"in the way: the dwell angle alone; the best of the fitted six-bars meeting every "
-                                f"other limit is {way['best']:.4g}° (asked 150°)")
+    assert lines[3].strip() == (
+        f"in the way: the dwell angle alone; the best of the fitted six-bars meeting every "
+        f"other limit is {way['best']:.4g}° (asked 150°)"
+    )
 
 
 def test_an_unbuildable_double_dwell_is_refused_by_the_default_arm(capsys, atlas_path, tmp_path):
@@ -382,7 +485,21 @@ def test_an_unbuildable_double_dwell_is_refused_by_the_default_arm(capsys, atlas
     Refined (sparse: the slot pivots moved off the lines' crossings), the six-bars that meet
     the request keep their sliders ≥ 0.2 cranks from the pivot, meet it by the independent
     solver, and `dwell report` rebuilds a moved one from its id."""
-    args = ["query", "--db", atlas_path, "--dwell", "30", "--dwell-tol", "5", "--dwells", "2", "--swing", "6", "--swing-tol", "2"]
+    args = [
+        "query",
+        "--db",
+        atlas_path,
+        "--dwell",
+        "30",
+        "--dwell-tol",
+        "5",
+        "--dwells",
+        "2",
+        "--swing",
+        "6",
+        "--swing-tol",
+        "2",
+    ]
     code, out, err = run(capsys, *args, "--no-refine")
     assert code == 1 and out == ""
     assert "torque arm (--min-arm)" in err and "it meets: --min-arm 0.0" in err
@@ -399,12 +516,24 @@ def test_an_unbuildable_double_dwell_is_refused_by_the_default_arm(capsys, atlas
         assert longest - 2 * STEP <= independent["dwell_deg"] <= longest + 0.02
     code, out, err = run(capsys, *args)
     assert code == 0 and f"{summary['pivots_moved']} with the output pivot moved off the fitted one" in out
-    code, out, err = run(capsys, "report", "--db", atlas_path, "--candidates", cands[0]["id"], "--out",
-                         str(tmp_path / "r"), "--dwell", "30")
+    code, out, err = run(
+        capsys,
+        "report",
+        "--db",
+        atlas_path,
+        "--candidates",
+        cands[0]["id"],
+        "--out",
+        str(tmp_path / "r"),
+        "--dwell",
+        "30",
+    )
     assert code == 0, err
     rebuilt = json.loads((tmp_path / "r" / "candidates.json").read_text())["candidates"][0]
     assert rebuilt["id"] == cands[0]["id"] and rebuilt["output"] == cands[0]["output"]
-    assert [d["dwell_deg"] for d in rebuilt["dwells"]] == pytest.approx([d["dwell_deg"] for d in cands[0]["dwells"]], abs=1e-9)
+    assert [d["dwell_deg"] for d in rebuilt["dwells"]] == pytest.approx(
+        [d["dwell_deg"] for d in cands[0]["dwells"]], abs=1e-9
+    )
 
 
 def test_refinement_answers_a_missed_rrr_request_and_the_report_rebuilds_it(capsys, atlas_path, tmp_path):
@@ -440,19 +569,37 @@ def test_refinement_answers_a_missed_rrr_request_and_the_report_rebuilds_it(caps
         assert min(cand["transmission_deg"].values()) >= 30
         independent = _independent(cand, 0.1)
         assert independent["swing_deg"] == pytest.approx(cand["swing_deg"], abs=0.01)
-        assert cand["dwells"][0]["dwell_deg"] - 2 * STEP <= independent["dwell_deg"] <= cand["dwells"][0]["dwell_deg"] + 0.02
+        assert (
+            cand["dwells"][0]["dwell_deg"] - 2 * STEP
+            <= independent["dwell_deg"]
+            <= cand["dwells"][0]["dwell_deg"] + 0.02
+        )
     first = cands[0]
-    code, out, err = run(capsys, "report", "--db", atlas_path, "--candidates", first["id"], "--out", str(tmp_path / "r"),
-                         "--dwell", "105")
+    code, out, err = run(
+        capsys,
+        "report",
+        "--db",
+        atlas_path,
+        "--candidates",
+        first["id"],
+        "--out",
+        str(tmp_path / "r"),
+        "--dwell",
+        "105",
+    )
     assert code == 0, err
     rebuilt = json.loads((tmp_path / "r" / "candidates.json").read_text())["candidates"][0]
     assert rebuilt["id"] == first["id"]
     for key in ("fourbar", "coupler_point_mm", "output"):
         assert rebuilt[key] == first[key]
     assert rebuilt["dwells"][0]["dwell_deg"] == pytest.approx(first["dwells"][0]["dwell_deg"], abs=1e-9)
-    assert rebuilt["dwells"][0]["output_deviation_deg"] == pytest.approx(first["dwells"][0]["output_deviation_deg"], abs=1e-9)
+    assert rebuilt["dwells"][0]["output_deviation_deg"] == pytest.approx(
+        first["dwells"][0]["output_deviation_deg"], abs=1e-9
+    )
     assert rebuilt["swing_deg"] == pytest.approx(first["swing_deg"], abs=1e-9)
-    assert rebuilt["refinement"]["before"]["swing_deg"] == pytest.approx(first["refinement"]["before"]["swing_deg"], abs=1e-9)
+    assert rebuilt["refinement"]["before"]["swing_deg"] == pytest.approx(
+        first["refinement"]["before"]["swing_deg"], abs=1e-9
+    )
     assert "refined from (as retrieved)" in (tmp_path / "r" / "index.html").read_text()
     # a damaged refined id is the user's error
     bad = first["id"][:-3]
@@ -478,17 +625,26 @@ def test_a_sparse_answer_is_topped_up_from_the_nearest_misses(capsys, atlas_path
     cands, summary = doc["candidates"], doc["refinement"]
     assert summary["from_nearest_misses"] is False and len(cands) >= FILL
     assert {c["id"] for c in plain} <= {c["id"].split("~")[0] for c in cands}
-    missed = [c for c in cands if c["refinement"] is not None and abs(c["refinement"]["before"]["dwell_deg"][0] - 105) > 2]
+    missed = [
+        c for c in cands if c["refinement"] is not None and abs(c["refinement"]["before"]["dwell_deg"][0] - 105) > 2
+    ]
     assert summary["near_misses_met"] > 0 and summary["pivots_moved"] > 0
     # a six-bar whose figures before missed the dwell is a near miss met or a moved pivot; one
     # of those may also have missed only another limit (its dwell already within ± 2°)
-    assert len(missed) <= summary["near_misses_met"] + summary["pivots_moved"] <= \
-        sum(c["refinement"] is not None for c in cands)
+    assert (
+        len(missed)
+        <= summary["near_misses_met"] + summary["pivots_moved"]
+        <= sum(c["refinement"] is not None for c in cands)
+    )
     for cand in cands:
         assert abs(cand["dwells"][0]["dwell_deg"] - 105) <= 2 and abs(cand["swing_deg"] - 45) <= 0.5
         independent = _independent(cand, 0.1)
         assert independent["swing_deg"] == pytest.approx(cand["swing_deg"], abs=0.01)
-        assert cand["dwells"][0]["dwell_deg"] - 2 * STEP <= independent["dwell_deg"] <= cand["dwells"][0]["dwell_deg"] + 0.02
+        assert (
+            cand["dwells"][0]["dwell_deg"] - 2 * STEP
+            <= independent["dwell_deg"]
+            <= cand["dwells"][0]["dwell_deg"] + 0.02
+        )
     code, out, err = run(capsys, *args[:-1])
     head = out.partition("\nrank ")[0].replace("\n  ", " ")  # the head is wrapped to 120 columns
     assert code == 0 and f"{summary['near_misses_met']} of the six-bars near misses refined to meet" in head
@@ -520,8 +676,9 @@ def test_no_refine_gives_the_retrieved_six_bars(capsys, atlas_path):
     doc = json.loads(out)["refinement"]
     assert doc["from_nearest_misses"] is False and doc["sixbars_refined"] == len(plain) and doc["near_misses_met"] == 0
     assert doc["sixbars_improved"] == sum(c["refinement"] is not None for c in refined)
-    code, out, err = run(capsys, "query", "--db", atlas_path, "--dwell", "45", "--swing", "40", "--output", "rpr",
-                         "--wide")  # the refined column (before → after) is the wide table's; its head is one line
+    code, out, err = run(
+        capsys, "query", "--db", atlas_path, "--dwell", "45", "--swing", "40", "--output", "rpr", "--wide"
+    )  # the refined column (before → after) is the wide table's; its head is one line
     assert code == 0 and f"{doc['sixbars_improved']} of {len(plain)} refined (" in out.splitlines()[0] and "→" in out
 
 
@@ -553,8 +710,22 @@ def test_the_first_answer_freezes_the_long_lived_objects_once(atlas_path, monkey
 def test_tolerance_adds_a_column_and_ranks_by_it(atlas_path, capsys):
     """--tolerance (the user's unit, like --crank): every candidate's toleranced deviation in
     the JSON and the table, at least its nominal one, and the ranking by it."""
-    args = ["query", "--db", atlas_path, "--dwell", "45", "--swing", "40", "--output", "rpr", "--top", "3",
-            "--crank", "40", "--no-refine"]
+    args = [
+        "query",
+        "--db",
+        atlas_path,
+        "--dwell",
+        "45",
+        "--swing",
+        "40",
+        "--output",
+        "rpr",
+        "--top",
+        "3",
+        "--crank",
+        "40",
+        "--no-refine",
+    ]
     code, out, err = run(capsys, *args, "--tolerance", "0.05", "--json")
     assert code == 0, err
     doc = json.loads(out)
@@ -570,15 +741,23 @@ def test_tolerance_adds_a_column_and_ranks_by_it(atlas_path, capsys):
     assert run(capsys, *args, "--tolerance", "-0.05")[0] == 2
 
 
-@pytest.mark.parametrize("value, message", [
-    ("fine", "a number of degrees or 'auto'"), ("auto2", "a number of degrees or 'auto'"),
-    ("nan", "finite"), ("1e-5", "0.0001 <= x < 180"), ("180", "0.0001 <= x < 180"), ("", "'auto'"),
-])
+@pytest.mark.parametrize(
+    "value, message",
+    [
+        ("fine", "a number of degrees or 'auto'"),
+        ("auto2", "a number of degrees or 'auto'"),
+        ("nan", "finite"),
+        ("1e-5", "0.0001 <= x < 180"),
+        ("180", "0.0001 <= x < 180"),
+        ("", "'auto'"),
+    ],
+)
 def test_bad_band_values_are_refused(capsys, tmp_path, value, message):
     """--band takes degrees or auto; anything else is one line naming the option, exit 2,
     before the atlas is opened (the path does not exist)."""
-    code, out, err = run(capsys, "query", "--db", str(tmp_path / "none.sqlite"), "--dwell", "60", "--swing", "30",
-                         "--band", value)
+    code, out, err = run(
+        capsys, "query", "--db", str(tmp_path / "none.sqlite"), "--dwell", "60", "--swing", "30", "--band", value
+    )
     assert code == 2 and out == ""
     assert len(err.strip().splitlines()) == 1 and "--band" in err and message in err
 
@@ -587,13 +766,31 @@ def test_band_auto_json_carries_the_band_reached(capsys, atlas_path):
     """--band auto: the request in the document is at the band reached, which the band search
     names with its probes; each candidate's dwell is within the request there and longer at
     the 0.1° reference band. The table says the band on its own line under the legend."""
-    args = ("query", "--db", atlas_path, "--dwell", "60", "--swing", "30", "--output", "rpr", "--top", "3",
-            "--no-refine", "--band", "auto")
+    args = (
+        "query",
+        "--db",
+        atlas_path,
+        "--dwell",
+        "60",
+        "--swing",
+        "30",
+        "--output",
+        "rpr",
+        "--top",
+        "3",
+        "--no-refine",
+        "--band",
+        "auto",
+    )
     code, out, err = run(capsys, *args, "--json")
     assert code == 0, err
     doc = json.loads(out)
     search = doc["band_search"]
-    assert search["settled"] and search["band_deg"] == pytest.approx(doc["request"]["band_deg"]) and search["band_deg"] < 0.02
+    assert (
+        search["settled"]
+        and search["band_deg"] == pytest.approx(doc["request"]["band_deg"])
+        and search["band_deg"] < 0.02
+    )
     assert search["reference_band_deg"] == pytest.approx(0.1)
     met = [p for p in search["probes"] if p["band_deg"] == search["band_deg"]]
     assert met and met[0]["met"] >= 3
@@ -608,8 +805,20 @@ def test_band_auto_json_carries_the_band_reached(capsys, atlas_path):
 def test_default_band_names_a_tighter_band(capsys, atlas_path):
     """Without --band, a request that a 0.01° band also answers (3 six-bars of the unrefined
     sample) gets one line on stderr naming it; with --band given, none."""
-    args = ("query", "--db", atlas_path, "--dwell", "45", "--swing", "40", "--output", "rpr", "--top", "3",
-            "--no-refine")
+    args = (
+        "query",
+        "--db",
+        atlas_path,
+        "--dwell",
+        "45",
+        "--swing",
+        "40",
+        "--output",
+        "rpr",
+        "--top",
+        "3",
+        "--no-refine",
+    )
     code, out, err = run(capsys, *args)
     assert code == 0 and err.count("\n") == 1 and "within a 0.01° band (--band 0.01" in err
     code, _, err = run(capsys, *args, "--json")

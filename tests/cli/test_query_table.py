@@ -18,8 +18,24 @@ from report.short_id import MAX_LENGTH, short_id
 
 #: A small build of the demo sweep (as tests/cli/test_query.py's): several RPR answers to 45°/40°.
 SPEC = PRESETS["demo"].replace(samples=384)
-QUERY = ["query", "--dwell", "45", "--swing", "40", "--output", "rpr", "--top", "4", "--no-refine", "--units", "in",
-         "--crank", "40", "--tolerance", "0.05"]
+QUERY = [
+    "query",
+    "--dwell",
+    "45",
+    "--swing",
+    "40",
+    "--output",
+    "rpr",
+    "--top",
+    "4",
+    "--no-refine",
+    "--units",
+    "in",
+    "--crank",
+    "40",
+    "--tolerance",
+    "0.05",
+]
 
 
 @pytest.fixture(scope="module")
@@ -62,16 +78,33 @@ def test_the_default_table_fits_120_columns(answers):
     lines = answers["table"].splitlines()
     assert max(len(line) for line in lines) <= 120, max(lines, key=len)
     header = next(line for line in lines if line.lstrip().startswith("rank "))
-    assert header.split() == ["rank", "id", "out", "dwell", "°", "dev", "°", "tol", "dev", "°", "swing", "°", "μ", "°",
-                              "ratio", "α", "rad/s²"]
-    rows = lines[lines.index(header) + 1: lines.index(header) + 1 + len(cands)]
+    assert header.split() == [
+        "rank",
+        "id",
+        "out",
+        "dwell",
+        "°",
+        "dev",
+        "°",
+        "tol",
+        "dev",
+        "°",
+        "swing",
+        "°",
+        "μ",
+        "°",
+        "ratio",
+        "α",
+        "rad/s²",
+    ]
+    rows = lines[lines.index(header) + 1 : lines.index(header) + 1 + len(cands)]
     for row, cand in zip(rows, cands):
         rank, sid, kind, dwell, dev, tol = row.split()[:6]
         assert int(rank) == cand["rank"] and kind == "RPR"
         assert sid == short_id(cand["id"]) and len(sid) <= MAX_LENGTH and cand["id"] not in answers["table"]
         assert float(dwell) == pytest.approx(cand["dwells"][0]["dwell_deg"], abs=0.005)
         assert float(tol) == pytest.approx(cand["toleranced_deviation_deg"], abs=0.0005)
-    legend = lines[lines.index(header) + 1 + len(cands):]
+    legend = lines[lines.index(header) + 1 + len(cands) :]
     starts = [line.split()[0] for line in legend if not line.startswith(" ")]
     assert starts == ["rank", "id", "out", "dwell", "dev", "tol", "swing", "μ", "ratio", "α", "--wide"]
     assert "±0.05 in" in answers["table"]
@@ -129,29 +162,38 @@ def test_report_takes_a_short_id_as_the_full_one(answers, atlas_path, tmp_path, 
 def _dxf_entities(data: bytes) -> bytes:
     """A DXF's ENTITIES section (what is drawn), without the header's stamps."""
     text = data.decode("utf-8", errors="replace")
-    return text[text.index("ENTITIES"): text.index("ENDSEC", text.index("ENTITIES"))].encode()
+    return text[text.index("ENTITIES") : text.index("ENDSEC", text.index("ENTITIES"))].encode()
 
 
 def test_the_report_names_the_length_unit(answers, atlas_path, tmp_path, capsys):
     """With --units in, every length on the page carries "in" (the request's crank and
     tolerance, each length of the dimensions table, the footprint's in²), and so do the
     drawing's link labels and the coupler plot's axes (SVG)."""
-    code, out, err = run(capsys, *QUERY[:1], "--db", atlas_path, *QUERY[1:], "--top", "2", "--json", "--report",
-                         str(tmp_path / "q"))
+    code, out, err = run(
+        capsys, *QUERY[:1], "--db", atlas_path, *QUERY[1:], "--top", "2", "--json", "--report", str(tmp_path / "q")
+    )
     assert code == 0, err
     page = (tmp_path / "q" / "index.html").read_text()
     request = re.search(r'<p class="request">(.*?)</p>', page, re.S).group(1)
     assert "crank 40 in" in request and "±0.05 in" in request
     assert "<th>footprint (in²)</th>" in page and "Lengths in in (crank = 40 in)" in page
     rows = dict(re.findall(r"<tr><th>([^<]*)</th><td>([^<]*)</td></tr>", page))
-    lengths = ["crank a (A0–A)", "coupler b (A–B)", "rocker c (B0–B)", "ground d (A0–B0)",
-               "coupler point (u, v), coupler frame", "output pivot D", "slider to slot pivot, smallest (torque arm)",
-               "slot length used, |P − D|"]
+    lengths = [
+        "crank a (A0–A)",
+        "coupler b (A–B)",
+        "rocker c (B0–B)",
+        "ground d (A0–B0)",
+        "coupler point (u, v), coupler frame",
+        "output pivot D",
+        "slider to slot pivot, smallest (torque arm)",
+        "slot length used, |P − D|",
+    ]
     for key in lengths:
         assert rows[key].endswith(" in"), (key, rows[key])
     assert rows["crank a (A0–A)"] == "40 in"
-    assert rows["footprint (hull area)"].endswith(" in²") and re.fullmatch(r"[0-9.]+ in \(.*\)",
-                                                                             rows["clearance to the fixed pivots"])
+    assert rows["footprint (hull area)"].endswith(" in²") and re.fullmatch(
+        r"[0-9.]+ in \(.*\)", rows["clearance to the fixed pivots"]
+    )
     drawings = sorted((tmp_path / "q").glob("*-drawing.svg"))
     assert len(drawings) == len(json.loads(out)["candidates"])
     for svg in drawings:

@@ -60,14 +60,15 @@ def _leaks(output: str, pw: str) -> list[str]:
     found = []
     for secret in {pw, quote(pw, safe="")}:
         for i in range(len(secret) - 3):
-            piece = secret[i:i + 4]
+            piece = secret[i : i + 4]
             if piece in output:
                 found.append(piece)
     return found
 
 
-@pytest.mark.parametrize("command", ["atlas info", "atlas build", "query", "report", "bench query", "demo",
-                                     "bench faults"])
+@pytest.mark.parametrize(
+    "command", ["atlas info", "atlas build", "query", "report", "bench query", "demo", "bench faults"]
+)
 @settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(pw=PASSWORDS)
 @example(pw="QQ@XZ@JJ:KK")  # unescaped '@': SQLAlchemy would read the tail as the host name
@@ -108,11 +109,23 @@ def _db_commands() -> dict[str, list[str]]:
 
 
 #: what each --db command needs besides --db to reach the atlas
-_NEEDS = {"query": ["--dwell", "60", "--swing", "30"], "report": ["--candidates", "1-rpr0.1@20", "--out", "{tmp}/r"],
-          "demo": ["--out", "{tmp}/d"], "atlas build": ["--samples", "8", "--workers", "1"]}
-SHAPES = [f"host=127.0.0.1 port=1 user=u password={'S3cret'} dbname=db", "dbname=db password='S3cret x'",
-          "postgresql:/u:S3cret@h/db", "postgres//u:S3cret@h/db", "postgresql:u:S3cret@h/db",
-          "postgresql+psycopg:/u:S3cret@h/db", "postgresql;//u:S3cret@h/db", "u:S3cret@h/db", "./u:S3cret@h/db"]
+_NEEDS = {
+    "query": ["--dwell", "60", "--swing", "30"],
+    "report": ["--candidates", "1-rpr0.1@20", "--out", "{tmp}/r"],
+    "demo": ["--out", "{tmp}/d"],
+    "atlas build": ["--samples", "8", "--workers", "1"],
+}
+SHAPES = [
+    f"host=127.0.0.1 port=1 user=u password={'S3cret'} dbname=db",
+    "dbname=db password='S3cret x'",
+    "postgresql:/u:S3cret@h/db",
+    "postgres//u:S3cret@h/db",
+    "postgresql:u:S3cret@h/db",
+    "postgresql+psycopg:/u:S3cret@h/db",
+    "postgresql;//u:S3cret@h/db",
+    "u:S3cret@h/db",
+    "./u:S3cret@h/db",
+]
 
 
 @pytest.mark.parametrize("command", sorted(_db_commands()))
@@ -122,8 +135,12 @@ def test_connection_string_shapes_are_refused_by_every_db_command(capsys, tmp_pa
     assert {"atlas build", "atlas info", "query", "report", "demo", "bench query"} <= set(_db_commands())
     monkeypatch.chdir(tmp_path)
     for shape in SHAPES:
-        argv = [*_db_commands()[command], "--db", shape, *(a.replace("{tmp}", str(tmp_path))
-                                                          for a in _NEEDS.get(command, []))]
+        argv = [
+            *_db_commands()[command],
+            "--db",
+            shape,
+            *(a.replace("{tmp}", str(tmp_path)) for a in _NEEDS.get(command, [])),
+        ]
         code = main(argv)
         out, err = capsys.readouterr()
         assert code == 2 and len(err.strip().splitlines()) == 1, (shape, out, err)
@@ -144,24 +161,27 @@ def test_an_option_after_a_query_password_is_named_in_the_drivers_message(capsys
     assert code == 2 and "S3cret" not in err and "connect_timeout" in err, err
 
 
-@pytest.mark.parametrize(("url", "shown"), [
-    ("host=h password=S3cret dbname=db", "<a libpq connection string (keys host, password, dbname)>"),
-    ("postgresql:/u:S3cret@h/db", "<a URL missing '://' after its scheme 'postgresql'>"),
-    ("u:S3cret@h/db", "<a URL without its scheme (user:password@host…)>"),
-    ("out//atlas.sqlite", "out//atlas.sqlite"),
-    ("postgres/atlas.sqlite", "postgres/atlas.sqlite"),
-    ("postgresql+psycopg://u:s3cr@t@h:5/db", "postgresql+psycopg://u:***@h:5/db"),
-    ("postgresql+psycopg://u:a/b#c@h/db", "postgresql+psycopg://u:***@h/db"),
-    ("postgresql+psycopg://u:a/b#c?d@h/db", "postgresql+psycopg://…"),  # or a query password with "@"?
-    ("postgresql://h/db?sslmode=require&password=abc&x=1", "postgresql://h/db?sslmode=require&password=***"),
-    ("postgresql://h/db?SSLPASSWORD=abc", "postgresql://h/db?SSLPASSWORD=***"),
-    ("postgresql://h/db?passfile=/home/u/.pgpass", "postgresql://h/db?passfile=***"),
-    ("postgresql://h/db?password=a%26b", "postgresql://h/db?password=***"),
-    ("postgresql://u:secret/db", "postgresql://…"),  # no '@': not host:port, show no more
-    ("postgresql://u@h/db", "postgresql://u@h/db"),
-    ("postgresql://[::1]:5432/db", "postgresql://[::1]:5432/db"),
-    ("atlas.sqlite", "atlas.sqlite"),
-])
+@pytest.mark.parametrize(
+    ("url", "shown"),
+    [
+        ("host=h password=S3cret dbname=db", "<a libpq connection string (keys host, password, dbname)>"),
+        ("postgresql:/u:S3cret@h/db", "<a URL missing '://' after its scheme 'postgresql'>"),
+        ("u:S3cret@h/db", "<a URL without its scheme (user:password@host…)>"),
+        ("out//atlas.sqlite", "out//atlas.sqlite"),
+        ("postgres/atlas.sqlite", "postgres/atlas.sqlite"),
+        ("postgresql+psycopg://u:s3cr@t@h:5/db", "postgresql+psycopg://u:***@h:5/db"),
+        ("postgresql+psycopg://u:a/b#c@h/db", "postgresql+psycopg://u:***@h/db"),
+        ("postgresql+psycopg://u:a/b#c?d@h/db", "postgresql+psycopg://…"),  # or a query password with "@"?
+        ("postgresql://h/db?sslmode=require&password=abc&x=1", "postgresql://h/db?sslmode=require&password=***"),
+        ("postgresql://h/db?SSLPASSWORD=abc", "postgresql://h/db?SSLPASSWORD=***"),
+        ("postgresql://h/db?passfile=/home/u/.pgpass", "postgresql://h/db?passfile=***"),
+        ("postgresql://h/db?password=a%26b", "postgresql://h/db?password=***"),
+        ("postgresql://u:secret/db", "postgresql://…"),  # no '@': not host:port, show no more
+        ("postgresql://u@h/db", "postgresql://u@h/db"),
+        ("postgresql://[::1]:5432/db", "postgresql://[::1]:5432/db"),
+        ("atlas.sqlite", "atlas.sqlite"),
+    ],
+)
 def test_display_target(url, shown):
     assert display_target(url) == shown
 
@@ -196,8 +216,12 @@ def small_atlas(tmp_path_factory) -> tuple[str, list[str]]:
 
     path = str(tmp_path_factory.mktemp("atlas") / "small.sqlite")
     build_atlas(path, PRESETS["demo"].replace(samples=256), workers=1)
-    out = subprocess.run([*DWELL, "query", "--db", path, "--dwell", "45", "--swing", "40", "--output", "rpr",
-                          "--top", "2", "--json"], capture_output=True, text=True, check=True).stdout
+    out = subprocess.run(
+        [*DWELL, "query", "--db", path, "--dwell", "45", "--swing", "40", "--output", "rpr", "--top", "2", "--json"],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout
     return path, [c["id"] for c in json.loads(out)["candidates"]]
 
 
@@ -207,8 +231,19 @@ def _digest(folder: Path) -> dict[str, str]:
 
 @pytest.mark.parametrize("crank", ["1e-320", "0", "-1", "inf", "nan", "1e200"])
 def test_report_crank_out_of_range_is_one_line(capsys, tmp_path, crank):
-    code = main(["report", "--db", str(tmp_path / "none.sqlite"), "--candidates", "x", "--crank", crank,
-                 "--out", str(tmp_path / "r")])
+    code = main(
+        [
+            "report",
+            "--db",
+            str(tmp_path / "none.sqlite"),
+            "--candidates",
+            "x",
+            "--crank",
+            crank,
+            "--out",
+            str(tmp_path / "r"),
+        ]
+    )
     out, err = capsys.readouterr()
     assert code == 2 and len(err.strip().splitlines()) == 1 and "--crank" in err, err
     assert not (tmp_path / "r").exists()
@@ -229,8 +264,26 @@ def test_report_whose_linkage_file_could_not_be_read_back_is_refused(capsys, tmp
     assert main(["analyze", "linkage", str(toml), "--json"]) == 0, capsys.readouterr().err
     capsys.readouterr()
     # `dwell query --report` likewise, before it shows anything
-    code = main(["query", "--db", path, "--dwell", "45", "--swing", "40", "--output", "rpr", "--top", "2",
-                 "--no-refine", "--crank", "1e150", "--report", str(tmp_path / "q")])
+    code = main(
+        [
+            "query",
+            "--db",
+            path,
+            "--dwell",
+            "45",
+            "--swing",
+            "40",
+            "--output",
+            "rpr",
+            "--top",
+            "2",
+            "--no-refine",
+            "--crank",
+            "1e150",
+            "--report",
+            str(tmp_path / "q"),
+        ]
+    )
     out, err = capsys.readouterr()
     assert code == 2 and out == "" and len(err.strip().splitlines()) == 1 and "--crank" in err, err
     assert not (tmp_path / "q").exists()
@@ -296,8 +349,15 @@ def test_killed_report_leaves_the_old_or_the_new_report(tmp_path, small_atlas):
         now = _digest(out)
         # plots carry their creation date, so a report is recognised by its names and the
         # bytes of its data files (JSON, CSV, README, the page)
-        kind = next((k for k, ref in (("old", old), ("new", new)) if set(now) == set(ref) and all(
-            now[name] == ref[name] for name in now if name.endswith((".json", ".csv", ".txt", ".html")))), None)
+        kind = next(
+            (
+                k
+                for k, ref in (("old", old), ("new", new))
+                if set(now) == set(ref)
+                and all(now[name] == ref[name] for name in now if name.endswith((".json", ".csv", ".txt", ".html")))
+            ),
+            None,
+        )
         assert kind is not None, ("neither the old nor the new report", sorted(now))
         assert all((out / name).stat().st_size > 0 for name in now)
         outcomes[kind] += 1
@@ -311,9 +371,24 @@ def test_disk_full_is_one_line_and_keeps_the_old_report(capsys, tmp_path, small_
 
     path, ids = small_atlas
     out = tmp_path / "rep"
-    args = {"report": ["report", "--db", path, "--candidates", ids[0], "--out", str(out)],
-            "query": ["query", "--db", path, "--dwell", "45", "--swing", "40", "--output", "rpr", "--top", "1",
-                      "--report", str(out)]}[command]
+    args = {
+        "report": ["report", "--db", path, "--candidates", ids[0], "--out", str(out)],
+        "query": [
+            "query",
+            "--db",
+            path,
+            "--dwell",
+            "45",
+            "--swing",
+            "40",
+            "--output",
+            "rpr",
+            "--top",
+            "1",
+            "--report",
+            str(out),
+        ],
+    }[command]
     assert main(args) == 0
     capsys.readouterr()
     before = _digest(out)

@@ -21,15 +21,40 @@ def _dwell(*args: str, cwd: Path) -> subprocess.CompletedProcess:
     return subprocess.run([*DWELL, *args], capture_output=True, text=True, timeout=60, cwd=cwd, check=False)
 
 
-@pytest.mark.parametrize("args, message", [
-    (["analyze", "linkage", "{fifo}"], "FILE '{fifo}' is a FIFO (named pipe), not a file"),
-    (["query", "--db", "{fifo}", "--dwell", "60", "--swing", "30"], "is not a regular file (a FIFO, device or socket)"),
-    (["atlas", "info", "--db", "{fifo}"], "is not a regular file"),
-    (["analyze", "fourbar", "--a", "1", "--b", "3", "--c", "2.5", "--d", "3", "--phi", "10", "--plot", "{fifo}.png"],
-     "Invalid value for '--plot': '{fifo}.png' is a FIFO (named pipe), not a file"),
-    (["analyze", "linkage", str(EXAMPLES / "fourbar.toml"), "--animate", "{fifo}.html"],
-     "Invalid value for '--animate'"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["analyze", "linkage", "{fifo}"], "FILE '{fifo}' is a FIFO (named pipe), not a file"),
+        (
+            ["query", "--db", "{fifo}", "--dwell", "60", "--swing", "30"],
+            "is not a regular file (a FIFO, device or socket)",
+        ),
+        (["atlas", "info", "--db", "{fifo}"], "is not a regular file"),
+        (
+            [
+                "analyze",
+                "fourbar",
+                "--a",
+                "1",
+                "--b",
+                "3",
+                "--c",
+                "2.5",
+                "--d",
+                "3",
+                "--phi",
+                "10",
+                "--plot",
+                "{fifo}.png",
+            ],
+            "Invalid value for '--plot': '{fifo}.png' is a FIFO (named pipe), not a file",
+        ),
+        (
+            ["analyze", "linkage", str(EXAMPLES / "fourbar.toml"), "--animate", "{fifo}.html"],
+            "Invalid value for '--animate'",
+        ),
+    ],
+)
 def test_a_fifo_is_refused_in_one_line(tmp_path, args, message):
     fifo = tmp_path / "pipe"
     os.mkfifo(fifo)

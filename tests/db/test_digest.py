@@ -34,13 +34,29 @@ def make(target, shards, *, spec_json='{"name": "demo"}', extra_builds=0):
     engine = open_atlas(target, create=True)
     with engine.begin() as conn:
         for k in range(extra_builds):
-            conn.execute(insert(Build).values(spec_json="{}", spec_digest=str(k) * 64, code_version="0",
-                                              schema_version=SCHEMA_VERSION, status="complete", n_shards=1,
-                                              created_at="t"))
-        build_id = conn.execute(insert(Build).values(spec_json=spec_json, spec_digest="a" * 64, code_version="0",
-                                                     schema_version=SCHEMA_VERSION, status="building",
-                                                     n_shards=len(shards), created_at="t",
-                                                     lock_token="t")).inserted_primary_key[0]
+            conn.execute(
+                insert(Build).values(
+                    spec_json="{}",
+                    spec_digest=str(k) * 64,
+                    code_version="0",
+                    schema_version=SCHEMA_VERSION,
+                    status="complete",
+                    n_shards=1,
+                    created_at="t",
+                )
+            )
+        build_id = conn.execute(
+            insert(Build).values(
+                spec_json=spec_json,
+                spec_digest="a" * 64,
+                code_version="0",
+                schema_version=SCHEMA_VERSION,
+                status="building",
+                n_shards=len(shards),
+                created_at="t",
+                lock_token="t",
+            )
+        ).inserted_primary_key[0]
     for rows in shards:
         write_shard(engine, build_id, rows)
     assert finish_build(engine, build_id, "t")  # the dwell rows into their table
@@ -83,7 +99,9 @@ def _by_hand(model, rows) -> bytes:
 
 
 def _digest_by_hand(linkages, segments, dwells) -> str:
-    return hashlib.sha256(_by_hand(Linkage, linkages) + _by_hand(Segment, segments) + _by_hand(Dwell, dwells)).hexdigest()
+    return hashlib.sha256(
+        _by_hand(Linkage, linkages) + _by_hand(Segment, segments) + _by_hand(Dwell, dwells)
+    ).hexdigest()
 
 
 def test_records_of_a_known_atlas(atlas_url):
@@ -103,8 +121,12 @@ def test_order_build_id_and_volatile_columns_do_not_matter(atlas_url, tmp_path):
     """``one`` on each backend, ``two`` always SQLite: also SQLite against PostgreSQL."""
     shards = [shard_rows(i) for i in range(4)]
     one = make(atlas_url, shards)
-    two = make(str(tmp_path / "two.sqlite"), [replace(s, seconds=9.0, skipped={}) for s in reversed(shards)],
-               spec_json='{"name": "renamed"}', extra_builds=2)
+    two = make(
+        str(tmp_path / "two.sqlite"),
+        [replace(s, seconds=9.0, skipped={}) for s in reversed(shards)],
+        spec_json='{"name": "renamed"}',
+        extra_builds=2,
+    )
     with two.connect() as conn:
         assert conn.execute(Build.__table__.select().where(Build.spec_digest == "a" * 64)).one().id == 3
     assert content_digest(one) == content_digest(two)
@@ -114,21 +136,27 @@ def test_order_build_id_and_volatile_columns_do_not_matter(atlas_url, tmp_path):
     two.dispose()
 
 
-@pytest.mark.parametrize("table, column, value, same", [
-    (Linkage, "b", 3.0 * (1 + 1e-15), True),     # below 12 significant digits: noise
-    (Linkage, "b", 3.0 * (1 + 1e-10), False),    # above: content
-    (Segment, "u", 1.2 + 1e-9, False),
-    (Segment, "phi_gen2", 0.0, False),           # NULL is not 0
-    (Dwell, "level", 1, False),
-    (Segment, "kind", "line", False),
-])
+@pytest.mark.parametrize(
+    "table, column, value, same",
+    [
+        (Linkage, "b", 3.0 * (1 + 1e-15), True),  # below 12 significant digits: noise
+        (Linkage, "b", 3.0 * (1 + 1e-10), False),  # above: content
+        (Segment, "u", 1.2 + 1e-9, False),
+        (Segment, "phi_gen2", 0.0, False),  # NULL is not 0
+        (Dwell, "level", 1, False),
+        (Segment, "kind", "line", False),
+    ],
+)
 def test_digest_sees_content_changes_and_ignores_noise(atlas_url, table, column, value, same):
     engine = make(atlas_url, [shard_rows(0), shard_rows(1)])
     before = content_digest(engine)
     with engine.begin() as conn:
         first = conn.execute(table.__table__.select()).first()  # by primary key: a dwell row has no id
-        conn.execute(update(table).where(*(c == getattr(first, c.name) for c in table.__table__.primary_key.columns))
-                     .values({column: value}))
+        conn.execute(
+            update(table)
+            .where(*(c == getattr(first, c.name) for c in table.__table__.primary_key.columns))
+            .values({column: value})
+        )
     assert (content_digest(engine) == before) is same
     engine.dispose()
 
@@ -175,8 +203,10 @@ def test_shard_digest_is_the_records_written_by_hand():
     base = shard_rows(0)
     b_lk, b_sg, b_dw = base.linkages.rows()[0], base.segments.rows()[0], base.dwells.rows()[0]
     lk = dict(b_lk, b=-0.0, c=1 / 3, d=-2.5e-300, transmission_min=-1e-300, transmission_max=float(2**60))
-    sg = [dict(b_sg, phi_gen=-0.0, u=-0.5, v=1e21),
-          dict(b_sg, id=b_sg["id"] + 1, kind=SegmentKind.DOUBLE_LINE, phi_gen2=-0.0, v=-0.0)]
+    sg = [
+        dict(b_sg, phi_gen=-0.0, u=-0.5, v=1e21),
+        dict(b_sg, id=b_sg["id"] + 1, kind=SegmentKind.DOUBLE_LINE, phi_gen2=-0.0, v=-0.0),
+    ]
     arc = dict(b_dw, x=-0.0, y=-1e-300, phi_start=0.0)
     line = dict(b_dw, kind=0, level=2, dwell_angle=None, x=-0.0, y=None, radius=None, direction=-0.0)
     double = dict(line, kind=2, segment_id=sg[1]["id"], dwell_angle2=1 / 3, phi_start2=-0.0, x2=-0.0, direction2=2.5)

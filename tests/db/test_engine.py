@@ -26,8 +26,21 @@ def atlas(atlas_url):
     """(target, engine) of a new atlas holding one build row, on each backend."""
     engine = open_atlas(atlas_url, create=True)
     with Session(engine) as s, s.begin():
-        s.execute(insert(Build), [dict(id=1, spec_json="{}", spec_digest="x", code_version="0",
-                                       schema_version=SCHEMA_VERSION, status="building", n_shards=1, created_at="t")])
+        s.execute(
+            insert(Build),
+            [
+                dict(
+                    id=1,
+                    spec_json="{}",
+                    spec_digest="x",
+                    code_version="0",
+                    schema_version=SCHEMA_VERSION,
+                    status="building",
+                    n_shards=1,
+                    created_at="t",
+                )
+            ],
+        )
     yield atlas_url, engine
     engine.dispose()
 
@@ -51,9 +64,22 @@ def test_settling_a_built_atlas_packs_it(tmp_path):
     path = str(tmp_path / "a.sqlite")
     engine = open_atlas(path, create=True)
     with engine.begin() as conn:
-        conn.execute(insert(Build), [dict(id=1, spec_json="{}", spec_digest="x", code_version="0",
-                                          schema_version=SCHEMA_VERSION, status="building", n_shards=60,
-                                          created_at="t", lock_token="t")])
+        conn.execute(
+            insert(Build),
+            [
+                dict(
+                    id=1,
+                    spec_json="{}",
+                    spec_digest="x",
+                    code_version="0",
+                    schema_version=SCHEMA_VERSION,
+                    status="building",
+                    n_shards=60,
+                    created_at="t",
+                    lock_token="t",
+                )
+            ],
+        )
     for i in range(60):
         write_shard(engine, 1, shard_rows(i, dwell_angle=0.1 + 0.01 * ((37 * i) % 60)))
     assert finish_build(engine, 1, "t")
@@ -82,7 +108,7 @@ def test_postgresql_sessions_are_read_committed_whatever_the_server_default(post
     name = make_url(postgres_url).database
     admin = create_engine(postgres_url, isolation_level="AUTOCOMMIT")
     with admin.connect() as conn:
-        conn.execute(text(f'ALTER DATABASE "{name}" SET default_transaction_isolation TO \'serializable\''))
+        conn.execute(text(f"ALTER DATABASE \"{name}\" SET default_transaction_isolation TO 'serializable'"))
     admin.dispose()
     engine = open_atlas(postgres_url, create=True)
     readonly = open_atlas(postgres_url, readonly=True)
@@ -104,7 +130,9 @@ def test_create_then_reopen(atlas):
     again = open_atlas(target)
     with again.connect() as conn:
         assert dict(conn.execute(select(Meta.key, Meta.value)).all()) == {
-            "application": "dwell-atlas", "schema_version": str(SCHEMA_VERSION)}
+            "application": "dwell-atlas",
+            "schema_version": str(SCHEMA_VERSION),
+        }
         assert conn.execute(select(Build.id)).scalars().all() == [1]
     again.dispose()
 
@@ -125,8 +153,19 @@ def test_an_older_schema_is_refused_with_rebuild(atlas):
 @pytest.mark.parametrize("bad", [float("nan"), float("inf"), float("-inf"), 1e301])
 def test_nan_and_inf_never_stored(atlas, bad):
     _, engine = atlas
-    row = dict(id=1, build_id=1, shard_index=0, sweep_index=0, b=bad, c=1.0, d=1.0, branch=1, grashof=1,
-               transmission_min=0.1, transmission_max=1.0)
+    row = dict(
+        id=1,
+        build_id=1,
+        shard_index=0,
+        sweep_index=0,
+        b=bad,
+        c=1.0,
+        d=1.0,
+        branch=1,
+        grashof=1,
+        transmission_min=0.1,
+        transmission_max=1.0,
+    )
     with pytest.raises(IntegrityError):
         with Session(engine) as s, s.begin():
             s.execute(insert(Linkage), [row])
@@ -193,13 +232,31 @@ def test_postgresql_checks_reject_nan_and_infinity_literals(postgres_url):
     engine = open_atlas(postgres_url, create=True)
     try:
         with engine.begin() as conn:
-            conn.execute(insert(Build), [dict(id=1, spec_json="{}", spec_digest="x", code_version="0",
-                                              schema_version=SCHEMA_VERSION, status="building", n_shards=1,
-                                              created_at="t")])
+            conn.execute(
+                insert(Build),
+                [
+                    dict(
+                        id=1,
+                        spec_json="{}",
+                        spec_digest="x",
+                        code_version="0",
+                        schema_version=SCHEMA_VERSION,
+                        status="building",
+                        n_shards=1,
+                        created_at="t",
+                    )
+                ],
+            )
         _one_row_per_table(engine)
         for literal in ("'NaN'::float8", "'Infinity'::float8", "'-Infinity'::float8"):
-            for table, column in (("dwell", "dwell_angle"), ("dwell", "radius"), ("segment", "phi_gen2"),
-                                  ("linkage", "b"), ("build", "lock_heartbeat"), ("shard", "seconds")):
+            for table, column in (
+                ("dwell", "dwell_angle"),
+                ("dwell", "radius"),
+                ("segment", "phi_gen2"),
+                ("linkage", "b"),
+                ("build", "lock_heartbeat"),
+                ("shard", "seconds"),
+            ):
                 with pytest.raises(IntegrityError, match=f"ck_{table}_{column}_finite"):
                     with engine.begin() as conn:
                         conn.execute(text(f"UPDATE {table} SET {column} = {literal}"))
@@ -209,11 +266,20 @@ def test_postgresql_checks_reject_nan_and_infinity_literals(postgres_url):
         engine.dispose()
 
 
-@pytest.mark.parametrize("version, message", [
-    (SCHEMA_VERSION + 1, f"has schema version {SCHEMA_VERSION + 1}, newer than this dwell-atlas ({SCHEMA_VERSION}); upgrade"),
-    (SCHEMA_VERSION - 1, f"has schema version {SCHEMA_VERSION - 1}, older than {SCHEMA_VERSION}; rebuild the atlas"),
-    ("two", "has an unreadable schema version 'two'"),
-])
+@pytest.mark.parametrize(
+    "version, message",
+    [
+        (
+            SCHEMA_VERSION + 1,
+            f"has schema version {SCHEMA_VERSION + 1}, newer than this dwell-atlas ({SCHEMA_VERSION}); upgrade",
+        ),
+        (
+            SCHEMA_VERSION - 1,
+            f"has schema version {SCHEMA_VERSION - 1}, older than {SCHEMA_VERSION}; rebuild the atlas",
+        ),
+        ("two", "has an unreadable schema version 'two'"),
+    ],
+)
 def test_other_schema_versions_are_refused_and_untouched(atlas, version, message):
     target, engine = atlas
     with Session(engine) as s, s.begin():
@@ -324,8 +390,10 @@ def test_urls_and_what_messages_show(tmp_path):
     assert database_url("postgres://u@h/db") == "postgresql+psycopg://u@h/db"
     assert database_url("postgresql+psycopg2://u@h/db") == "postgresql+psycopg2://u@h/db"  # an explicit driver stays
     assert database_url(str(tmp_path / "a.sqlite")) == f"sqlite:///{tmp_path / 'a.sqlite'}"
-    assert display_target("postgresql+psycopg://u:s3cret@h:5/db?sslmode=require") == \
-        "postgresql+psycopg://u:***@h:5/db?sslmode=require"
+    assert (
+        display_target("postgresql+psycopg://u:s3cret@h:5/db?sslmode=require")
+        == "postgresql+psycopg://u:***@h:5/db?sslmode=require"
+    )
     assert display_target("postgresql://u@h/db") == "postgresql://u@h/db"
     assert display_target("atlas.sqlite") == "atlas.sqlite"
 
@@ -371,13 +439,15 @@ def test_bad_credentials_and_missing_database_are_one_clear_error(postgres_serve
     assert "wrong-" not in str(err.value) and ":***@" in str(err.value)
 
     nobody = url.set(username="dwell_no_such_role").render_as_string(hide_password=False)
-    with pytest.raises(AtlasError, match='dwell_no_such_role'):
+    with pytest.raises(AtlasError, match="dwell_no_such_role"):
         open_atlas(nobody, create=True)
 
     missing = url.set(database="dwell_no_such_database").render_as_string(hide_password=False)
     with pytest.raises(AtlasError) as err:
         open_atlas(missing, create=True)
-    assert 'database "dwell_no_such_database" does not exist; create it first (createdb dwell_no_such_database)' in str(err.value)
+    assert 'database "dwell_no_such_database" does not exist; create it first (createdb dwell_no_such_database)' in str(
+        err.value
+    )
     assert "\n" not in str(err.value)
 
 
@@ -482,7 +552,10 @@ def test_a_wal_of_another_page_size_beside_a_wal_mode_atlas_is_refused(tmp_path)
     assert path.read_bytes()[18] == 2
     path.with_name("a.sqlite-wal").write_bytes(_wal_of_another_database(tmp_path, 1024))
     before = _files(folder)
-    with pytest.raises(AtlasError, match=rf"not the atlas's own write-ahead log \(another database's: page size 1024, the atlas has {SQLITE_PAGE_SIZE}\)"):
+    with pytest.raises(
+        AtlasError,
+        match=rf"not the atlas's own write-ahead log \(another database's: page size 1024, the atlas has {SQLITE_PAGE_SIZE}\)",
+    ):
         open_atlas(str(path), readonly=True)
     assert _files(folder) == before
 
@@ -491,8 +564,11 @@ def test_a_changed_column_is_refused(atlas):
     target, engine = atlas
     with engine.begin() as conn:
         conn.execute(text("ALTER TABLE dwell RENAME COLUMN dwell_angle TO dwell_len"))
-    with pytest.raises(AtlasError, match=r"table dwell does not match .*missing column dwell_angle; "
-                                         r"unexpected column dwell_len\).*rebuild"):
+    with pytest.raises(
+        AtlasError,
+        match=r"table dwell does not match .*missing column dwell_angle; "
+        r"unexpected column dwell_len\).*rebuild",
+    ):
         open_atlas(target, readonly=True)
 
 

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import cmath
 import math
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -59,10 +58,18 @@ def test_a_stored_line_is_the_fitted_line(point, direction):
 def _atlas(target: str, shard):
     engine = open_atlas(target, create=True)
     with engine.begin() as conn:
-        build_id = conn.execute(insert(Build).values(
-            spec_json='{"name": "test", "tolerances": [0.001]}', spec_digest="a" * 64, code_version="0",
-            schema_version=SCHEMA_VERSION, status="building", n_shards=1, created_at="t",
-            lock_token="t")).inserted_primary_key[0]
+        build_id = conn.execute(
+            insert(Build).values(
+                spec_json='{"name": "test", "tolerances": [0.001]}',
+                spec_digest="a" * 64,
+                code_version="0",
+                schema_version=SCHEMA_VERSION,
+                status="building",
+                n_shards=1,
+                created_at="t",
+                lock_token="t",
+            )
+        ).inserted_primary_key[0]
     write_shard(engine, build_id, shard)
     assert finish_build(engine, build_id, "t")
     return engine
@@ -72,9 +79,18 @@ def _boundary_shard(transmission: float, longest: float, radius: float):
     """One linkage whose smallest transmission angle and longest link, and one arc whose radius,
     are the given values, with the integer copies computed as the build computes them."""
     rows = shard_rows(0, radius=radius)
-    link = {**rows.linkages.rows()[0], "transmission_min": transmission, "b": longest, "c": longest / 2, "d": longest / 2}
-    dwell = {**rows.dwells.rows()[0], "transmission_min_cdeg": transmission_floor_cdeg(transmission),
-             "longest_link_milli": length_ceil_milli(longest)}
+    link = {
+        **rows.linkages.rows()[0],
+        "transmission_min": transmission,
+        "b": longest,
+        "c": longest / 2,
+        "d": longest / 2,
+    }
+    dwell = {
+        **rows.dwells.rows()[0],
+        "transmission_min_cdeg": transmission_floor_cdeg(transmission),
+        "longest_link_milli": length_ceil_milli(longest),
+    }
     return with_rows(rows, linkages=[link], dwells=[dwell])
 
 
@@ -88,8 +104,9 @@ def test_a_linkage_exactly_at_every_limit_is_walked(atlas_url):
     window = [DwellWindow(0, 0.0, 7.0, 0.5, 10)]
     found = select_segments(engine, ("arc",), window, **limits)
     assert [r.segment_id for r in found] == [shard_rows(0).segments.rows()[0]["id"]]
-    assert [r.segment_id for rows in scan_segments(engine, "arc", 0, **limits) for r in rows] == \
-        [shard_rows(0).segments.rows()[0]["id"]]
+    assert [r.segment_id for rows in scan_segments(engine, "arc", 0, **limits) for r in rows] == [
+        shard_rows(0).segments.rows()[0]["id"]
+    ]
     assert AtlasSource(engine).count_segments("arc", 0, **limits) == 1
     stricter = {**limits, "min_transmission": math.radians(33.333333 + 0.02)}
     assert select_segments(engine, ("arc",), window, **stricter) == []
@@ -105,8 +122,19 @@ def test_rows_read_back_as_written(atlas_url):
     point, direction = 0.4 - 1.3j, 0.7
     offset = line_offset(point, direction)
     double = {**segment, "id": sid + 1, "kind": "double_line", "phi_gen2": 4.0}
-    line_row = {**dwell, "segment_id": sid + 1, "kind": 2, "x": offset, "y": None, "direction": direction,
-                "radius": None, "dwell_angle2": 0.25, "phi_start2": 3.5, "x2": -offset, "direction2": direction + 1}
+    line_row = {
+        **dwell,
+        "segment_id": sid + 1,
+        "kind": 2,
+        "x": offset,
+        "y": None,
+        "direction": direction,
+        "radius": None,
+        "dwell_angle2": 0.25,
+        "phi_start2": 3.5,
+        "x2": -offset,
+        "direction2": direction + 1,
+    }
     engine = _atlas(atlas_url, with_rows(rows, segments=[segment, double], dwells=[dwell, line_row]))
     arc = segment_row(engine, sid, 0)
     assert arc.kind == "arc" and arc.tolerance == 0.001 and arc.parts == ((0.75, 1.25, 0.5, 0.25, None, 2.0),)
@@ -132,18 +160,35 @@ def test_scanned_batches_spell_out_the_rows_read_one_by_one(atlas_url):
     offset = line_offset(0.4 - 1.3j, direction)
     line = {**segment, "id": sid + 1, "kind": "line"}
     double = {**segment, "id": sid + 2, "kind": "double_line", "phi_gen2": 4.0, "u": -0.3, "v": 1e-17}
-    line_row = {**dwell, "segment_id": sid + 1, "kind": 0, "dwell_key": 0.5, "dwell_angle": None, "x": offset,
-                "y": None, "direction": direction, "radius": None}
-    double_row = {**line_row, "segment_id": sid + 2, "kind": 2, "dwell_angle2": 0.25, "phi_start2": 3.5,
-                  "x2": -offset, "direction2": -2.9}
+    line_row = {
+        **dwell,
+        "segment_id": sid + 1,
+        "kind": 0,
+        "dwell_key": 0.5,
+        "dwell_angle": None,
+        "x": offset,
+        "y": None,
+        "direction": direction,
+        "radius": None,
+    }
+    double_row = {
+        **line_row,
+        "segment_id": sid + 2,
+        "kind": 2,
+        "dwell_angle2": 0.25,
+        "phi_start2": 3.5,
+        "x2": -offset,
+        "direction2": -2.9,
+    }
     engine = _atlas(atlas_url, with_rows(rows, segments=[segment, line, double], dwells=[dwell, line_row, double_row]))
     for kind, want in (("arc", sid), ("line", sid + 1), ("double_line", sid + 2)):
         (batch,) = scan_segments(engine, kind, 0)
         assert len(batch) == 1 and batch.kind == kind
         one = segment_row(engine, want, 0)
         assert list(batch) == [one] and batch[0].parts and batch[-1] == one
-        assert [x.hex() for p in batch[0].parts for x in p if x is not None] == \
-            [x.hex() for p in one.parts for x in p if x is not None]
+        assert [x.hex() for p in batch[0].parts for x in p if x is not None] == [
+            x.hex() for p in one.parts for x in p if x is not None
+        ]
     engine.dispose()
 
 

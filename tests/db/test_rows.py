@@ -16,8 +16,15 @@ from hypothesis import strategies as st
 
 import atlas.shard
 from atlas.sweep import PRESETS
-from db.rows import (SEGMENTS_PER_LINKAGE, TableColumns, length_ceil_milli, line_offset, linkage_columns,
-                     segment_columns, transmission_floor_cdeg)
+from db.rows import (
+    SEGMENTS_PER_LINKAGE,
+    TableColumns,
+    length_ceil_milli,
+    line_offset,
+    linkage_columns,
+    segment_columns,
+    transmission_floor_cdeg,
+)
 from synth.kinds import SEGMENT_KINDS, SegmentKind
 from synth.segment_search.dwell_key import arc_dwell_key
 from synth.segment_search.segments import SegmentSearch, find_segments
@@ -48,11 +55,25 @@ def _stretch(found, i, level, part, *, arc):
     start, end = float(found.phi_start[i, level, part]), float(found.phi_end[i, level, part])
     if arc:
         key = float(arc_dwell_key(end - start, found.excursion[i, level], found.tolerances[level]))
-        return {"dwell_key": key, "dwell_angle": end - start, "phi_start": start, "x": float(p.real),
-                "y": float(p.imag), "direction": None, "radius": float(found.fit_radius[i, level, part])}
+        return {
+            "dwell_key": key,
+            "dwell_angle": end - start,
+            "phi_start": start,
+            "x": float(p.real),
+            "y": float(p.imag),
+            "direction": None,
+            "radius": float(found.fit_radius[i, level, part]),
+        }
     direction = float(np.angle(found.fit_direction[i, level, part]))
-    return {"dwell_key": end - start, "dwell_angle": None, "phi_start": start, "x": line_offset(complex(p), direction),
-            "y": None, "direction": direction, "radius": None}
+    return {
+        "dwell_key": end - start,
+        "dwell_angle": None,
+        "phi_start": start,
+        "x": line_offset(complex(p), direction),
+        "y": None,
+        "direction": direction,
+        "radius": None,
+    }
 
 
 def _reference(found, linkages):
@@ -65,19 +86,42 @@ def _reference(found, linkages):
         ordinal[link["id"]] = n = ordinal.get(link["id"], -1) + 1
         sid = link["id"] * SEGMENTS_PER_LINKAGE + n
         double = kind is SegmentKind.DOUBLE_LINE
-        segments.append({"id": sid, "linkage_id": link["id"], "kind": kind.value, "phi_gen": float(found.phi_gen[i]),
-                         "phi_gen2": float(found.phi_gen2[i]) if double else None, "u": float(found.uv[i].real),
-                         "v": float(found.uv[i].imag)})
-        copies = {"transmission_min_cdeg": transmission_floor_cdeg(link["transmission_min"]),
-                  "longest_link_milli": length_ceil_milli(max(link["b"], link["c"], link["d"]))}
+        segments.append(
+            {
+                "id": sid,
+                "linkage_id": link["id"],
+                "kind": kind.value,
+                "phi_gen": float(found.phi_gen[i]),
+                "phi_gen2": float(found.phi_gen2[i]) if double else None,
+                "u": float(found.uv[i].real),
+                "v": float(found.uv[i].imag),
+            }
+        )
+        copies = {
+            "transmission_min_cdeg": transmission_floor_cdeg(link["transmission_min"]),
+            "longest_link_milli": length_ceil_milli(max(link["b"], link["c"], link["d"])),
+        }
         for level in range(len(found.tolerances)):
             if not found.has_dwell[i, level, 0] or (double and not found.has_dwell[i, level, 1]):
                 continue
-            row = {"kind": kind.code, "level": level, "segment_id": sid, **copies,
-                   **_stretch(found, i, level, 0, arc=kind is SegmentKind.ARC)}
-            second = _stretch(found, i, level, 1, arc=False) if double else dict.fromkeys(("dwell_key", "phi_start", "x", "direction"))
-            row.update(dwell_angle2=second["dwell_key"], phi_start2=second["phi_start"], x2=second["x"],
-                       direction2=second["direction"])
+            row = {
+                "kind": kind.code,
+                "level": level,
+                "segment_id": sid,
+                **copies,
+                **_stretch(found, i, level, 0, arc=kind is SegmentKind.ARC),
+            }
+            second = (
+                _stretch(found, i, level, 1, arc=False)
+                if double
+                else dict.fromkeys(("dwell_key", "phi_start", "x", "direction"))
+            )
+            row.update(
+                dwell_angle2=second["dwell_key"],
+                phi_start2=second["phi_start"],
+                x2=second["x"],
+                direction2=second["direction"],
+            )
             dwells.append(row)
     return segments, dwells
 
@@ -89,8 +133,9 @@ def _same(rows, expected):
         assert row == want
         # bit for bit, and plain Python: a float stays a float (no numpy scalar), an int an int
         assert [type(v) for v in row.values()] == [type(v) for v in want.values()]
-        assert all(math.copysign(1, v) == math.copysign(1, w) for v, w in zip(row.values(), want.values())
-                   if type(v) is float)
+        assert all(
+            math.copysign(1, v) == math.copysign(1, w) for v, w in zip(row.values(), want.values()) if type(v) is float
+        )
 
 
 def test_segment_rows_are_the_rows_spelled_out_one_at_a_time(shard):
@@ -100,8 +145,11 @@ def test_segment_rows_are_the_rows_spelled_out_one_at_a_time(shard):
     assert any(d["level"] > 0 for d in dwells)
     _same(result.segments.rows(), segments)
     _same(result.dwells.rows(), dwells)
-    assert all(type(v) in (int, float, str, type(None)) for row in result.dwells.rows() + result.segments.rows()
-               for v in row.values())
+    assert all(
+        type(v) in (int, float, str, type(None))
+        for row in result.dwells.rows() + result.segments.rows()
+        for v in row.values()
+    )
 
 
 def test_a_double_line_needs_both_stretches_at_a_level(shard):
@@ -131,8 +179,11 @@ def _table(draw):
     """Rows as dicts: a few columns, each of one type (floats with NaN and ±inf, 64-bit ints,
     short texts), any of them NULL (None) anywhere."""
     kinds = draw(st.lists(_COLUMN, min_size=1, max_size=5))
-    value = {"float": st.floats(allow_nan=True, allow_infinity=True), "int": st.integers(-2**63, 2**63 - 1),
-             "str": st.text(max_size=4)}
+    value = {
+        "float": st.floats(allow_nan=True, allow_infinity=True),
+        "int": st.integers(-(2**63), 2**63 - 1),
+        "str": st.text(max_size=4),
+    }
     n = draw(st.integers(1, 6))
     columns = [draw(st.lists(st.none() | value[k], min_size=n, max_size=n)) for k in kinds]
     return [{f"c{j}": col[i] for j, col in enumerate(columns)} for i in range(n)], kinds
@@ -158,8 +209,15 @@ def test_columns_spell_out_the_rows_they_were_made_of(table):
                 assert struct.pack("<d", w) == struct.pack("<d", v)
             else:
                 assert w == v
-    first = next(((i, k, v) for i, row in enumerate(rows) for k, v in row.items()
-                  if isinstance(v, float) and not math.isfinite(v)), None)
+    first = next(
+        (
+            (i, k, v)
+            for i, row in enumerate(rows)
+            for k, v in row.items()
+            if isinstance(v, float) and not math.isfinite(v)
+        ),
+        None,
+    )
     found = cols.first_nonfinite()
     assert (found is None) == (first is None)
     if first is not None:

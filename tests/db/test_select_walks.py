@@ -30,23 +30,56 @@ def _shard(rng: random.Random) -> ShardResult:
     for i in range(60):
         lid = linkage_id(i, 1)
         longest = rng.choice([2.0, 3.5, 6.0, 9.0])
-        linkages.append(dict(id=lid, shard_index=0, sweep_index=i, b=longest, c=1.5, d=longest / 2, branch=1,
-                             grashof=1, transmission_min=0.6, transmission_max=1.5))
+        linkages.append(
+            dict(
+                id=lid,
+                shard_index=0,
+                sweep_index=i,
+                b=longest,
+                c=1.5,
+                d=longest / 2,
+                branch=1,
+                grashof=1,
+                transmission_min=0.6,
+                transmission_max=1.5,
+            )
+        )
         for j, kind in enumerate(SEGMENT_KINDS):
             sid = lid * SEGMENTS_PER_LINKAGE + j
-            segments.append(dict(id=sid, linkage_id=lid, kind=str(kind), phi_gen=1.0 + j,
-                                 phi_gen2=4.0 if kind == SegmentKind.DOUBLE_LINE else None, u=0.5 + i / 100, v=-0.25))
+            segments.append(
+                dict(
+                    id=sid,
+                    linkage_id=lid,
+                    kind=str(kind),
+                    phi_gen=1.0 + j,
+                    phi_gen2=4.0 if kind == SegmentKind.DOUBLE_LINE else None,
+                    u=0.5 + i / 100,
+                    v=-0.25,
+                )
+            )
             for level in rng.sample(range(3), rng.randint(1, 3)):
                 key = rng.choice(GRID)
                 arc, double = kind == SegmentKind.ARC, kind == SegmentKind.DOUBLE_LINE
-                dwells.append(dict(
-                    segment_id=sid, kind=kind.code, level=level, dwell_key=key, dwell_angle=key / 2 if arc else None,
-                    phi_start=0.5 + level, x=0.25 * j - i / 50, y=0.75 if arc else None,
-                    direction=None if arc else 0.3 + i / 30, radius=rng.choice([0.3, 1.0, 2.5, 7.0]) if arc else None,
-                    transmission_min_cdeg=rng.choice([2000, 2864, 3500, 4500]),
-                    longest_link_milli=length_ceil_milli(longest), dwell_angle2=key / 3 if double else None,
-                    phi_start2=3.5 if double else None, x2=-0.5 if double else None,
-                    direction2=1.1 + i / 40 if double else None))
+                dwells.append(
+                    dict(
+                        segment_id=sid,
+                        kind=kind.code,
+                        level=level,
+                        dwell_key=key,
+                        dwell_angle=key / 2 if arc else None,
+                        phi_start=0.5 + level,
+                        x=0.25 * j - i / 50,
+                        y=0.75 if arc else None,
+                        direction=None if arc else 0.3 + i / 30,
+                        radius=rng.choice([0.3, 1.0, 2.5, 7.0]) if arc else None,
+                        transmission_min_cdeg=rng.choice([2000, 2864, 3500, 4500]),
+                        longest_link_milli=length_ceil_milli(longest),
+                        dwell_angle2=key / 3 if double else None,
+                        phi_start2=3.5 if double else None,
+                        x2=-0.5 if double else None,
+                        direction2=1.1 + i / 40 if double else None,
+                    )
+                )
     linkages, segments, dwells = (TableColumns.of_rows(None, rows) for rows in (linkages, segments, dwells))
     return ShardResult(shard_index=0, linkages=linkages, segments=segments, dwells=dwells, skipped={}, seconds=0.5)
 
@@ -57,8 +90,9 @@ def _passes(d, min_transmission: float, max_length: float, min_radius_ratio: flo
     if max_length < 1e12:
         ok &= d.longest_link_milli <= length_ceil_milli(max_length) and (d.radius is None or d.radius <= max_length)
     if min_radius_ratio > 0:
-        ok &= d.radius is None or (d.radius >= min_radius_ratio
-                                   and d.radius * 1000 >= min_radius_ratio * (d.longest_link_milli - 2))
+        ok &= d.radius is None or (
+            d.radius >= min_radius_ratio and d.radius * 1000 >= min_radius_ratio * (d.longest_link_milli - 2)
+        )
     return ok
 
 
@@ -72,9 +106,12 @@ def _walked(dwells, kinds, windows, levels, limits) -> list[tuple[int, int]]:
         for kind in kinds:
             for lv in [lv for lv, _ in levels] if w.level is None else [w.level]:
                 rows = [d for d in dwells if d.kind == SegmentKind(kind).code and d.level == lv and _passes(d, *limits)]
-                up = sorted((d for d in rows if w.target <= d.dwell_key <= w.high), key=lambda d: (d.dwell_key, d.segment_id))
-                down = sorted((d for d in rows if w.low <= d.dwell_key < w.target),
-                              key=lambda d: (-d.dwell_key, d.segment_id))
+                up = sorted(
+                    (d for d in rows if w.target <= d.dwell_key <= w.high), key=lambda d: (d.dwell_key, d.segment_id)
+                )
+                down = sorted(
+                    (d for d in rows if w.low <= d.dwell_key < w.target), key=lambda d: (-d.dwell_key, d.segment_id)
+                )
                 found += up[: w.limit] + down[: w.limit]
         found.sort(key=lambda d: (abs(d.dwell_key - w.target), d.segment_id, d.level))
         for d in found[: w.limit]:
@@ -88,10 +125,18 @@ def _walked(dwells, kinds, windows, levels, limits) -> list[tuple[int, int]]:
 def atlas(atlas_url):
     engine = open_atlas(atlas_url, create=True)
     with engine.begin() as conn:
-        build_id = conn.execute(insert(Build).values(
-            spec_json='{"name": "test", "tolerances": [0.0001, 0.001, 0.01]}', spec_digest="a" * 64,
-            code_version="0", schema_version=SCHEMA_VERSION, status="building", n_shards=1, created_at="t",
-            lock_token="t")).inserted_primary_key[0]
+        build_id = conn.execute(
+            insert(Build).values(
+                spec_json='{"name": "test", "tolerances": [0.0001, 0.001, 0.01]}',
+                spec_digest="a" * 64,
+                code_version="0",
+                schema_version=SCHEMA_VERSION,
+                status="building",
+                n_shards=1,
+                created_at="t",
+                lock_token="t",
+            )
+        ).inserted_primary_key[0]
     write_shard(engine, build_id, _shard(random.Random(7)))
     assert finish_build(engine, build_id, "t")
     yield engine
@@ -110,8 +155,15 @@ def test_the_walks_read_together_select_what_the_walks_one_by_one_do(atlas):
         windows = []
         for _ in range(rng.choice([0, 1, 4, 2 * WALKS_CHUNK])):  # the last: more walks than one statement holds
             target, width = rng.choice(GRID) + rng.choice([0.0, 1 / 32]), rng.choice([1 / 8, 1 / 2, 3.0])
-            windows.append(DwellWindow(rng.choice([None, 0, 1, 2, 5]), target - width, target + width * rng.random(),
-                                       target, rng.choice([1, 3, 8, ALL_ROWS])))
+            windows.append(
+                DwellWindow(
+                    rng.choice([None, 0, 1, 2, 5]),
+                    target - width,
+                    target + width * rng.random(),
+                    target,
+                    rng.choice([1, 3, 8, ALL_ROWS]),
+                )
+            )
         limits = (rng.choice([0.0, 0.5, 0.7]), rng.choice([1e300, 1e12, 4.0, 7.0]), rng.choice([0.0, 0.1, 0.25]))
         want = _walked(dwells, kinds, windows, levels, limits)
         named = dict(zip(("min_transmission", "max_length", "min_radius_ratio"), limits))

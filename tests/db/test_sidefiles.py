@@ -32,13 +32,18 @@ def _database(path: Path, user_version: int) -> Path:
 
 def _killed(path: Path, *, page_one: bool) -> bytes:
     """The hot journal of a write to ``path`` killed after it spilled pages into the file."""
-    script = ("import os, signal, sqlite3, sys\n"
-              "con = sqlite3.connect(sys.argv[1], isolation_level=None)\n"
-              "con.execute('PRAGMA cache_size=1'); con.execute('BEGIN')\n"
-              + ("v = con.execute('PRAGMA user_version').fetchone()[0]; con.execute(f'PRAGMA user_version={v}')\n"
-                 if page_one else "")
-              + "con.execute('update t set x = upper(x)')\n"  # same sizes: page 1 untouched by the rows
-              "os.kill(os.getpid(), signal.SIGKILL)\n")
+    script = (
+        "import os, signal, sqlite3, sys\n"
+        "con = sqlite3.connect(sys.argv[1], isolation_level=None)\n"
+        "con.execute('PRAGMA cache_size=1'); con.execute('BEGIN')\n"
+        + (
+            "v = con.execute('PRAGMA user_version').fetchone()[0]; con.execute(f'PRAGMA user_version={v}')\n"
+            if page_one
+            else ""
+        )
+        + "con.execute('update t set x = upper(x)')\n"  # same sizes: page 1 untouched by the rows
+        "os.kill(os.getpid(), signal.SIGKILL)\n"
+    )
     assert subprocess.run([sys.executable, "-c", script, str(path)]).returncode == -9
     return Path(f"{path}-journal").read_bytes()
 
@@ -81,7 +86,7 @@ def test_a_journal_that_replays_nothing_is_harmless_only_if_it_keeps_the_size(tm
     data[8:12] = bytes(4)  # nRec 0: the header was written, no record synced
     journal = tmp_path / "j"
     journal.write_bytes(bytes(data))
-    page, size = read_page_one(mine), mine.stat().st_size
+    page = read_page_one(mine)
     pages = int.from_bytes(data[16:20], "big")
     assert journal_verdict(journal, page, pages * SQLITE_PAGE_SIZE).ownership is Ownership.HARMLESS
     assert journal_verdict(journal, page, (pages + 3) * SQLITE_PAGE_SIZE).ownership is Ownership.FOREIGN
@@ -110,11 +115,11 @@ def test_a_wal_is_its_databases_when_its_first_transaction_names_it(tmp_path):
     verdict = wal_verdict(wal, read_page_one(other))
     assert verdict.ownership is Ownership.FOREIGN and "not the atlas's" in verdict.why
     data = bytearray(wal.read_bytes())
-    data[32 + 4:32 + 8] = bytes(4)  # the first frame no commit frame: with one frame, nothing is applied
+    data[32 + 4 : 32 + 8] = bytes(4)  # the first frame no commit frame: with one frame, nothing is applied
     frames = (len(data) - 32) // (24 + SQLITE_PAGE_SIZE)
     for i in range(frames):
         at = 32 + i * (24 + SQLITE_PAGE_SIZE)
-        data[at + 4:at + 8] = bytes(4)
+        data[at + 4 : at + 8] = bytes(4)
     wal.write_bytes(bytes(data))
     assert wal_verdict(wal, read_page_one(other)).ownership is Ownership.HARMLESS
     wal.write_bytes(b"not a log at all" * 4)

@@ -19,8 +19,19 @@ def test_a_written_spec_reads_back():
     assert spec_name(spec.to_json()) == "demo"
 
 
-@pytest.mark.parametrize("text", ["", "[]", "nope", '{"tolerances": ["x"]}', '{"tolerances": [1e999]}',
-                                  '{"tolerances": [NaN]}', '{"tolerances": 3}', "1"])
+@pytest.mark.parametrize(
+    "text",
+    [
+        "",
+        "[]",
+        "nope",
+        '{"tolerances": ["x"]}',
+        '{"tolerances": [1e999]}',
+        '{"tolerances": [NaN]}',
+        '{"tolerances": 3}',
+        "1",
+    ],
+)
 def test_an_unreadable_spec_is_refused(text):
     with pytest.raises(SpecError):
         stored_spec(text)
@@ -42,15 +53,29 @@ def test_every_preset_reads_back(preset):
     assert stored_spec(PRESETS[preset].to_json())["name"] == preset
 
 
-@pytest.mark.parametrize(("field", "value", "words"), [
-    ("samples", "many", "samples is 'many'"), ("samples", 1e308, "samples is 1e+308"), ("samples", 0, "samples is 0"),
-    ("samples", True, "samples is True"), ("samples", 2**31 + 1, "not a whole number"), ("seed", -1, "seed is -1"),
-    ("shard_size", 0.5, "shard_size is 0.5"), ("rays", None, "rays is None"), ("crank_step_deg", "2", "crank_step_deg"),
-    ("b", [4.0, 1.0], "low above high"), ("c", [1.0], "not a range"), ("d", [1.0, 1e999], "d is inf"),
-    ("tolerances", [0.01, 0.001], "do not increase"), ("tolerances", [0.0], "tolerances is 0.0"),
-    ("branches", [2], "branches"), ("crank_rockers_only", 1, "crank_rockers_only"), ("name", 5, "name is 5"),
-    ("min_dwell_deg", -1, "min_dwell_deg"),
-])
+@pytest.mark.parametrize(
+    ("field", "value", "words"),
+    [
+        ("samples", "many", "samples is 'many'"),
+        ("samples", 1e308, "samples is 1e+308"),
+        ("samples", 0, "samples is 0"),
+        ("samples", True, "samples is True"),
+        ("samples", 2**31 + 1, "not a whole number"),
+        ("seed", -1, "seed is -1"),
+        ("shard_size", 0.5, "shard_size is 0.5"),
+        ("rays", None, "rays is None"),
+        ("crank_step_deg", "2", "crank_step_deg"),
+        ("b", [4.0, 1.0], "low above high"),
+        ("c", [1.0], "not a range"),
+        ("d", [1.0, 1e999], "d is inf"),
+        ("tolerances", [0.01, 0.001], "do not increase"),
+        ("tolerances", [0.0], "tolerances is 0.0"),
+        ("branches", [2], "branches"),
+        ("crank_rockers_only", 1, "crank_rockers_only"),
+        ("name", 5, "name is 5"),
+        ("min_dwell_deg", -1, "min_dwell_deg"),
+    ],
+)
 def test_a_spec_field_of_the_wrong_type_or_out_of_range_is_named(field, value, words):
     doc = json.loads(PRESETS["demo"].to_json())
     doc[field] = value

@@ -11,7 +11,6 @@ import subprocess
 import sys
 import threading
 import time
-from dataclasses import replace
 
 import pytest
 from shards import shard_rows, with_rows
@@ -19,9 +18,9 @@ from sqlalchemy import delete, func, insert, inspect, select, text, update
 from sqlalchemy.exc import IntegrityError
 
 import db.writes
-from db.packed import PackedShard, pack
 from db import SCHEMA_VERSION, AtlasError, Build, Dwell, Linkage, Segment, Shard, open_atlas
 from db.engine import SQLITE_PAGE_SIZE
+from db.packed import PackedShard, pack
 from db.schema import dwell_staging
 from db.writes import (
     STALE_SECONDS,
@@ -68,8 +67,9 @@ def engine(atlas_url):
 
 def start(engine, *, digest=DIGEST_A, spec=SPEC_A, n_shards=3, lock=None, replace=False, target="a.sqlite"):
     lock = lock or BuildLock.mine()
-    return open_build(engine, target=target, spec_json=spec, spec_digest=digest, n_shards=n_shards, lock=lock,
-                      replace=replace), lock
+    return open_build(
+        engine, target=target, spec_json=spec, spec_digest=digest, n_shards=n_shards, lock=lock, replace=replace
+    ), lock
 
 
 def test_new_build_row_and_shard_rows(engine):
@@ -91,11 +91,14 @@ def test_new_build_row_and_shard_rows(engine):
             assert conn.exec_driver_sql("PRAGMA page_size").scalar() == SQLITE_PAGE_SIZE == 16384
 
 
-@pytest.mark.parametrize("bad", [
-    dict(radius=float("nan")),        # a nullable column: SQLite would store NaN as NULL silently
-    dict(radius=float("inf")),
-    dict(dwell_angle=-0.1),           # CHECK dwell_key > 0 (and dwell_angle), caught by the database
-])
+@pytest.mark.parametrize(
+    "bad",
+    [
+        dict(radius=float("nan")),  # a nullable column: SQLite would store NaN as NULL silently
+        dict(radius=float("inf")),
+        dict(dwell_angle=-0.1),  # CHECK dwell_key > 0 (and dwell_angle), caught by the database
+    ],
+)
 @pytest.mark.parametrize("form", FORMS)
 def test_a_bad_row_rolls_the_whole_shard_back(engine, bad, form):
     """Plain rows are checked by the writer, packed ones by the packing (a worker): the same
@@ -131,12 +134,15 @@ def _negative_angle(one):
     return with_rows(one, dwells=[{**one.dwells.rows()[0], "dwell_angle": -0.1}])
 
 
-@pytest.mark.parametrize("spoil, message", [
-    (_repeated, r"shard 1: two dwell rows of segment \d+ at level 0; nothing of the shard was written"),
-    (_foreign_segment, r"shard 1: a dwell row names segment \d+, which is not one of the shard's"),
-    (_foreign_linkage, r"shard 1: a segment names linkage 1, which is not one of the shard's"),
-    (_negative_angle, r"shard 1 of build \d+ rolled back: CHECK constraint failed|violates check constraint"),
-])
+@pytest.mark.parametrize(
+    "spoil, message",
+    [
+        (_repeated, r"shard 1: two dwell rows of segment \d+ at level 0; nothing of the shard was written"),
+        (_foreign_segment, r"shard 1: a dwell row names segment \d+, which is not one of the shard's"),
+        (_foreign_linkage, r"shard 1: a segment names linkage 1, which is not one of the shard's"),
+        (_negative_angle, r"shard 1 of build \d+ rolled back: CHECK constraint failed|violates check constraint"),
+    ],
+)
 @pytest.mark.parametrize("form", FORMS)
 def test_a_shard_whose_rows_break_a_key_is_refused_whole(engine, form, spoil, message):
     """Rows that repeat a (segment, level) or name a segment or linkage of another shard are
@@ -174,8 +180,9 @@ def test_resume_knows_done_shards_and_drops_orphans(engine):
     # the staged rows moved into the dwell table, in its key order
     assert [count(engine, m) for m in (Linkage, Segment, dwell_staging, Dwell)] == [3, 3, 0, 3]
     with engine.connect() as conn:  # equal angles: in segment order
-        assert conn.execute(select(Dwell.segment_id)).scalars().all() == [shard_rows(i).dwells.rows()[0]["segment_id"]
-                                                                          for i in range(3)]
+        assert conn.execute(select(Dwell.segment_id)).scalars().all() == [
+            shard_rows(i).dwells.rows()[0]["segment_id"] for i in range(3)
+        ]
     with engine.connect() as conn:
         b = conn.execute(select(Build)).one()
     assert b.status == "complete" and b.finished_at and b.lock_token is None
@@ -195,7 +202,9 @@ def test_different_sweep_refused_then_replaced(engine):
     h, lock = start(engine)
     write_shard(engine, h.build_id, shard_rows(0), lock_token=lock.token)
     release_lock(engine, h.build_id, lock.token)
-    with pytest.raises(AtlasError, match=r"built with a different sweep \(preset demo, digest aaaaaaaa…\); use --replace"):
+    with pytest.raises(
+        AtlasError, match=r"built with a different sweep \(preset demo, digest aaaaaaaa…\); use --replace"
+    ):
         start(engine, digest=DIGEST_B, spec=SPEC_B)
     assert count(engine, Linkage) == 1  # nothing changed
     h2, _ = start(engine, digest=DIGEST_B, spec=SPEC_B, replace=True)
@@ -216,8 +225,9 @@ def test_resume_by_another_code_version_is_refused(engine):
 
 def set_lock(engine, *, pid, host, age):
     with engine.begin() as conn:
-        conn.execute(update(Build).values(lock_token="x" * 32, lock_pid=pid, lock_host=host,
-                                          lock_heartbeat=time.time() - age))
+        conn.execute(
+            update(Build).values(lock_token="x" * 32, lock_pid=pid, lock_host=host, lock_heartbeat=time.time() - age)
+        )
 
 
 def dead_pid() -> int:
@@ -226,13 +236,16 @@ def dead_pid() -> int:
     return p.pid
 
 
-@pytest.mark.parametrize("pid, host, age, alive", [
-    ("me", "here", 0, True),                       # a live process on this host
-    ("me", "here", STALE_SECONDS * 2, True),       # slow but alive: the pid decides on this host
-    ("dead", "here", 0, False),                    # killed on this host: taken over at once
-    (1, "elsewhere.example", 5, True),             # another host, fresh heartbeat
-    (1, "elsewhere.example", STALE_SECONDS + 5, False),  # another host, stale heartbeat
-])
+@pytest.mark.parametrize(
+    "pid, host, age, alive",
+    [
+        ("me", "here", 0, True),  # a live process on this host
+        ("me", "here", STALE_SECONDS * 2, True),  # slow but alive: the pid decides on this host
+        ("dead", "here", 0, False),  # killed on this host: taken over at once
+        (1, "elsewhere.example", 5, True),  # another host, fresh heartbeat
+        (1, "elsewhere.example", STALE_SECONDS + 5, False),  # another host, stale heartbeat
+    ],
+)
 def test_lock_liveness(engine, pid, host, age, alive):
     h, _ = start(engine)
     pid = os.getpid() if pid == "me" else dead_pid() if pid == "dead" else pid
@@ -268,8 +281,9 @@ def test_a_writer_blocked_behind_a_takeover_loses_cleanly(engine):
     h, lock = start(engine)
     holder = engine.connect()
     takeover = holder.begin()
-    holder.execute(update(Build).values(lock_token="t" * 32, lock_pid=1, lock_host="elsewhere.example",
-                                        lock_heartbeat=time.time()))
+    holder.execute(
+        update(Build).values(lock_token="t" * 32, lock_pid=1, lock_host="elsewhere.example", lock_heartbeat=time.time())
+    )
     outcome: list[BaseException | None] = []
 
     def write() -> None:
@@ -308,14 +322,17 @@ def test_floats_round_trip_bit_for_bit(engine, monkeypatch, path):
     rows = with_rows(rows, segments=[rows.segments.rows()[0] | values], dwells=[rows.dwells.rows()[0] | dwell])
     write_shard(engine, h.build_id, form(rows), lock_token=lock.token)
     with engine.connect() as conn:
-        got = [*conn.execute(select(*(getattr(Segment, k) for k in values))).one(),
-               *conn.execute(select(*(dwell_staging.c[k] for k in dwell))).one()]
+        got = [
+            *conn.execute(select(*(getattr(Segment, k) for k in values))).one(),
+            *conn.execute(select(*(dwell_staging.c[k] for k in dwell))).one(),
+        ]
     for i in (1, 2):  # the move into the dwell table at the end keeps them too
         write_shard(engine, h.build_id, shard_rows(i), lock_token=lock.token)
     assert finish_build(engine, h.build_id, lock.token)
     with engine.connect() as conn:
-        assert conn.execute(select(*(getattr(Dwell, k) for k in dwell)).where(
-            Dwell.segment_id == rows.dwells.rows()[0]["segment_id"])).one() == tuple(got[len(values):])
+        assert conn.execute(
+            select(*(getattr(Dwell, k) for k in dwell)).where(Dwell.segment_id == rows.dwells.rows()[0]["segment_id"])
+        ).one() == tuple(got[len(values) :])
     values |= dwell
     # x + 0.0 turns −0.0 into 0.0: SQLite does not keep the sign of zero (PostgreSQL does),
     # which is why the content digest takes both as 0
@@ -359,7 +376,9 @@ def test_verify_passes_a_whole_atlas_and_names_a_changed_value_and_orphans(engin
     assert ok.integrity == ("ok" if engine.dialect.name == "sqlite" else None)
     with engine.begin() as conn:  # shard 1's dwell row (segment ids follow linkage ids)
         first = conn.execute(select(func.max(Dwell.segment_id))).scalar_one()
-        conn.execute(update(Dwell).where(Dwell.segment_id == first).values(x=Dwell.x + 1e-6))  # above the digest's 40 bits
+        conn.execute(
+            update(Dwell).where(Dwell.segment_id == first).values(x=Dwell.x + 1e-6)
+        )  # above the digest's 40 bits
     bad = verify_atlas(engine)
     # the shard whose rows changed (against its shard row's digest), then the build's digest
     assert len(bad.problems) == 2 and "the rows of shard(s) 1 do not give the digest stored" in bad.problems[0]
@@ -373,16 +392,24 @@ def test_a_build_row_deleted_is_one_line_not_a_collision(engine):
             conn.exec_driver_sql("PRAGMA foreign_keys=OFF")
             conn.execute(delete(Build))
         else:  # the owner (not a superuser: no DISABLE TRIGGER ALL) drops and re-adds the keys
-            keys = [(t, fk) for t in ("linkage", "shard") for fk in inspect(conn).get_foreign_keys(t)
-                    if fk["referred_table"] == "build"]
+            keys = [
+                (t, fk)
+                for t in ("linkage", "shard")
+                for fk in inspect(conn).get_foreign_keys(t)
+                if fk["referred_table"] == "build"
+            ]
             for table, fk in keys:
                 conn.execute(text(f'ALTER TABLE {table} DROP CONSTRAINT "{fk["name"]}"'))
             conn.execute(delete(Build))
             for table, fk in keys:  # NOT VALID: the orphans stay, as a hand edit would leave them
                 cols = ", ".join(fk["constrained_columns"])
                 ref = ", ".join(fk["referred_columns"])
-                conn.execute(text(f'ALTER TABLE {table} ADD CONSTRAINT "{fk["name"]}" FOREIGN KEY ({cols}) '
-                                  f"REFERENCES build ({ref}) NOT VALID"))
+                conn.execute(
+                    text(
+                        f'ALTER TABLE {table} ADD CONSTRAINT "{fk["name"]}" FOREIGN KEY ({cols}) '
+                        f"REFERENCES build ({ref}) NOT VALID"
+                    )
+                )
     with pytest.raises(AtlasError, match=r"holds rows of build 1, which has no build row; restore .* --replace"):
         start(engine)
     h, _ = start(engine, replace=True)  # the way back: everything is deleted, orphans included
@@ -395,8 +422,11 @@ def test_a_shard_whose_rows_are_already_stored_is_a_damaged_atlas(engine, form):
     write_shard(engine, h.build_id, shard_rows(0), lock_token=lock.token)
     with engine.begin() as conn:  # its shard row lost, its rows kept: what no writer leaves
         conn.execute(delete(Shard))
-    with pytest.raises(AtlasError, match=r"is damaged: it already holds linkage \d+ of shard 0, which has no shard "
-                                         r"row \(shard rolled back\); restore"):
+    with pytest.raises(
+        AtlasError,
+        match=r"is damaged: it already holds linkage \d+ of shard 0, which has no shard "
+        r"row \(shard rolled back\); restore",
+    ):
         write_shard(engine, h.build_id, form(shard_rows(0)), lock_token=lock.token)
     assert count(engine, Linkage) == 1 and count(engine, Shard) == 0
 
@@ -416,14 +446,19 @@ def test_a_packed_shard_stores_what_its_plain_rows_store(engine, tmp_path, empty
             write_shard(target, h.build_id, form(r), lock_token=lock.token)
     for r in rows:
         p = pack(r, "d")
-        assert isinstance(p, PackedShard) and p.digest == "d" and p.linkage_ids == r.linkage_ids == tuple(x["id"] for x in r.linkages.rows())
-        assert [t.rows() for t in (p.linkages, p.segments, p.dwells)] == [t.rows() for t in (r.linkages, r.segments, r.dwells)]
+        assert (
+            isinstance(p, PackedShard)
+            and p.digest == "d"
+            and p.linkage_ids == r.linkage_ids == tuple(x["id"] for x in r.linkages.rows())
+        )
+        assert [t.rows() for t in (p.linkages, p.segments, p.dwells)] == [
+            t.rows() for t in (r.linkages, r.segments, r.dwells)
+        ]
         assert (p.n_linkages, p.n_segments, p.n_dwells) == (len(r.linkages), len(r.segments), len(r.dwells))
     tables = (Linkage.__table__, Segment.__table__, dwell_staging, Shard.__table__)
     read = []
     for target in (engine, other):
         with target.connect() as conn:
-            read.append([sorted(tuple(map(repr, row)) for row in conn.execute(select(t)))
-                         for t in tables])
+            read.append([sorted(tuple(map(repr, row)) for row in conn.execute(select(t))) for t in tables])
     assert read[0] == read[1] and len(read[0][2]) == 3 - empty
     other.dispose()

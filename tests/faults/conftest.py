@@ -7,11 +7,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+from processes import SPEC
 
 from atlas.build import build_atlas
 from db import open_atlas
 from db.digest import content_digest
-from processes import SPEC
 
 
 @dataclass(frozen=True)

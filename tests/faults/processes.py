@@ -26,8 +26,9 @@ from cli.main import main
 
 #: The sweep every build here runs, as ``dwell atlas build`` options and as the same spec.
 SMALL = ["--b", "1.5", "4.5", "--c", "1.5", "4.5", "--d", "1.5", "4.5", "--samples", "32", "--shard-size", "4"]
-SPEC = SweepSpec(name="faults", b=(1.5, 4.5), c=(1.5, 4.5), d=(1.5, 4.5), samples=32, crank_step_deg=3.0, rays=24,
-                 shard_size=4)
+SPEC = SweepSpec(
+    name="faults", b=(1.5, 4.5), c=(1.5, 4.5), d=(1.5, 4.5), samples=32, crank_step_deg=3.0, rays=24, shard_size=4
+)
 N_SHARDS = sweep_linkages(SPEC).n_shards(SPEC.shard_size)
 
 #: A request the small sweep answers (generous tolerances): its candidates name real segments.
@@ -36,7 +37,7 @@ QUERY = ["--dwell", "40", "--swing", "20", "--dwell-tol", "10", "--swing-tol", "
 #: ``python -c`` rather than ``-m cli.main``, which warns on stderr (``cli`` imports ``cli.main``).
 DWELL = [sys.executable, "-c", "import sys; from cli.main import main; sys.exit(main())"]
 
-HOOK = '''
+HOOK = """
 import os
 _delay = float(os.environ.get("DWELL_TEST_SHARD_DELAY") or 0)
 if _delay > 0:
@@ -67,25 +68,36 @@ if os.environ.get("DWELL_TEST_KILL_IN_SCHEMA"):
         _create(conn)  # the tables and meta rows are written, not yet committed
         os.killpg(0, signal.SIGKILL)
     _engine._create_schema = _die
-'''
+"""
 
 
-def spawn(folder: Path, target: str, *extra: str, delay: float = 0.0, kill_in_schema: bool = False,
-          kill_after_shards: int = 0) -> subprocess.Popen:
+def spawn(
+    folder: Path, target: str, *extra: str, delay: float = 0.0, kill_in_schema: bool = False, kill_after_shards: int = 0
+) -> subprocess.Popen:
     """``dwell atlas build --db TARGET SMALL EXTRA`` in a session of its own (one process group);
     ``kill_after_shards``: the builder SIGKILLs its group right after that many shard commits."""
     hook = folder / "hook"
     hook.mkdir(exist_ok=True)
     (hook / "sitecustomize.py").write_text(HOOK)
-    env = dict(os.environ, DWELL_TEST_SHARD_DELAY=str(delay),
-               PYTHONPATH=os.pathsep.join([str(hook), *filter(None, [os.environ.get("PYTHONPATH")])]))
+    env = dict(
+        os.environ,
+        DWELL_TEST_SHARD_DELAY=str(delay),
+        PYTHONPATH=os.pathsep.join([str(hook), *filter(None, [os.environ.get("PYTHONPATH")])]),
+    )
     env.pop("DWELL_ATLAS", None)
     if kill_in_schema:
         env["DWELL_TEST_KILL_IN_SCHEMA"] = "1"
     if kill_after_shards:
         env["DWELL_TEST_KILL_AFTER_SHARDS"] = str(kill_after_shards)
-    return subprocess.Popen([*DWELL, "atlas", "build", "--db", target, *SMALL, "--no-progress", *extra], cwd=folder,
-                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    return subprocess.Popen(
+        [*DWELL, "atlas", "build", "--db", target, *SMALL, "--no-progress", *extra],
+        cwd=folder,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
 
 
 def shard_rows(target: str) -> dict[int, tuple] | None:

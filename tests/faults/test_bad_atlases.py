@@ -20,9 +20,9 @@ import sys
 from pathlib import Path
 
 import pytest
+from processes import N_SHARDS, QUERY, SMALL, info, run
 
 from db import SCHEMA_VERSION
-from processes import N_SHARDS, QUERY, SMALL, info, run
 
 COMMANDS = ("info", "build", "query", "report")
 
@@ -38,8 +38,11 @@ def argv(command: str, target: str, tmp_path: Path, candidate: str) -> list[str]
 
 def snapshot(folder: Path) -> dict[str, str]:
     """Every file under ``folder``: relative name → sha256."""
-    return {str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
-            for p in sorted(folder.rglob("*")) if p.is_file()}
+    return {
+        str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(folder.rglob("*"))
+        if p.is_file()
+    }
 
 
 def _overwrite(path: Path, start: int, stop: int) -> None:
@@ -72,12 +75,17 @@ def _newer(path: Path) -> None:
 #: case → (how to spoil a copy of the reference atlas, what the error line must say)
 CASES = {
     "truncated": (_truncated, "database disk image is malformed"),
-    "middle-overwritten": (lambda p: _overwrite(p, p.stat().st_size // 3, 2 * p.stat().st_size // 3),
-                           "restore a copy"),  # info's quick check names the page; the others SQLite's error
+    "middle-overwritten": (
+        lambda p: _overwrite(p, p.stat().st_size // 3, 2 * p.stat().st_size // 3),
+        "restore a copy",
+    ),  # info's quick check names the page; the others SQLite's error
     "header-overwritten": (lambda p: _overwrite(p, 16, 100), "file is not a database"),
     "magic-overwritten": (lambda p: _overwrite(p, 0, 16), "is not an SQLite database"),
     "foreign": (_foreign, "is a database of another application"),
-    "newer-schema": (_newer, f"has schema version {SCHEMA_VERSION + 1}, newer than this dwell-atlas ({SCHEMA_VERSION})"),
+    "newer-schema": (
+        _newer,
+        f"has schema version {SCHEMA_VERSION + 1}, newer than this dwell-atlas ({SCHEMA_VERSION})",
+    ),
 }
 
 
@@ -160,7 +168,9 @@ def unfinished(path: Path) -> None:
     con = sqlite3.connect(path)
     last = N_SHARDS - 1
     links = "select id from linkage where shard_index = ?"
-    con.execute(f"delete from dwell where segment_id in (select id from segment where linkage_id in ({links}))", (last,))
+    con.execute(
+        f"delete from dwell where segment_id in (select id from segment where linkage_id in ({links}))", (last,)
+    )
     con.execute(f"delete from segment where linkage_id in ({links})", (last,))
     con.execute("delete from linkage where shard_index = ?", (last,))
     con.execute("delete from shard where shard_index = ?", (last,))
@@ -184,8 +194,10 @@ def test_a_read_only_atlas_is_read_but_not_written(tmp_path, capsys, reference, 
     assert rc == (0 if json.loads(out)["candidates"] else 1), err  # 1: none found, as grep
     rc, out, err = run(capsys, *argv("build", str(db), tmp_path, reference.candidate))
     assert rc == 2 and out == "", err
-    assert err == ("dwell: error: atlas database error: attempt to write a readonly database "
-                   "(the file or its folder is read-only)\n")
+    assert err == (
+        "dwell: error: atlas database error: attempt to write a readonly database "
+        "(the file or its folder is read-only)\n"
+    )
     assert hashlib.sha256(db.read_bytes()).hexdigest() == digest
     assert {p.name for p in folder.iterdir()} <= {db.name, f"{db.name}-wal", f"{db.name}-shm"}
 
@@ -229,12 +241,14 @@ def test_a_killed_write_that_journaled_no_first_page_is_refused_by_every_command
     folder.mkdir()
     db = folder / "atlas.sqlite"
     shutil.copyfile(reference.path, db)
-    writer = ("import os, signal, sqlite3, sys\n"
-              "con = sqlite3.connect(sys.argv[1], isolation_level=None)\n"
-              "con.execute('PRAGMA cache_size=1')\n"  # changed pages spill into the file itself
-              "con.execute('BEGIN')\n"
-              "con.execute('UPDATE dwell SET x = x + 1')\n"
-              "os.kill(os.getpid(), signal.SIGKILL)\n")
+    writer = (
+        "import os, signal, sqlite3, sys\n"
+        "con = sqlite3.connect(sys.argv[1], isolation_level=None)\n"
+        "con.execute('PRAGMA cache_size=1')\n"  # changed pages spill into the file itself
+        "con.execute('BEGIN')\n"
+        "con.execute('UPDATE dwell SET x = x + 1')\n"
+        "os.kill(os.getpid(), signal.SIGKILL)\n"
+    )
     proc = subprocess.run([sys.executable, "-c", writer, str(db)])
     assert proc.returncode == -9
     assert Path(f"{db}-journal").stat().st_size > 0

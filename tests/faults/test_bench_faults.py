@@ -7,15 +7,30 @@ import os
 from pathlib import Path
 
 import pytest
+from processes import run
 
 import cli.bench.faults as faults
-from processes import run
 
 
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc (Linux)")
 def test_a_tiny_run_reports_every_trial(capsys):
-    rc, out, err = run(capsys, "bench", "faults", "--trials", "2", "--kills", "2", "--seed", "3", "--samples", "16",
-                       "--shard-size", "2", "--workers", "1")
+    rc, out, err = run(
+        capsys,
+        "bench",
+        "faults",
+        "--trials",
+        "2",
+        "--kills",
+        "2",
+        "--seed",
+        "3",
+        "--samples",
+        "16",
+        "--shard-size",
+        "2",
+        "--workers",
+        "1",
+    )
     assert rc == 0, err
     doc = json.loads(out)
     assert (doc["benchmark"], doc["trials"], doc["survived"], doc["seed"]) == ("faults", 2, 2, 3)
@@ -38,8 +53,14 @@ def test_a_tiny_run_reports_every_trial(capsys):
 
 def test_a_failed_trial_makes_exit_status_1(capsys, monkeypatch):
     def one_failure(kind, sweep, trials, max_kills, seed, postgres_url):
-        return {"db_kind": kind, "trials": 2, "survived": 1, "kills_landed": 3,
-                "concurrent_builder": {"passed": True}, "per_trial": []}
+        return {
+            "db_kind": kind,
+            "trials": 2,
+            "survived": 1,
+            "kills_landed": 3,
+            "concurrent_builder": {"passed": True},
+            "per_trial": [],
+        }
 
     monkeypatch.setattr(faults, "_run_kind", one_failure)
     rc, out, err = run(capsys, "bench", "faults", "--trials", "2")
@@ -48,11 +69,17 @@ def test_a_failed_trial_makes_exit_status_1(capsys, monkeypatch):
     assert "faults: sqlite 1/2 trials survived (3 kills landed)" in err
 
 
-@pytest.mark.parametrize("args, message", [
-    (["--db-kind", "postgresql"], "--db-kind postgresql needs --postgres URL"),
-    (["--db-kind", "both", "--postgres", "mysql://x/y"], "--postgres must be a postgresql:// URL"),
-    (["--db-kind", "postgresql", "--postgres", "postgresql+psycopg://u@127.0.0.1:1/x"], "cannot connect to the server"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--db-kind", "postgresql"], "--db-kind postgresql needs --postgres URL"),
+        (["--db-kind", "both", "--postgres", "mysql://x/y"], "--postgres must be a postgresql:// URL"),
+        (
+            ["--db-kind", "postgresql", "--postgres", "postgresql+psycopg://u@127.0.0.1:1/x"],
+            "cannot connect to the server",
+        ),
+    ],
+)
 def test_bad_postgres_options_are_refused(capsys, monkeypatch, args, message):
     monkeypatch.delenv("DWELL_TEST_POSTGRES", raising=False)
     rc, out, err = run(capsys, "bench", "faults", *args)

@@ -12,7 +12,6 @@ import time
 from pathlib import Path
 
 import pytest
-
 from processes import N_SHARDS, QUERY, SMALL, info, run, shard_rows, spawn, wait_for_shards
 
 needs_proc = pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc (Linux)")
@@ -30,8 +29,12 @@ def test_a_second_builder_is_refused_and_the_first_completes(tmp_path, capsys, r
         results = []
         for extra in ([], ["--samples", "12", "--replace"]):  # the same sweep, and replacing it
             t0 = time.perf_counter()
-            results.append((*run(capsys, "atlas", "build", "--db", atlas_url, *SMALL, "--workers", "1", *extra),
-                            time.perf_counter() - t0))
+            results.append(
+                (
+                    *run(capsys, "atlas", "build", "--db", atlas_url, *SMALL, "--workers", "1", *extra),
+                    time.perf_counter() - t0,
+                )
+            )
         after = shard_rows(atlas_url)
     finally:
         os.killpg(first.pid, signal.SIGCONT)

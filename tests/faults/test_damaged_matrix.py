@@ -15,15 +15,21 @@ import sqlite3
 from pathlib import Path
 
 import pytest
-
-from db import open_atlas
-from db.digest import content_digest
 from processes import QUERY, SMALL, run
 from test_bad_atlases import snapshot
 
+from db import open_atlas
+from db.digest import content_digest
+
 #: table → the column dropped or renamed in it
-COLUMNS = {"dwell": "phi_start", "segment": "phi_gen2", "linkage": "grashof", "build": "finished_at",
-           "shard": "seconds", "meta": "value"}
+COLUMNS = {
+    "dwell": "phi_start",
+    "segment": "phi_gen2",
+    "linkage": "grashof",
+    "build": "finished_at",
+    "shard": "seconds",
+    "meta": "value",
+}
 #: seeded single-bit flips in page data (past the 100-byte file header)
 N_FLIPS = 24
 FLIP_SEED = 17
@@ -49,8 +55,13 @@ def _columns(path: Path, table: str) -> list[str]:
 def _drop(table: str, column: str):
     def spoil(path: Path) -> None:
         keep = ", ".join(c for c in _columns(path, table) if c != column)
-        _sql(path, f"ALTER TABLE {table} RENAME TO {table}_old",
-             f"CREATE TABLE {table} AS SELECT {keep} FROM {table}_old", f"DROP TABLE {table}_old")
+        _sql(
+            path,
+            f"ALTER TABLE {table} RENAME TO {table}_old",
+            f"CREATE TABLE {table} AS SELECT {keep} FROM {table}_old",
+            f"DROP TABLE {table}_old",
+        )
+
     return spoil
 
 
@@ -65,6 +76,7 @@ def _flip(seed: int):
         offset = rng.randrange(100, len(data))
         data[offset] ^= 1 << rng.randrange(8)
         path.write_bytes(bytes(data))
+
     return spoil
 
 
@@ -101,6 +113,7 @@ def _beside(change: str, *, wal_mode: bool = False, **pragmas: int):
             con.execute("PRAGMA journal_mode=WAL")
             con.close()
         Path(f"{path}-wal").write_bytes(wal)
+
     return spoil
 
 
@@ -210,8 +223,10 @@ def test_bit_flip_tally(capsys):
     refused = sum(rc == 2 for rc, _ in flips.values())
     refused_changed = sum(rc == 2 and c for rc, c in flips.values())
     with capsys.disabled():
-        print(f"\nbit flips: {len(flips)}; content changed: {changed}; --verify refused {refused_changed}/{changed} "
-              f"of those, {refused}/{len(flips)} in all")
+        print(
+            f"\nbit flips: {len(flips)}; content changed: {changed}; --verify refused {refused_changed}/{changed} "
+            f"of those, {refused}/{len(flips)} in all"
+        )
     assert refused_changed == changed
 
 
@@ -232,7 +247,9 @@ def _numeric_kind(path: Path) -> None:
     con = sqlite3.connect(path)
     sql = con.execute("SELECT sql FROM sqlite_master WHERE name = 'segment'").fetchone()[0]
     con.execute("PRAGMA writable_schema=ON")
-    con.execute("UPDATE sqlite_master SET sql = ? WHERE name = 'segment'", (sql.replace("kind VARCHAR(12)", "kind INTEGER", 1),))
+    con.execute(
+        "UPDATE sqlite_master SET sql = ? WHERE name = 'segment'", (sql.replace("kind VARCHAR(12)", "kind INTEGER", 1),)
+    )
     con.commit()
     con.close()
     con = sqlite3.connect(path)
@@ -243,37 +260,65 @@ def _numeric_kind(path: Path) -> None:
     con.execute("UPDATE sqlite_master SET sql = ? WHERE name = 'segment'", (sql,))
     con.commit()
     con.close()
-    assert sqlite3.connect(path).execute("SELECT count(*) FROM segment WHERE typeof(kind) = 'integer'").fetchone() == (1,)
+    assert sqlite3.connect(path).execute("SELECT count(*) FROM segment WHERE typeof(kind) = 'integer'").fetchone() == (
+        1,
+    )
 
 
 ALL = frozenset(COMMANDS)
 #: case → (spoil, the commands that must refuse it with either check, the words of --verify's refusal)
 SUBTLE = {
     "numeric-segment-kind": (_numeric_kind, {"verify"}, "segment.kind"),
-    "invalid-utf8-segment-kind": (lambda p: _unchecked(
-        p, "UPDATE segment SET kind = CAST(x'fffe1b5b32' AS TEXT) WHERE id = (SELECT min(id) FROM segment)"),
-        {"info", "verify"}, "Could not decode to UTF-8"),
-    "deleted-shard-row": (lambda p: _sql(p, "DELETE FROM shard WHERE shard_index = 1"), ALL,
-                          "build 1 is complete with"),
-    "spec-samples-many": (lambda p: _sql(p, "UPDATE build SET spec_json = json_set(spec_json, '$.samples', 'many')"),
-                          ALL, "samples is 'many'"),
-    "spec-samples-1e308": (lambda p: _sql(p, "UPDATE build SET spec_json = json_set(spec_json, '$.samples', 1e308)"),
-                           ALL, "samples is 1e+308"),
-    "spec-tolerance-text": (lambda p: _sql(p, "UPDATE build SET spec_json = json_set(spec_json, '$.tolerances[0]', 'x')"),
-                            ALL, "tolerances is 'x'"),
-    "unknown-build-status": (lambda p: _unchecked(p, "UPDATE build SET status = 'paused'"), ALL,
-                             "unknown status 'paused'"),
-    "altered-shard-digest": (lambda p: _sql(p, f"UPDATE shard SET digest = '{'0' * 64}' WHERE shard_index = 2"),
-                             {"verify"}, "rows of shard(s) 2 do not give the digest stored"),
-    "orphaned-dwell-rows": (lambda p: _sql(p, "DELETE FROM segment WHERE id % 2 = 0"), {"verify", "query"},
-                            "dwell row(s) name a segment that does not exist"),
+    "invalid-utf8-segment-kind": (
+        lambda p: _unchecked(
+            p, "UPDATE segment SET kind = CAST(x'fffe1b5b32' AS TEXT) WHERE id = (SELECT min(id) FROM segment)"
+        ),
+        {"info", "verify"},
+        "Could not decode to UTF-8",
+    ),
+    "deleted-shard-row": (
+        lambda p: _sql(p, "DELETE FROM shard WHERE shard_index = 1"),
+        ALL,
+        "build 1 is complete with",
+    ),
+    "spec-samples-many": (
+        lambda p: _sql(p, "UPDATE build SET spec_json = json_set(spec_json, '$.samples', 'many')"),
+        ALL,
+        "samples is 'many'",
+    ),
+    "spec-samples-1e308": (
+        lambda p: _sql(p, "UPDATE build SET spec_json = json_set(spec_json, '$.samples', 1e308)"),
+        ALL,
+        "samples is 1e+308",
+    ),
+    "spec-tolerance-text": (
+        lambda p: _sql(p, "UPDATE build SET spec_json = json_set(spec_json, '$.tolerances[0]', 'x')"),
+        ALL,
+        "tolerances is 'x'",
+    ),
+    "unknown-build-status": (
+        lambda p: _unchecked(p, "UPDATE build SET status = 'paused'"),
+        ALL,
+        "unknown status 'paused'",
+    ),
+    "altered-shard-digest": (
+        lambda p: _sql(p, f"UPDATE shard SET digest = '{'0' * 64}' WHERE shard_index = 2"),
+        {"verify"},
+        "rows of shard(s) 2 do not give the digest stored",
+    ),
+    "orphaned-dwell-rows": (
+        lambda p: _sql(p, "DELETE FROM segment WHERE id % 2 = 0"),
+        {"verify", "query"},
+        "dwell row(s) name a segment that does not exist",
+    ),
 }
 
 
 @pytest.mark.parametrize("whole", [True, False], ids=["whole-check", "bounded-check"])
 @pytest.mark.parametrize("case", SUBTLE)
-def test_damage_a_plain_read_may_miss_is_refused_where_it_matters(tmp_path, capsys, reference, monkeypatch, case,
-                                                                  whole):
+def test_damage_a_plain_read_may_miss_is_refused_where_it_matters(
+    tmp_path, capsys, reference, monkeypatch, case, whole
+):
     import db.engine
 
     if not whole:

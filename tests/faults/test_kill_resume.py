@@ -16,7 +16,6 @@ import time
 from pathlib import Path
 
 import pytest
-
 from processes import N_SHARDS, SMALL, info, kill_group, run, shard_rows, spawn, wait_for_shards
 
 needs_proc = pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc (Linux)")
@@ -37,10 +36,13 @@ def _assert_kept(before: dict[int, tuple] | None, after: dict[int, tuple] | None
 
 
 @needs_proc
-@pytest.mark.parametrize("backend, trial", [("sqlite", 0), ("sqlite", 1), ("sqlite", 2),
-                                            pytest.param("postgresql", 0, marks=pytest.mark.postgres)])
-def test_killed_twice_at_random_moments_resumes_to_the_same_content(tmp_path, request, capsys, reference,
-                                                                     backend, trial):
+@pytest.mark.parametrize(
+    "backend, trial",
+    [("sqlite", 0), ("sqlite", 1), ("sqlite", 2), pytest.param("postgresql", 0, marks=pytest.mark.postgres)],
+)
+def test_killed_twice_at_random_moments_resumes_to_the_same_content(
+    tmp_path, request, capsys, reference, backend, trial
+):
     rng = random.Random(f"{SEED}:{backend}:{trial}")
     why = f"seed {SEED}, {backend} trial {trial}"
     target = _target(backend, tmp_path, request)

@@ -20,11 +20,11 @@ import sys
 from pathlib import Path
 
 import pytest
+from processes import N_SHARDS, QUERY, SMALL, info, kill_group, run, spawn
+from test_bad_atlases import snapshot, unfinished, wal_mode
 
 from db.engine import SQLITE_PAGE_SIZE
 from db.sidefiles import ATLAS_ID_OFFSET
-from processes import N_SHARDS, QUERY, SMALL, info, kill_group, run, spawn
-from test_bad_atlases import unfinished, wal_mode, snapshot
 
 COMMANDS = {
     "info": ["atlas", "info"],
@@ -44,7 +44,7 @@ def _argv(name: str, db: Path, out: Path, candidate: str) -> list[str]:
 
 
 def _atlas_id(path: Path) -> int:
-    return int.from_bytes(path.read_bytes()[ATLAS_ID_OFFSET:ATLAS_ID_OFFSET + 4], "big")
+    return int.from_bytes(path.read_bytes()[ATLAS_ID_OFFSET : ATLAS_ID_OFFSET + 4], "big")
 
 
 def _killed_write(path: Path, *statements: str, page_one: bool = True) -> None:
@@ -52,14 +52,19 @@ def _killed_write(path: Path, *statements: str, page_one: bool = True) -> None:
     spilled changed pages into the file (``cache_size=1``): a hot ``-journal`` is left. With
     ``page_one`` the transaction writes page 1 first (``user_version`` rewritten with its own
     value, as the atlas's writers do), so the journal holds a copy of it."""
-    script = ("import os, signal, sqlite3, sys\n"
-              "con = sqlite3.connect(sys.argv[1], isolation_level=None)\n"
-              "con.execute('PRAGMA cache_size=1')\n"
-              "con.execute('BEGIN')\n"
-              + ("v = con.execute('PRAGMA user_version').fetchone()[0]\n"
-                 "con.execute(f'PRAGMA user_version={v}')\n" if page_one else "")
-              + "".join(f"con.execute({s!r})\n" for s in statements)
-              + "os.kill(os.getpid(), signal.SIGKILL)\n")
+    script = (
+        "import os, signal, sqlite3, sys\n"
+        "con = sqlite3.connect(sys.argv[1], isolation_level=None)\n"
+        "con.execute('PRAGMA cache_size=1')\n"
+        "con.execute('BEGIN')\n"
+        + (
+            "v = con.execute('PRAGMA user_version').fetchone()[0]\ncon.execute(f'PRAGMA user_version={v}')\n"
+            if page_one
+            else ""
+        )
+        + "".join(f"con.execute({s!r})\n" for s in statements)
+        + "os.kill(os.getpid(), signal.SIGKILL)\n"
+    )
     proc = subprocess.run([sys.executable, "-c", script, str(path)])
     assert proc.returncode == -9
     assert Path(f"{path}-journal").stat().st_size > 0
@@ -137,30 +142,53 @@ UPDATE_OTHER = "update t set y = 'z' || y"
 #: (reference, scratch folder), the words the refusal must hold)
 CASES = {
     "complete + journal of another database": (
-        None, "-journal", lambda ref, tmp: _journal_of(_other_database, tmp, UPDATE_OTHER),
-        "not the atlas's own rollback journal"),
+        None,
+        "-journal",
+        lambda ref, tmp: _journal_of(_other_database, tmp, UPDATE_OTHER),
+        "not the atlas's own rollback journal",
+    ),
     "complete + journal of another database, no page 1": (
-        None, "-journal", lambda ref, tmp: _journal_of(_other_database, tmp, UPDATE_OTHER, page_one=False),
-        "holds no copy of the atlas's first page"),
+        None,
+        "-journal",
+        lambda ref, tmp: _journal_of(_other_database, tmp, UPDATE_OTHER, page_one=False),
+        "holds no copy of the atlas's first page",
+    ),
     "complete + journal of another atlas": (
-        None, "-journal", lambda ref, tmp: _journal_of(lambda w: _other_atlas(ref, w), tmp, "update dwell set x = x + 1"),
-        "its copy of the first page is another database's"),
-    "interrupted + journal of another database": (
-        _interrupted, "-journal", lambda ref, tmp: _journal_of(_other_database, tmp, UPDATE_OTHER),
-        "not the atlas's own rollback journal"),
-    "interrupted + journal of another atlas": (
-        _interrupted, "-journal",
+        None,
+        "-journal",
         lambda ref, tmp: _journal_of(lambda w: _other_atlas(ref, w), tmp, "update dwell set x = x + 1"),
-        "not the atlas's own rollback journal"),
+        "its copy of the first page is another database's",
+    ),
+    "interrupted + journal of another database": (
+        _interrupted,
+        "-journal",
+        lambda ref, tmp: _journal_of(_other_database, tmp, UPDATE_OTHER),
+        "not the atlas's own rollback journal",
+    ),
+    "interrupted + journal of another atlas": (
+        _interrupted,
+        "-journal",
+        lambda ref, tmp: _journal_of(lambda w: _other_atlas(ref, w), tmp, "update dwell set x = x + 1"),
+        "not the atlas's own rollback journal",
+    ),
     "interrupted + wal of another database": (
-        _interrupted, "-wal", lambda ref, tmp: _wal_of(_other_database, tmp, UPDATE_OTHER),
-        "not the atlas's own write-ahead log"),
+        _interrupted,
+        "-wal",
+        lambda ref, tmp: _wal_of(_other_database, tmp, UPDATE_OTHER),
+        "not the atlas's own write-ahead log",
+    ),
     "interrupted + wal of another interrupted atlas": (
-        _interrupted, "-wal", lambda ref, tmp: _wal_of(lambda w: _other_atlas(ref, w, wal=True), tmp, DELETE_OTHER),
-        "not the atlas's own write-ahead log"),
+        _interrupted,
+        "-wal",
+        lambda ref, tmp: _wal_of(lambda w: _other_atlas(ref, w, wal=True), tmp, DELETE_OTHER),
+        "not the atlas's own write-ahead log",
+    ),
     "complete + wal of another atlas": (
-        None, "-wal", lambda ref, tmp: _wal_of(lambda w: _other_atlas(ref, w, wal=True), tmp, DELETE_OTHER),
-        "is a complete atlas"),
+        None,
+        "-wal",
+        lambda ref, tmp: _wal_of(lambda w: _other_atlas(ref, w, wal=True), tmp, DELETE_OTHER),
+        "is a complete atlas",
+    ),
 }
 
 
@@ -212,7 +240,8 @@ def test_the_atlass_own_journal_after_a_kill_is_rolled_back_by_a_build(tmp_path,
 
 
 def test_the_atlass_own_journal_beside_an_interrupted_build_is_rolled_back_and_the_build_resumes(
-        tmp_path, capsys, reference):
+    tmp_path, capsys, reference
+):
     folder = tmp_path / "atlas"
     folder.mkdir()
     db = folder / "atlas.sqlite"
@@ -265,7 +294,7 @@ def test_a_log_or_journal_that_applies_nothing_is_harmless(tmp_path, capsys, ref
     wal = bytearray(_wal_of(_other_database, tmp_path, UPDATE_OTHER))
     frame = 24 + SQLITE_PAGE_SIZE
     for at in range(32, len(wal), frame):  # no frame is a commit frame any more
-        wal[at + 4:at + 8] = bytes(4)
+        wal[at + 4 : at + 8] = bytes(4)
     Path(f"{db}-wal").write_bytes(bytes(wal))
     Path(f"{db}-journal").write_bytes(bytes(600))
     doc = info(capsys, str(db))

@@ -26,10 +26,26 @@ CRANK = 25.0
 #: an id a user (or a corrupted atlas) could smuggle markup through
 EVIL_ID = '<script>alert("x")</script>&\'"-rpr0@30'
 
-REQUEST = Request(dwell=40 * DEG, dwell_tol=40 * DEG, swing=30 * DEG, swing_tol=1 * DEG, output="any",
-                  band=0.2 * DEG, crank=CRANK, min_transmission=20 * DEG)
-REQUEST2 = Request(dwell=30 * DEG, dwell_tol=40 * DEG, swing=30 * DEG, output="rpr", dwells=2, band=0.2 * DEG,
-                   crank=CRANK, min_transmission=20 * DEG)
+REQUEST = Request(
+    dwell=40 * DEG,
+    dwell_tol=40 * DEG,
+    swing=30 * DEG,
+    swing_tol=1 * DEG,
+    output="any",
+    band=0.2 * DEG,
+    crank=CRANK,
+    min_transmission=20 * DEG,
+)
+REQUEST2 = Request(
+    dwell=30 * DEG,
+    dwell_tol=40 * DEG,
+    swing=30 * DEG,
+    output="rpr",
+    dwells=2,
+    band=0.2 * DEG,
+    crank=CRANK,
+    min_transmission=20 * DEG,
+)
 
 
 def _path(a, b, c, d, br, uv: complex) -> np.ndarray:
@@ -41,18 +57,26 @@ def _candidate(sb: SixBar, request: Request, cid: str, segment: int, rest: compl
     f = sixbar_figures(sb, band=request.band, dwell_length=request.dwell, dwells=request.dwells, samples=720)
     s = request.crank
     f = dataclasses.replace(f, footprint=f.footprint * s**2, bounds=tuple(x * s for x in f.bounds))
-    return Candidate(id=cid, segment_id=segment, sixbar=sb.scaled(s), figures=f,
-                     dwell_position=None if rest is None else rest * s)
+    return Candidate(
+        id=cid, segment_id=segment, sixbar=sb.scaled(s), figures=f, dwell_position=None if rest is None else rest * s
+    )
 
 
-def rpr_sixbar(a=FOURBAR[0], b=FOURBAR[1], c=FOURBAR[2], d=FOURBAR[3], br=FOURBAR[4], phi0=PHI0,
-               swing=30 * DEG) -> SixBar:
+def rpr_sixbar(
+    a=FOURBAR[0], b=FOURBAR[1], c=FOURBAR[2], d=FOURBAR[3], br=FOURBAR[4], phi0=PHI0, swing=30 * DEG
+) -> SixBar:
     """Slotted rocker on the line of Ball's point at φ₀ (crank units)."""
     bp = ball_point(pole(fourbar_motion(a, b, c, d, phi0, br)))
     assert bp.status == 0
     uv = complex(bp.uv)
-    fit = fit_rpr(complex(bp.point), float(np.angle(bp.tangent)), PHI, _path(a, b, c, d, br, uv),
-                  (phi0 - 0.25, phi0 + 0.25), swing)
+    fit = fit_rpr(
+        complex(bp.point),
+        float(np.angle(bp.tangent)),
+        PHI,
+        _path(a, b, c, d, br, uv),
+        (phi0 - 0.25, phi0 + 0.25),
+        swing,
+    )
     dyad = fit.dyads()[0]
     return SixBar(a, b, c, d, br, uv.real, uv.imag, dyad)
 
@@ -85,9 +109,11 @@ def single_dwell_candidates() -> list[Candidate]:
     rrr, rest = rrr_sixbar()
     rpr = rpr_sixbar()
     rpr2 = rpr_sixbar(swing=25 * DEG)
-    out = [_candidate(rrr, REQUEST, "1234500007-rrr0@30", 1234500007, rest),
-           _candidate(rpr, REQUEST, "1234500003-rpr0@30", 1234500003),
-           _candidate(rpr2, REQUEST, EVIL_ID, 42)]
+    out = [
+        _candidate(rrr, REQUEST, "1234500007-rrr0@30", 1234500007, rest),
+        _candidate(rpr, REQUEST, "1234500003-rpr0@30", 1234500003),
+        _candidate(rpr2, REQUEST, EVIL_ID, 42),
+    ]
     return [dataclasses.replace(c, rank=i + 1) for i, c in enumerate(out)]
 
 

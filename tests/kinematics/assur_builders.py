@@ -76,11 +76,17 @@ class Builder:
         rb, eb = self.poses[block]
         u_local = U / eg
         w_local = U / eb
-        self.prismatic.append({
-            "name": name, "guide": guide, "block": block,
-            "through": xy(self.local(guide, through)), "angle": math.degrees(cmath.phase(u_local)),
-            "block_point": xy(self.local(block, at)), "block_angle": math.degrees(cmath.phase(w_local)),
-        })
+        self.prismatic.append(
+            {
+                "name": name,
+                "guide": guide,
+                "block": block,
+                "through": xy(self.local(guide, through)),
+                "angle": math.degrees(cmath.phase(u_local)),
+                "block_point": xy(self.local(block, at)),
+                "block_angle": math.degrees(cmath.phase(w_local)),
+            }
+        )
         return name
 
     def pair(self, kind: str, a: str, b: str, at: complex, angle: float, guide_first: bool) -> str:
@@ -90,8 +96,14 @@ class Builder:
         return self.prismatic_pair(guide, block, at, angle, 0.0)
 
     def description(self, output: dict | None = None) -> dict:
-        doc = {"name": "random", "units": "mm", "ground": self.ground, "links": self.links,
-               "prismatic": self.prismatic, "inputs": [{"joint": "O", "link": "crank", "value": math.degrees(self.phi0)}]}
+        doc = {
+            "name": "random",
+            "units": "mm",
+            "ground": self.ground,
+            "links": self.links,
+            "prismatic": self.prismatic,
+            "inputs": [{"joint": "O", "link": "crank", "value": math.degrees(self.phi0)}],
+        }
         if output:
             doc["output"] = output
         return doc

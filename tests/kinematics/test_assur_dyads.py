@@ -6,10 +6,10 @@ import math
 
 import numpy as np
 import pytest
+from assur_builders import check_derivatives, dyad_linkage, example
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from assur_builders import check_derivatives, dyad_linkage, example
 from kinematics.assur import (
     assemble,
     configurations,
@@ -43,10 +43,15 @@ def _diff(a, b):
 def test_L201_rrr_dyad(reference_cases):
     case = reference_cases["L201_RRR_dyad"]
     p = case["inputs"]
-    lk = linkage_from_mapping({
-        "ground": {"A": [p["xA"], p["yA"]], "C": [p["xC"], p["yC"]]},
-        "links": {"link1": {"joints": ["A", "B"], "length": p["l1"]}, "link2": {"joints": ["C", "B"], "length": p["l2"]}},
-    })
+    lk = linkage_from_mapping(
+        {
+            "ground": {"A": [p["xA"], p["yA"]], "C": [p["xC"], p["yC"]]},
+            "links": {
+                "link1": {"joints": ["A", "B"], "length": p["l1"]},
+                "link2": {"joints": ["C", "B"], "length": p["l2"]},
+            },
+        }
+    )
     assert lk.dof == 0 and [g.kind for g in decompose(lk).groups] == ["RRR"]
     found = configurations(lk, [])
     got = [[math.degrees(c.theta[0, 1]), math.degrees(c.theta[0, 2])] for c in found]
@@ -60,12 +65,16 @@ def test_L211_rrp_dyad(reference_cases):
     case = reference_cases["L211_RRP_dyad"]
     p = case["inputs"]
     alpha = math.radians(p["alpha"])
-    lk = linkage_from_mapping({
-        "ground": {"A": [p["xA"], p["yA"]], "P": [p["xP"], p["yP"]]},
-        "links": {"link1": {"joints": ["A", "B"], "length": p["l1"]},
-                  "slider": {"points": {"B": [p["e"] * math.cos(alpha), p["e"] * math.sin(alpha)]}}},
-        "prismatic": [{"name": "s", "guide": "ground", "block": "slider", "through": "P", "angle": p["beta"]}],
-    })
+    lk = linkage_from_mapping(
+        {
+            "ground": {"A": [p["xA"], p["yA"]], "P": [p["xP"], p["yP"]]},
+            "links": {
+                "link1": {"joints": ["A", "B"], "length": p["l1"]},
+                "slider": {"points": {"B": [p["e"] * math.cos(alpha), p["e"] * math.sin(alpha)]}},
+            },
+            "prismatic": [{"name": "s", "guide": "ground", "block": "slider", "through": "P", "angle": p["beta"]}],
+        }
+    )
     found = configurations(lk, [])
     got = [[math.degrees(c.theta[0, 1]), float(linkage_motion(lk, c).s[0, 0])] for c in found]
     _close_to_some(got, _solver_rows(case), 1e-8)
@@ -75,14 +84,19 @@ def test_L221_rpp_dyad(reference_cases):
     case = reference_cases["L221_RPP_dyad"]
     p = case["inputs"]
     alpha = math.radians(p["alpha"])
-    lk = linkage_from_mapping({
-        "ground": {"A": [p["xA"], p["yA"]], "P": [p["xP"], p["yP"]]},
-        "links": {"slider1": {}, "slider2": {"points": {"A": [p["e"] * math.cos(alpha), p["e"] * math.sin(alpha)]}}},
-        "prismatic": [
-            {"name": "s1", "guide": "ground", "block": "slider1", "through": "P", "angle": p["beta"]},
-            {"name": "s2", "guide": "slider1", "block": "slider2", "through": [0, 0], "angle": p["gamma"]},
-        ],
-    })
+    lk = linkage_from_mapping(
+        {
+            "ground": {"A": [p["xA"], p["yA"]], "P": [p["xP"], p["yP"]]},
+            "links": {
+                "slider1": {},
+                "slider2": {"points": {"A": [p["e"] * math.cos(alpha), p["e"] * math.sin(alpha)]}},
+            },
+            "prismatic": [
+                {"name": "s1", "guide": "ground", "block": "slider1", "through": "P", "angle": p["beta"]},
+                {"name": "s2", "guide": "slider1", "block": "slider2", "through": [0, 0], "angle": p["gamma"]},
+            ],
+        }
+    )
     assert [g.kind for g in decompose(lk).groups] == ["RPP"]
     found = configurations(lk, [])
     assert len(found) == case["n_configs_solver"] == 1
@@ -93,12 +107,17 @@ def test_L221_rpp_dyad(reference_cases):
 def test_P204001_fourbar(reference_cases):
     case = reference_cases["P204001_fourbar"]
     p = case["inputs"]
-    lk = linkage_from_mapping({
-        "ground": {"A": [0, 0], "D": [p["l4"], 0]},
-        "links": {"crank": {"joints": ["A", "B"], "length": p["l1"]}, "coupler": {"joints": ["B", "C"], "length": p["l2"]},
-                  "rocker": {"joints": ["D", "C"], "length": p["l3"]}},
-        "inputs": [{"joint": "A", "link": "crank"}],
-    })
+    lk = linkage_from_mapping(
+        {
+            "ground": {"A": [0, 0], "D": [p["l4"], 0]},
+            "links": {
+                "crank": {"joints": ["A", "B"], "length": p["l1"]},
+                "coupler": {"joints": ["B", "C"], "length": p["l2"]},
+                "rocker": {"joints": ["D", "C"], "length": p["l3"]},
+            },
+            "inputs": [{"joint": "A", "link": "crank"}],
+        }
+    )
     found = configurations(lk, [math.radians(p["theta1"])])
     got = [[math.degrees(c.theta[0, 2]), math.degrees(c.theta[0, 3])] for c in found]
     _close_to_some(got, _solver_rows(case), 1e-9)
@@ -109,13 +128,26 @@ def test_P204101_offset_slider_crank(reference_cases):
     p = case["inputs"]
     a = math.radians(p["alpha"])
     foot = p["e"] * complex(math.cos(a - math.pi / 2), math.sin(a - math.pi / 2))
-    lk = linkage_from_mapping({
-        "ground": {"A": [0, 0]},
-        "links": {"crank": {"joints": ["A", "B"], "length": p["l1"]}, "rod": {"joints": ["B", "C"], "length": p["l2"]},
-                  "slider": {"points": {"C": [0, 0]}}},
-        "prismatic": [{"name": "s", "guide": "ground", "block": "slider", "through": [foot.real, foot.imag], "angle": p["alpha"]}],
-        "inputs": [{"joint": "A", "link": "crank"}],
-    })
+    lk = linkage_from_mapping(
+        {
+            "ground": {"A": [0, 0]},
+            "links": {
+                "crank": {"joints": ["A", "B"], "length": p["l1"]},
+                "rod": {"joints": ["B", "C"], "length": p["l2"]},
+                "slider": {"points": {"C": [0, 0]}},
+            },
+            "prismatic": [
+                {
+                    "name": "s",
+                    "guide": "ground",
+                    "block": "slider",
+                    "through": [foot.real, foot.imag],
+                    "angle": p["alpha"],
+                }
+            ],
+            "inputs": [{"joint": "A", "link": "crank"}],
+        }
+    )
     found = configurations(lk, [math.radians(p["theta1"])])
     got = [[math.degrees(c.theta[0, 2]), float(linkage_motion(lk, c).s[0, 0])] for c in found]
     _close_to_some(got, _solver_rows(case), 1e-8)
@@ -140,9 +172,18 @@ def _table_errors(case, lk, columns):
 def test_offset_slider_crank_table(reference_cases):
     lk = example("slider_crank.toml")
     case = reference_cases["offset_slider_crank_reference"]
-    worst = _table_errors(case, lk, lambda asm, m: {
-        "phi2_deg": np.degrees(asm.theta[:, 2]), "s3_mm": m.s[:, 0], "omega2_rad_s": m.omega[:, 2],
-        "v3_mm_s": m.ds[:, 0], "eps2_rad_s2": m.alpha[:, 2], "a3_mm_s2": m.dds[:, 0]})
+    worst = _table_errors(
+        case,
+        lk,
+        lambda asm, m: {
+            "phi2_deg": np.degrees(asm.theta[:, 2]),
+            "s3_mm": m.s[:, 0],
+            "omega2_rad_s": m.omega[:, 2],
+            "v3_mm_s": m.ds[:, 0],
+            "eps2_rad_s2": m.alpha[:, 2],
+            "a3_mm_s2": m.dds[:, 0],
+        },
+    )
     assert worst < 1e-10  # the table holds 12 significant digits
 
 
@@ -150,11 +191,24 @@ def test_shaper_table(reference_cases):
     lk = example("shaper.toml")
     assert [g.kind for g in decompose(lk).groups] == ["RPR", "RRP"]
     case = reference_cases["shaper_crank_guiderod_slider_reference"]
-    worst = _table_errors(case, lk, lambda asm, m: {
-        "s2_mm": m.s[:, 0], "phi3_deg": np.degrees(asm.theta[:, 3]), "phi4_deg": np.degrees(asm.theta[:, 4]),
-        "s5_mm": m.s[:, 1], "v2_mm_s": m.ds[:, 0], "omega3_rad_s": m.omega[:, 3], "omega4_rad_s": m.omega[:, 4],
-        "v5_mm_s": m.ds[:, 1], "a2_mm_s2": m.dds[:, 0], "eps3_rad_s2": m.alpha[:, 3], "eps4_rad_s2": m.alpha[:, 4],
-        "a5_mm_s2": m.dds[:, 1]})
+    worst = _table_errors(
+        case,
+        lk,
+        lambda asm, m: {
+            "s2_mm": m.s[:, 0],
+            "phi3_deg": np.degrees(asm.theta[:, 3]),
+            "phi4_deg": np.degrees(asm.theta[:, 4]),
+            "s5_mm": m.s[:, 1],
+            "v2_mm_s": m.ds[:, 0],
+            "omega3_rad_s": m.omega[:, 3],
+            "omega4_rad_s": m.omega[:, 4],
+            "v5_mm_s": m.ds[:, 1],
+            "a2_mm_s2": m.dds[:, 0],
+            "eps3_rad_s2": m.alpha[:, 3],
+            "eps4_rad_s2": m.alpha[:, 4],
+            "a5_mm_s2": m.dds[:, 1],
+        },
+    )
     assert worst < 1e-10
 
 
@@ -171,7 +225,11 @@ def test_fourbar_file_matches_closed_form():
         # coupler point P = (40, 30) in the coupler frame
         z, v, a = m.point(2, 40 + 30j)
         zz = fb.coupler_point(40, 30, order=2)
-        assert np.max(np.abs(z - zz[0])) < 1e-12 and np.max(np.abs(v - zz[1])) < 1e-12 and np.max(np.abs(a - zz[2])) < 1e-11
+        assert (
+            np.max(np.abs(z - zz[0])) < 1e-12
+            and np.max(np.abs(v - zz[1])) < 1e-12
+            and np.max(np.abs(a - zz[2])) < 1e-11
+        )
 
 
 # -- random dyads of every type: the drawn pose is found, loops close, derivatives agree ---------
@@ -181,8 +239,10 @@ DYAD_KINDS = ["RRR", "RRP", "PRR", "RPR", "PRP", "RPP", "PPR"]
 
 @pytest.mark.parametrize("kinds", DYAD_KINDS)
 @settings(max_examples=20, deadline=None)
-@given(values=st.lists(st.floats(0.0, 1.0, exclude_max=True), min_size=16, max_size=16),
-       flips=st.lists(st.booleans(), min_size=3, max_size=3))
+@given(
+    values=st.lists(st.floats(0.0, 1.0, exclude_max=True), min_size=16, max_size=16),
+    flips=st.lists(st.booleans(), min_size=3, max_size=3),
+)
 def test_random_dyad(kinds, values, flips):
     b = dyad_linkage(kinds, values, flips)
     lk = b.linkage()
@@ -224,13 +284,18 @@ def test_branches_and_status_of_the_kernels():
 
 def test_slide_driven_dead_centre_is_reported_singular():
     # a slider-crank driven by its slider: at s = l1 + l2 crank and rod are stretched out
-    lk = linkage_from_mapping({
-        "ground": {"A": [0, 0]},
-        "links": {"crank": {"joints": ["A", "B"], "length": 30}, "rod": {"joints": ["B", "C"], "length": 70},
-                  "slider": {"points": {"C": [0, 0]}}},
-        "prismatic": [{"name": "s", "guide": "ground", "block": "slider", "through": [0, 0], "angle": 0}],
-        "inputs": [{"joint": "s", "value": 60}],
-    })
+    lk = linkage_from_mapping(
+        {
+            "ground": {"A": [0, 0]},
+            "links": {
+                "crank": {"joints": ["A", "B"], "length": 30},
+                "rod": {"joints": ["B", "C"], "length": 70},
+                "slider": {"points": {"C": [0, 0]}},
+            },
+            "prismatic": [{"name": "s", "guide": "ground", "block": "slider", "through": [0, 0], "angle": 0}],
+            "inputs": [{"joint": "s", "value": 60}],
+        }
+    )
     start = configurations(lk, [60.0])[0]
     asm = assemble(lk, np.array([[60.0], [100.0], [101.0]]), start)
     assert asm.status[0] == 0

@@ -6,18 +6,21 @@ import json
 import tomllib
 
 import pytest
+from assur_builders import EXAMPLES
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from assur_builders import EXAMPLES
 from linkage_chains import chain_of_dyads
+
 from kinematics.assur import LinkageFileError, decompose, linkage_from_mapping, linkage_from_text
 from kinematics.status import AssemblyError
 
 FOURBAR = {
     "ground": {"A": [0, 0], "D": [100, 0]},
-    "links": {"crank": {"joints": ["A", "B"], "length": 50}, "coupler": {"joints": ["B", "C"], "length": 80},
-              "rocker": {"joints": ["D", "C"], "length": 80}},
+    "links": {
+        "crank": {"joints": ["A", "B"], "length": 50},
+        "coupler": {"joints": ["B", "C"], "length": 80},
+        "rocker": {"joints": ["D", "C"], "length": 80},
+    },
     "inputs": [{"joint": "A", "link": "crank"}],
 }
 
@@ -75,21 +78,45 @@ def test_structure_and_units():
         (_with(inputs=[{"joint": "A", "link": "rocker"}]), "link 'rocker' is not at that joint"),
         (_with(inputs=[{"joint": "A", "link": "nope"}]), "no link named 'nope'"),
         (_with(inputs=[]), "1 degree(s) of freedom"),
-        (_with(inputs=[{"joint": "A", "link": "crank"}, {"joint": "D", "link": "rocker"}]), "1 degree(s) of freedom .* but 2 inputs: remove an input"),
+        (
+            _with(inputs=[{"joint": "A", "link": "crank"}, {"joint": "D", "link": "rocker"}]),
+            "1 degree(s) of freedom .* but 2 inputs: remove an input",
+        ),
         (_with(links__rocker__joints=["D", "E"]), "3 degree(s) of freedom .* every degree of freedom needs"),
         (_with(links__extra={"joints": ["X", "Y"], "length": 3}), "link 'extra' shares no joint"),
-        (_with(links__x1={"joints": ["P", "Q"], "length": 3}, links__x2={"joints": ["Q", "R"], "length": 3},
-               links__x3={"joints": ["R", "P"], "length": 3}), "'x1', 'x2', 'x3' are not connected to the ground"),
+        (
+            _with(
+                links__x1={"joints": ["P", "Q"], "length": 3},
+                links__x2={"joints": ["Q", "R"], "length": 3},
+                links__x3={"joints": ["R", "P"], "length": 3},
+            ),
+            "'x1', 'x2', 'x3' are not connected to the ground",
+        ),
         (_with(links__crank__points={"C": [1, 1]}), "links 'crank' and 'coupler' are joined twice"),
         (_with(links__coupler__length=1e-15), "link .coupler.: joints .B. and .C. are at the same point"),
         (_with(output={"link": "ground"}), "the ground does not move"),
         (_with(output={"joint": "s"}), "no prismatic pair named 's'"),
         (_with(output={"link": "rocker", "joint": "s"}), "give exactly one of"),
-        (_with(prismatic=[{"name": "C", "guide": "ground", "block": "rocker", "through": [0, 0], "angle": 0}]), "already a point name"),
-        (_with(prismatic=[{"name": "s", "guide": "ground", "block": "ground", "through": [0, 0], "angle": 0}]), "guide and block are the same link"),
-        (_with(prismatic=[{"name": "s", "guide": "ground", "block": "rocker", "through": [0, 0]}]), "give exactly one of 'angle'"),
-        (_with(prismatic=[{"name": "s", "guide": "ground", "block": "rocker", "through": "Z", "angle": 0}]), "link 'ground' has no point 'Z'"),
-        (_with(prismatic=[{"guide": "ground", "block": "rocker", "through": [0, 0], "angle": 0}]), "'name' (a string) is required"),
+        (
+            _with(prismatic=[{"name": "C", "guide": "ground", "block": "rocker", "through": [0, 0], "angle": 0}]),
+            "already a point name",
+        ),
+        (
+            _with(prismatic=[{"name": "s", "guide": "ground", "block": "ground", "through": [0, 0], "angle": 0}]),
+            "guide and block are the same link",
+        ),
+        (
+            _with(prismatic=[{"name": "s", "guide": "ground", "block": "rocker", "through": [0, 0]}]),
+            "give exactly one of 'angle'",
+        ),
+        (
+            _with(prismatic=[{"name": "s", "guide": "ground", "block": "rocker", "through": "Z", "angle": 0}]),
+            "link 'ground' has no point 'Z'",
+        ),
+        (
+            _with(prismatic=[{"guide": "ground", "block": "rocker", "through": [0, 0], "angle": 0}]),
+            "'name' (a string) is required",
+        ),
         (_with(links__coupler__length=0.5, links__coupler__joints=["B", "C"], ground__D=[100, 0]), None),
         (_with(configuration=0), "'configuration' must be an integer from 1 to 1024, got 0"),
         (_with(configuration=1025), "'configuration' must be an integer from 1 to 1024"),
@@ -111,7 +138,13 @@ def test_validation_messages(doc, message):
     if message is None:  # lengths that cannot assemble still make a valid description
         linkage_from_mapping(doc)
         return
-    pattern = message.replace("(", r"\(").replace(")", r"\)").replace("[", r"\[").replace("]", r"\]").replace(r"\(s\)", r"\(s\)")
+    pattern = (
+        message.replace("(", r"\(")
+        .replace(")", r"\)")
+        .replace("[", r"\[")
+        .replace("]", r"\]")
+        .replace(r"\(s\)", r"\(s\)")
+    )
     with pytest.raises(LinkageFileError, match=pattern):
         linkage_from_mapping(doc)
 
@@ -164,17 +197,27 @@ def test_actuator_input_fuses_two_moving_links():
 # -- limits: every hostile file is one LinkageFileError line, before the work it would cause ----
 
 
-@pytest.mark.parametrize("text, fmt, message", [
-    ('{"name": ' + "[" * 100_000 + "]" * 100_000 + "}", "json", "nest 100001 deep; a description nests at most 16"),
-    ("name = " + "[" * 5000 + "]" * 5000, "toml", "nest 5000 deep"),
-    ("# " + "x" * 1_000_001, "toml", "characters; at most 1,000,000"),
-    ("[links.c]\njoints = ['A', 'B']\nlength = " + "9" * 5000, "toml", "an integer has more than 4300 digits"),
-    ('{"links": {"c": {"joints": ["A", "B"], "length": ' + "9" * 5000 + "}}}", "json", "more than 4300 digits"),
-    ("[links.c]\njoints = ['A', 'B']\nlength = " + "9" * 400, "toml", "'length' must be a finite number of magnitude"),
-    (chain_of_dyads(600), "toml", "[links] defines 1201 links; at most 1000"),
-    ("[links.c]\npoints = {" + ", ".join(f"P{i} = [0, {i}]" for i in range(101)) + "}", "toml",
-     "link 'c' has 101 points; at most 100"),
-])
+@pytest.mark.parametrize(
+    "text, fmt, message",
+    [
+        ('{"name": ' + "[" * 100_000 + "]" * 100_000 + "}", "json", "nest 100001 deep; a description nests at most 16"),
+        ("name = " + "[" * 5000 + "]" * 5000, "toml", "nest 5000 deep"),
+        ("# " + "x" * 1_000_001, "toml", "characters; at most 1,000,000"),
+        ("[links.c]\njoints = ['A', 'B']\nlength = " + "9" * 5000, "toml", "an integer has more than 4300 digits"),
+        ('{"links": {"c": {"joints": ["A", "B"], "length": ' + "9" * 5000 + "}}}", "json", "more than 4300 digits"),
+        (
+            "[links.c]\njoints = ['A', 'B']\nlength = " + "9" * 400,
+            "toml",
+            "'length' must be a finite number of magnitude",
+        ),
+        (chain_of_dyads(600), "toml", "[links] defines 1201 links; at most 1000"),
+        (
+            "[links.c]\npoints = {" + ", ".join(f"P{i} = [0, {i}]" for i in range(101)) + "}",
+            "toml",
+            "link 'c' has 101 points; at most 100",
+        ),
+    ],
+)
 def test_hostile_descriptions_are_one_line(text, fmt, message):
     with pytest.raises(LinkageFileError) as err:
         linkage_from_text(text, fmt)
@@ -207,8 +250,7 @@ def test_a_chain_of_dyads_lists_at_most_max_configurations():
 def test_too_many_partial_configurations_is_one_line(monkeypatch):
     import numpy as np
 
-    from kinematics.assur import ConfigurationLimit, configurations
-    from kinematics.assur import positions
+    from kinematics.assur import ConfigurationLimit, configurations, positions
 
     monkeypatch.setattr(positions, "MAX_PARTIAL_CONFIGURATIONS", 50)
     with pytest.raises(ConfigurationLimit) as err:
@@ -220,7 +262,9 @@ hostile_text = st.one_of(
     st.integers(0, 3000).map(lambda n: "name = " + "[" * n + "]" * n),
     st.integers(1, 6000).map(lambda n: "[links.c]\njoints = ['A', 'B']\nlength = " + "9" * n),
     st.integers(0, 1500).map(lambda n: "[ground]\n" + "\n".join(f"G{i} = [{i}, 0]" for i in range(n))),
-    st.integers(0, 2000).map(lambda n: "\n".join(f"[links.l{i}]\njoints = ['A{i}', 'B{i}']\nlength = 1" for i in range(n))),
+    st.integers(0, 2000).map(
+        lambda n: "\n".join(f"[links.l{i}]\njoints = ['A{i}', 'B{i}']\nlength = 1" for i in range(n))
+    ),
     st.text(max_size=200),
     st.binary(max_size=200).map(lambda b: b.decode("latin-1")),
 )

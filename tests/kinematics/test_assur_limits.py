@@ -6,8 +6,8 @@ import math
 
 import numpy as np
 import pytest
-
 from assur_builders import example
+
 from kinematics.assur import (
     assemble,
     configurations,
@@ -18,6 +18,7 @@ from kinematics.assur import (
 )
 from kinematics.fourbar import rocker_limits
 from kinematics.status import AssemblyError
+
 
 def test_fourbar_limits_match_the_closed_form():
     lk = example("fourbar.toml")
@@ -37,13 +38,19 @@ def test_fourbar_limits_match_the_closed_form():
 @pytest.mark.parametrize("offset", [0.0, 20.0, -35.0])
 def test_slider_crank_dead_centres(offset):
     l1, l2 = 50.0, 150.0
-    lk = linkage_from_mapping({
-        "ground": {"A": [0, 0]},
-        "links": {"crank": {"joints": ["A", "B"], "length": l1}, "rod": {"joints": ["B", "C"], "length": l2},
-                  "slider": {"points": {"C": [0, 0]}}},
-        "prismatic": [{"name": "s", "guide": "ground", "block": "slider", "through": [0, -offset], "angle": 0}],
-        "inputs": [{"joint": "A", "link": "crank"}], "output": {"joint": "s"},
-    })
+    lk = linkage_from_mapping(
+        {
+            "ground": {"A": [0, 0]},
+            "links": {
+                "crank": {"joints": ["A", "B"], "length": l1},
+                "rod": {"joints": ["B", "C"], "length": l2},
+                "slider": {"points": {"C": [0, 0]}},
+            },
+            "prismatic": [{"name": "s", "guide": "ground", "block": "slider", "through": [0, -offset], "angle": 0}],
+            "inputs": [{"joint": "A", "link": "crank"}],
+            "output": {"joint": "s"},
+        }
+    )
     # crank and rod in line: |C| = l2 + l1 (outer) or l2 − l1 (inner dead centre)
     s_out = math.sqrt((l1 + l2) ** 2 - offset**2)
     s_in = math.sqrt((l2 - l1) ** 2 - offset**2)
@@ -55,7 +62,9 @@ def test_slider_crank_dead_centres(offset):
     assert byk["max"].input == pytest.approx(phi_out, abs=1e-10) and byk["max"].output == pytest.approx(s_out, abs=1e-9)
     assert byk["min"].input == pytest.approx(phi_in, abs=1e-10) and byk["min"].output == pytest.approx(s_in, abs=1e-9)
     advance = (phi_out - phi_in) % (2 * math.pi)
-    assert lim.time_ratio == pytest.approx(max(advance, 2 * math.pi - advance) / min(advance, 2 * math.pi - advance), abs=1e-9)
+    assert lim.time_ratio == pytest.approx(
+        max(advance, 2 * math.pi - advance) / min(advance, 2 * math.pi - advance), abs=1e-9
+    )
 
 
 def test_limits_on_grid_points_and_at_the_range_start():
@@ -66,8 +75,10 @@ def test_limits_on_grid_points_and_at_the_range_start():
     assert lim.stroke == pytest.approx(80.0, abs=1e-12) and lim.time_ratio == pytest.approx(1.0, abs=1e-12)
 
 
-@pytest.mark.parametrize("name, configuration", [("class3_sixbar.toml", 3), ("eightbar.toml", 6), ("shaper.toml", 1),
-                                                 ("class3_sliders.toml", 2)])
+@pytest.mark.parametrize(
+    "name, configuration",
+    [("class3_sixbar.toml", 3), ("eightbar.toml", 6), ("shaper.toml", 1), ("class3_sliders.toml", 2)],
+)
 def test_limits_against_a_dense_scan(name, configuration):
     lk = example(name)
     start = configurations(lk, [0.0])[configuration - 1]
@@ -95,12 +106,18 @@ def test_limits_against_a_dense_scan(name, configuration):
 
 
 def test_a_range_that_leaves_the_assembly_is_refused():
-    lk = linkage_from_mapping({
-        "ground": {"A": [0, 0], "D": [3, 0]},
-        "links": {"crank": {"joints": ["A", "B"], "length": 2.0}, "coupler": {"joints": ["B", "C"], "length": 2.0},
-                  "rocker": {"joints": ["D", "C"], "length": 2.0}},
-        "inputs": [{"joint": "A", "link": "crank"}], "output": {"link": "rocker"},
-    })  # a triple rocker: the crank cannot turn fully
+    lk = linkage_from_mapping(
+        {
+            "ground": {"A": [0, 0], "D": [3, 0]},
+            "links": {
+                "crank": {"joints": ["A", "B"], "length": 2.0},
+                "coupler": {"joints": ["B", "C"], "length": 2.0},
+                "rocker": {"joints": ["D", "C"], "length": 2.0},
+            },
+            "inputs": [{"joint": "A", "link": "crank"}],
+            "output": {"link": "rocker"},
+        }
+    )  # a triple rocker: the crank cannot turn fully
     start = configurations(lk, [0.0])[0]
     with pytest.raises(AssemblyError, match="does not assemble"):
         limit_positions(lk, start, lk.output)

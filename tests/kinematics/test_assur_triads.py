@@ -4,12 +4,13 @@ random triads of every leg type; an eight-bar with all its combinations; trackin
 from __future__ import annotations
 
 import math
+
 import numpy as np
 import pytest
+from assur_builders import check_derivatives, example, triad_linkage
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from assur_builders import check_derivatives, example, triad_linkage
 from kinematics.assur import (
     assemble,
     configurations,
@@ -44,6 +45,7 @@ def _dense_search(A, l, b, n=500):
     direction B1→B2. Every grid cell that is a local minimum of r1² + r2² over its 8 neighbours
     (periodic) starts Newton's method; converged, distinct poses are returned.
     """
+
     def resid(p1, p2):
         B1 = A[0] + l[0] * np.exp(1j * p1)
         B2 = A[1] + l[1] * np.exp(1j * p2)
@@ -68,8 +70,13 @@ def _dense_search(A, l, b, n=500):
         for _ in range(60):
             r0, _, _ = resid(*x)
             h = 1e-7
-            Jc = np.stack([(resid(x[0] + h, x[1])[0] - resid(x[0] - h, x[1])[0]) / (2 * h),
-                           (resid(x[0], x[1] + h)[0] - resid(x[0], x[1] - h)[0]) / (2 * h)], axis=1)
+            Jc = np.stack(
+                [
+                    (resid(x[0] + h, x[1])[0] - resid(x[0] - h, x[1])[0]) / (2 * h),
+                    (resid(x[0], x[1] + h)[0] - resid(x[0], x[1] - h)[0]) / (2 * h),
+                ],
+                axis=1,
+            )
             try:
                 x = x - np.linalg.solve(Jc, r0)
             except np.linalg.LinAlgError:
@@ -113,14 +120,19 @@ def test_fold_case_configurations_are_all_found():
 
 
 def _fold_sixbar(legs=(104.1, 63.2, 97.6)):
-    return linkage_from_mapping({
-        "ground": {"A1": [-70.6, 60.4], "A2": [-55.8, -4.9], "O": [-51.9, 52.7]},
-        "links": {"crank": {"joints": ["O", "A3"], "length": 20.9},
-                  "ternary": {"points": {"B1": [-39.8, -38.1], "B2": [-78.1, 64.0], "B3": [-74.6, -29.7]}},
-                  "leg1": {"joints": ["A1", "B1"], "length": legs[0]}, "leg2": {"joints": ["A2", "B2"], "length": legs[1]},
-                  "leg3": {"joints": ["A3", "B3"], "length": legs[2]}},
-        "inputs": [{"joint": "O", "link": "crank"}],
-    })
+    return linkage_from_mapping(
+        {
+            "ground": {"A1": [-70.6, 60.4], "A2": [-55.8, -4.9], "O": [-51.9, 52.7]},
+            "links": {
+                "crank": {"joints": ["O", "A3"], "length": 20.9},
+                "ternary": {"points": {"B1": [-39.8, -38.1], "B2": [-78.1, 64.0], "B3": [-74.6, -29.7]}},
+                "leg1": {"joints": ["A1", "B1"], "length": legs[0]},
+                "leg2": {"joints": ["A2", "B2"], "length": legs[1]},
+                "leg3": {"joints": ["A3", "B3"], "length": legs[2]},
+            },
+            "inputs": [{"joint": "O", "link": "crank"}],
+        }
+    )
 
 
 def test_tracking_stops_at_folds_and_does_not_jump():
@@ -133,7 +145,7 @@ def test_tracking_stops_at_folds_and_does_not_jump():
             asm = assemble(lk, phi[:, None], start)
             ok = asm.status == 0
             last = int(np.flatnonzero(ok)[-1])
-            assert ok[: last + 1].all() and not ok[last + 1:].any()
+            assert ok[: last + 1].all() and not ok[last + 1 :].any()
             assert loop_closure(lk, asm)[ok].max() < 1e-11 * lk.length_scale
             results.append((math.degrees(phi[last]), asm.e[last, 2] if ok.all() else None))
         # every sweep ends at its last position before the same fold (or none ends)
@@ -211,13 +223,22 @@ def test_eightbar_sweep_velocities_match_finite_differences():
 
 # -- random triads of every leg type ---------------------------------------------------------------
 
-LEG_SETS = [("RR", "RR", "RR"), ("RR", "PR", "RR"), ("RP", "RR", "RR"), ("PR", "RP", "RR"), ("RP", "PR", "PR"), ("PR", "PR", "RP")]
+LEG_SETS = [
+    ("RR", "RR", "RR"),
+    ("RR", "PR", "RR"),
+    ("RP", "RR", "RR"),
+    ("PR", "RP", "RR"),
+    ("RP", "PR", "PR"),
+    ("PR", "PR", "RP"),
+]
 
 
 @pytest.mark.parametrize("legs", LEG_SETS, ids=["/".join(x) for x in LEG_SETS])
 @settings(max_examples=15, deadline=None)
-@given(values=st.lists(st.floats(0.0, 1.0, exclude_max=True), min_size=32, max_size=32),
-       flips=st.lists(st.booleans(), min_size=6, max_size=6))
+@given(
+    values=st.lists(st.floats(0.0, 1.0, exclude_max=True), min_size=32, max_size=32),
+    flips=st.lists(st.booleans(), min_size=6, max_size=6),
+)
 def test_random_triad(legs, values, flips):
     b = triad_linkage(list(legs), values, flips)
     lk = b.linkage()

@@ -28,6 +28,7 @@ branches = st.sampled_from([1, -1])
 
 # --- reference cases ---------------------------------------------------------------------------
 
+
 def test_p204001_both_configurations(reference_cases):
     case = reference_cases["P204001_fourbar"]
     x = case["inputs"]
@@ -67,6 +68,7 @@ def test_fourbar_velocity_cases_at_exact_position(reference_cases, name):
 
 
 # --- closed forms ------------------------------------------------------------------------------
+
 
 def test_parallelogram_translates_coupler():
     # a = c, b = d, open branch: the coupler never turns, θ ≡ 0 and θ' = θ'' = θ''' = 0,
@@ -166,6 +168,7 @@ def test_transmission_angle_range():
 
 # --- properties --------------------------------------------------------------------------------
 
+
 @settings(max_examples=150, deadline=None)
 @given(lengths, lengths, lengths, lengths, angles, branches)
 def test_loop_closes_and_nothing_is_nan(a, b, c, d, phi, branch):
@@ -243,6 +246,7 @@ def test_time_derivatives_chain_rule():
 
 
 # --- contract and errors -----------------------------------------------------------------------
+
 
 def test_broadcast_shapes_and_dtypes():
     n, k = 4, 7

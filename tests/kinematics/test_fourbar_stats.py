@@ -63,7 +63,9 @@ def test_no_clutch_drag_link_and_crank_rocker():
     # clutch has zero mean, so its cv is unbounded and flagged
     st = output_speed_stats([100.0], 80.0, 90.0, 30.0, [60.0], clutch="none")
     assert st.mean[0, 0] == pytest.approx(2 * np.pi, rel=1e-13) and st.status[0, 0] == 0
-    mean, std = (lambda u: (u.mean(), u.std()))(speed_profile(100.0, 80.0, 90.0, 30.0, np.linspace(0, 2 * np.pi, 400_000, endpoint=False), clutch="none"))
+    mean, std = (lambda u: (u.mean(), u.std()))(
+        speed_profile(100.0, 80.0, 90.0, 30.0, np.linspace(0, 2 * np.pi, 400_000, endpoint=False), clutch="none")
+    )
     assert st.cv[0, 0] == pytest.approx(std / mean, rel=1e-8)
     st = output_speed_stats([20.0], B, C, D, [60.0], clutch="none")
     assert abs(st.mean[0, 0]) < 1e-12 and st.status[0, 0] & Status.AT_INFINITY and st.cv[0, 0] == 0

@@ -53,7 +53,7 @@ def test_circle_intersection_does_not_depend_on_the_unit(scale):
 
 
 #: a length the command line accepts, spread over its whole range (1e-150 … 1e150)
-_lengths = st.floats(-150.0, 150.0).map(lambda e: 10.0 ** e)
+_lengths = st.floats(-150.0, 150.0).map(lambda e: 10.0**e)
 
 
 @settings(max_examples=300, deadline=None)

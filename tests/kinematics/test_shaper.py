@@ -30,6 +30,7 @@ def shapers(draw):
 
 # --- reference values --------------------------------------------------------------------------
 
+
 def test_reference_table_every_row(reference_cases):
     case = reference_cases["shaper_crank_guiderod_slider_reference"]
     x, rows = case["inputs"], case["rows"]
@@ -39,9 +40,20 @@ def test_reference_table_every_row(reference_cases):
     (v2, a2), (omega3, eps3), (omega4, eps4), (v5, a5) = (
         time_derivatives(d, w) for d in (m.ds2, m.dphi3, m.dphi4, m.ds5)
     )
-    got = {"s2_mm": m.s2, "phi3_deg": np.degrees(m.phi3), "phi4_deg": np.degrees(m.phi4), "s5_mm": m.s5,
-           "v2_mm_s": v2, "omega3_rad_s": omega3, "omega4_rad_s": omega4, "v5_mm_s": v5,
-           "a2_mm_s2": a2, "eps3_rad_s2": eps3, "eps4_rad_s2": eps4, "a5_mm_s2": a5}
+    got = {
+        "s2_mm": m.s2,
+        "phi3_deg": np.degrees(m.phi3),
+        "phi4_deg": np.degrees(m.phi4),
+        "s5_mm": m.s5,
+        "v2_mm_s": v2,
+        "omega3_rad_s": omega3,
+        "omega4_rad_s": omega4,
+        "v5_mm_s": v5,
+        "a2_mm_s2": a2,
+        "eps3_rad_s2": eps3,
+        "eps4_rad_s2": eps4,
+        "a5_mm_s2": a5,
+    }
     assert set(got) | {"phi1_deg"} == set(rows[0])
     for key, values in got.items():
         want = [r[key] for r in rows]
@@ -79,6 +91,7 @@ def test_collinear_rod_and_link_make_the_slider_turn_back_twice():
 
 # --- contract ----------------------------------------------------------------------------------
 
+
 def test_broadcast_shapes_dtypes_and_flags_without_nan():
     l4 = np.array([[150.0], [40.0]])  # the second cannot reach the slider line
     phi = np.linspace(-math.pi, math.pi, 9)
@@ -107,6 +120,7 @@ def test_toggle_of_link_4_is_flagged():
 
 
 # --- properties --------------------------------------------------------------------------------
+
 
 @settings(max_examples=80, deadline=None)
 @given(shapers(), angles, branches)
@@ -182,10 +196,14 @@ def test_limits_against_a_dense_scan(dims, branch):
 
 # --- errors ------------------------------------------------------------------------------------
 
+
 @pytest.mark.parametrize(
     "dims, message",
     [
-        (dict(l1=200.0), r"condition l1 < h violated \(l1 = 200, h = 200\): the guide rod would pass through its pivot C"),
+        (
+            dict(l1=200.0),
+            r"condition l1 < h violated \(l1 = 200, h = 200\): the guide rod would pass through its pivot C",
+        ),
         (dict(l1=250.0, l3=600.0), r"condition l1 < h violated .* turn fully"),
         (dict(l3=260.0), r"condition l1 \+ h < l3 violated \(260 >= 260\): block 2 would run off"),
         (dict(l4=130.0), r"condition l3 \+ e - h < l4 violated \(130 >= 130\)"),
@@ -218,7 +236,11 @@ def test_branch_and_options_are_checked():
     "dims, phi1_deg, message",
     [
         (dict(l3=250.0), 90.0, r"s2 = \|CB\| = 260 > l3 = 250, block 2 is off the rod"),
-        (dict(l4=120.0), 90.0, r"at crank angle 90 deg .*\|h - e - l3 sin\(phi3\)\| = 130 > l4 = 120, link 4 cannot reach the slider line"),
+        (
+            dict(l4=120.0),
+            90.0,
+            r"at crank angle 90 deg .*\|h - e - l3 sin\(phi3\)\| = 130 > l4 = 120, link 4 cannot reach the slider line",
+        ),
         (dict(l1=200.0), -90.0, r"B lies on the rod pivot C \(l1 = h\)"),
     ],
 )

@@ -37,6 +37,7 @@ def assert_close(got, want, rel=1e-9):
 
 # --- reference values --------------------------------------------------------------------------
 
+
 def test_reference_table_every_row(reference_cases):
     case = reference_cases["offset_slider_crank_reference"]
     x, rows = case["inputs"], case["rows"]
@@ -45,8 +46,14 @@ def test_reference_table_every_row(reference_cases):
     w = x["omega1_rad_s"]
     omega2, eps2 = time_derivatives(m.dphi2, w)
     v3, a3 = time_derivatives(m.ds3, w)
-    got = {"phi2_deg": np.degrees(m.phi2), "s3_mm": m.s3, "omega2_rad_s": omega2, "v3_mm_s": v3,
-           "eps2_rad_s2": eps2, "a3_mm_s2": a3}
+    got = {
+        "phi2_deg": np.degrees(m.phi2),
+        "s3_mm": m.s3,
+        "omega2_rad_s": omega2,
+        "v3_mm_s": v3,
+        "eps2_rad_s2": eps2,
+        "a3_mm_s2": a3,
+    }
     for key, values in got.items():
         assert_close(values, [r[key] for r in rows])
 
@@ -57,8 +64,16 @@ def test_p204101_both_configurations(reference_cases):
     x = case["inputs"]
     got = []
     for branch in (1, -1):
-        m = slider_crank_motion(x["l1"], x["l2"], x["e"], math.radians(x["theta1"]), branch,
-                                guide_angle=math.radians(x["alpha"]), order=0, on_degenerate="raise")
+        m = slider_crank_motion(
+            x["l1"],
+            x["l2"],
+            x["e"],
+            math.radians(x["theta1"]),
+            branch,
+            guide_angle=math.radians(x["alpha"]),
+            order=0,
+            on_degenerate="raise",
+        )
         got.append((float(np.degrees(m.phi2)), float(m.s3)))
     for row, pair in zip(case["rows"], got):
         assert_close(pair, row["solver"])
@@ -85,6 +100,7 @@ def test_centric_slider_crank_closed_form():
 
 
 # --- contract ----------------------------------------------------------------------------------
+
 
 def test_broadcast_shapes_dtypes_and_flags_without_nan():
     l1 = np.array([[1.0], [2.0], [4.0]])  # the last cannot turn fully: l1 + e > l2
@@ -125,6 +141,7 @@ def test_crank_range_is_where_the_loop_closes(l1, l2, e, alpha):
 
 
 # --- properties --------------------------------------------------------------------------------
+
 
 @settings(max_examples=80, deadline=None)
 @given(full_turn(), angles, branches, angles)
@@ -203,6 +220,7 @@ def test_time_ratio_helper_rejects_a_slider_that_does_not_move():
 
 # --- errors ------------------------------------------------------------------------------------
 
+
 @pytest.mark.parametrize(
     "kwargs, message",
     [
@@ -228,7 +246,10 @@ def test_bad_options_raise_value_error():
 
 
 def test_unreachable_position_names_the_condition_and_the_reach():
-    with pytest.raises(AssemblyError, match=r"\|e \+ l1 sin\(phi1\)\| = 5 > l2 = 3.*reachable crank angles \[deg\]: \[160.529, 379.471\]"):
+    with pytest.raises(
+        AssemblyError,
+        match=r"\|e \+ l1 sin\(phi1\)\| = 5 > l2 = 3.*reachable crank angles \[deg\]: \[160.529, 379.471\]",
+    ):
         slider_crank_motion(3.0, 3.0, 2.0, [0.0, math.pi / 2], on_degenerate="raise")
 
 

@@ -17,7 +17,7 @@ HOSTILE = (
     "</script><script>alert(1)</script>",
     '"><svg onload=alert(1)>',
     "a&b &amp; &lt;",
-    "it's \"quoted\" `x`",
+    'it\'s "quoted" `x`',
     "line\u2028para\u2029end",
     "<!--<script>",
     "$\\frac{$ a_b^c",  # matplotlib mathtext, unbalanced: must be shown literally, not parsed

@@ -41,9 +41,13 @@ def _cli_agreement(candidates, request, agreement: Agreement) -> None:
                 agreement.failures.append(f"{c.id}: dwell analyze linkage exited {code}")
                 continue
             lim = json.loads(out.getvalue())["summary"]["limits"]
-            agreement.add(c.id, candidate_json(c, request.rpm, "mm"), lim["swing_deg"],
-                          [tuple(d["interval_deg"]) for d in lim["dwells"]],
-                          {t["joint"]: t["min_deg"] for t in lim["transmission"]})
+            agreement.add(
+                c.id,
+                candidate_json(c, request.rpm, "mm"),
+                lim["swing_deg"],
+                [tuple(d["interval_deg"]) for d in lim["dwells"]],
+                {t["joint"]: t["min_deg"] for t in lim["transmission"]},
+            )
 
 
 def main(path: str, top: int = 10, cli: bool = False) -> dict:
@@ -68,9 +72,16 @@ def main(path: str, top: int = 10, cli: bool = False) -> dict:
         if cli:
             _cli_agreement(found, request, command.setdefault(cell.family, Agreement()))
         checking += time.perf_counter() - t
-        shown = {k: (v[cell.family].figures(), len(v[cell.family].failures)) for k, v in
-                 (("batched", batched), ("command", command)) if cell.family in v}
-        print(f"{cell.family} {cell.dwell:g}/{cell.swing}: {len(found)} six-bars; so far {shown}", file=sys.stderr, flush=True)
+        shown = {
+            k: (v[cell.family].figures(), len(v[cell.family].failures))
+            for k, v in (("batched", batched), ("command", command))
+            if cell.family in v
+        }
+        print(
+            f"{cell.family} {cell.dwell:g}/{cell.swing}: {len(found)} six-bars; so far {shown}",
+            file=sys.stderr,
+            flush=True,
+        )
     engine.dispose()
 
     def summary(parts: dict[str, Agreement]) -> dict:
@@ -80,11 +91,20 @@ def main(path: str, top: int = 10, cli: bool = False) -> dict:
             total.swing, total.dwell_end = max(total.swing, a.swing), max(total.dwell_end, a.dwell_end)
             total.transmission = max(total.transmission, a.transmission)
             total.failures += a.failures
-        return {"families": {f: a.figures() for f, a in parts.items()}, "all": total.figures(),
-                "failures": total.failures}
+        return {
+            "families": {f: a.figures() for f, a in parts.items()},
+            "all": total.figures(),
+            "failures": total.failures,
+        }
 
-    doc = {"atlas": path, "top": top, "answer_s": round(answering, 1), "check_s": round(checking, 1),
-           "total_s": round(time.perf_counter() - t0, 1), "batched": summary(batched)}
+    doc = {
+        "atlas": path,
+        "top": top,
+        "answer_s": round(answering, 1),
+        "check_s": round(checking, 1),
+        "total_s": round(time.perf_counter() - t0, 1),
+        "batched": summary(batched),
+    }
     if cli:
         doc["command"] = summary(command)
     return doc

@@ -34,10 +34,22 @@ pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="chromium not installed
 REPO = Path(__file__).resolve().parents[2]
 #: Offline and quiet: no sandbox (containers, root), no GPU, no background fetches, every host
 #: name unresolvable so a page that tried to load anything would fail and say so.
-FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--disable-background-networking",
-         "--disable-component-update", "--disable-sync", "--disable-default-apps", "--disable-extensions",
-         "--no-first-run", "--no-default-browser-check", "--mute-audio", "--hide-scrollbars",
-         "--host-resolver-rules=MAP * ~NOTFOUND")
+FLAGS = (
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-dev-shm-usage",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--disable-default-apps",
+    "--disable-extensions",
+    "--no-first-run",
+    "--no-default-browser-check",
+    "--mute-audio",
+    "--hide-scrollbars",
+    "--host-resolver-rules=MAP * ~NOTFOUND",
+)
 
 
 def _chromium(tmp_path: Path, *args: str, url: str) -> subprocess.CompletedProcess:
@@ -48,8 +60,14 @@ def _chromium(tmp_path: Path, *args: str, url: str) -> subprocess.CompletedProce
 
 def _selftest(tmp_path: Path, page: Path, angles: list[int], budget_ms: int = 3000) -> tuple[dict, str]:
     """Run the page's self-test; (its result, chromium's stderr)."""
-    proc = _chromium(tmp_path, "--enable-logging=stderr", "--v=0", f"--virtual-time-budget={budget_ms}", "--dump-dom",
-                     url=page.as_uri() + "?selftest=" + ",".join(map(str, angles)))
+    proc = _chromium(
+        tmp_path,
+        "--enable-logging=stderr",
+        "--v=0",
+        f"--virtual-time-budget={budget_ms}",
+        "--dump-dom",
+        url=page.as_uri() + "?selftest=" + ",".join(map(str, angles)),
+    )
     m = re.search(r'<pre id="selftest">(.*?)</pre>', proc.stdout, flags=re.S)
     assert m, f"self-test did not report (exit {proc.returncode}):\n{proc.stderr[-3000:]}"
     return json.loads(html.unescape(m.group(1))), proc.stderr
@@ -118,8 +136,13 @@ def test_screenshot_is_written_as_an_artifact(report_dir, tmp_path):
     artifacts.mkdir(parents=True, exist_ok=True)
     shot = artifacts / "report.png"
     shot.unlink(missing_ok=True)
-    proc = _chromium(tmp_path, "--window-size=1280,2400", "--virtual-time-budget=1500", f"--screenshot={shot}",
-                     url=(out / "index.html").as_uri())
+    proc = _chromium(
+        tmp_path,
+        "--window-size=1280,2400",
+        "--virtual-time-budget=1500",
+        f"--screenshot={shot}",
+        url=(out / "index.html").as_uri(),
+    )
     assert shot.exists() and shot.stat().st_size > 10_000, proc.stderr[-3000:]
     img = mpimg.imread(shot)
     assert img.shape[:2] == (2400, 1280)
@@ -158,18 +181,21 @@ def test_page_is_usable_420_px_wide(report_dir, tmp_path):
     (the page in a 420 px frame) is written as the artifact ``report-420px.png``."""
     out, _ = report_dir
     page, host = out / "layout-probe.html", out / "layout-host.html"
-    page.write_text((out / "index.html").read_text(encoding="utf-8").replace("</body>", _LAYOUT_PROBE + "</body>"),
-                    encoding="utf-8")
+    page.write_text(
+        (out / "index.html").read_text(encoding="utf-8").replace("</body>", _LAYOUT_PROBE + "</body>"), encoding="utf-8"
+    )
     host.write_text(_HOST.format(src=page.name), encoding="utf-8")
     artifacts = Path(os.environ.get("DWELL_TEST_ARTIFACTS", REPO / "test-artifacts"))
     artifacts.mkdir(parents=True, exist_ok=True)
     shot = artifacts / "report-420px.png"
     shot.unlink(missing_ok=True)
     try:
-        proc = _chromium(tmp_path, "--window-size=600,900", "--virtual-time-budget=2000", "--dump-dom",
-                         url=host.as_uri())
-        _chromium(tmp_path, "--window-size=600,1600", "--virtual-time-budget=1500", f"--screenshot={shot}",
-                  url=host.as_uri())
+        proc = _chromium(
+            tmp_path, "--window-size=600,900", "--virtual-time-budget=2000", "--dump-dom", url=host.as_uri()
+        )
+        _chromium(
+            tmp_path, "--window-size=600,1600", "--virtual-time-budget=1500", f"--screenshot={shot}", url=host.as_uri()
+        )
     finally:
         page.unlink()
         host.unlink()

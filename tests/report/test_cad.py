@@ -75,7 +75,8 @@ def test_dxf_has_a_layer_per_link_in_the_palette(tmp_path, candidates):
             assert layer.rgb == rgb(LINK_COLORS[link.name])
             assert len(msp.query(f'LINE LWPOLYLINE[layer=="{link.name.upper()}"]')) == 1
         assert set(LAYERS) == {layer.dxf.name for layer in doc.layers} - {"0", "Defpoints"} - {
-            layer.dxf.name for layer in doc.layers if layer.dxf.name not in LAYERS}
+            layer.dxf.name for layer in doc.layers if layer.dxf.name not in LAYERS
+        }
 
 
 def test_no_two_dxf_labels_overlap(tmp_path, candidates, double_report_dir):
@@ -103,8 +104,9 @@ def _svg_label_boxes(path) -> list[tuple[str, Box]]:
         style = el.get("style", "")
         size = float(re.search(r"font-size: ([\d.]+)px", style).group(1))
         bold = "font-weight: 700" in style or "bold" in style
-        ext = TextPath((0, 0), el.text, size=size, prop=FontProperties(family="DejaVu Sans",
-                                                                        weight="bold" if bold else "normal")).get_extents()
+        ext = TextPath(
+            (0, 0), el.text, size=size, prop=FontProperties(family="DejaVu Sans", weight="bold" if bold else "normal")
+        ).get_extents()
         x, y = float(el.get("x")), float(el.get("y"))
         out.append((el.text, Box(x + ext.x0, y - ext.y1, x + ext.x1, y - ext.y0)))  # SVG: y down
     return out
@@ -116,11 +118,17 @@ def test_no_two_svg_labels_overlap(tmp_path, candidates, double_report_dir):
     for c, geom in zip(cands, _geometries(cands)):
         boxes = _svg_label_boxes(draw_sixbar(geom, tmp_path / f"{c.rank}.svg"))
         labels = [(t, b) for t, b in boxes if t in joints]
-        legend = [(t, b) for t, b in boxes if t.startswith(("crank a", "coupler b", "rocker c", "rod", "output", "slotted",
-                                                            "dwell", "coupler curve", "slot line"))]
+        legend = [
+            (t, b)
+            for t, b in boxes
+            if t.startswith(
+                ("crank a", "coupler b", "rocker c", "rod", "output", "slotted", "dwell", "coupler curve", "slot line")
+            )
+        ]
         assert len(labels) == len(geom.fixed) + len(geom.joints)
-        clashes = _overlaps(labels) + [(a, b, ba.overlap(bb)) for a, ba in labels for b, bb in legend
-                                       if ba.overlap(bb) > 0]
+        clashes = _overlaps(labels) + [
+            (a, b, ba.overlap(bb)) for a, ba in labels for b, bb in legend if ba.overlap(bb) > 0
+        ]
         assert not clashes, (c.id, clashes)
 
 
@@ -144,8 +152,10 @@ def test_svg_drawing_and_page_use_the_palette(report_dir, candidates):
 # ---------------------------------------------------------------------------------------------
 
 
-@given(st.lists(st.tuples(st.floats(-5, 5), st.floats(-5, 5)), min_size=1, max_size=12),
-       st.lists(st.tuples(st.floats(0.05, 1.0), st.floats(0.05, 0.5)), min_size=12, max_size=12))
+@given(
+    st.lists(st.tuples(st.floats(-5, 5), st.floats(-5, 5)), min_size=1, max_size=12),
+    st.lists(st.tuples(st.floats(0.05, 1.0), st.floats(0.05, 0.5)), min_size=12, max_size=12),
+)
 def test_a_label_stays_by_its_anchor_and_never_covers_it(anchors, sizes):
     boxes = place_labels(anchors, sizes[: len(anchors)], gap=0.1)
     for (x, y), (w, h), b in zip(anchors, sizes, boxes):

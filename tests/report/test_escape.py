@@ -85,7 +85,9 @@ def test_analyze_linkage_animation_and_drawing(tmp_path, capsys, name):
     check_svg(svg.read_text(encoding="utf-8"), name)
     with warnings.catch_warnings(record=True) as caught:  # a label too long to lay out: drawn, no warning
         warnings.simplefilter("always")
-        assert main(["analyze", "linkage", str(path), "--input", "50", "--draw", str(draw)]) == 0, capsys.readouterr().err
+        assert main(["analyze", "linkage", str(path), "--input", "50", "--draw", str(draw)]) == 0, (
+            capsys.readouterr().err
+        )
     assert not [w for w in caught if "layout" in str(w.message)], [str(w.message) for w in caught]
     check_svg(draw.read_text(encoding="utf-8"))
     plot = tmp_path / "p.svg"
@@ -94,9 +96,10 @@ def test_analyze_linkage_animation_and_drawing(tmp_path, capsys, name):
 
 
 def test_plot_text_is_literal_in_matplotlib(tmp_path):
+    import matplotlib
+
     from report.escape import plot_text
 
-    import matplotlib
     matplotlib.use("Agg")
     from matplotlib.figure import Figure
 

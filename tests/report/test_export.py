@@ -28,13 +28,22 @@ from synth.mechanism.figures import sixbar_figures
 from synth.mechanism.sixbar import simulate
 
 DEG = math.pi / 180
-PER_CANDIDATE = ("motion.png", "motion.svg", "coupler.png", "coupler.svg", "transmission.png", "transmission.svg",
-                 "drawing.svg", "drawing.dxf")
+PER_CANDIDATE = (
+    "motion.png",
+    "motion.svg",
+    "coupler.png",
+    "coupler.svg",
+    "transmission.png",
+    "transmission.svg",
+    "drawing.svg",
+    "drawing.dxf",
+)
 #: and NN-ID.toml, the linkage file (no suffix after the id)
 
 
 def _strict_json(path: Path) -> dict:
     """Parse refusing NaN/Infinity (Python's json would accept them)."""
+
     def refuse(name):
         raise AssertionError(f"{path.name} holds {name}")
 
@@ -133,8 +142,9 @@ def test_json_rebuilds_the_same_sixbars_and_reproduces_their_figures(report_dir,
     for item, cand in zip(doc["candidates"], candidates):
         sb = sixbar_from_json(item)
         assert sb == cand.sixbar  # floats round-trip exactly through JSON
-        f = sixbar_figures(sb, band=math.radians(req["band_deg"]),
-                           dwell_length=math.radians(req["dwell_deg"]), dwells=req["dwells"])
+        f = sixbar_figures(
+            sb, band=math.radians(req["band_deg"]), dwell_length=math.radians(req["dwell_deg"]), dwells=req["dwells"]
+        )
         assert len(item["dwells"]) == len(f.dwells) >= 1
         for dj, dw, dev in zip(item["dwells"], f.dwells, f.deviations):
             assert dj["dwell_deg"] == pytest.approx(math.degrees(dw.angle), abs=1e-6)
@@ -147,7 +157,9 @@ def test_json_rebuilds_the_same_sixbars_and_reproduces_their_figures(report_dir,
         if sb.dyad.kind == "RPR":  # a slot transmits at 90° by construction: no figure
             assert item["transmission_deg"]["output_min"] is None
         else:
-            assert item["transmission_deg"]["output_min"] == pytest.approx(math.degrees(f.transmission_output), abs=1e-6)
+            assert item["transmission_deg"]["output_min"] == pytest.approx(
+                math.degrees(f.transmission_output), abs=1e-6
+            )
         assert item["link_ratio"] == pytest.approx(f.link_ratio, rel=1e-9)
         assert item["footprint_unit2"] == pytest.approx(f.footprint, rel=1e-6)  # user units: crank² = 625
 
@@ -287,4 +299,3 @@ def test_coarser_cycle_steps_are_accepted(tmp_path, candidates):
     write_report(candidates[:1], REQUEST, tmp_path, step_deg=2.0)
     doc = _strict_json(tmp_path / "candidates.json")
     assert len(doc["candidates"][0]["cycle"]["phi_deg"]) == 180
-

@@ -85,7 +85,7 @@ def test_an_older_report_without_the_file_list_is_replaced(old_report, candidate
 
 
 def test_leftovers_of_a_killed_writer_are_removed(old_report, candidates):
-    dead = 2 ** 22 + 12345  # above the default pid_max: never a live process
+    dead = 2**22 + 12345  # above the default pid_max: never a live process
     for kind in ("tmp", "old"):
         (old_report.parent / f".rep.{kind}-{dead}").mkdir()
     write_report(candidates, REQUEST, old_report)

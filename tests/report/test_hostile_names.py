@@ -66,7 +66,11 @@ def test_a_name_is_plain_text_or_refused_in_one_line(name, where):
             assert where in ("link", "joint") and "control character" not in message, message
         return
     assert not _unsafe(name) and len(name) <= MAX_NAME
-    shown = {linkage.name, linkage.units} | {link.name for link in linkage.links} | {p for link in linkage.links for p in link.points}
+    shown = (
+        {linkage.name, linkage.units}
+        | {link.name for link in linkage.links}
+        | {p for link in linkage.links for p in link.points}
+    )
     assert name in shown
 
 
@@ -92,9 +96,11 @@ def test_cli_refuses_a_control_character_in_one_line(tmp_path, capsys):
 
 
 def test_units_with_a_del_blame_units(capsys):
-    for argv in (["query", "--db", "nowhere.sqlite", "--dwell", "60", "--swing", "30", "--units", "mm\x7f"],
-                 ["analyze", "linkage", str(EXAMPLES / "fourbar.toml"), "--units", "m\x7f"],
-                 ["analyze", "fourbar", "--a", "1", "--b", "3", "--c", "3", "--d", "2.5", "--units", "\u202emm"]):
+    for argv in (
+        ["query", "--db", "nowhere.sqlite", "--dwell", "60", "--swing", "30", "--units", "mm\x7f"],
+        ["analyze", "linkage", str(EXAMPLES / "fourbar.toml"), "--units", "m\x7f"],
+        ["analyze", "fourbar", "--a", "1", "--b", "3", "--c", "3", "--d", "2.5", "--units", "\u202emm"],
+    ):
         assert main(argv) == 2
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and "--units" in err and "--crank" not in err and "\x7f" not in err, err
@@ -103,8 +109,19 @@ def test_units_with_a_del_blame_units(capsys):
 # -- files a name reaches: SVG drawings and plots, HTML, DXF, CSV --------------------------------
 
 
-@pytest.mark.parametrize("cid", ["\x1b[31m-rpr0.1@30", "=HYPERLINK(\"http://x\")", "+1-rpr0.1@30", "@SUM(A1)",
-                                 "-2+3", "\tx", "\rx", "ok\u202eevil\x00"])
+@pytest.mark.parametrize(
+    "cid",
+    [
+        "\x1b[31m-rpr0.1@30",
+        '=HYPERLINK("http://x")',
+        "+1-rpr0.1@30",
+        "@SUM(A1)",
+        "-2+3",
+        "\tx",
+        "\rx",
+        "ok\u202eevil\x00",
+    ],
+)
 def test_a_hostile_candidate_id_in_every_report_file(tmp_path, candidates, cid):
     """An id comes from the atlas (it could be anything): every SVG parses as XML, the DXF
     reads, the page holds no control character, and the CSV cell cannot be a formula."""
@@ -121,8 +138,9 @@ def test_a_hostile_candidate_id_in_every_report_file(tmp_path, candidates, cid):
         if path.suffix == ".svg":
             ET.fromstring(path.read_bytes())  # well-formed XML
         if path.suffix in (".svg", ".html", ".csv", ".txt", ".toml"):
-            assert not _unsafe(path.read_text(encoding="utf-8").replace("\n", "").replace("\t", "")
-                               .replace("\r", "")), path.name
+            assert not _unsafe(
+                path.read_text(encoding="utf-8").replace("\n", "").replace("\t", "").replace("\r", "")
+            ), path.name
         if path.suffix == ".dxf":
             ezdxf.readfile(path)
     rows = list(csv.DictReader(io.StringIO((tmp_path / "r" / "candidates.csv").read_text(encoding="utf-8"))))
@@ -133,15 +151,35 @@ def test_a_hostile_candidate_id_in_every_report_file(tmp_path, candidates, cid):
 def test_csv_cells():
     from report.export import csv_cell
 
-    assert [csv_cell(v) for v in ("=1+1", "+1", "-1", "@x", "\tx", "\rx", "a=b", None, -1.5, 3)] == \
-        ["'=1+1", "'+1", "'-1", "'@x", "'\\x09x", "'\\x0dx", "a=b", "", "-1.5", "3"]
+    assert [csv_cell(v) for v in ("=1+1", "+1", "-1", "@x", "\tx", "\rx", "a=b", None, -1.5, 3)] == [
+        "'=1+1",
+        "'+1",
+        "'-1",
+        "'@x",
+        "'\\x09x",
+        "'\\x0dx",
+        "a=b",
+        "",
+        "-1.5",
+        "3",
+    ]
 
 
 # -- candidate ids typed by the user -------------------------------------------------------------
 
 
-@pytest.mark.parametrize("typed", ["+1234500007-rrr0.1@30", "１２３-rrr0.1@30", "4_0-rrr0.1@30", "12-rpr0.1@+30",
-                                   "12-rpr0.1@30\x1b[2J", "12-rpr0.1@30\u202e", "x" * 300])
+@pytest.mark.parametrize(
+    "typed",
+    [
+        "+1234500007-rrr0.1@30",
+        "１２３-rrr0.1@30",
+        "4_0-rrr0.1@30",
+        "12-rpr0.1@+30",
+        "12-rpr0.1@30\x1b[2J",
+        "12-rpr0.1@30\u202e",
+        "x" * 300,
+    ],
+)
 def test_report_refuses_an_id_not_spelled_as_the_query_prints_it(tmp_path, capsys, typed):
     out = tmp_path / "r"
     assert main(["report", "--db", str(tmp_path / "none.sqlite"), "--candidates", typed, "--out", str(out)]) == 2

@@ -52,9 +52,20 @@ def test_every_candidate_has_its_animation_hooks(page, candidates):
     assert list(sections) == [f"cand-{c.rank}" for c in candidates]
     for c in candidates:
         body = sections[f"cand-{c.rank}"]
-        for hook in ('class="crank"', 'class="coupler"', 'class="rocker"', 'class="output-link"', 'class="play"',
-                     'class="phi-slider"', "data-phi=", 'class="cursor"', 'class="psi-dot"', 'class="dwell-band"',
-                     'class="joint j-A"', 'class="joint j-P"'):
+        for hook in (
+            'class="crank"',
+            'class="coupler"',
+            'class="rocker"',
+            'class="output-link"',
+            'class="play"',
+            'class="phi-slider"',
+            "data-phi=",
+            'class="cursor"',
+            'class="psi-dot"',
+            'class="dwell-band"',
+            'class="joint j-A"',
+            'class="joint j-P"',
+        ):
             assert hook in body, (c.id, hook)
         if c.sixbar.dyad.kind == "RRR":
             assert 'class="rod"' in body and 'class="joint j-Q"' in body
@@ -69,8 +80,9 @@ def test_embedded_positions_are_the_json_cycle(page, report_dir):
     sections = _sections(page)
     for item in doc["candidates"]:
         body = sections[f"cand-{item['rank']}"]
-        data = json.loads(re.search(r'<script type="application/json" class="cycle-data">(.*?)</script>',
-                                    body, flags=re.S).group(1))
+        data = json.loads(
+            re.search(r'<script type="application/json" class="cycle-data">(.*?)</script>', body, flags=re.S).group(1)
+        )
         cyc = item["cycle"]
         assert len(data["phi"]) == 360 and data["phi"] == cyc["phi_deg"]
         assert data["dwell"] == [int(x) for x in cyc["dwelling"]]
@@ -91,14 +103,16 @@ def test_inline_svgs_are_well_formed_and_ids_unique(page):
     assert len(ids) == len(set(ids))
     # every reference points at an id of the page
     known = set(ids)
-    for ref in re.findall(r'url\(#([^)]+)\)', page) + re.findall(r'href="#([^"]+)"', page):
+    for ref in re.findall(r"url\(#([^)]+)\)", page) + re.findall(r'href="#([^"]+)"', page):
         assert ref in known, ref
 
 
 def test_inline_svg_strips_document_parts_and_prefixes_ids():
-    doc = ('<?xml version="1.0"?>\n<!DOCTYPE svg PUBLIC "-//W3C//DTD SVG 1.1//EN" "x">\n'
-           '<svg xmlns="http://www.w3.org/2000/svg"><metadata><x/></metadata><style>*{a:b}</style>'
-           '<defs><clipPath id="c1"/></defs><g clip-path="url(#c1)"><use xlink:href="#c1"/></g></svg>')
+    doc = (
+        '<?xml version="1.0"?>\n<!DOCTYPE svg PUBLIC "-//W3C//DTD SVG 1.1//EN" "x">\n'
+        '<svg xmlns="http://www.w3.org/2000/svg"><metadata><x/></metadata><style>*{a:b}</style>'
+        '<defs><clipPath id="c1"/></defs><g clip-path="url(#c1)"><use xlink:href="#c1"/></g></svg>'
+    )
     out = inline_svg(doc, "p-")
     assert out.startswith("<svg") and "metadata" not in out and "<style" not in out and "DOCTYPE" not in out
     assert 'id="p-c1"' in out and "url(#p-c1)" in out and 'xlink:href="#p-c1"' in out

@@ -47,8 +47,9 @@ def grid_answers(tmp_path_factory):
         requests = [cell.request(TOP, refine=False, complete=True) for cell in grid]
         for dwell, swing in DEMO_DOUBLES:
             grid.append(Cell("double", dwell, swing))
-            requests.append(request_from_options(dwell, DOUBLE_TOL, swing, 2, "rpr", 2, top=TOP, refine=False,
-                                                 complete=True))
+            requests.append(
+                request_from_options(dwell, DOUBLE_TOL, swing, 2, "rpr", 2, top=TOP, refine=False, complete=True)
+            )
         groups: dict[tuple, list[int]] = {}
         for k, request in enumerate(requests):
             groups.setdefault(fit_key(request), []).append(k)  # the cells of one walk of the atlas

@@ -8,9 +8,8 @@ import math
 import tomllib
 
 import pytest
-
-from linkage_checks import check_linkage_files
 from harness.report_cases import EVIL_ID
+from linkage_checks import check_linkage_files
 
 from cli.main import main
 

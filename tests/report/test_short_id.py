@@ -21,10 +21,19 @@ def test_known_values():
     assert short_id("33600000-rpr0.1@40~AUCClSpAEJO6QIyoqEAjGUA93nxwQGTCfL_ASUk") == "33600000-rpr-b3ae7"
 
 
-@given(segment=st.integers(1, 2**63 - 1), output=st.sampled_from(["rpr", "rrr", "dbl"]), slot=st.integers(0, 99),
-       level=st.integers(0, 99), swing=st.one_of(st.none(), st.floats(0.01, 179.99).map(lambda d: d * 3.141592653589793 / 180)),
-       refined=st.one_of(st.just(""), st.text("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789-_",
-                                               min_size=39, max_size=50).map(lambda t: "~" + t)))
+@given(
+    segment=st.integers(1, 2**63 - 1),
+    output=st.sampled_from(["rpr", "rrr", "dbl"]),
+    slot=st.integers(0, 99),
+    level=st.integers(0, 99),
+    swing=st.one_of(st.none(), st.floats(0.01, 179.99).map(lambda d: d * 3.141592653589793 / 180)),
+    refined=st.one_of(
+        st.just(""),
+        st.text("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789-_", min_size=39, max_size=50).map(
+            lambda t: "~" + t
+        ),
+    ),
+)
 def test_every_id_gets_a_short_one_of_at_most_24_characters(segment, output, slot, level, swing, refined):
     full = candidate_id(segment, output, slot, level, swing) + refined
     sid = short_id(full)

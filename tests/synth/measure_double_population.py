@@ -7,26 +7,33 @@ dwell d of the coverage grid, and the longest shorter rest there.
 
     .venv/bin/python tests/synth/measure_double_population.py /work/data/std.sqlite LEVEL
 """
-import json, math, sys
+
+import json
+import math
+import sys
+
 import numpy as np
+
 from db.engine import open_atlas
 from db.queries import AtlasSource
 from synth.mechanism.dyad import rpr_double
 from synth.mechanism.output_range import dwell_intervals
 from synth.mechanism.sixbar import crank_grid
-from synth.query import coupler_paths, FIT_SAMPLES
+from synth.query import FIT_SAMPLES, coupler_paths
 
 db, level = sys.argv[1], int(sys.argv[2])
 src = AtlasSource(open_atlas(db, readonly=True))
 phi = crank_grid(FIT_SAMPLES)
 swings, shorter, longer = [], [], []
-for batch in src.scan_segments("double_line", level, min_transmission=math.radians(30), max_length=10.0,
-                               min_radius_ratio=0.1, batch=4096):
+for batch in src.scan_segments(
+    "double_line", level, min_transmission=math.radians(30), max_length=10.0, min_radius_ratio=0.1, batch=4096
+):
     two = np.flatnonzero(batch.has_parts == 2)
     if not two.size:
         continue
-    found = rpr_double((batch.point(0)[two], batch.part(0, "direction")[two]),
-                       (batch.point(1)[two], batch.part(1, "direction")[two]))
+    found = rpr_double(
+        (batch.point(0)[two], batch.part(0, "direction")[two]), (batch.point(1)[two], batch.part(1, "direction")[two])
+    )
     ok = found.found
     rows = two[ok]
     D = found.pivot[ok]
@@ -45,8 +52,11 @@ out = {"level": level, "crossings_with_two_rests": int(sw.size)}
 for S, tol in ((20, 0.5), (45, 0.5), (20, 2.0), (45, 2.0)):
     m = np.abs(sw - S) <= tol
     cells = {d: int(np.sum(m & (lo >= d - 5) & (hi <= d + 5))) for d in (10, 20, 30, 45, 60, 75, 90, 120)}
-    out[f"swing {S}±{tol}"] = {"n": int(m.sum()), "longest_shorter_rest": None if not m.any() else round(float(lo[m].max()), 1),
-                               "cells": cells}
+    out[f"swing {S}±{tol}"] = {
+        "n": int(m.sum()),
+        "longest_shorter_rest": None if not m.any() else round(float(lo[m].max()), 1),
+        "cells": cells,
+    }
 hist = np.histogram(sw, bins=[0, 10, 20, 30, 45, 60, 90, 120, 150, 180])
 out["swing_hist"] = dict(zip([f"{a}-{b}" for a, b in zip(hist[1][:-1], hist[1][1:])], hist[0].tolist()))
 print(json.dumps(out, indent=1))

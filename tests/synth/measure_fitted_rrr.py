@@ -43,8 +43,11 @@ def _stats(x: np.ndarray) -> str:
 
 
 def _rows(source, request, level, rng=None):
-    limits = dict(min_transmission=request.min_transmission, max_length=request.max_link_ratio,
-                  min_radius_ratio=1 / request.max_link_ratio)
+    limits = dict(
+        min_transmission=request.min_transmission,
+        max_length=request.max_link_ratio,
+        min_radius_ratio=1 / request.max_link_ratio,
+    )
     for batch in source.scan_segments("arc", level, batch=BATCH, **limits):
         if rng is None:
             yield batch
@@ -82,11 +85,25 @@ def own_circle(source, swing_deg: float) -> None:
         bound = min(2 * math.pi, (ahead + behind + 2) * 2 * math.pi / SAMPLES)  # + one step each side
         through.append((dwell.angle, bound, rocker[k]))
     t, e = np.array(through), np.array(elsewhere)
-    print(f"swing {swing_deg:g}°: {len(rows)} rows, {len(fitted)} dyads, {len(t) + len(e)} six-bars that assemble and rock")
-    print("  dwell through the stretch:", len(t), "— own-circle run / dwell", _stats(t[:, 1] / t[:, 0]),
-          "; dwells longer than it", int(np.sum(t[:, 1] < t[:, 0] - 0.01 * DEG)))
+    print(
+        f"swing {swing_deg:g}°: {len(rows)} rows, {len(fitted)} dyads, {len(t) + len(e)} six-bars that assemble and rock"
+    )
+    print(
+        "  dwell through the stretch:",
+        len(t),
+        "— own-circle run / dwell",
+        _stats(t[:, 1] / t[:, 0]),
+        "; dwells longer than it",
+        int(np.sum(t[:, 1] < t[:, 0] - 0.01 * DEG)),
+    )
     if len(e):
-        print("  longest band interval elsewhere:", len(e), "— dwell (deg)", _stats(e[:, 0] / DEG), "; rocker median %.2f" % np.median(e[:, 1]))
+        print(
+            "  longest band interval elsewhere:",
+            len(e),
+            "— dwell (deg)",
+            _stats(e[:, 0] / DEG),
+            "; rocker median %.2f" % np.median(e[:, 1]),
+        )
     print("  rocker / (max|r| / (2 sin(S/2)))", _stats(np.array(ratio_L)))
 
 
@@ -97,21 +114,25 @@ def coarse_scan(source, swing_deg: float = 30.0) -> None:
         rows = next(_rows(source, request, level))
         part = [np.array([r.parts[0][i] for r in rows]) for i in (0, 1, 2, 3, 5)]
         start, end, x, y, radius = part
-        lead, z, (C0, rho, s0, s1, target) = fits._rows(query.coupler_paths(rows, phi), x + 1j * y, radius, start, end,
-                                                         request.swing)
+        lead, z, (C0, rho, s0, s1, target) = fits._rows(
+            query.coupler_paths(rows, phi), x + 1j * y, radius, start, end, request.swing
+        )
         phi0, h, m = fits.grid_step(phi)
         mask, mid = fits._dwell_mask(phi0, h, m, s0, s1), fits._mid_sample(phi0, h, m, s0, s1)
         w = z - C0[:, None]
         R = len(rows)
-        _, peak_ok = fits._rrr_coarse_scan(w, rho, math.cos(request.min_transmission), w[np.arange(R), mid], target,
-                                           m, 24, 2)
+        _, peak_ok = fits._rrr_coarse_scan(
+            w, rho, math.cos(request.min_transmission), w[np.arange(R), mid], target, m, 24, 2
+        )
         live = peak_ok.any(axis=1)
         seen = np.angle(w * np.conj(w[np.arange(R), mid])[:, None])
         span = np.array([np.ptp(seen[i][mask[i]]) for i in range(R)])
         wide = span > math.pi - 2 * request.min_transmission
-        print(f"level {level}: {R} rows, {int(live.sum())} with a feasible coarse direction; stretch wider than "
-              f"π − 2μ_min: {int(wide.sum())} ({int((wide & live).sum())} of them feasible); span median "
-              f"{np.degrees(np.median(span[live])):.0f}° (feasible), {np.degrees(np.median(span[~live])):.0f}° (not)")
+        print(
+            f"level {level}: {R} rows, {int(live.sum())} with a feasible coarse direction; stretch wider than "
+            f"π − 2μ_min: {int(wide.sum())} ({int((wide & live).sum())} of them feasible); span median "
+            f"{np.degrees(np.median(span[live])):.0f}° (feasible), {np.degrees(np.median(span[~live])):.0f}° (not)"
+        )
 
 
 if __name__ == "__main__":

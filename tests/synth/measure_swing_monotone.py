@@ -38,10 +38,12 @@ POOL = 40_000
 def dwell_series(path: str, kind: str, per_level: int) -> dict[tuple, dict[float, tuple[float, bool]]]:
     """(segment, level, output, slot) → {swing °: (dwell °, whether it holds the stretch's middle)}."""
     src = AtlasSource(open_atlas(path, readonly=True))
-    base = request_from_options(60, 2, 30, 0.5, "rpr" if kind == "line" else "rrr", 1, 0.1, 1.0, 30, 10, 10,
-                                refine=False)
-    limits = dict(min_transmission=base.min_transmission, max_length=base.max_link_ratio,
-                  min_radius_ratio=1 / base.max_link_ratio)
+    base = request_from_options(
+        60, 2, 30, 0.5, "rpr" if kind == "line" else "rrr", 1, 0.1, 1.0, 30, 10, 10, refine=False
+    )
+    limits = dict(
+        min_transmission=base.min_transmission, max_length=base.max_link_ratio, min_radius_ratio=1 / base.max_link_ratio
+    )
     rng = random.Random(1)
     rows = []
     for level, _ in src.tolerance_levels():
@@ -60,7 +62,9 @@ def dwell_series(path: str, kind: str, per_level: int) -> dict[tuple, dict[float
                 d = g.dwells[0]
                 mid = 0.5 * (f.row.parts[0][0] + f.row.parts[0][1])
                 series[(f.row.segment_id, f.row.level, f.output, f.slot)][float(swing)] = (
-                    math.degrees(d.angle), (mid - d.start) % (2 * math.pi) <= d.angle)
+                    math.degrees(d.angle),
+                    (mid - d.start) % (2 * math.pi) <= d.angle,
+                )
     return series
 
 
@@ -73,8 +77,10 @@ def main(path: str, kind: str, per_level: int) -> None:
         up = [(d[b][0] - d[a][0], a, b, d[a][1] and d[b][1]) for a, b in pairs if d[b][0] - d[a][0] > 1e-6]
         steps, rising, rises = steps + len(pairs), rising + bool(up), rises + up
     n = len(series)
-    print(f"{kind}: {n} (row, slot) series, {steps} steps of 2.5°; the dwell grows with the swing in {len(rises)} "
-          f"steps of {rising} series")
+    print(
+        f"{kind}: {n} (row, slot) series, {steps} steps of 2.5°; the dwell grows with the swing in {len(rises)} "
+        f"steps of {rising} series"
+    )
     for rise, a, b, through in sorted(rises, reverse=True)[:12]:
         print(f"  +{rise:.3f}° from {a:g}° to {b:g}°" + ("" if through else " (longest interval elsewhere)"))
     print("share of series a bracket of the grid swings around S would skip, by margin (°):")
@@ -84,8 +90,13 @@ def main(path: str, kind: str, per_level: int) -> None:
         for D in (30, 60, 90, 120):
             cells = []
             for margin in (0, 5, 25):
-                keep = sum(1 for d in series.values() if a not in d or b not in d
-                           or not (max(d[a][0], d[b][0]) + margin < D - 2 or min(d[a][0], d[b][0]) - margin > D + 2))
+                keep = sum(
+                    1
+                    for d in series.values()
+                    if a not in d
+                    or b not in d
+                    or not (max(d[a][0], d[b][0]) + margin < D - 2 or min(d[a][0], d[b][0]) - margin > D + 2)
+                )
                 cells.append(f"{margin}: {100 * (1 - keep / n):.0f}%")
             print(f"  S {S:g}° D {D}°: " + ", ".join(cells) + f"  (a dwell at both grid swings: {100 * both / n:.0f}%)")
 

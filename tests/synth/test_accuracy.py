@@ -94,10 +94,23 @@ def measure(n: int = N_CASES, rays: int = 12, seed: int = 20240601) -> dict[str,
     ball = ball_point(pl)
     alpha = (np.arange(rays) + rng.uniform(0, 1)) * np.pi / rays
     scan = line_scan(pl, alpha)
-    out: dict[str, list[float]] = {k: [] for k in (
-        "pole", "inflection", "inflection_kappa_a", "circle_point", "circle_point_cubic",
-        "circle_point_dkappa_a", "center_point", "ball", "ball_kappa_a", "ball_dkappa_a",
-        "ball_contact_order", "flagged_fraction")}
+    out: dict[str, list[float]] = {
+        k: []
+        for k in (
+            "pole",
+            "inflection",
+            "inflection_kappa_a",
+            "circle_point",
+            "circle_point_cubic",
+            "circle_point_dkappa_a",
+            "center_point",
+            "ball",
+            "ball_kappa_a",
+            "ball_dkappa_a",
+            "ball_contact_order",
+            "flagged_fraction",
+        )
+    }
     flagged = 0
     for k in range(n):
         inst = Instant(*rows[k])
@@ -120,7 +133,8 @@ def measure(n: int = N_CASES, rays: int = 12, seed: int = 20240601) -> dict[str,
                 continue
             p = complex(scan.circle_point_uv[k, j])
             r_guess = abs(scan.circle_point[k, j] - pl.point[k, 0]) * np.sign(
-                ((scan.circle_point[k, j] - pl.point[k, 0]) * np.exp(-1j * alpha[j])).real)
+                ((scan.circle_point[k, j] - pl.point[k, 0]) * np.exp(-1j * alpha[j])).real
+            )
             exact = _exact_circle_point(inst, exact_pole, alpha[j], r_guess)
             out["circle_point"].append(abs(p - complex(exact)) / norm(exact))
             out["circle_point_cubic"].append(float(distance_to_cubic(inst, p)) / norm(p))

@@ -10,6 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from synth.query import answer
 from synth.query.band_search import (
     FLOOR,
     LADDER,
@@ -17,14 +18,13 @@ from synth.query.band_search import (
     REFERENCE_BAND,
     RESOLUTION,
     BandProbe,
-    ladder,
     answer_tightest,
+    ladder,
     needed,
     probe,
     tightest_band,
 )
 from synth.query.candidates import Request
-from synth.query import answer
 
 RPR_60 = Request(dwell=math.radians(60.0), swing=math.radians(30.0), output="rpr", refine=False)
 
@@ -72,10 +72,14 @@ def test_nothing_meets_and_top_lowers_the_count():
     assert band == pytest.approx(FLOOR) and len(probes) == 1  # the floor meets at once
 
 
-@pytest.mark.parametrize("request_", [
-    RPR_60,
-    Request(dwell=math.radians(40.0), swing=math.radians(20.0), output="rpr", top=2, refine=False),
-], ids=["rpr-60-30", "rpr-40-20-top-2"])
+@pytest.mark.parametrize(
+    "request_",
+    [
+        RPR_60,
+        Request(dwell=math.radians(40.0), swing=math.radians(20.0), output="rpr", top=2, refine=False),
+    ],
+    ids=["rpr-60-30", "rpr-40-20-top-2"],
+)
 def test_search_matches_a_scan_of_the_atlas(source, request_):
     """On the demo atlas: at the band found ≥ min(top, 3) six-bars meet; a scan of every
     ladder rung tighter than the band found finds none where as many meet; and a probe within
@@ -117,8 +121,7 @@ def test_answer_at_the_band_reached(source):
 
 
 @settings(max_examples=200, deadline=None)
-@given(islands=st.lists(st.tuples(st.floats(-4.0, -1.0), st.floats(0.0, 1.5)), max_size=4),
-       top=st.integers(1, 5))
+@given(islands=st.lists(st.tuples(st.floats(-4.0, -1.0), st.floats(0.0, 1.5)), max_size=4), top=st.integers(1, 5))
 def test_the_rule_on_any_counts(islands, top):
     """Counts made of islands [10^x, 10^(x+w)] (degrees) where enough six-bars meet: the band
     found meets; no ladder rung tighter than it does; a failing probe lies within a factor

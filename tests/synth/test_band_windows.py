@@ -26,13 +26,13 @@ def exhaustive(upper, lower, band, m):
         for s in range(m):
             best = 1
             for n in range(1, min(m, T - s) + 1):
-                top = upper[r, s:s + n].max()
-                bottom = min(upper[r, s], lower[r, s + 1:s + n].min()) if n > 1 else upper[r, s]
+                top = upper[r, s : s + n].max()
+                bottom = min(upper[r, s], lower[r, s + 1 : s + n].min()) if n > 1 else upper[r, s]
                 if top - bottom <= band[r]:
                     best = n
             length[r, s] = best
-            hi[r, s] = upper[r, s:s + best].max()
-            lo[r, s] = min(upper[r, s], lower[r, s + 1:s + best].min()) if best > 1 else upper[r, s]
+            hi[r, s] = upper[r, s : s + best].max()
+            lo[r, s] = min(upper[r, s], lower[r, s + 1 : s + best].min()) if best > 1 else upper[r, s]
     return length, hi, lo
 
 
@@ -69,6 +69,7 @@ def test_whole_turn_and_zero_band():
 def test_six_bar_outputs():
     """The outputs of six-bars with one and with two dwells (RPR and RRR)."""
     from harness.report_cases import double_dwell_candidates, single_dwell_candidates
+
     from synth.mechanism.sixbar import SixBars, crank_grid, simulate
 
     sixbars = SixBars.from_sixbars([c.sixbar for c in single_dwell_candidates() + double_dwell_candidates()])
@@ -79,8 +80,11 @@ def test_six_bar_outputs():
         check(upper, lower, np.full(len(psi), band), 72)
 
 
-samples = hnp.arrays(np.float64, st.tuples(st.integers(1, 3), st.integers(4, 30)),
-                     elements=st.floats(-1e3, 1e3, allow_nan=False, allow_infinity=False))
+samples = hnp.arrays(
+    np.float64,
+    st.tuples(st.integers(1, 3), st.integers(4, 30)),
+    elements=st.floats(-1e3, 1e3, allow_nan=False, allow_infinity=False),
+)
 
 
 @settings(max_examples=200, deadline=None)

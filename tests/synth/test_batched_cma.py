@@ -67,8 +67,13 @@ def test_each_problem_runs_as_if_alone():
     start = np.zeros((K, n))
     batch = cma_es(evaluate, start, 0.3, _rngs(K), iterations=60)
     for k in (0, 3):
-        alone = cma_es(lambda x, who: evaluate(x, np.array([k])[who]), start[k : k + 1], 0.3,
-                       [np.random.default_rng([7, k])], iterations=60)
+        alone = cma_es(
+            lambda x, who: evaluate(x, np.array([k])[who]),
+            start[k : k + 1],
+            0.3,
+            [np.random.default_rng([7, k])],
+            iterations=60,
+        )
         assert np.array_equal(alone.x[0], batch.x[k]) and alone.f[0] == batch.f[k]
 
 

@@ -8,13 +8,11 @@ import math
 
 import numpy as np
 import pytest
+from harness.report_cases import double_dwell_candidates, single_dwell_candidates
 
 from synth.mechanism.buildability import buildability, output_rates
 from synth.mechanism.figures import sixbar_figures
 from synth.mechanism.sixbar import SixBars, crank_grid, simulate
-
-from harness.report_cases import double_dwell_candidates, single_dwell_candidates
-
 
 
 @pytest.fixture(scope="module")
@@ -57,8 +55,18 @@ def _pairs(sb, samples=7200, every=1):
     none = np.full(phi.size, np.inf)
     pairs = [np.abs(A - B0), np.abs(A - D), np.abs(B - A0), np.abs(B - D), np.abs(P - A0), np.abs(P - B0)]
     if sb.dyad.kind == "RRR":
-        pairs += [np.abs(P - D), np.abs(Q - A0), np.abs(Q - B0), seg(A0, P, Q), seg(B0, P, Q), seg(D, P, Q),
-                  seg(A0, D, Q), seg(B0, D, Q), none, none]
+        pairs += [
+            np.abs(P - D),
+            np.abs(Q - A0),
+            np.abs(Q - B0),
+            seg(A0, P, Q),
+            seg(B0, P, Q),
+            seg(D, P, Q),
+            seg(A0, D, Q),
+            seg(B0, D, Q),
+            none,
+            none,
+        ]
     else:
         end = D + np.abs(P - D).max() * np.exp(1j * m.psi)
         pairs += [none] * 8 + [seg(A0, D, end), seg(B0, D, end)]
@@ -99,9 +107,17 @@ def test_every_pair_on_the_samples_is_its_distance_written_out(sixbars, every):
     motion = simulate(batch, phi, order=2)
     reach, clearance, which, rpr = clearances(batch, motion, every=every)
     m = motion.psi.shape[1]
-    smallest, _ = pair_clearances(*(np.broadcast_to(x, motion.psi.shape) for x in (
-        motion.fourbar.A, motion.fourbar.B, motion.z[0], motion.moving_pivot)), motion.psi, batch.d, batch.pivot,
-        batch.rpr, every)
+    smallest, _ = pair_clearances(
+        *(
+            np.broadcast_to(x, motion.psi.shape)
+            for x in (motion.fourbar.A, motion.fourbar.B, motion.z[0], motion.moving_pivot)
+        ),
+        motion.psi,
+        batch.d,
+        batch.pivot,
+        batch.rpr,
+        every,
+    )
     assert smallest.shape == (len(sixbars), len(CLEARANCE_PAIRS))
     for k, sb in enumerate(sixbars):
         want_reach, want = _pairs(sb, 720, every)

@@ -74,8 +74,9 @@ def test_no_nan_or_inf_anywhere_even_where_flagged():
     motion = fourbar_motion(np.array([[1.0], [2.0]]), 1.2, 1.5, 2.5, np.linspace(-np.pi, np.pi, 721), 1)
     pl = pole(motion)
     results = [pl, inflection_circle(pl), ball_point(pl), euler_savary(pl, pl.point + 1.0)]
-    pl3 = pole(fourbar_motion(np.array([1.0, 2.0])[:, None, None], 1.2, 1.5, 2.5,
-                              np.linspace(-np.pi, np.pi, 721)[:, None], 1))
+    pl3 = pole(
+        fourbar_motion(np.array([1.0, 2.0])[:, None, None], 1.2, 1.5, 2.5, np.linspace(-np.pi, np.pi, 721)[:, None], 1)
+    )
     results.append(line_scan(pl3, np.linspace(0, np.pi, 9)))
     assert np.any(pl.status & Status.NOT_ASSEMBLABLE)
     for res in results:

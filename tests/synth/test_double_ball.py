@@ -30,6 +30,7 @@ def test_ball_track_rate_matches_a_central_difference():
     """dŵ/dφ by the chain rule against a central difference of ŵ(φ) at a safe step."""
     h = 1e-5
     for a, b, c, d, br, phi in crank_rockers(10, 6):
+
         def w(p):
             m = fourbar_motion(a, b, c, d, p, br)
             n, den = ball_point_offset(*m.dtheta)
@@ -104,10 +105,16 @@ def test_linkage_that_never_assembles():
         double_ball_points(1.0, 1.0, 1.0, 5.0, on_degenerate="raise")
 
 
-@pytest.mark.parametrize("kwargs, error", [
-    ({"a": -1.0}, AssemblyError), ({"a": np.nan}, AssemblyError), ({"samples": 10}, ValueError),
-    ({"reach": 0.0}, ValueError), ({"on_degenerate": "skip"}, ValueError),
-])
+@pytest.mark.parametrize(
+    "kwargs, error",
+    [
+        ({"a": -1.0}, AssemblyError),
+        ({"a": np.nan}, AssemblyError),
+        ({"samples": 10}, ValueError),
+        ({"reach": 0.0}, ValueError),
+        ({"on_degenerate": "skip"}, ValueError),
+    ],
+)
 def test_bad_arguments(kwargs, error):
     args = {"a": 1.0, "b": 3.0, "c": 2.5, "d": 3.0}
     args.update(kwargs)

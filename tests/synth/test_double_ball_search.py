@@ -30,6 +30,7 @@ def same(x, y) -> bool:
 
 # -- the per-linkage search ------------------------------------------------------------------
 
+
 def reference_crossings(phi, p, t1, ok):
     """Self-crossings of one linkage's sampled track (φ sorted over one turn) as φ seeds."""
     n = phi.size
@@ -76,8 +77,12 @@ def reference_all(phi, p, t1, ok, ext_link, ext_phi, ep, et1, eok):
         sel = ext_link == k
         ph = np.concatenate([phi, ext_phi[sel]])
         order = np.argsort(ph, kind="stable")
-        s1, s2 = reference_crossings(ph[order], np.concatenate([p[k], ep[sel]])[order],
-                                     np.concatenate([t1[k], et1[sel]])[order], np.concatenate([ok[k], eok[sel]])[order])
+        s1, s2 = reference_crossings(
+            ph[order],
+            np.concatenate([p[k], ep[sel]])[order],
+            np.concatenate([t1[k], et1[sel]])[order],
+            np.concatenate([ok[k], eok[sel]])[order],
+        )
         links.append(np.full(s1.size, k))
         s1s.append(s1)
         s2s.append(s2)
@@ -118,13 +123,15 @@ def reference_track(a, b, c, d, branch, phi):
 
 # -- fixtures -----------------------------------------------------------------------------------
 
+
 @pytest.fixture(scope="module")
 def batch():
     """40 random crank-rockers, a double-rocker (its limited crank range gives edge events) and
     a rhombus (a track folded onto a line)."""
     rows = crank_rockers(40, 17)
-    a, b, c, d, br = (np.r_[rows[:, k], extra] for k, extra in enumerate(([3.0, 1.0], [2.0, 1.0], [2.5, 1.0],
-                                                                           [3.0, 1.0], [1.0, 1.0])))
+    a, b, c, d, br = (
+        np.r_[rows[:, k], extra] for k, extra in enumerate(([3.0, 1.0], [2.0, 1.0], [2.5, 1.0], [3.0, 1.0], [1.0, 1.0]))
+    )
     return a, b, c, d, br
 
 
@@ -154,6 +161,7 @@ def captured(batch):
 
 
 # -- the pieces ----------------------------------------------------------------------------------
+
 
 def as_set(seeds):
     """Seeds (linkage, φ₁, φ₂) in one canonical order, to compare as sets."""
@@ -192,6 +200,7 @@ def test_joint_bisection_equals_one_kind_at_a_time(batch, captured):
         def at(link, angles):
             m = fourbar_motion(a[link], b[link], c[link], d[link], angles, br[link], order=1)
             return np.sign((m.dtheta, m.dgamma)[which][0])
+
         return at
 
     def usable_at(link, angles):
@@ -226,6 +235,7 @@ def test_track_with_the_kept_motion_arrays_has_the_plain_bits(batch, shape):
 
 # -- synthetic tracks: the corner cases of the crossing search -----------------------------------
 
+
 def synthetic_rings(tracks, t1=None):
     """Rings of polylines ``tracks`` (linkages × samples, complex), all samples usable."""
     p = np.asarray(tracks, complex)
@@ -233,8 +243,17 @@ def synthetic_rings(tracks, t1=None):
     phi = np.linspace(0.0, TWO_PI, m, endpoint=False)
     t1 = np.ones(p.shape) if t1 is None else t1
     empty = np.zeros(0)
-    args = (phi, p, t1, np.ones(p.shape, bool), np.zeros(0, np.int64), empty, empty.astype(complex), empty,
-            np.zeros(0, bool))
+    args = (
+        phi,
+        p,
+        t1,
+        np.ones(p.shape, bool),
+        np.zeros(0, np.int64),
+        empty,
+        empty.astype(complex),
+        empty,
+        np.zeros(0, bool),
+    )
     return module._rings(*args), args
 
 

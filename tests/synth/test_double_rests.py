@@ -46,8 +46,16 @@ def _ramps(phi, knots):
 #: the output swings out to 1 rad and back (smoothsteps: it lingers a few degrees at the top).
 SPLIT = [(0.2, 0.0), (0.7, 0.0), (0.71, 1.5 * BAND), (1.3, 1.5 * BAND), (2.5, 1.0)]
 #: The same with a real second rest at 1 rad on [3.5, 3.9] (0.4 rad: shorter than either half).
-SPLIT_AND_REST = [(0.2, 0.0), (0.7, 0.0), (0.71, 1.5 * BAND), (1.3, 1.5 * BAND), (2.5, 0.8), (3.5, 1.0),
-                  (3.9, 1.0), (5.0, 0.3)]
+SPLIT_AND_REST = [
+    (0.2, 0.0),
+    (0.7, 0.0),
+    (0.71, 1.5 * BAND),
+    (1.3, 1.5 * BAND),
+    (2.5, 0.8),
+    (3.5, 1.0),
+    (3.9, 1.0),
+    (5.0, 0.3),
+]
 
 
 def _found(knots, samples=720, leave=LEAVE):
@@ -120,8 +128,7 @@ def _brute_force_gaps(knots, first, second, fine=0.01 * DEG):
 
 
 @settings(max_examples=40, deadline=None)
-@given(st.lists(st.tuples(st.floats(0.15, 1.2), st.floats(-0.02, 0.02)), min_size=2, max_size=5),
-       st.floats(0.05, 2.0))
+@given(st.lists(st.tuples(st.floats(0.15, 1.2), st.floats(-0.02, 0.02)), min_size=2, max_size=5), st.floats(0.05, 2.0))
 @example([(0.5, 0.0), (0.01, 0.0026), (0.6, 0.0)], 0.5)  # the split rest
 def test_two_reported_dwells_are_always_two_rests(steps, leave_deg):
     """Random rest-and-step outputs (levels within ±0.02 rad, steps of any crank length):
@@ -149,7 +156,6 @@ SPLIT_ID = "138000012-dbl0.2@free~AT_Xd2dABzmBQCcZlEAk2VjACAjUQHKuJ8ESP6o"
 
 def test_the_demo_atlas_split_rest_is_not_two_dwells():
     from synth.mechanism.figures import sixbar_figures
-    from synth.mechanism.sixbar import simulate
     from synth.query.candidates import candidate_dimensions
 
     sb = candidate_dimensions(SPLIT_ID)
@@ -184,8 +190,17 @@ def test_the_query_answers_two_rests(source):
     from synth.query import answer
     from synth.query.candidates import Request
 
-    request = Request(dwell=40 * DEG, dwell_tol=15 * DEG, swing=21.8 * DEG, swing_tol=2 * DEG, output="rpr", dwells=2,
-                      min_transmission=20 * DEG, max_link_ratio=30, refine=False)
+    request = Request(
+        dwell=40 * DEG,
+        dwell_tol=15 * DEG,
+        swing=21.8 * DEG,
+        swing_tol=2 * DEG,
+        output="rpr",
+        dwells=2,
+        min_transmission=20 * DEG,
+        max_link_ratio=30,
+        refine=False,
+    )
     found = answer(request, source).candidates
     assert len(found) >= 3
     for c in found:

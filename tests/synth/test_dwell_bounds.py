@@ -17,21 +17,21 @@ import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
+from synth.mechanism.dyad import fit_rpr, fit_rrr
+from synth.mechanism.figures import sixbar_figures
+from synth.mechanism.link_ratio import segment_shortest
+from synth.mechanism.sixbar import SixBar, crank_grid
 from synth.segment_search.dwell_bounds import (
+    STAIRCASE_SLACK,
     curve_extent,
     deviation_profile,
     deviation_profiles,
-    STAIRCASE_SLACK,
     dwell_bound,
     minimum_zone_halfwidth,
     path_tolerance,
     rpr_min_swing,
     rrr_min_swing,
 )
-from synth.mechanism.dyad import fit_rpr, fit_rrr
-from synth.mechanism.figures import sixbar_figures
-from synth.mechanism.link_ratio import segment_shortest
-from synth.mechanism.sixbar import SixBar, crank_grid
 from synth.segment_search.segments import SegmentSearch, find_segments
 
 #: Grid of the profile in these tests (coarser than the default: the suite stays fast).
@@ -114,8 +114,12 @@ def _check(cases) -> None:
 
 @settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
-    b=st.floats(2.0, 4.0), c=st.floats(2.0, 4.0), d=st.floats(2.0, 4.0), branch=st.sampled_from([1, -1]),
-    swing=st.floats(math.radians(15), math.radians(70)), band=st.floats(math.radians(0.05), math.radians(1.0)),
+    b=st.floats(2.0, 4.0),
+    c=st.floats(2.0, 4.0),
+    d=st.floats(2.0, 4.0),
+    branch=st.sampled_from([1, -1]),
+    swing=st.floats(math.radians(15), math.radians(70)),
+    band=st.floats(math.radians(0.05), math.radians(1.0)),
 )
 @example(b=3.0, c=2.5, d=3.0, branch=1, swing=math.radians(30), band=math.radians(0.1))
 def test_simulated_dwell_and_swing_never_beat_the_bounds(b, c, d, branch, swing, band):
@@ -134,8 +138,15 @@ def test_bounds_hold_and_are_not_loose_on_a_sample():
         b, c, d = rng.uniform(2.0, 4.0, 3)
         if not grashof_crank(b, c, d):
             continue
-        cases = sixbar_cases(float(b), float(c), float(d), 1, math.radians(rng.uniform(15, 60)),
-                             math.radians(rng.choice([0.1, 0.5])), per_kind=2)
+        cases = sixbar_cases(
+            float(b),
+            float(c),
+            float(d),
+            1,
+            math.radians(rng.uniform(15, 60)),
+            math.radians(rng.choice([0.1, 0.5])),
+            per_kind=2,
+        )
         _check(cases)
         for name, f, bound, _, tight in cases:
             if bound is None:
@@ -147,9 +158,12 @@ def test_bounds_hold_and_are_not_loose_on_a_sample():
     print(f"checked {checked}, longest dwell elsewhere {elsewhere}")
     for name in ratios:
         if ratios[name]:
-            print(name, "bound/actual with the ratio limit: median %.2f min %.2f max %.2f" % (
-                np.median(ratios[name]), min(ratios[name]), max(ratios[name])),
-                  "| with the dyad's own link: median %.2f min %.2f" % (np.median(lemma[name]), min(lemma[name])))
+            print(
+                name,
+                "bound/actual with the ratio limit: median %.2f min %.2f max %.2f"
+                % (np.median(ratios[name]), min(ratios[name]), max(ratios[name])),
+                "| with the dyad's own link: median %.2f min %.2f" % (np.median(lemma[name]), min(lemma[name])),
+            )
     assert checked >= 6
     # RPR: with the dyad's own reach the bound is within 1.5× of the real dwell (the lemma is
     # tight). RRR is looser (2–5× measured): the dyads fitted here put Q at the centre of the
@@ -197,9 +211,14 @@ def test_swing_bounds_closed_forms():
 
 
 @given(
-    pivot=st.complex_numbers(max_magnitude=5.0), mid=st.floats(-math.pi, math.pi),
-    band=st.floats(math.radians(0.01), math.radians(5.0)), r_lo=st.floats(0.2, 2.0), r_span=st.floats(0.1, 10.0),
-    rocker=st.floats(0.2, 10.0), rod=st.floats(0.2, 10.0), seed=st.integers(0, 2**32 - 1),
+    pivot=st.complex_numbers(max_magnitude=5.0),
+    mid=st.floats(-math.pi, math.pi),
+    band=st.floats(math.radians(0.01), math.radians(5.0)),
+    r_lo=st.floats(0.2, 2.0),
+    r_span=st.floats(0.1, 10.0),
+    rocker=st.floats(0.2, 10.0),
+    rod=st.floats(0.2, 10.0),
+    seed=st.integers(0, 2**32 - 1),
 )
 # found by a random-seed run: the line's half-width from the (linearised) fitter was 0.0407
 # against a bound of 0.0395; the line's minimum zone is now exact
@@ -233,8 +252,17 @@ def test_profile_is_monotone_and_never_below_the_stored_dwells():
     tols = np.array(found.tolerances)
     checked = 0
     for i in [*np.flatnonzero(found.kind == 0)[:2], *np.flatnonzero(found.kind == 1)[:2]]:
-        p = deviation_profile(b, c, d, 1, complex(found.uv[i]), float(found.phi_gen[i]), int(found.kind[i]),
-                              levels=np.r_[tols, 1e-5, 1e-1], step=STEP)
+        p = deviation_profile(
+            b,
+            c,
+            d,
+            1,
+            complex(found.uv[i]),
+            float(found.phi_gen[i]),
+            int(found.kind[i]),
+            levels=np.r_[tols, 1e-5, 1e-1],
+            step=STEP,
+        )
         assert np.all(np.diff(p.length) >= 0)
         stored = found.phi_end[i, :, 0] - found.phi_start[i, :, 0]
         at = np.searchsorted(p.levels, tols)
@@ -253,11 +281,29 @@ def test_staircase_profile_never_below_the_exhaustive_one(kind):
     rows = np.flatnonzero(found.kind == kind)[:4]
     link = found.linkage[rows]
     levels = np.logspace(-5, -1, 9)
-    walk = deviation_profiles(b[link], c[link], d[link], np.ones(rows.size, int), found.uv[rows],
-                              found.phi_gen[rows], kind, levels=levels, step=STEP)
+    walk = deviation_profiles(
+        b[link],
+        c[link],
+        d[link],
+        np.ones(rows.size, int),
+        found.uv[rows],
+        found.phi_gen[rows],
+        kind,
+        levels=levels,
+        step=STEP,
+    )
     for q, i in enumerate(rows):
-        every = deviation_profile(float(b[link[q]]), float(c[link[q]]), float(d[link[q]]), 1, complex(found.uv[i]),
-                                  float(found.phi_gen[i]), kind, levels=levels, step=STEP)
+        every = deviation_profile(
+            float(b[link[q]]),
+            float(c[link[q]]),
+            float(d[link[q]]),
+            1,
+            complex(found.uv[i]),
+            float(found.phi_gen[i]),
+            kind,
+            levels=levels,
+            step=STEP,
+        )
         capped = every.length < 2 * math.pi
         assert np.all(walk.length[q] >= every.length - 1e-9)
         assert np.all(walk.length[q][capped] <= every.length[capped] + (STAIRCASE_SLACK + 2) * STEP + 1e-9)

@@ -11,10 +11,10 @@ import math
 import numpy as np
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
+from test_sixbar import sixbar_strategy  # tests/synth: any six-bar
 
 from synth.mechanism.output_range import dwell_intervals, output_deviation, output_swing
 from synth.mechanism.sixbar import ExactOutput, OutputDyad, SixBar, SixBars, crank_grid, simulate
-from test_sixbar import sixbar_strategy  # tests/synth: any six-bar
 
 DEG = math.pi / 180
 
@@ -44,8 +44,12 @@ def _assert_same(compiled, numpy_, rows) -> None:
 
 @settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @example([SixBar(1.0, 2.0, 2.0, 2.0, 1, 0.0, 0.0, OutputDyad.rpr(0j))], 0.5, 72, 1)  # ψ = φ
-@given(st.lists(sixbar_strategy(), min_size=1, max_size=4), st.floats(0.0, 0.5), st.sampled_from([72, 180, 720]),
-       st.sampled_from([1, 2]))
+@given(
+    st.lists(sixbar_strategy(), min_size=1, max_size=4),
+    st.floats(0.0, 0.5),
+    st.sampled_from([72, 180, 720]),
+    st.sampled_from([1, 2]),
+)
 def test_the_compiled_refinement_gives_the_numpy_dwells(sbs, band, samples, count):
     compiled, numpy_, acceptable = _both(SixBars.from_sixbars(sbs), samples, band, count)
     # A six-bar that does not assemble or whose output revolves is rejected whatever its
@@ -61,12 +65,25 @@ def _dwelling_sixbars() -> SixBars:
     """Crank-rocker six-bars with long rests: slot pivots far along the Ball point's tangent and
     rockers resting near a circle point's centre, on three four-bars."""
     out = []
-    for a, b, c, d, br, u, v in [(1.0, 3.0, 3.0, 3.5, 1, 1.2, 0.8), (1.0, 2.5, 3.0, 3.0, -1, 2.0, -0.5),
-                                 (1.0, 4.0, 2.5, 3.5, 1, 1.5, 1.0)]:
+    for a, b, c, d, br, u, v in [
+        (1.0, 3.0, 3.0, 3.5, 1, 1.2, 0.8),
+        (1.0, 2.5, 3.0, 3.0, -1, 2.0, -0.5),
+        (1.0, 4.0, 2.5, 3.5, 1, 1.5, 1.0),
+    ]:
         for k in range(6):
             out.append(SixBar(a, b, c, d, br, u, v, OutputDyad.rpr(complex(6.0 + k, -2.0 + 0.7 * k))))
-            out.append(SixBar(a, b, c, d, br, u, v, OutputDyad.rrr(complex(2.0 + 0.3 * k, -3.0), 2.5 + 0.2 * k,
-                                                                    3.5, 1 if k % 2 else -1)))
+            out.append(
+                SixBar(
+                    a,
+                    b,
+                    c,
+                    d,
+                    br,
+                    u,
+                    v,
+                    OutputDyad.rrr(complex(2.0 + 0.3 * k, -3.0), 2.5 + 0.2 * k, 3.5, 1 if k % 2 else -1),
+                )
+            )
     return SixBars.from_sixbars(out)
 
 
@@ -88,8 +105,13 @@ def test_rows_that_repeat_a_six_bar_are_refined_on_its_path():
     motion = simulate(batch, phi, order=2)
     exact = ExactOutput(batch)
     once = dwell_intervals(phi, motion.psi, 0.1 * DEG, psi_at=exact, dpsi1=motion.dpsi[0])
-    twice = dwell_intervals(phi, np.repeat(motion.psi[:, None], 2, axis=1), 0.1 * DEG, psi_at=exact,
-                            dpsi1=np.repeat(motion.dpsi[0][:, None], 2, axis=1))
+    twice = dwell_intervals(
+        phi,
+        np.repeat(motion.psi[:, None], 2, axis=1),
+        0.1 * DEG,
+        psi_at=exact,
+        dpsi1=np.repeat(motion.dpsi[0][:, None], 2, axis=1),
+    )
     for k in range(2):
         np.testing.assert_array_equal(twice.start[:, k], once.start)
         np.testing.assert_array_equal(twice.end[:, k], once.end)
@@ -110,8 +132,12 @@ def _deviations(batch: SixBars, samples: int, centre, length: float):
 
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(st.lists(sixbar_strategy(), min_size=1, max_size=4), st.sampled_from([72, 180, 720]),
-       st.floats(0.0, 2 * math.pi), st.floats(0.0, 3.5))
+@given(
+    st.lists(sixbar_strategy(), min_size=1, max_size=4),
+    st.sampled_from([72, 180, 720]),
+    st.floats(0.0, 2 * math.pi),
+    st.floats(0.0, 3.5),
+)
 def test_the_compiled_window_refinement_gives_the_numpy_deviation(sbs, samples, centre, extra):
     batch = SixBars.from_sixbars(sbs)
     length = 2 * (2 * math.pi / samples) + extra  # a dwell of two grid steps at least, as a request asks
@@ -126,8 +152,7 @@ def test_the_same_deviation_windows_around_real_rests():
     batch = _dwelling_sixbars()
     found = _both(batch, 720, 0.1 * DEG, 2)[0]
     for length in (10 * DEG, 30 * DEG, 60 * DEG):
-        (dev, start), (dev_np, start_np), acceptable = _deviations(batch, 720, 0.5 * (found.start + found.end),
-                                                                   length)
+        (dev, start), (dev_np, start_np), acceptable = _deviations(batch, 720, 0.5 * (found.start + found.end), length)
         assert np.median(dev[acceptable]) < 2 * DEG  # windows around rests, not across the swing
         np.testing.assert_array_equal(start[acceptable], start_np[acceptable])
         np.testing.assert_allclose(dev[acceptable], dev_np[acceptable], rtol=0, atol=1e-12)

@@ -22,8 +22,12 @@ from synth.segment_search.dwell_key import arc_dwell_key, arc_key_target, predic
 DEG = math.pi / 180
 
 
-@given(dwell=st.floats(1 * DEG, 350 * DEG), swing=st.floats(0.5 * DEG, 179 * DEG), band=st.floats(1e-4, 0.2),
-       tolerance=st.floats(1e-6, 0.1))
+@given(
+    dwell=st.floats(1 * DEG, 350 * DEG),
+    swing=st.floats(0.5 * DEG, 179 * DEG),
+    band=st.floats(1e-4, 0.2),
+    tolerance=st.floats(1e-6, 0.1),
+)
 def test_the_target_key_predicts_the_requested_dwell(dwell, swing, band, tolerance):
     key = arc_key_target(dwell, swing, band, tolerance)
     assert key > 0
@@ -36,15 +40,26 @@ def test_the_key_is_the_dwell_times_the_excursions_fourth_root():
     assert arc_dwell_key(1.0, 0.0, 1e-4) == pytest.approx(0.1, rel=1e-12)
     # a four-times wider swing at a sixteen-times looser level asks for the same key
     assert arc_key_target(1.0, 2 * math.asin(0.4), 1e-3, 1e-4) == pytest.approx(
-        arc_key_target(1.0, 2 * math.asin(0.1), 1e-3, 4e-4), rel=1e-12)
+        arc_key_target(1.0, 2 * math.asin(0.1), 1e-3, 4e-4), rel=1e-12
+    )
 
 
 def _arc_rows(source, level: int):
-    rows = [r for b in source.scan_segments("arc", level, min_transmission=30 * DEG, max_length=10.0,
-                                            min_radius_ratio=0.1, batch=100_000) for r in b]
+    rows = [
+        r
+        for b in source.scan_segments(
+            "arc", level, min_transmission=30 * DEG, max_length=10.0, min_radius_ratio=0.1, batch=100_000
+        )
+        for r in b
+    ]
     with source.engine.connect() as conn:
-        keys = dict(conn.execute(sql_select(Dwell.segment_id, Dwell.dwell_key).where(
-            Dwell.kind == SegmentKind.ARC.code, Dwell.level == level)).all())
+        keys = dict(
+            conn.execute(
+                sql_select(Dwell.segment_id, Dwell.dwell_key).where(
+                    Dwell.kind == SegmentKind.ARC.code, Dwell.level == level
+                )
+            ).all()
+        )
     return rows, keys
 
 

@@ -28,10 +28,24 @@ LEVELS = np.array([1e-4, 1e-3, 1e-2])
 
 def _measure(A, uv, kind, centre, width, point, direction, radius, levels=LEVELS):
     n = len(centre)
-    return measure_dwells(np.ascontiguousarray(A), np.zeros((1, MF), complex), np.zeros(n, np.int64),
-                          np.asarray(centre, np.int64), np.asarray(uv, complex), np.full(n, kind, np.int64),
-                          np.asarray(width, np.int64), np.asarray(point, complex), np.asarray(direction, complex),
-                          np.asarray(radius, float), levels, 5, 10, SPREAD, 1e-3, 0.98)
+    return measure_dwells(
+        np.ascontiguousarray(A),
+        np.zeros((1, MF), complex),
+        np.zeros(n, np.int64),
+        np.asarray(centre, np.int64),
+        np.asarray(uv, complex),
+        np.full(n, kind, np.int64),
+        np.asarray(width, np.int64),
+        np.asarray(point, complex),
+        np.asarray(direction, complex),
+        np.asarray(radius, float),
+        levels,
+        5,
+        10,
+        SPREAD,
+        1e-3,
+        0.98,
+    )
 
 
 def _check_runs(A, kind, centre, width, levels, out):

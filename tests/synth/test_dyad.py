@@ -87,8 +87,14 @@ def test_rpr_batch_equals_single_fits():
     segments = [_ball_segment(*fb) for fb in FOURBARS]
     swings = np.array([20.0, 30.0, 45.0]) * DEG
     intervals = np.array([fb[-1] for fb in FOURBARS])
-    batch = fit_rpr(np.array([s[0] for s in segments]), np.array([s[1] for s in segments]), PHI,
-                    np.array([s[3] for s in segments]), (intervals - 0.2, intervals + 0.2), swings)
+    batch = fit_rpr(
+        np.array([s[0] for s in segments]),
+        np.array([s[1] for s in segments]),
+        PHI,
+        np.array([s[3] for s in segments]),
+        (intervals - 0.2, intervals + 0.2),
+        swings,
+    )
     for k, (P0, delta, _, path) in enumerate(segments):
         one = fit_rpr(P0, delta, PHI, path, (intervals[k] - 0.2, intervals[k] + 0.2), swings[k])
         np.testing.assert_array_equal(one.found, batch.found[k])
@@ -113,8 +119,10 @@ def test_rpr_refuses_bad_input():
 
 
 def test_rpr_double_intersects_lines_and_flags_parallel_ones():
-    piv = rpr_double((np.array([0j, 1 + 0j, 0j]), np.array([0.0, 0.0, 0.0])),
-                     (np.array([2 + 1j, 2 + 1j, 5j]), np.array([np.pi / 2, np.pi / 4, 1e-12])))
+    piv = rpr_double(
+        (np.array([0j, 1 + 0j, 0j]), np.array([0.0, 0.0, 0.0])),
+        (np.array([2 + 1j, 2 + 1j, 5j]), np.array([np.pi / 2, np.pi / 4, 1e-12])),
+    )
     assert piv.pivot[0] == pytest.approx(2 + 0j, abs=1e-15)
     assert piv.pivot[1] == pytest.approx(1 + 0j, abs=1e-15)
     assert piv.status.tolist() == [0, 0, Status.AT_INFINITY]
@@ -220,8 +228,15 @@ def test_rrr_batch_equals_single_fits():
         np.testing.assert_array_equal(one.found, batch.found[k])
         np.testing.assert_allclose(one.pivot, batch.pivot[k], rtol=0, atol=1e-9)
     dead = np.arange(8) % 2 == 1  # every other row: the same segment with a 1e-3 rod
-    mixed = fit_rrr(np.repeat(C0, 2), np.where(dead, 1e-3, np.repeat(rho, 2)), PHI, np.repeat(paths, 2, axis=0),
-                    (np.repeat(phi0, 2) - 0.2, np.repeat(phi0, 2) + 0.2), 40 * DEG, 20 * DEG)
+    mixed = fit_rrr(
+        np.repeat(C0, 2),
+        np.where(dead, 1e-3, np.repeat(rho, 2)),
+        PHI,
+        np.repeat(paths, 2, axis=0),
+        (np.repeat(phi0, 2) - 0.2, np.repeat(phi0, 2) + 0.2),
+        40 * DEG,
+        20 * DEG,
+    )
     assert not mixed.found[dead].any() and mixed.found[~dead].any()
     np.testing.assert_array_equal(mixed.pivot[dead], np.repeat(np.repeat(C0, 2)[dead, None], 3, axis=1))
     for f in dataclasses.fields(batch):
@@ -268,8 +283,16 @@ coord = st.floats(-10.0, 10.0, allow_nan=False, allow_infinity=False)
 
 
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(coord, coord, st.floats(0.0, 2 * np.pi), st.floats(0.01, 20.0), st.floats(0.0, 2 * np.pi),
-       st.floats(0.01, 3.0), st.floats(1 * DEG, 170 * DEG), st.sampled_from(range(3)))
+@given(
+    coord,
+    coord,
+    st.floats(0.0, 2 * np.pi),
+    st.floats(0.01, 20.0),
+    st.floats(0.0, 2 * np.pi),
+    st.floats(0.01, 3.0),
+    st.floats(1 * DEG, 170 * DEG),
+    st.sampled_from(range(3)),
+)
 def test_random_segments_give_finite_fits(x, y, delta, radius, start, span, swing, which):
     a, b, c, d, br, _ = FOURBARS[which]
     path = _path(a, b, c, d, br, complex(x, y) / 3)
@@ -295,7 +318,7 @@ def _numpy_estimate(terms, alpha, target, ratio):
     u_lo = np.maximum((centre - terms.half).max(axis=-1), 0.0)
     q_mid = (terms.w_mid[:, None] * np.exp(-1j * alpha)).imag
     branch = np.where(q_mid > 0, -1, 1)
-    s_ = q + branch[..., None] * np.sqrt(np.maximum(terms.rho ** 2 - p * p, 0.0))
+    s_ = q + branch[..., None] * np.sqrt(np.maximum(terms.rho**2 - p * p, 0.0))
     u_est = target[:, None] / np.maximum(s_.max(axis=-1) - s_.min(axis=-1), 1e-12)
     u_try = ratio * u_est
     feasible = (u_lo <= u_hi) & (u_try <= u_hi)
@@ -313,8 +336,11 @@ def test_compiled_rrr_ranking_is_the_numpy_expressions_bit_for_bit(seed):
     t = np.linspace(0, 2 * np.pi, S, endpoint=False)
     # near-circular paths about C₀ (as on an arc segment), some crossing their circle exactly
     rho = rng.uniform(0.3, 4.0, R)
-    w = (rho[:, None] * (1 + rng.uniform(0, 0.3, (R, 1)) * np.sin(t * rng.integers(1, 4, (R, 1))))
-         * np.exp(1j * (t + rng.uniform(0, 6, (R, 1)))))
+    w = (
+        rho[:, None]
+        * (1 + rng.uniform(0, 0.3, (R, 1)) * np.sin(t * rng.integers(1, 4, (R, 1))))
+        * np.exp(1j * (t + rng.uniform(0, 6, (R, 1))))
+    )
     w[::7, 3] = rho[::7] + 0j
     terms = RrrTerms(w, rho, math.cos(math.radians(rng.uniform(20, 50))), w[:, 5])
     alpha = rng.uniform(0, 2 * np.pi, (R, J))
@@ -366,7 +392,7 @@ def _numpy_swing(w, e, rho, branch, u):
     def g(k):
         at = lambda x: np.take_along_axis(x, k[:, None], -1)[:, 0]  # noqa: E731
         inv_s = 1.0 / np.where(at(singular), np.inf, -at(loop.height) / L[:, 0])
-        return ((e[:, 0] + at(loop.e2)) * np.conj(at(loop.cos1) + 1j * at(loop.sin1))).real * inv_s / (L[:, 0] * u ** 2)
+        return ((e[:, 0] + at(loop.e2)) * np.conj(at(loop.cos1) + 1j * at(loop.sin1))).real * inv_s / (L[:, 0] * u**2)
 
     jumps = np.any(np.abs(np.diff(eta, axis=-1, append=eta[:, :1])) > math.pi, axis=-1)
     return hi - lo, g(khi) - g(klo), np.any(singular, axis=-1) | jumps
@@ -384,14 +410,20 @@ def test_compiled_rrr_swing_is_the_numpy_loop_and_its_derivative(seed):
     t = np.linspace(0, 2 * np.pi, M, endpoint=False)
     rho = rng.uniform(0.5, 4.0, N)
     # paths about C₀ near the rod's circle (an arc segment), rockers from short to long
-    w = (rho[:, None] * (1 + rng.uniform(0, 0.4, (N, 1)) * np.sin(t * rng.integers(1, 4, (N, 1))))
-         * np.exp(1j * (0.3 * np.sin(t + rng.uniform(0, 6, (N, 1))))))
+    w = (
+        rho[:, None]
+        * (1 + rng.uniform(0, 0.4, (N, 1)) * np.sin(t * rng.integers(1, 4, (N, 1))))
+        * np.exp(1j * (0.3 * np.sin(t + rng.uniform(0, 6, (N, 1)))))
+    )
     e = np.exp(1j * rng.uniform(0, 2 * np.pi, N))
     branch = rng.choice([-1.0, 1.0], N)
     u = 1.0 / rng.uniform(0.5, 20.0, N)
     wx, wy = np.ascontiguousarray(w.real), np.ascontiguousarray(w.imag)
-    _check_swing(lambda uu: rrr_swing(wx, wy, np.arange(N), e.real.copy(), e.imag.copy(), branch, rho, uu),
-                 _numpy_swing(w, e, rho, branch, u), u)
+    _check_swing(
+        lambda uu: rrr_swing(wx, wy, np.arange(N), e.real.copy(), e.imag.copy(), branch, rho, uu),
+        _numpy_swing(w, e, rho, branch, u),
+        u,
+    )
 
 
 def _numpy_rpr_swing(t_s, n_s, side, t_end, u):
@@ -428,15 +460,20 @@ def test_compiled_rpr_swing_is_the_numpy_angle_and_its_derivative(seed):
     # closed paths in a line's frame: a stretch along the axis, excursions across it
     centre = rng.uniform(-1, 1, N)[:, None]
     t_s = np.ascontiguousarray(centre + rng.uniform(0.5, 2, (N, 1)) * np.cos(t + rng.uniform(0, 6, (N, 1))))
-    n_s = np.ascontiguousarray(rng.uniform(0.05, 1.5, (N, 1)) * (1 - np.cos(t + rng.uniform(0, 6, (N, 1)))) ** 2
-                               * rng.choice([-1.0, 1.0], (N, 1)) + rng.uniform(-0.3, 0.3, (N, 1)))
+    n_s = np.ascontiguousarray(
+        rng.uniform(0.05, 1.5, (N, 1))
+        * (1 - np.cos(t + rng.uniform(0, 6, (N, 1)))) ** 2
+        * rng.choice([-1.0, 1.0], (N, 1))
+        + rng.uniform(-0.3, 0.3, (N, 1))
+    )
     side = rng.choice([-1.0, 1.0], N)
     t_end = np.where(side > 0, t_s.max(axis=1), t_s.min(axis=1)) + side * 0.1
     inside = rng.random(N) < 0.25  # pivots within the path's extent: the cut beyond D may cross it
     t_end = np.where(inside, t_s.mean(axis=1), t_end)
     u = rng.uniform(0.05, 4.0, N) * np.where(inside, 30.0, 1.0)
-    _check_swing(lambda uu: rpr_swing(t_s, n_s, np.arange(N), side, t_end, uu),
-                 _numpy_rpr_swing(t_s, n_s, side, t_end, u), u)
+    _check_swing(
+        lambda uu: rpr_swing(t_s, n_s, np.arange(N), side, t_end, uu), _numpy_rpr_swing(t_s, n_s, side, t_end, u), u
+    )
 
 
 def _numpy_rtsafe(F, lo, hi, u0, target, active, check_far):
@@ -491,8 +528,11 @@ def test_compiled_newton_is_the_numpy_rtsafe_bit_for_bit(seed, kind):
     t = np.linspace(0, 2 * np.pi, M, endpoint=False)
     if kind == "rrr":
         rho = rng.uniform(0.5, 4.0, N)
-        w = (rho[:, None] * (1 + rng.uniform(0, 0.4, (N, 1)) * np.sin(t * rng.integers(1, 4, (N, 1))))
-             * np.exp(1j * (0.3 * np.sin(t + rng.uniform(0, 6, (N, 1))))))
+        w = (
+            rho[:, None]
+            * (1 + rng.uniform(0, 0.4, (N, 1)) * np.sin(t * rng.integers(1, 4, (N, 1))))
+            * np.exp(1j * (0.3 * np.sin(t + rng.uniform(0, 6, (N, 1)))))
+        )
         wx, wy = np.ascontiguousarray(w.real), np.ascontiguousarray(w.imag)
         e = np.exp(1j * rng.uniform(0, 2 * np.pi, N))
         ex, ey, branch, rows = e.real.copy(), e.imag.copy(), rng.choice([-1.0, 1.0], N), np.arange(N)
@@ -532,8 +572,16 @@ def test_pseudo_angle_orders_directions_as_atan2_signed_zeros_and_cut_included()
 
     rng = np.random.default_rng(5)
     angles = np.concatenate([rng.uniform(-np.pi, np.pi, 400), np.linspace(-np.pi, np.pi, 17)])
-    xy = [(math.sin(a), math.cos(a)) for a in angles] + [(0.0, 1.0), (-0.0, 1.0), (0.0, -1.0), (-0.0, -1.0),
-                                                         (1.0, 0.0), (-1.0, -0.0), (1e-300, -1.0), (-1e-300, -1.0)]
+    xy = [(math.sin(a), math.cos(a)) for a in angles] + [
+        (0.0, 1.0),
+        (-0.0, 1.0),
+        (0.0, -1.0),
+        (-0.0, -1.0),
+        (1.0, 0.0),
+        (-1.0, -0.0),
+        (1e-300, -1.0),
+        (-1e-300, -1.0),
+    ]
     exact = np.array([math.atan2(y, x) for y, x in xy])
     pseudo = np.array([pseudo_angle(y, x) for y, x in xy])
     assert np.all(np.abs(pseudo) <= 2.0)

@@ -16,7 +16,9 @@ def test_segment_kinds_keep_their_stored_spelling_and_codes():
 
 
 def test_the_schema_check_is_built_from_the_enum():
-    (check,) = [c for c in Segment.__table__.constraints if isinstance(c, CheckConstraint) and c.name == "ck_segment_kind"]
+    (check,) = [
+        c for c in Segment.__table__.constraints if isinstance(c, CheckConstraint) and c.name == "ck_segment_kind"
+    ]
     assert str(check.sqltext) == "kind IN ('line', 'arc', 'double_line')"
 
 

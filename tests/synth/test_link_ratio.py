@@ -53,8 +53,15 @@ def test_a_coupler_point_on_a_joint_gives_a_finite_ratio():
 
 
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(u=st.floats(-6.0, 6.0), v=st.floats(-6.0, 6.0), x=st.floats(-8.0, 8.0), y=st.floats(-8.0, 8.0),
-       rocker=st.floats(0.2, 12.0), rod=st.floats(0.2, 12.0), rrr=st.booleans())
+@given(
+    u=st.floats(-6.0, 6.0),
+    v=st.floats(-6.0, 6.0),
+    x=st.floats(-8.0, 8.0),
+    y=st.floats(-8.0, 8.0),
+    rocker=st.floats(0.2, 12.0),
+    rod=st.floats(0.2, 12.0),
+    rrr=st.booleans(),
+)
 @example(u=1.5, v=0.0, x=1.5, y=0.0, rocker=1.0, rod=1.0, rrr=False)  # the slider through its pivot
 @example(u=0.0, v=0.0, x=0.0, y=0.0, rocker=1.0, rod=1.0, rrr=False)  # P on A: a zero side
 @example(u=0.0, v=0.0, x=0.0, y=0.0, rocker=1.0, rod=7.43359375, rrr=True)  # 1 / floor rounds below 1e12

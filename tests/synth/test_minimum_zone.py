@@ -18,7 +18,7 @@ from scipy.optimize import linprog
 from kinematics.loop import parabola_vertex
 from synth.kinds import SegmentKind
 from synth.segment_search.minimum_zone import minimum_zone_fit, path_deviation
-from synth.segment_search.minimum_zone_kernel import lawson, deviation_at, window_peak
+from synth.segment_search.minimum_zone_kernel import deviation_at, lawson, window_peak
 
 LINE, ARC = SegmentKind.LINE.code, SegmentKind.ARC.code
 K = 21
@@ -39,8 +39,12 @@ def _chebyshev_lp(cols, r0):
 
 
 @settings(max_examples=60, deadline=None)
-@given(st.lists(st.floats(-3, 3), min_size=5, max_size=5), st.floats(0, 0.05), st.integers(0, 2**32 - 1),
-       st.sampled_from([2, 3]))
+@given(
+    st.lists(st.floats(-3, 3), min_size=5, max_size=5),
+    st.floats(0, 0.05),
+    st.integers(0, 2**32 - 1),
+    st.sampled_from([2, 3]),
+)
 @example([0.0, 0.0, 1e-10, 0.0, 0.0], 0.0, 0, 2)  # tiny: the LP's tolerances (~1e-7) made it 0
 @example([0.0, 0.0, 1e-10, 0.0, 1.0], 0.0, 0, 2)  # an optimum of 5e-11, below the LP's resolution
 def test_lawson_comes_within_15_percent_of_the_exact_chebyshev_fit(coef, noise, seed, p):
@@ -95,12 +99,19 @@ def test_rows_are_fitted_independently():
         assert [a[0] for a in alone] == [t[i] for t in together]
 
 
-@given(st.complex_numbers(max_magnitude=1e3, allow_nan=False), st.complex_numbers(max_magnitude=1e3, allow_nan=False),
-       st.floats(0, 2 * math.pi), st.floats(0, 1e3), st.sampled_from([LINE, ARC]))
+@given(
+    st.complex_numbers(max_magnitude=1e3, allow_nan=False),
+    st.complex_numbers(max_magnitude=1e3, allow_nan=False),
+    st.floats(0, 2 * math.pi),
+    st.floats(0, 1e3),
+    st.sampled_from([LINE, ARC]),
+)
 def test_scalar_deviation_is_the_array_one(z, point, angle, radius, kind):
     direction = complex(math.cos(angle), math.sin(angle))
     expected = float(path_deviation(np.array([z]), kind, point, direction, radius)[0])
-    assert deviation_at(z, kind, point, direction, radius) == pytest.approx(expected, rel=1e-12, abs=1e-12 * (abs(z) + abs(point) + 1))
+    assert deviation_at(z, kind, point, direction, radius) == pytest.approx(
+        expected, rel=1e-12, abs=1e-12 * (abs(z) + abs(point) + 1)
+    )
 
 
 @given(st.lists(st.floats(0, 1e3), min_size=1, max_size=40), st.data())

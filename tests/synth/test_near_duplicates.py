@@ -34,8 +34,15 @@ def _reference(uv, start, end, dwell, bounds, reach):
 
 
 @settings(max_examples=80, deadline=None)
-@given(st.lists(st.tuples(st.integers(0, 3), st.floats(0, 0.02), st.floats(0, 0.02), st.floats(0, 2 * math.pi),
-                          st.floats(0.05, 4.0)), min_size=1, max_size=30))
+@given(
+    st.lists(
+        st.tuples(
+            st.integers(0, 3), st.floats(0, 0.02), st.floats(0, 0.02), st.floats(0, 2 * math.pi), st.floats(0.05, 4.0)
+        ),
+        min_size=1,
+        max_size=30,
+    )
+)
 @example([(0, 0.0, 0.0, 6.2, 0.5), (0, 0.001, 0.0, 0.1, 0.4)])  # the same stretch a turn apart
 def test_compiled_loop_drops_what_the_pairwise_definition_drops(segments):
     segments.sort(key=lambda s: (s[0], -s[4]))  # grouped, longest first

@@ -27,7 +27,6 @@ def _numpy_pair_search(left_at, lv, right_at, rv, hi_in, lo_in, band):
     jl = np.empty(hi_in.shape, np.int64)
     jr = np.empty(hi_in.shape, np.int64)
     share = np.empty(hi_in.shape)
-    W = int(np.prod(hi_in.shape[1:]))
     along = lambda x, j: np.take_along_axis(x, j[..., None], -1)[..., 0]
     # (jl, jr) pairs in row chunks, so that many candidates stay within memory.
     chunk = R
@@ -59,17 +58,27 @@ def _numpy_pair_search(left_at, lv, right_at, rv, hi_in, lo_in, band):
     high = np.maximum(take(Hl, jl), take(pr_max, jr))
     low = np.minimum(take(Ll, jl), take(pr_min, jr))
     # what lies strictly inside (start + one point, end − one point): a finer stage's interior
-    inner_hi = np.maximum(np.maximum(hi_in, np.where(jl + 1 < nl, take(sl_max, np.minimum(jl + 1, nl - 1)), -np.inf)),
-                          np.where(jr >= 1, take(pr_max, np.maximum(jr - 1, 0)), -np.inf))
-    inner_lo = np.minimum(np.minimum(lo_in, np.where(jl + 1 < nl, take(sl_min, np.minimum(jl + 1, nl - 1)), np.inf)),
-                          np.where(jr >= 1, take(pr_min, np.maximum(jr - 1, 0)), np.inf))
+    inner_hi = np.maximum(
+        np.maximum(hi_in, np.where(jl + 1 < nl, take(sl_max, np.minimum(jl + 1, nl - 1)), -np.inf)),
+        np.where(jr >= 1, take(pr_max, np.maximum(jr - 1, 0)), -np.inf),
+    )
+    inner_lo = np.minimum(
+        np.minimum(lo_in, np.where(jl + 1 < nl, take(sl_min, np.minimum(jl + 1, nl - 1)), np.inf)),
+        np.where(jr >= 1, take(pr_min, np.maximum(jr - 1, 0)), np.inf),
+    )
     reach = end + share * (right_at[..., 1] - right_at[..., 0])  # the end, ψ linear beyond the last point
     return start, end, low, high, inner_hi, inner_lo, reach
 
 
 @settings(max_examples=80, deadline=None)
-@given(lead=st.sampled_from([(1,), (3,), (2, 3), (4, 2, 2)]), nl=st.integers(2, 9), nr=st.integers(2, 12),
-       quantum=st.sampled_from([0.0, 0.25]), drift=st.booleans(), seed=st.integers(0, 2**32 - 1))
+@given(
+    lead=st.sampled_from([(1,), (3,), (2, 3), (4, 2, 2)]),
+    nl=st.integers(2, 9),
+    nr=st.integers(2, 12),
+    quantum=st.sampled_from([0.0, 0.25]),
+    drift=st.booleans(),
+    seed=st.integers(0, 2**32 - 1),
+)
 @example(lead=(2, 3), nl=2, nr=2, quantum=0.25, drift=False, seed=0)
 @example(lead=(4, 2, 2), nl=9, nr=12, quantum=0.0, drift=True, seed=1)
 def test_compiled_pair_search_is_the_numpy_one_bit_for_bit(lead, nl, nr, quantum, drift, seed):

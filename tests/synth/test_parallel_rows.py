@@ -12,11 +12,10 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from test_sixbar_kernel import random_batch  # tests/synth: mixed RPR/RRR six-bars, some not assembling
 
 from synth import parallel_rows
-from synth.mechanism.sixbar import PIN_ON_PIVOT_EPS, kernel_inputs, crank_grid, simulate
-
-from test_sixbar_kernel import random_batch  # tests/synth: mixed RPR/RRR six-bars, some not assembling
+from synth.mechanism.sixbar import PIN_ON_PIVOT_EPS, crank_grid, kernel_inputs, simulate
 
 
 @pytest.fixture
@@ -27,8 +26,11 @@ def threads():
 
 
 @settings(max_examples=60, deadline=None)
-@given(st.integers(0, 40), st.integers(1, 5),
-       st.sampled_from([0, parallel_rows.MIN_WORK_NS - 1, parallel_rows.MIN_WORK_NS]))
+@given(
+    st.integers(0, 40),
+    st.integers(1, 5),
+    st.sampled_from([0, parallel_rows.MIN_WORK_NS - 1, parallel_rows.MIN_WORK_NS]),
+)
 def test_every_row_once_in_contiguous_blocks(rows, n, size):
     parallel_rows.set_threads(n)
     try:
@@ -75,8 +77,17 @@ def test_six_bar_motion_the_same_on_any_number_of_threads(threads, order):
     for n in (1, 2, 3):
         threads(n)
         motion = simulate(batch, crank_grid(360), order=order)
-        results.append([motion.psi, motion.z[0], motion.moving_pivot, motion.status, *motion.dpsi,
-                        motion.transmission_output, output_angles(params, rpr, rows_phi, PIN_ON_PIVOT_EPS)])
+        results.append(
+            [
+                motion.psi,
+                motion.z[0],
+                motion.moving_pivot,
+                motion.status,
+                *motion.dpsi,
+                motion.transmission_output,
+                output_angles(params, rpr, rows_phi, PIN_ON_PIVOT_EPS),
+            ]
+        )
     for other in results[1:]:
         for a, b in zip(results[0], other):
             np.testing.assert_array_equal(a, b)
@@ -105,7 +116,6 @@ def test_clearances_band_windows_and_vertex_bounds_the_same_on_any_number_of_thr
 def test_a_bad_thread_count_is_one_line_and_exit_2(value):
     env = {"DWELL_THREADS": value, "PATH": ""}
     command = [sys.executable, "-c", "import sys; from cli.main import main; sys.exit(main())", "--version"]
-    proc = subprocess.run(command, capture_output=True, text=True,
-                          env=env, timeout=60, check=False)
+    proc = subprocess.run(command, capture_output=True, text=True, env=env, timeout=60, check=False)
     assert proc.returncode == 2, proc.stderr
     assert proc.stderr.count("\n") == 1 and "DWELL_THREADS" in proc.stderr and repr(value) in proc.stderr

@@ -17,8 +17,9 @@ def _peeled(obj: np.ndarray) -> np.ndarray:
     remaining = set(range(n))
     k = 0
     while remaining:
-        front = {i for i in remaining
-                 if not any(np.all(obj[j] <= obj[i]) and np.any(obj[j] < obj[i]) for j in remaining)}
+        front = {
+            i for i in remaining if not any(np.all(obj[j] <= obj[i]) and np.any(obj[j] < obj[i]) for j in remaining)
+        }
         for i in front:
             layer[i] = k
         remaining -= front
@@ -27,8 +28,11 @@ def _peeled(obj: np.ndarray) -> np.ndarray:
 
 
 @settings(max_examples=150, deadline=None)
-@given(st.integers(1, 5).flatmap(lambda k: st.lists(st.lists(st.integers(0, 4), min_size=k, max_size=k),
-                                                     min_size=1, max_size=40)))
+@given(
+    st.integers(1, 5).flatmap(
+        lambda k: st.lists(st.lists(st.integers(0, 4), min_size=k, max_size=k), min_size=1, max_size=40)
+    )
+)
 @example([[0, 1], [1, 0], [1, 1], [1, 1], [2, 2]])  # a tie: equal points share a layer
 @example([[3, 0, 0], [2, 1, 0], [1, 2, 0], [0, 3, 1], [3, 3, 3]])
 def test_layers_are_the_peeled_fronts(points):
@@ -51,11 +55,10 @@ def test_many_points_in_linear_memory():
     front = obj[layer == 0]
     # no point of the front is dominated by any point; every other point by one of the layer above
     for block in np.array_split(obj, 20):
-        dominated = (np.all(block[:, None, :] <= front[None], axis=2)
-                     & np.any(block[:, None, :] < front[None], axis=2))
+        dominated = np.all(block[:, None, :] <= front[None], axis=2) & np.any(block[:, None, :] < front[None], axis=2)
         assert not dominated.any()
     second = obj[layer == 1]
-    cover = (np.all(front[:, None, :] <= second[None], axis=2) & np.any(front[:, None, :] < second[None], axis=2))
+    cover = np.all(front[:, None, :] <= second[None], axis=2) & np.any(front[:, None, :] < second[None], axis=2)
     assert cover.any(axis=0).all()
 
 

@@ -31,7 +31,8 @@ def _numpy_psi(P, D, rest, rrr):
         P = P + rho * loop.e1
     w = (P - D) * np.conj(rest - D)
     psi = np.angle(w[..., :1]) + np.concatenate(
-        [np.zeros(w.shape[:-1] + (1,)), np.cumsum(np.angle(w[..., 1:] * np.conj(w[..., :-1])), axis=-1)], axis=-1)
+        [np.zeros(w.shape[:-1] + (1,)), np.cumsum(np.angle(w[..., 1:] * np.conj(w[..., :-1])), axis=-1)], axis=-1
+    )
     return psi, closes
 
 
@@ -84,10 +85,15 @@ def screens(draw):
     dwells = draw(st.sampled_from([1, 2]))  # a double dwell names its swing too
     swing = draw(st.floats(math.radians(5), math.radians(120)))
     dwell = draw(st.floats(math.radians(5), math.radians(170 if dwells == 1 else 120)))
-    request = Request(dwell=dwell, dwell_tol=draw(st.floats(math.radians(0.5), math.radians(10))), swing=swing,
-                      swing_tol=draw(st.floats(math.radians(0.1), math.radians(60))), dwells=dwells,
-                      band=draw(st.floats(math.radians(0.01), math.radians(20))),
-                      output="rrr" if rrr is not None and dwells == 1 else "rpr")  # the screen reads neither
+    request = Request(
+        dwell=dwell,
+        dwell_tol=draw(st.floats(math.radians(0.5), math.radians(10))),
+        swing=swing,
+        swing_tol=draw(st.floats(math.radians(0.1), math.radians(60))),
+        dwells=dwells,
+        band=draw(st.floats(math.radians(0.01), math.radians(20))),
+        output="rrr" if rrr is not None and dwells == 1 else "rpr",
+    )  # the screen reads neither
     return request, P, D, rest, rrr
 
 

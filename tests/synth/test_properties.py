@@ -46,8 +46,7 @@ def test_any_linkage_gives_finite_values_and_flags_it_cannot_answer(a, b, c, d, 
 
 
 @SETTINGS
-@given(st.floats(1.2, 6), st.floats(1.2, 6), st.floats(1.2, 6), angle, branch, angle,
-       st.floats(1e-3, 1e3))
+@given(st.floats(1.2, 6), st.floats(1.2, 6), st.floats(1.2, 6), angle, branch, angle, st.floats(1e-3, 1e3))
 @example(b=1.4, c=1.2, d=1.2, phi=0.0, br=1, alpha=0.0, s=0.001)  # exactly at a toggle
 def test_scaling_the_linkage_scales_the_geometry(b, c, d, phi, br, alpha, s):
     base = _evaluate(1.0, b, c, d, phi, br, alpha)
@@ -58,7 +57,7 @@ def test_scaling_the_linkage_scales_the_geometry(b, c, d, phi, br, alpha, s):
     ignore = int(Status.CENTER_POINT_AT_INFINITY)
     if int(base[0].status) & edge and int(scaled[0].status) & edge:
         ignore |= edge
-    for (r1, r2) in zip(base, scaled):
+    for r1, r2 in zip(base, scaled):
         assert int(np.asarray(r1.status).flat[0]) & ~ignore == int(np.asarray(r2.status).flat[0]) & ~ignore
     pl, circle, ball, scan, _ = base
     pl_s, circle_s, ball_s, scan_s, _ = scaled
@@ -115,8 +114,12 @@ def test_impossible_lengths_are_refused_with_the_documented_error(bad, which):
 @given(st.text(max_size=8).filter(lambda s: s not in ("flag", "raise")))
 def test_unknown_on_degenerate_is_refused(mode):
     pl = pole(fourbar_motion(1.0, 3.0, 2.5, 3.0, 0.5))
-    for call in (lambda: pole(fourbar_motion(1.0, 3.0, 2.5, 3.0, 0.5), on_degenerate=mode),
-                 lambda: inflection_circle(pl, on_degenerate=mode), lambda: ball_point(pl, on_degenerate=mode),
-                 lambda: line_scan(pl, 0.1, on_degenerate=mode), lambda: euler_savary(pl, 1j, on_degenerate=mode)):
+    for call in (
+        lambda: pole(fourbar_motion(1.0, 3.0, 2.5, 3.0, 0.5), on_degenerate=mode),
+        lambda: inflection_circle(pl, on_degenerate=mode),
+        lambda: ball_point(pl, on_degenerate=mode),
+        lambda: line_scan(pl, 0.1, on_degenerate=mode),
+        lambda: euler_savary(pl, 1j, on_degenerate=mode),
+    ):
         with pytest.raises(ValueError, match="on_degenerate"):
             call()

@@ -9,7 +9,7 @@ import math
 
 import pytest
 
-from synth.query import CONSTRAINTS, scaled_figures, total_excess, answer, violations
+from synth.query import CONSTRAINTS, answer, scaled_figures, total_excess, violations
 from synth.query.candidates import Request, rank
 
 DEG = math.pi / 180
@@ -28,24 +28,52 @@ def _best_of_union(request: Request, rpr, rrr):
 def _key(c):
     """What a candidate is and shows: id, rank and figures."""
     f = c.figures
-    return (c.id, c.rank, tuple(tuple(d) for d in f.dwells), f.swing, f.deviations, f.transmission_fourbar,
-            f.transmission_output, f.link_ratio, f.footprint)
+    return (
+        c.id,
+        c.rank,
+        tuple(tuple(d) for d in f.dwells),
+        f.swing,
+        f.deviations,
+        f.transmission_fourbar,
+        f.transmission_output,
+        f.link_ratio,
+        f.footprint,
+    )
 
 
 #: Sampled requests on the test atlas, without refinement (cheap): dwells 30–150°, swings
 #: 10–90°, tight and loose limits, --top 3 to 10. With the next four refined: ≥ 20 in all.
-PLAIN = [Request(dwell=d * DEG, swing=s * DEG, dwell_tol=t * DEG, min_transmission=m * DEG, top=k, refine=False)
-         for d, s, t, m, k in ((30, 10, 2, 30, 10), (45, 20, 2, 30, 10), (45, 40, 2, 45, 5), (60, 30, 2, 30, 10),
-                               (60, 30, 0.5, 30, 3), (60, 60, 2, 30, 10), (75, 45, 2, 40, 10), (75, 50, 1, 30, 6),
-                               (90, 30, 2, 30, 10), (90, 45, 2, 45, 10), (90, 90, 2, 30, 10), (105, 45, 2, 30, 8),
-                               (105, 20, 2, 30, 10), (120, 30, 2, 30, 10), (120, 60, 3, 35, 10), (150, 20, 2, 30, 10),
-                               (30, 60, 2, 30, 4), (60, 10, 2, 30, 10))]
+PLAIN = [
+    Request(dwell=d * DEG, swing=s * DEG, dwell_tol=t * DEG, min_transmission=m * DEG, top=k, refine=False)
+    for d, s, t, m, k in (
+        (30, 10, 2, 30, 10),
+        (45, 20, 2, 30, 10),
+        (45, 40, 2, 45, 5),
+        (60, 30, 2, 30, 10),
+        (60, 30, 0.5, 30, 3),
+        (60, 60, 2, 30, 10),
+        (75, 45, 2, 40, 10),
+        (75, 50, 1, 30, 6),
+        (90, 30, 2, 30, 10),
+        (90, 45, 2, 45, 10),
+        (90, 90, 2, 30, 10),
+        (105, 45, 2, 30, 8),
+        (105, 20, 2, 30, 10),
+        (120, 30, 2, 30, 10),
+        (120, 60, 3, 35, 10),
+        (150, 20, 2, 30, 10),
+        (30, 60, 2, 30, 4),
+        (60, 10, 2, 30, 10),
+    )
+]
 #: Refined requests: a full answer, a sparse one (the moved pivots and the refined near misses
 #: of each output type fill it), the regression of issue #41 and a small --top.
-REFINED = [Request(dwell=60 * DEG, swing=30 * DEG, top=10),
-           Request(dwell=30 * DEG, swing=10 * DEG, top=10),
-           Request(dwell=90 * DEG, swing=45 * DEG, min_transmission=45 * DEG, top=10),
-           Request(dwell=75 * DEG, swing=45 * DEG, top=3)]
+REFINED = [
+    Request(dwell=60 * DEG, swing=30 * DEG, top=10),
+    Request(dwell=30 * DEG, swing=10 * DEG, top=10),
+    Request(dwell=90 * DEG, swing=45 * DEG, min_transmission=45 * DEG, top=10),
+    Request(dwell=75 * DEG, swing=45 * DEG, top=3),
+]
 
 
 @pytest.fixture(scope="module")
@@ -133,16 +161,30 @@ def test_the_constraint_in_the_way_is_the_best_figure_of_the_six_bars_missing_it
     from synth.mechanism.sixbar import SixBars
     from synth.query import SAMPLES, diagnose, fit, select
 
-    request = Request(dwell=dwell * DEG, swing=swing * DEG, output=output, dwell_tol=(0.0 if dwell == 60 else 2) * DEG,
-                      min_transmission=45 * DEG)
+    request = Request(
+        dwell=dwell * DEG,
+        swing=swing * DEG,
+        output=output,
+        dwell_tol=(0.0 if dwell == 60 else 2) * DEG,
+        min_transmission=45 * DEG,
+    )
     kind = "line" if output == "rpr" else "arc"
     fits = fit(request, select(source, request, (kind,), 30), kind)
     assert fits
-    figures = sixbar_figures(SixBars.from_sixbars([f.sixbar() for f in fits]), band=request.band,
-                             dwell_length=request.dwell, dwells=1, samples=SAMPLES, footprint=False)
+    figures = sixbar_figures(
+        SixBars.from_sixbars([f.sixbar() for f in fits]),
+        band=request.band,
+        dwell_length=request.dwell,
+        dwells=1,
+        samples=SAMPLES,
+        footprint=False,
+    )
     excess = [violations(request, f) for f in figures]
-    alone = [(next(k for k, x in e.items() if x > 0), f, total_excess(e)) for e, f in zip(excess, figures)
-             if not e["assembly"] and sum(x > 0 for x in e.values()) == 1]
+    alone = [
+        (next(k for k, x in e.items() if x > 0), f, total_excess(e))
+        for e, f in zip(excess, figures)
+        if not e["assembly"] and sum(x > 0 for x in e.values()) == 1
+    ]
     reach = diagnose(request, fits).reach
     if not alone:
         assert reach is None

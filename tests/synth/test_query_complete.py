@@ -32,8 +32,15 @@ FAMILIES = {
     "rrr": Request(dwell=1.0, swing=math.radians(30.0), output="rrr", max_link_ratio=20.0, refine=False),
     # two dwells name their swing (issue #41): the test atlas's double dwells that meet the
     # default limits swing 135°–155° (rests of 24°–56°, 3 000–6 000 rad/s² at 60 rpm)
-    "double": Request(dwell=1.0, dwell_tol=math.radians(10.0), swing=math.radians(145.0), swing_tol=math.radians(10.0),
-                      dwells=2, output="rpr", refine=False),
+    "double": Request(
+        dwell=1.0,
+        dwell_tol=math.radians(10.0),
+        swing=math.radians(145.0),
+        swing_tol=math.radians(10.0),
+        dwells=2,
+        output="rpr",
+        refine=False,
+    ),
 }
 
 
@@ -60,8 +67,13 @@ def _every_fit(source, request: Request) -> list:
     out = []
     for kind in Q.kinds_for(request):
         for level, _ in source.tolerance_levels():
-            rows = source.select_segments((kind,), [Q.DwellWindow(level, 0.0, 1e300, 0.0, Q.ALL_ROWS)],
-                                          min_transmission=0.0, max_length=1e300, min_radius_ratio=0.0)
+            rows = source.select_segments(
+                (kind,),
+                [Q.DwellWindow(level, 0.0, 1e300, 0.0, Q.ALL_ROWS)],
+                min_transmission=0.0,
+                max_length=1e300,
+                min_radius_ratio=0.0,
+            )
             fitted = Q.fit(request, rows, kind)
             out += zip(fitted, Q.figures_of(request, [f.sixbar() for f in fitted], footprint=False))
     return out
@@ -87,7 +99,9 @@ def test_the_search_finds_every_six_bar_the_brute_force_finds(atlas, reference, 
         assert {c.id for c in found} == expected, (family, dwell)
         assert count.met == len(found) and count.rows >= len({c.segment_id for c in found})
         answered += bool(expected)
-    assert answered >= 3, f"{family}: only {answered} of {len(DWELLS)} requests have an answer: the test checks too little"
+    assert answered >= 3, (
+        f"{family}: only {answered} of {len(DWELLS)} requests have an answer: the test checks too little"
+    )
 
 
 def test_the_query_ranks_the_complete_set(atlas, reference):
@@ -97,7 +111,9 @@ def test_the_query_ranks_the_complete_set(atlas, reference):
     met = [f for f, fig in reference["rpr"] if Q.meets(request, fig)]
     # the ranking reads the footprint, which the reference's figures leave out
     figures = Q.figures_of(request, [f.sixbar() for f in met])
-    expected = [c.id for c in Q.distinct(Q.rank(request, [Q.candidate_of(request, f, fig) for f, fig in zip(met, figures)]))]
+    expected = [
+        c.id for c in Q.distinct(Q.rank(request, [Q.candidate_of(request, f, fig) for f, fig in zip(met, figures)]))
+    ]
     result = Q.answer(request, atlas)
     assert expected and [c.id for c in result.candidates] == expected
     assert [c.rank for c in result.candidates] == list(range(1, len(expected) + 1))
@@ -149,8 +165,11 @@ LOOSER = {
 def test_loosening_a_limit_never_removes_a_six_bar(atlas, reference, family):
     base = dataclasses.replace(FAMILIES[family], max_accel=100.0 if family != "double" else 10_000.0)
     # the RRR fit depends on the minimum transmission: with a looser one it is fitted afresh
-    refitted = (_every_fit(atlas, dataclasses.replace(base, min_transmission=LOOSER["min_transmission"](base)))
-                if family == "rrr" else reference[family])
+    refitted = (
+        _every_fit(atlas, dataclasses.replace(base, min_transmission=LOOSER["min_transmission"](base)))
+        if family == "rrr"
+        else reference[family]
+    )
     checked = 0
     for dwell in DWELLS:
         request = dataclasses.replace(base, dwell=math.radians(dwell))

@@ -9,7 +9,9 @@ import math
 import numpy as np
 import pytest
 
-from synth.query.candidates import Request, screen
+from synth.mechanism.figures import sixbar_figures
+from synth.mechanism.sixbar import SixBars
+from synth.mechanism.sixbar import simulate as simulate_motion
 from synth.query import (
     CONSTRAINTS,
     DEEPER,
@@ -26,12 +28,9 @@ from synth.query import (
     select,
     violations,
 )
-from synth.mechanism.figures import sixbar_figures
-from synth.mechanism.sixbar import SixBars
-from synth.mechanism.sixbar import simulate as simulate_motion
+from synth.query.candidates import Request, screen
 
 DEG = math.pi / 180
-
 
 
 class Recorded:
@@ -49,8 +48,13 @@ class Recorded:
     def select_segments(self, kinds, windows, *, min_transmission, max_length, min_radius_ratio):
         key = (kinds, tuple(windows), min_transmission, max_length, min_radius_ratio)
         if key not in self.rows:
-            self.rows[key] = self.inner.select_segments(kinds, windows, min_transmission=min_transmission,
-                                                        max_length=max_length, min_radius_ratio=min_radius_ratio)
+            self.rows[key] = self.inner.select_segments(
+                kinds,
+                windows,
+                min_transmission=min_transmission,
+                max_length=max_length,
+                min_radius_ratio=min_radius_ratio,
+            )
         return list(self.rows[key])
 
     def segment(self, segment_id, level):
@@ -62,9 +66,11 @@ class Recorded:
 
 def test_request_is_keyword_only_with_one_set_of_defaults():
     with pytest.raises(TypeError):
-        Request(1.0, 2.0)  # noqa: the point of the test
+        Request(1.0, 2.0)  # the point of the test: positional arguments are refused
     r = Request(dwell=60 * DEG, swing=30 * DEG)
-    assert (math.degrees(r.dwell_tol), math.degrees(r.swing_tol), r.output, r.top) == pytest.approx((2.0, 0.5, "any", 10))
+    assert (math.degrees(r.dwell_tol), math.degrees(r.swing_tol), r.output, r.top) == pytest.approx(
+        (2.0, 0.5, "any", 10)
+    )
 
 
 def test_answer_through_any_source_is_the_same(source):
@@ -94,13 +100,23 @@ def test_rebuild_gives_the_queried_six_bars(source):
         rebuild(["12-xyz0.0@30"], source, request)
 
 
-@pytest.mark.parametrize("output, dwell, tol, swing, dwells",
-                         [("rpr", 45, 8, 40, 1), ("rrr", 60, 8, 30, 1), ("rpr", 40, 15, 21.8, 2)])
+@pytest.mark.parametrize(
+    "output, dwell, tol, swing, dwells", [("rpr", 45, 8, 40, 1), ("rrr", 60, 8, 30, 1), ("rpr", 40, 15, 21.8, 2)]
+)
 def test_grid_screen_never_rejects_a_six_bar_that_meets_the_request(source, output, dwell, tol, swing, dwells):
     """``screen`` is a necessary test: every fitted six-bar whose full figures meet the request
     passes it (checked on all fits of real queries, with a wide dwell tolerance so that many
     meet), and it does reject a share of those that do not."""
-    request = Request(dwell=dwell * DEG, dwell_tol=tol * DEG, swing=swing * DEG, swing_tol=2 * DEG, output=output, dwells=dwells, min_transmission=20 * DEG, max_link_ratio=30)
+    request = Request(
+        dwell=dwell * DEG,
+        dwell_tol=tol * DEG,
+        swing=swing * DEG,
+        swing_tol=2 * DEG,
+        output=output,
+        dwells=dwells,
+        min_transmission=20 * DEG,
+        max_link_ratio=30,
+    )
     fitted = [f for kind in kinds_for(request) for f in fit(request, select(source, request, (kind,)), kind)]
     batch = SixBars.from_sixbars([f.sixbar() for f in fitted])
     passed = screen(request, batch)
@@ -111,20 +127,32 @@ def test_grid_screen_never_rejects_a_six_bar_that_meets_the_request(source, outp
     assert sum(not p for p in passed) >= 0.2 * sum(not m for m in met)
 
 
-@pytest.mark.parametrize("output, ratio, clearance, arm", [("rpr", 4.0, 0.3, 0.5), ("rrr", 5.0, 0.4, 0.0),
-                                                          ("any", 6.0, 0.2, 0.3)])
+@pytest.mark.parametrize(
+    "output, ratio, clearance, arm", [("rpr", 4.0, 0.3, 0.5), ("rrr", 5.0, 0.4, 0.0), ("any", 6.0, 0.2, 0.3)]
+)
 def test_grid_screen_holds_the_figures_link_ratio_clearance_and_arm(source, output, ratio, clearance, arm):
     """On the figures' own grid the screen tests the link ratio, the clearance and the torque
     arm as the figures have them: every fitted six-bar whose figures miss one of them is
     rejected, none that meets the request is (tight limits, so that many miss them)."""
-    request = Request(dwell=50 * DEG, dwell_tol=20 * DEG, swing=35 * DEG, swing_tol=10 * DEG, output=output,
-                      min_transmission=20 * DEG, max_link_ratio=ratio, min_clearance=clearance, min_arm=arm)
+    request = Request(
+        dwell=50 * DEG,
+        dwell_tol=20 * DEG,
+        swing=35 * DEG,
+        swing_tol=10 * DEG,
+        output=output,
+        min_transmission=20 * DEG,
+        max_link_ratio=ratio,
+        min_clearance=clearance,
+        min_arm=arm,
+    )
     fitted = [f for kind in kinds_for(request) for f in fit(request, select(source, request, (kind,)), kind)]
     batch = SixBars.from_sixbars([f.sixbar() for f in fitted])
     passed = screen(request, batch)
     figures = sixbar_figures(batch, band=request.band, dwell_length=request.dwell)
-    misses = [f.link_ratio > ratio or f.build.clearance < clearance or (f.build.arm is not None and f.build.arm < arm)
-              for f in figures]
+    misses = [
+        f.link_ratio > ratio or f.build.clearance < clearance or (f.build.arm is not None and f.build.arm < arm)
+        for f in figures
+    ]
     assert sum(misses) >= 10
     assert not any(p and m for p, m in zip(passed, misses))
     assert all(passed[k] for k, f in enumerate(figures) if meets(request, f))
@@ -149,8 +177,12 @@ def test_no_match_counts_rejections_and_loosens_to_the_nearest(source):
             rows += [r for r in select(source, request, (kind,), per_level) if (r.segment_id, r.level) not in seen]
         fitted += fit(request, rows, kind)
     assert nm.fitted == len(fitted)
-    figures = sixbar_figures(SixBars.from_sixbars([f.sixbar() for f in fitted]), band=request.band,
-                             dwell_length=request.dwell, footprint=False)
+    figures = sixbar_figures(
+        SixBars.from_sixbars([f.sixbar() for f in fitted]),
+        band=request.band,
+        dwell_length=request.dwell,
+        footprint=False,
+    )
     expected = {k: sum(violations(request, f)[k] > 0 for f in figures) for k in CONSTRAINTS}
     assert nm.rejected == expected
     assert nm.failed == max(CONSTRAINTS, key=lambda k: (expected[k], -CONSTRAINTS.index(k)))
@@ -161,23 +193,47 @@ def test_no_match_counts_rejections_and_loosens_to_the_nearest(source):
     assert nm.nearest.figures.footprint == pytest.approx(full.footprint, rel=1e-12) and full.footprint > 0
     # only what the nearest six-bar missed is loosened
     missed = {k for k, x in violations(request, nm.nearest.figures).items() if x > 0}
-    changed = {f.name for f in dataclasses.fields(Request) if getattr(request, f.name) != getattr(nm.would_meet, f.name)}
-    field_of = {"dwell": {"dwell", "dwell_tol"}, "swing": {"swing", "swing_tol"},
-                "transmission": {"min_transmission"}, "link_ratio": {"max_link_ratio"}, "arm": {"min_arm"},
-                "clearance": {"min_clearance"}, "acceleration": {"max_accel"}}
+    changed = {
+        f.name for f in dataclasses.fields(Request) if getattr(request, f.name) != getattr(nm.would_meet, f.name)
+    }
+    field_of = {
+        "dwell": {"dwell", "dwell_tol"},
+        "swing": {"swing", "swing_tol"},
+        "transmission": {"min_transmission"},
+        "link_ratio": {"max_link_ratio"},
+        "arm": {"min_arm"},
+        "clearance": {"min_clearance"},
+        "acceleration": {"max_accel"},
+    }
     assert changed <= set().union(*(field_of[k] for k in missed))
 
 
 def _no_match_requests():
     """Requests the test atlas's sample cannot meet, single and double dwells: a spread of
     dwells (within, at the edge of and outside the stored range) and tight tolerances."""
-    out = [Request(dwell=d * DEG, dwell_tol=t * DEG, swing=s * DEG, output=o, refine=False)
-           for o in ("rpr", "rrr", "any") for d, s, t in ((10, 10, 0.5), (30, 60, 2), (60, 30, 0.2), (75, 45, 0.5),
-                                                          (90, 90, 2), (120, 30, 2), (150, 20, 1), (180, 10, 2),
-                                                          (45, 90, 0.2), (105, 60, 0.5))]
-    out += [Request(dwell=d * DEG, dwell_tol=5 * DEG, swing=20 * DEG, output="rpr", dwells=2, refine=False) for d in (10, 90)]
-    out.append(Request(dwell=60 * DEG, dwell_tol=0.0, swing=30 * DEG, output="rrr", min_transmission=45 * DEG,
-                       refine=False))
+    out = [
+        Request(dwell=d * DEG, dwell_tol=t * DEG, swing=s * DEG, output=o, refine=False)
+        for o in ("rpr", "rrr", "any")
+        for d, s, t in (
+            (10, 10, 0.5),
+            (30, 60, 2),
+            (60, 30, 0.2),
+            (75, 45, 0.5),
+            (90, 90, 2),
+            (120, 30, 2),
+            (150, 20, 1),
+            (180, 10, 2),
+            (45, 90, 0.2),
+            (105, 60, 0.5),
+        )
+    ]
+    out += [
+        Request(dwell=d * DEG, dwell_tol=5 * DEG, swing=20 * DEG, output="rpr", dwells=2, refine=False)
+        for d in (10, 90)
+    ]
+    out.append(
+        Request(dwell=60 * DEG, dwell_tol=0.0, swing=30 * DEG, output="rrr", min_transmission=45 * DEG, refine=False)
+    )
     return out
 
 
@@ -208,8 +264,9 @@ def test_no_match_diagnosis_by_bounds_is_the_full_diagnosis(source, monkeypatch)
             monkeypatch.setattr(module, "figures_of", real_figures)
         if fast.no_match is None:
             continue
-        monkeypatch.setattr(pipeline, "diagnose_by_bounds",
-                            lambda r, f, k=None: diagnosis.diagnose(r, f, diagnosis.misses_of(r, f, k)))
+        monkeypatch.setattr(
+            pipeline, "diagnose_by_bounds", lambda r, f, k=None: diagnosis.diagnose(r, f, diagnosis.misses_of(r, f, k))
+        )
         full = q.answer(request, source)
         monkeypatch.undo()
         a, b = fast.no_match, full.no_match
@@ -220,14 +277,15 @@ def test_no_match_diagnosis_by_bounds_is_the_full_diagnosis(source, monkeypatch)
             # figures computed in another batch: equal to the last bits but for float rounding
             x, y = a.nearest.figures, b.nearest.figures
             assert [tuple(d) for d in x.dwells] == [pytest.approx(tuple(d), rel=1e-12, abs=1e-12) for d in y.dwells]
-            assert (x.swing, x.transmission_fourbar, x.link_ratio) == pytest.approx((y.swing, y.transmission_fourbar,
-                                                                                    y.link_ratio), rel=1e-12)
+            assert (x.swing, x.transmission_fourbar, x.link_ratio) == pytest.approx(
+                (y.swing, y.transmission_fourbar, y.link_ratio), rel=1e-12
+            )
         cases += 1
         if request.dwells == 1:
             fitted_rows += a.fitted
             refined_rows_single += refined_fast
     assert cases >= 20
-    print(f'{cases} no-matches; single dwells: {refined_rows_single} of {fitted_rows} six-bars refined')
+    print(f"{cases} no-matches; single dwells: {refined_rows_single} of {fitted_rows} six-bars refined")
     assert refined_rows_single < 0.5 * fitted_rows
 
 
@@ -265,8 +323,14 @@ def _fitted_sixbars(source, count):
     out = []
     for output in ("rpr", "rrr"):
         for dwell, swing in ((30, 15), (45, 40), (60, 30), (75, 50), (90, 20), (120, 45)):
-            req = Request(dwell=dwell * DEG, dwell_tol=10 * DEG, swing=swing * DEG, output=output,
-                          min_transmission=20 * DEG, max_link_ratio=30)
+            req = Request(
+                dwell=dwell * DEG,
+                dwell_tol=10 * DEG,
+                swing=swing * DEG,
+                output=output,
+                min_transmission=20 * DEG,
+                max_link_ratio=30,
+            )
             out += [f.sixbar() for kind in kinds_for(req) for f in fit(req, select(source, req, (kind,)), kind)]
     batch = SixBars.from_sixbars(out)
     figs = sixbar_figures(batch, band=0.1 * DEG, footprint=False)
@@ -342,8 +406,9 @@ def test_pivots_around_a_fitted_pivot_are_at_the_stated_distances_nearest_first(
     assert got.shape == (2, len(AROUND_STEPS) * AROUND_DIRECTIONS)
     reach = np.array([4.0, AROUND_MIN_REACH])
     dist = np.abs(got - X[:, None])
-    assert dist == pytest.approx(np.repeat(np.array(AROUND_STEPS)[None, :], AROUND_DIRECTIONS, axis=1) * reach[:, None],
-                                 rel=1e-12)
+    assert dist == pytest.approx(
+        np.repeat(np.array(AROUND_STEPS)[None, :], AROUND_DIRECTIONS, axis=1) * reach[:, None], rel=1e-12
+    )
     assert np.all(np.diff(dist, axis=1) >= -1e-12)  # nearest first
     turn = np.angle((got[:, 1:AROUND_DIRECTIONS] - X[:, None]) / (got[:, : AROUND_DIRECTIONS - 1] - X[:, None]))
     assert turn == pytest.approx(np.full(turn.shape, 2 * math.pi / AROUND_DIRECTIONS), rel=1e-12)
@@ -408,9 +473,17 @@ def test_a_sparse_answer_is_the_same_every_time(source):
     for _ in range(4):
         result = answer(request, source)
         assert result.reseated > 0 and result.misses_met > 0
-        answers.add(tuple((c.id, c.figures.dwells[0].angle, c.figures.swing,
-                           None if c.refined_from is None else c.refined_from.dwells[0].angle)
-                          for c in result.candidates))
+        answers.add(
+            tuple(
+                (
+                    c.id,
+                    c.figures.dwells[0].angle,
+                    c.figures.swing,
+                    None if c.refined_from is None else c.refined_from.dwells[0].angle,
+                )
+                for c in result.candidates
+            )
+        )
     assert len(answers) == 1
 
 
@@ -432,8 +505,10 @@ def test_nearest_misses_are_refined_a_round_at_a_time_until_enough_meet(monkeypa
     monkeypatch.setattr(Q, "refined_candidates", refined)
     met, tried, better = Q.refined_misses(Request(dwell=60 * DEG, swing=30 * DEG), [], set(), wanted)
     assert len(calls) == rounds and tried == rounds * Q.MISSES and better == sum(met_per_round[:rounds])
-    assert calls == [[c.id for c in pool[r * Q.MISSES:(r + 1) * Q.MISSES]] for r in range(rounds)]  # nearest first
-    assert [c.id for c in met] == [c.id for r in range(rounds) for c in pool[r * Q.MISSES:r * Q.MISSES + met_per_round[r]]]
+    assert calls == [[c.id for c in pool[r * Q.MISSES : (r + 1) * Q.MISSES]] for r in range(rounds)]  # nearest first
+    assert [c.id for c in met] == [
+        c.id for r in range(rounds) for c in pool[r * Q.MISSES : r * Q.MISSES + met_per_round[r]]
+    ]
 
 
 def _fake_candidate(i: int):

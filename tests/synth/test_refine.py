@@ -12,6 +12,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from synth.mechanism.figures import sixbar_figures
+from synth.mechanism.sixbar import OutputDyad, SixBar
+from synth.query import FILL, answer, meets, rebuild
 from synth.query.candidates import (
     Request,
     candidate_dimensions,
@@ -22,13 +25,9 @@ from synth.query.candidates import (
     parse_candidate_id,
     round_dimensions,
 )
-from synth.mechanism.figures import sixbar_figures
-from synth.mechanism.sixbar import OutputDyad, SixBar
-from synth.query import FILL, answer, meets, rebuild
 from synth.query.refine import better_or_equal, refine
 
 DEG = math.pi / 180
-
 
 
 def _check_refined(request: Request, c) -> None:
@@ -47,9 +46,13 @@ def _check_refined(request: Request, c) -> None:
         assert abs(f.swing - request.swing) <= request.swing_tol
 
 
-@pytest.mark.parametrize("kw", [dict(dwell=45 * DEG, swing=40 * DEG, output="rpr"),
-                                dict(dwell=50 * DEG, dwell_tol=5 * DEG, swing=147.6 * DEG, swing_tol=2 * DEG, dwells=2,
-                                     output="rpr")])
+@pytest.mark.parametrize(
+    "kw",
+    [
+        dict(dwell=45 * DEG, swing=40 * DEG, output="rpr"),
+        dict(dwell=50 * DEG, dwell_tol=5 * DEG, swing=147.6 * DEG, swing_tol=2 * DEG, dwells=2, output="rpr"),
+    ],
+)
 def test_refined_candidates_meet_the_request_and_deviate_less(source, kw):
     """--no-refine gives the retrieved six-bars; refinement keeps or improves each of them. An
     answer of fewer than FILL (the double dwell on the test atlas) is widened and topped up
@@ -83,7 +86,11 @@ def test_refined_candidates_meet_the_request_and_deviate_less(source, kw):
         assert better_or_equal(request, c.figures, original.figures)
         assert max(c.figures.deviations) <= max(original.figures.deviations)
         # near the retrieved design: each dimension within the trust region (5 %, coordinates of 1 crank)
-        for new, old in ((c.sixbar.b, original.sixbar.b), (c.sixbar.c, original.sixbar.c), (c.sixbar.d, original.sixbar.d)):
+        for new, old in (
+            (c.sixbar.b, original.sixbar.b),
+            (c.sixbar.c, original.sixbar.c),
+            (c.sixbar.d, original.sixbar.d),
+        ):
             assert abs(new / old - 1) <= 0.05 + 1e-6
     assert [c.rank for c in result.candidates] == list(range(1, len(result.candidates) + 1))
 
@@ -117,7 +124,7 @@ def _nearest_misses(request: Request, source, n: int) -> tuple[list, list]:
     """The ``n`` nearest distinct misses of ``request`` among the arcs a sparse answer reads
     (its deepest sample), picked as the query picks them (:func:`synth.query.miss_pool`), as
     six-bars and their figures (crank-normalised)."""
-    from synth.query import DEEPER, PER_LEVEL, misses_of, fit, miss_pool, select
+    from synth.query import DEEPER, PER_LEVEL, fit, miss_pool, misses_of, select
 
     fits = fit(request, select(source, request, ("arc",), DEEPER * PER_LEVEL), "arc")
     pool, figures = miss_pool(request, [m for m in misses_of(request, fits) if m[0] > 0], set(), n)
@@ -141,8 +148,13 @@ def test_the_reach_brings_near_misses_the_polish_cannot(source):
         f = sixbar_figures(r.sixbar, band=request.band, dwell_length=request.dwell)
         assert meets(request, f) and f.swing == pytest.approx(r.figures.swing, abs=1e-12)
         assert abs(f.dwells[0].angle - request.dwell) <= request.dwell_tol
-        for new, old in ((r.sixbar.b, sb.b), (r.sixbar.c, sb.c), (r.sixbar.d, sb.d),
-                         (r.sixbar.dyad.rocker, sb.dyad.rocker), (r.sixbar.dyad.rod, sb.dyad.rod)):
+        for new, old in (
+            (r.sixbar.b, sb.b),
+            (r.sixbar.c, sb.c),
+            (r.sixbar.d, sb.d),
+            (r.sixbar.dyad.rocker, sb.dyad.rocker),
+            (r.sixbar.dyad.rod, sb.dyad.rod),
+        ):
             # the polish's box, the reach's from there, the polish's again
             assert abs(new / old - 1) <= 1.05 * 1.2 * 1.05 - 1 + 1e-6
     again = refine(request, sixbars, figures, reach=True)
@@ -165,8 +177,11 @@ def retrieved(source):
     """Six-bars the query retrieves without refinement on the test atlas (crank 1), with the
     request each met: RPR and RRR, short and long rests."""
     out = []
-    for kw in (dict(dwell=45 * DEG, swing=40 * DEG, output="rpr"), dict(dwell=60 * DEG, swing=30 * DEG, output="rpr"),
-               dict(dwell=60 * DEG, swing=30 * DEG, output="rrr", max_link_ratio=20.0)):
+    for kw in (
+        dict(dwell=45 * DEG, swing=40 * DEG, output="rpr"),
+        dict(dwell=60 * DEG, swing=30 * DEG, output="rpr"),
+        dict(dwell=60 * DEG, swing=30 * DEG, output="rrr", max_link_ratio=20.0),
+    ):
         request = Request(**kw, refine=False)
         out += [(request, c) for c in answer(request, source).candidates]
     return out
@@ -183,7 +198,9 @@ def test_refinement_never_returns_a_worse_six_bar(retrieved, data):
     first = data.draw(st.integers(0, len(retrieved) - 1), label="first")
     request = retrieved[first][0]
     same = [c for r, c in retrieved if r is request]
-    chosen = data.draw(st.lists(st.sampled_from(same), min_size=1, max_size=4, unique_by=lambda c: c.id), label="six-bars")
+    chosen = data.draw(
+        st.lists(st.sampled_from(same), min_size=1, max_size=4, unique_by=lambda c: c.id), label="six-bars"
+    )
     seed = data.draw(st.integers(0, 2**31 - 1), label="seed")
     radius = data.draw(st.sampled_from([0.02, 0.05, 0.1]), label="radius")
     out = refine(request, [c.sixbar for c in chosen], [c.figures for c in chosen], seed=seed, radius=radius)
@@ -210,8 +227,12 @@ def test_a_moved_pivot_stands_for_a_fit_that_met_only_if_no_worse(retrieved):
     dims = round_dimensions(fit_.sixbar)
     worse_dev = dataclasses.replace(fit_.figures, deviations=tuple(x * 1.09 for x in fit_.figures.deviations))
     better = dataclasses.replace(fit_.figures, deviations=tuple(x * 0.9 for x in fit_.figures.deviations))
-    moved = [dataclasses.replace(fit_, id=f"{fit_.id}{REFINED_MARK}{encode_dimensions(dims)}", figures=f,
-                                 refined_from=fit_.figures) for f in (worse_dev, better)]
+    moved = [
+        dataclasses.replace(
+            fit_, id=f"{fit_.id}{REFINED_MARK}{encode_dimensions(dims)}", figures=f, refined_from=fit_.figures
+        )
+        for f in (worse_dev, better)
+    ]
     assert no_worse_than_fits(request, moved, [fit_]) == [moved[1]]
     # beside a fit that did not meet the request (not answered), a moved six-bar is new
     assert no_worse_than_fits(request, moved, []) == moved
@@ -220,8 +241,11 @@ def test_a_moved_pivot_stands_for_a_fit_that_met_only_if_no_worse(retrieved):
 def test_what_a_query_shows_as_refined_is_no_worse_than_before(source):
     """End to end: every returned six-bar that shows a "before" (refined, or its pivot moved)
     which met the request itself is no worse on any objective of the ranking than it."""
-    for kw in (dict(dwell=45 * DEG, swing=40 * DEG, output="rpr"), dict(dwell=60 * DEG, swing=30 * DEG, output="rpr"),
-               dict(dwell=50 * DEG, dwell_tol=5 * DEG, dwells=2, swing=12 * DEG, swing_tol=2 * DEG, output="rpr")):
+    for kw in (
+        dict(dwell=45 * DEG, swing=40 * DEG, output="rpr"),
+        dict(dwell=60 * DEG, swing=30 * DEG, output="rpr"),
+        dict(dwell=50 * DEG, dwell_tol=5 * DEG, dwells=2, swing=12 * DEG, swing_tol=2 * DEG, output="rpr"),
+    ):
         request = Request(**kw)
         for c in answer(request, source).candidates:
             if c.refined_from is not None and meets(request, c.refined_from):
@@ -247,8 +271,14 @@ def sixbars(draw):
 
 
 @settings(max_examples=200, deadline=None)
-@given(sixbars(), st.integers(0, 10**10), st.sampled_from(["rpr", "rrr", "dbl"]), st.integers(0, 3),
-       st.integers(0, 5), st.one_of(st.none(), st.floats(1.0, 179.0)))
+@given(
+    sixbars(),
+    st.integers(0, 10**10),
+    st.sampled_from(["rpr", "rrr", "dbl"]),
+    st.integers(0, 3),
+    st.integers(0, 5),
+    st.one_of(st.none(), st.floats(1.0, 179.0)),
+)
 def test_refined_id_round_trip_is_exact(sb, segment, output, slot, level, swing_deg):
     rounded = round_dimensions(sb)
     # what the id holds is the six-bar to float32 precision, and holding it again changes nothing
@@ -268,8 +298,9 @@ def test_refined_id_round_trip_is_exact(sb, segment, output, slot, level, swing_
     assert len(text.split("~")[1]) == (50 if sb.dyad.kind == "RRR" else 39)
 
 
-@pytest.mark.parametrize("text", ["5-rrr0.1@30~", "5-rrr0.1@30~!!!!", "5-rrr0.1@30~AAAA", "5-rpr0.1@30~a~b",
-                                  "5-rpr0.1@30~" + "A" * 39])
+@pytest.mark.parametrize(
+    "text", ["5-rrr0.1@30~", "5-rrr0.1@30~!!!!", "5-rrr0.1@30~AAAA", "5-rpr0.1@30~a~b", "5-rpr0.1@30~" + "A" * 39]
+)
 def test_malformed_refined_ids_are_refused(text):
     with pytest.raises(ValueError):
         parse_candidate_id(text)

@@ -41,8 +41,14 @@ def test_range_extremes_are_the_ranges_own_max_and_min(rows, samples, queries, s
 
 
 @settings(max_examples=80, deadline=None)
-@given(rows=st.integers(1, 4), samples=st.integers(1, 60), first=st.integers(-2, 10), count=st.integers(0, 50),
-       seed=st.integers(0, 2**32 - 1), ties=st.booleans())
+@given(
+    rows=st.integers(1, 4),
+    samples=st.integers(1, 60),
+    first=st.integers(-2, 10),
+    count=st.integers(0, 50),
+    seed=st.integers(0, 2**32 - 1),
+    ties=st.booleans(),
+)
 def test_sliding_extremes_are_each_windows_own_max_and_min(rows, samples, first, count, seed, ties):
     rng = np.random.default_rng(seed)
     values = rng.normal(size=(rows, samples))

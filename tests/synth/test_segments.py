@@ -15,10 +15,10 @@ import pytest
 from scipy.optimize import linprog
 
 from atlas.sweep import PRESETS, sweep_linkages
+from db.rows import linkage_columns, segment_columns
 from kinematics.fourbar import fourbar_motion
 from synth import ball_point, pole
 from synth.kinds import SEGMENT_KINDS, SegmentKind
-from db.rows import linkage_columns, segment_columns
 from synth.segment_search.segments import SegmentSearch, find_segments
 
 SPEC = PRESETS["demo"]
@@ -245,8 +245,13 @@ def test_one_straight_stretch_seen_twice_is_no_double_line():
     from synth.segment_search.segments import DOUBLE_LINE_MIN_SIN
 
     search = SegmentSearch.from_spec(PRESETS["standard"])
-    found = find_segments(np.array([4.490699319525161]), np.array([3.1460127548771815]),
-                          np.array([4.6768594773215915]), np.array([1]), search)
+    found = find_segments(
+        np.array([4.490699319525161]),
+        np.array([3.1460127548771815]),
+        np.array([4.6768594773215915]),
+        np.array([1]),
+        search,
+    )
     double = found.kind == SegmentKind.DOUBLE_LINE.code
     sines = np.abs(np.imag(np.conj(found.direction[double]) * found.direction2[double]))
     assert double.sum() == 6 and np.all(sines >= DOUBLE_LINE_MIN_SIN)

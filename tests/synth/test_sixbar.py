@@ -9,6 +9,7 @@ import math
 
 import numpy as np
 import pytest
+from harness.plain_sixbar import reference_psi
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy.optimize import brentq
@@ -20,8 +21,6 @@ from synth.mechanism.dyad import fit_rrr
 from synth.mechanism.figures import sixbar_figures
 from synth.mechanism.output_range import dwell_intervals, output_deviation, output_swing
 from synth.mechanism.sixbar import OutputDyad, SixBar, SixBars, crank_grid, simulate
-
-from harness.plain_sixbar import reference_psi
 
 DEG = math.pi / 180
 
@@ -292,7 +291,9 @@ def test_dwell_intervals_wrap_past_the_turn_and_vectorise():
     shift = 1.0  # puts the first rest across φ = 0
     phi = crank_grid(720)
     rows = np.stack([two_rest_psi(phi + shift), two_rest_psi(phi)])
-    found = dwell_intervals(phi, rows, np.array([0.02, 0.02]), psi_at=lambda at: two_rest_psi(at + np.array([[shift], [0.0]])))
+    found = dwell_intervals(
+        phi, rows, np.array([0.02, 0.02]), psi_at=lambda at: two_rest_psi(at + np.array([[shift], [0.0]]))
+    )
     lo1, hi1 = _expected_rest(REST1, 0.0, 0.02)
     assert found.start.shape == (2, 1)
     assert abs(found.start[1, 0] - lo1) < 0.01 * DEG
@@ -374,7 +375,10 @@ def test_ball_point_rpr_dwells_and_figures_come_from_the_exact_path():
     dense = simulate(sb, np.linspace(dwell.start, dwell.end, 4001), order=0).psi
     assert dense.max() - dense.min() <= 0.1 * DEG + 1e-9
     # and it is maximal: 0.01° more on either side leaves the band
-    for more in (np.linspace(dwell.start - 0.01 * DEG, dwell.end, 4001), np.linspace(dwell.start, dwell.end + 0.01 * DEG, 4001)):
+    for more in (
+        np.linspace(dwell.start - 0.01 * DEG, dwell.end, 4001),
+        np.linspace(dwell.start, dwell.end + 0.01 * DEG, 4001),
+    ):
         wider = simulate(sb, more, order=0).psi
         assert wider.max() - wider.min() > 0.1 * DEG - 1e-6
     assert 0 <= f.deviations[0] < 0.1 * DEG
@@ -404,6 +408,7 @@ def test_figures_of_a_batch_equal_single_figures(mechanisms):
 # Properties: any input gives finite values
 # ---------------------------------------------------------------------------------------------
 
+
 def sixbar_strategy(longest: float = 20.0, shortest: float = 0.05) -> st.SearchStrategy[SixBar]:
     """Any six-bar (RPR or RRR, either branch) with lengths in [shortest, longest] and
     coordinates within ±longest."""
@@ -415,10 +420,11 @@ def sixbar_strategy(longest: float = 20.0, shortest: float = 0.05) -> st.SearchS
     def sixbars(draw):
         kind = draw(st.sampled_from(["RPR", "RRR"]))
         dyad = OutputDyad(kind, complex(draw(coord), draw(coord)), draw(length), draw(length), draw(sign))
-        return SixBar(draw(length), draw(length), draw(length), draw(length), draw(sign), draw(coord), draw(coord), dyad)
+        return SixBar(
+            draw(length), draw(length), draw(length), draw(length), draw(sign), draw(coord), draw(coord), dyad
+        )
 
     return sixbars()
-
 
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -430,7 +436,15 @@ def test_any_six_bar_gives_finite_motion_and_figures(sbs, band):
         assert np.all(np.isfinite(arr))
     assert np.all(m.dpsi[0][m.status != 0] == 0)
     for f in sixbar_figures(batch, band=band, dwell_length=0.5, dwells=2, samples=72):
-        values = [f.swing, f.transmission_fourbar, f.transmission_output, f.link_ratio, f.footprint, *f.bounds,
-                  *f.deviations, *(x for dw in f.dwells for x in dw)]
+        values = [
+            f.swing,
+            f.transmission_fourbar,
+            f.transmission_output,
+            f.link_ratio,
+            f.footprint,
+            *f.bounds,
+            *f.deviations,
+            *(x for dw in f.dwells for x in dw),
+        ]
         assert all(math.isfinite(x) for x in values)
         assert 1 <= len(f.dwells) <= 2

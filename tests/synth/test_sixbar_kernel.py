@@ -16,11 +16,10 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
+from test_sixbar import sixbar_strategy  # tests/synth: any six-bar
 
 from kinematics.status import AssemblyError, Status
-from synth.mechanism.sixbar import OutputDyad, SixBar, SixBars, simulate_numpy, crank_grid, output_angle, simulate
-
-from test_sixbar import sixbar_strategy  # tests/synth: any six-bar
+from synth.mechanism.sixbar import OutputDyad, SixBar, SixBars, crank_grid, output_angle, simulate, simulate_numpy
 
 NA = int(Status.NOT_ASSEMBLABLE)
 
@@ -62,8 +61,12 @@ def assert_same_motion(fast, ref, batch: SixBars) -> None:
     # derivatives: ψ′, ψ″ ∝ 1/sin μ (≤ 1e3 here), so 1e-9 relative; 0 wherever flagged
     assert len(fast.dpsi) == len(ref.dpsi) and len(fast.z) == len(ref.z)
     for k in range(len(ref.dpsi)):
-        for got, want in ((fast.dpsi[k], ref.dpsi[k]), (fast.fourbar.dtheta[k], ref.fourbar.dtheta[k]),
-                          (fast.fourbar.dgamma[k], ref.fourbar.dgamma[k]), (fast.z[k + 1], ref.z[k + 1])):
+        for got, want in (
+            (fast.dpsi[k], ref.dpsi[k]),
+            (fast.fourbar.dtheta[k], ref.fourbar.dtheta[k]),
+            (fast.fourbar.dgamma[k], ref.fourbar.dgamma[k]),
+            (fast.z[k + 1], ref.z[k + 1]),
+        ):
             got, want = np.broadcast_to(got, shape), np.broadcast_to(want, shape)
             assert np.all(np.isfinite(got))
             assert np.all((np.abs(got - want) <= 1e-9 * (np.abs(want) + size))[ok])
@@ -150,8 +153,12 @@ def test_degenerate_positions_are_flagged_alike(order):
 
 
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(st.lists(sixbar_strategy(1e3, 1e-3), min_size=1, max_size=5), st.integers(8, 200), st.floats(-10.0, 10.0),
-       st.sampled_from([0, 1, 2]))
+@given(
+    st.lists(sixbar_strategy(1e3, 1e-3), min_size=1, max_size=5),
+    st.integers(8, 200),
+    st.floats(-10.0, 10.0),
+    st.sampled_from([0, 1, 2]),
+)
 @example([SixBar(1.0, 1.0, 1.0, 1.0, 1, 0.0, 0.0, OutputDyad.rrr(0j, 1.0, 1.0, 1))], 8, 0.0, 2)
 def test_any_six_bar_runs_the_same_in_the_kernel(sbs, samples, start, order):
     batch = SixBars.from_sixbars(sbs)

@@ -51,8 +51,9 @@ def _brute_force(sb: SixBar, tol: float, centres: list[float], length: float, dr
             c_draw = (c - beta - phi[0]) % (2 * math.pi) + phi[0]
             from synth.mechanism.sixbar import SixBars
 
-            dev, _ = output_deviation(phi, m.psi, c_draw, length, psi_at=ExactOutput(SixBars.from_sixbars([one])),
-                                      dpsi1=m.dpsi[0])
+            dev, _ = output_deviation(
+                phi, m.psi, c_draw, length, psi_at=ExactOutput(SixBars.from_sixbars([one])), dpsi1=m.dpsi[0]
+            )
             worst = max(worst, float(dev))
         out.append(worst)
     return np.array(out)
