@@ -797,8 +797,6 @@ def query(
             remember_shown(result.candidates)
         if searched is not None:
             click.echo(band_search_text(searched))
-    if tighter is not None and not as_json:
-        click.echo(tighter_text(tighter, request), err=True)
     if not result.candidates:
         click.echo(f"dwell: {no_match_message(result)}", err=True)
         click.get_current_context().exit(NONE_FOUND)  # a script tells "none" from "some" (as grep)
@@ -815,6 +813,8 @@ def query(
                 on_candidate=shown.counter("writing the report", "candidates"),
             )
         click.echo(f"report: {len(written)} files in {report_dir}", err=True)
+    if tighter is not None and not as_json:  # last: an answer whose report failed says only why
+        click.echo(tighter_text(tighter, request), err=True)
 
 
 def _check_report_dir(path: Path) -> None:

@@ -227,7 +227,10 @@ def test_an_atlas_in_a_read_only_folder_is_read_untouched(tmp_path, capsys, refe
         # a writer of a WAL-mode file needs its -shm index, which it cannot make here
         assert rc == 2 and out == "" and err.count("\n") == 1 and "unable to open database file" in err, err
     else:
-        assert rc == 0 and err == "", err  # build: the same sweep, complete: nothing to write
+        # build: the same sweep, complete: nothing to write (a query at the default band may
+        # add the one line naming a tighter band that also answers)
+        rest = [line for line in err.splitlines() if not line.startswith("dwell: a stiller rest exists: ")]
+        assert rc == 0 and rest == [], err
     assert snapshot(folder) == before
 
 
