@@ -15,24 +15,9 @@ import click
 from atlas.pool import default_workers
 from atlas.sweep import PRESETS, SAMPLES_RANGE, SHARD_SIZE_RANGE, SWEEP_BYTES_PER_SAMPLE
 from cli.budget import check_memory
-from cli.options import PROPORTION, RAYS, SEARCH_STEP_DEG, SEED, Bounded, Count
+from cli.options import PROPORTION, RAYS, SEARCH_STEP_DEG, SEED, Bounded, Count, db_option
 
-__all__ = ["DEFAULT_DB", "atlas", "db_option", "sweep_spec_from_options"]
-
-#: The atlas used when neither ``--db`` nor ``$DWELL_ATLAS`` is given (relative to the cwd).
-DEFAULT_DB = "atlas.sqlite"
-
-
-db_option = click.option(
-    "--db",
-    "db",
-    default=DEFAULT_DB,
-    show_default=True,
-    envvar="DWELL_ATLAS",
-    show_envvar=True,
-    metavar="PATH|URL",
-    help="The atlas: an SQLite file or an SQLAlchemy URL.",
-)
+__all__ = ["atlas", "sweep_spec_from_options"]
 
 
 @click.group("atlas")
@@ -73,7 +58,7 @@ def parse_tolerances(text: str | None) -> tuple[float, ...] | None:
 
 
 @atlas.command("build")
-@db_option
+@db_option()
 @click.option(
     "--preset",
     type=click.Choice(sorted(PRESETS)),
@@ -243,7 +228,7 @@ def _build_on_dask(db: str, spec, scheduler: str, *, replace: bool, on_shard):  
 
 
 @atlas.command("info")
-@db_option
+@db_option()
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document.")
 @click.option(
     "--verify",

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import click
 
-from cli.options import probe_folder
+from cli.options import db_option, probe_folder
 from cli.progress import Progress
 
 #: The demo's requests, as the ``dwell query`` options a user would type.
@@ -40,10 +40,10 @@ TOP = 3
     type=click.Path(file_okay=False),
     help="Folder for the reports (one sub-folder per request).",
 )
-@click.option(
-    "--db",
-    "target",
+@db_option(
+    dest="target",
     default=None,
+    envvar=None,
     help="Atlas to build or reuse [default: OUT/demo-atlas.sqlite]. $DWELL_ATLAS is not read here: the "
     "demo builds its own small atlas and must not write into yours.",
 )
@@ -72,10 +72,11 @@ def _demo(out: Path, made: list[Path], target: str, workers: int | None, progres
     from atlas.build import build_atlas
     from atlas.sweep import PRESETS
     from cli.progress import BuildBar
-    from cli.query import answer, no_match_message, request_from_options, table
+    from cli.query import answer, no_match_message, table
     from cli.shown_ids import remember_shown
     from db.engine import display_target, open_atlas
     from report.export import write_report
+    from synth.query.candidates import Request
 
     start = time.perf_counter()
     shown = display_target(target)  # command lines below never show a URL's password
@@ -99,37 +100,12 @@ def _demo(out: Path, made: list[Path], target: str, workers: int | None, progres
     written = []
     try:
         for name, opts in DEMO_REQUESTS.items():
-            o = {
-                "dwell_tol": 2.0,
-                "swing": None,
-                "swing_tol": 0.5,
-                "output": "any",
-                "dwells": 1,
-                "dwell_tolerance": 0.1,
-                "crank": 1.0,
-                "min_transmission": 30.0,
-                "max_link_ratio": 10.0,
-                "top": TOP,
-            }
-            o.update(opts)
             args = " ".join(
                 f"--{k.replace('_', '-')} {v:g}" if isinstance(v, float) else f"--{k.replace('_', '-')} {v}"
                 for k, v in opts.items()
             )
             click.echo(f"\n$ dwell query --db {shown} {args} --top {TOP}")
-            request = request_from_options(
-                o["dwell"],
-                o["dwell_tol"],
-                o["swing"],
-                o["swing_tol"],
-                o["output"],
-                o["dwells"],
-                o["dwell_tolerance"],
-                o["crank"],
-                o["min_transmission"],
-                o["max_link_ratio"],
-                o["top"],
-            )
+            request = Request.from_degrees(**opts, top=TOP)
             progress.stage(f"answering the {name} request")
             result = answer(engine, request)
             if not result.candidates:

@@ -3,22 +3,26 @@
 from __future__ import annotations
 
 import os
+import re
 import stat
 import sys
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import click
 import numpy as np
 
 from atlas.sweep import CRANK_STEP_RANGE_DEG, PROPORTION_RANGE, RAYS_RANGE
+from cli.errors import InputError
 from kinematics.timing import crank_speed
 
 __all__ = [
     "ANGLE_DEG",
     "AUTO",
     "COORDINATE",
+    "DEFAULT_DB",
     "LENGTH",
     "SEED",
     "STEP_DEG",
@@ -27,9 +31,12 @@ __all__ = [
     "Count",
     "crank_angle_options",
     "crank_angles_deg",
+    "db_option",
+    "flag_names",
     "fourbar_options",
     "output_options",
     "probe_folder",
+    "request_errors",
     "speed_options",
     "speed_from_options",
     "writable_file",
@@ -43,6 +50,51 @@ def _stack(*decorators: Callable) -> Callable:
         return f
 
     return apply
+
+
+#: The atlas used when neither ``--db`` nor ``$DWELL_ATLAS`` is given (relative to the cwd).
+DEFAULT_DB = "atlas.sqlite"
+
+
+def db_option(
+    *,
+    dest: str = "db",
+    default: str | None = DEFAULT_DB,
+    required: bool = False,
+    envvar: str | None = "DWELL_ATLAS",
+    help: str = "The atlas: an SQLite file or an SQLAlchemy URL.",
+) -> Callable:
+    """``--db PATH|URL``, the atlas a command reads or writes, into its parameter ``dest``:
+    ``default`` (shown in ``--help``) when neither the option nor ``envvar`` is given, or with
+    ``required`` one of them must be (no default)."""
+    return click.option(
+        "--db",
+        dest,
+        default=None if required else default,
+        required=required,
+        show_default=default is not None and not required,
+        envvar=envvar,
+        show_envvar=envvar is not None,
+        metavar="PATH|URL",
+        help=help,
+    )
+
+
+def flag_names(message: str) -> str:
+    """``message`` with each field of a request named in backticks (`` `swing_tol` ``, as
+    :class:`~synth.query.candidates.Request` names them) as the option that sets it
+    (``--swing-tol``): every field is set by the option of its name."""
+    return re.sub(r"`([a-z_]+)`", lambda m: "--" + m.group(1).replace("_", "-"), message)
+
+
+@contextmanager
+def request_errors() -> Iterator[None]:
+    """A request's ValueError inside the block is the user's error: one line naming the
+    options (:func:`flag_names`), exit 2."""
+    try:
+        yield
+    except ValueError as exc:
+        raise InputError(flag_names(str(exc))) from None
 
 
 #: Lengths accepted on the command line: the square or product of any two stays a finite,

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import gc
 import json
 import math
 from pathlib import Path
@@ -19,11 +18,11 @@ from click.core import ParameterSource
 
 from atlas.pool import default_workers
 from cli.errors import InputError
-from cli.options import AUTO, LENGTH, RPM, BandOrAuto, Bounded, Count, units_option
+from cli.options import AUTO, LENGTH, RPM, BandOrAuto, Bounded, Count, db_option, request_errors, units_option
 from report.candidate_json import candidate_json, request_json
 from report.query_table import legend_lines, short_table
 from synth.kinds import OutputKind
-from synth.query import SAMPLES, QueryResult, RebuildError
+from synth.query import QueryResult, RebuildError
 from synth.query.candidates import OUTPUTS, Request
 
 __all__ = [
@@ -37,7 +36,6 @@ __all__ = [
     "no_match_message",
     "query",
     "rebuild",
-    "request_from_options",
     "table",
 ]
 
@@ -54,37 +52,19 @@ def answer(engine, request: Request, *, progress: bool | None = False, workers: 
     stderr is a terminal) a line on stderr once it runs past a second (a complete search's
     rows as a bar; not a terminal: a complete search's status every 10 s, :mod:`cli.progress`).
     A complete search runs its batches on ``workers`` processes (the sampled query in this one)."""
-    from atlas.malloc import raise_malloc_thresholds
+    from cli.process import answering
     from cli.progress import Progress, SearchBar
     from db.queries import AtlasSource
     from synth.query import answer as answer_
 
-    # a query's temporaries are a few MB, as a shard's: kept in the heap rather than mapped
-    # and zero-filled afresh by every call (atlas.malloc)
-    raise_malloc_thresholds()
-    with Progress("query", terminal=progress, log=progress is None and request.complete) as shown:
+    with (
+        answering(),
+        Progress("query", terminal=progress, log=progress is None and request.complete) as shown,
+    ):
         shown.stage("answering the request")
-        result = answer_(
+        return answer_(
             request, AtlasSource(engine), on_progress=SearchBar(progress=shown), map_batches=batch_map(workers)
         )
-    _settle_heap()
-    return result
-
-
-_heap_settled = False
-
-
-def _settle_heap() -> None:
-    """Once per process, after its first answer: the objects alive then — modules, compiled
-    kernels, the engine's metadata, ~180 000 of them once a query has run — are moved out of
-    the cyclic garbage collector's reach (:func:`gc.freeze`). A full collection walks every
-    tracked object (113 ms with them against 2.7 ms without, measured over 64 answers of the
-    query bench) and lands inside whichever later query triggers it; the queries' own garbage
-    is collected as before."""
-    global _heap_settled
-    if not _heap_settled:
-        gc.freeze()
-        _heap_settled = True
 
 
 def batch_map(workers: int):
@@ -116,65 +96,6 @@ def rebuild(engine, ids: list[str], request: Request):
     try:
         return rebuild_(ids, AtlasSource(engine), request)
     except RebuildError as exc:
-        raise InputError(str(exc)) from None
-
-
-def request_from_options(
-    dwell: float,
-    dwell_tol: float | None = None,
-    swing: float | None = None,
-    swing_tol: float | None = None,
-    output: str | None = None,
-    dwells: int | None = None,
-    band: float | None = None,
-    crank: float | None = None,
-    min_transmission: float | None = None,
-    max_link_ratio: float | None = None,
-    top: int | None = None,
-    *,
-    min_arm: float | None = None,
-    min_clearance: float | None = None,
-    rpm: float | None = None,
-    max_accel: float | None = None,
-    step: float | None = None,
-    refine: bool | None = None,
-    complete: bool | None = None,
-    tolerance: float | None = None,
-) -> Request:
-    """A :class:`Request` from the command's units (degrees); None takes the field's default.
-    A bad value is the user's error (one line naming the option)."""
-    # the deviation window must hold at least two samples of the simulation's crank grid
-    if math.isfinite(dwell) and 0 < dwell < 720.0 / SAMPLES:
-        raise InputError(
-            f"--dwell must be at least {720.0 / SAMPLES:g}° (the simulation samples the turn "
-            f"every {360.0 / SAMPLES:g}°), got {dwell:g}"
-        )
-    given = {
-        "dwell": math.radians(dwell),
-        "dwell_tol": _rad(dwell_tol),
-        "swing": _rad(swing),
-        "swing_tol": _rad(swing_tol),
-        "output": output,
-        "dwells": dwells,
-        "band": _rad(band),
-        "crank": crank,
-        "min_transmission": _rad(min_transmission),
-        "max_link_ratio": max_link_ratio,
-        "top": top,
-        "min_arm": min_arm,
-        "min_clearance": min_clearance,
-        "rpm": rpm,
-        "refine": refine,
-        "complete": complete,
-        "tolerance": tolerance,
-    }
-    if max_accel is not None:
-        given["max_accel"] = max_accel
-    if step is not None:
-        given["step"] = math.radians(step)
-    try:
-        return Request(**{k: v for k, v in given.items() if v is not None})
-    except ValueError as exc:
         raise InputError(str(exc)) from None
 
 
@@ -245,10 +166,6 @@ def _searched(result: QueryResult) -> str:
     if result.request.complete:
         return f"{result.considered} segment levels searched: all"
     return f"{result.considered} segments fitted, a sample: --complete searches all"
-
-
-def _rad(x: float | None) -> float | None:
-    return None if x is None else math.radians(x)
 
 
 def table(result: QueryResult, units: str = "", *, wide: bool = False) -> str:
@@ -555,15 +472,7 @@ FOUND, NONE_FOUND, BAD_INPUT = 0, 1, 2
     f"(why, on stderr; with --json, the no_match object on stdout), {BAD_INPUT} for bad input "
     "(an option, a value or the atlas).",
 )
-@click.option(
-    "--db",
-    "target",
-    required=True,
-    envvar="DWELL_ATLAS",
-    show_envvar=True,
-    metavar="PATH|URL",
-    help="Atlas: SQLite file path or SQLAlchemy URL.",
-)
+@db_option(dest="target", required=True)
 @click.option("--dwell", type=DWELL_DEG, required=True, help="Dwell angle (degrees of crank rotation).")
 @click.option(
     "--dwell-tol",
@@ -724,27 +633,28 @@ def query(
 ):
     """Ranked six-bars for a requested dwell and swing (docs/query.md)."""
     auto = band == AUTO
-    request = request_from_options(
-        dwell,
-        dwell_tol,
-        swing,
-        swing_tol,
-        output.lower(),
-        dwells,
-        None if auto else band,
-        crank,
-        min_transmission,
-        max_link_ratio,
-        top,
-        min_arm=min_arm,
-        min_clearance=min_clearance,
-        rpm=rpm,
-        max_accel=max_accel,
-        step=step,
-        refine=refine,
-        complete=complete,
-        tolerance=tolerance,
-    )
+    with request_errors():
+        request = Request.from_degrees(
+            dwell=dwell,
+            dwell_tol=dwell_tol,
+            swing=swing,
+            swing_tol=swing_tol,
+            output=output.lower(),
+            dwells=dwells,
+            band=None if auto else band,
+            crank=crank,
+            min_transmission=min_transmission,
+            max_link_ratio=max_link_ratio,
+            top=top,
+            min_arm=min_arm,
+            min_clearance=min_clearance,
+            rpm=rpm,
+            max_accel=max_accel,
+            step=step,
+            refine=refine,
+            complete=complete,
+            tolerance=tolerance,
+        )
     if report_dir is not None:
         _check_report_dir(Path(report_dir))
     from db.engine import open_atlas

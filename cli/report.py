@@ -9,9 +9,10 @@ from pathlib import Path
 import click
 
 from cli.errors import InputError
-from cli.options import LENGTH, RPM, probe_folder, units_option
+from cli.options import LENGTH, RPM, db_option, probe_folder, request_errors, units_option
 from cli.query import BAND_DEG, DWELL_DEG, TRANSMISSION_RANGE
 from report.escape import terminal
+from synth.query.candidates import Request
 
 #: A candidate id as `dwell query` prints it, in ASCII: <segment>-<rpr|rrr|dbl><slot>.<level>@<swing
 #: or free>, optionally ~<refined dimensions, base64url>. Python's int() and float() would also
@@ -44,15 +45,7 @@ def canonical_id(text: str) -> str:
 
 
 @click.command("report")
-@click.option(
-    "--db",
-    "target",
-    required=True,
-    envvar="DWELL_ATLAS",
-    show_envvar=True,
-    metavar="PATH|URL",
-    help="Atlas: SQLite file path or SQLAlchemy URL.",
-)
+@db_option(dest="target", required=True)
 @click.option(
     "--candidates",
     "ids",
@@ -88,7 +81,6 @@ def canonical_id(text: str) -> str:
 @click.argument("more_ids", nargs=-1)
 def report(target, ids, out_dir, dwell, band, crank, min_transmission, rpm, units, more_ids):
     """Write JSON, CSV, plots, drawings, DXF and an animated HTML page for the candidates."""
-    from cli.query import request_from_options
     from report.folder import ReportFolderError, check_report_folder
 
     names = [canonical_id(t) for item in (*ids, *more_ids) for t in item.replace(",", " ").split()]
@@ -105,20 +97,18 @@ def report(target, ids, out_dir, dwell, band, crank, min_transmission, rpm, unit
         raise InputError(str(exc)) from None
     probe_folder(out, "--out")
     # the deviation window: the requested dwell, or the rebuilt six-bar's own dwell
-    request = request_from_options(
-        dwell if dwell is not None else 60.0,
-        2.0,
-        30.0,
-        0.5,
-        "any",
-        1,
-        band,
-        crank,
-        min_transmission,
-        1e12,
-        len(names),
-        rpm=rpm,
-    )
+    # (a swing to make it a whole request, and no link-ratio limit: the ids name the six-bars)
+    with request_errors():
+        request = Request.from_degrees(
+            dwell=dwell if dwell is not None else 60.0,
+            swing=30.0,
+            band=band,
+            crank=crank,
+            min_transmission=min_transmission,
+            max_link_ratio=1e12,
+            top=len(names),
+            rpm=rpm,
+        )
     from cli.progress import Progress
 
     with Progress("report") as shown:  # a line on a terminal once it runs past a second

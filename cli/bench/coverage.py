@@ -26,8 +26,7 @@ from pathlib import Path
 import click
 
 from atlas.pool import default_workers
-from cli.atlas import db_option
-from cli.options import Bounded, writable_file
+from cli.options import Bounded, db_option, writable_file
 from cli.query import batch_map, workers_option
 
 SINGLE_DWELLS = (10, 20, 30, 45, 60, 75, 90, 105, 120, 150, 180)
@@ -47,14 +46,21 @@ class Cell:
     swing: float | None
 
     def request(self, top: int, refine: bool = True, complete: bool = False):
-        from cli.query import request_from_options
+        from synth.query.candidates import Request
 
         if self.family == "double":
-            return request_from_options(
-                self.dwell, DOUBLE_TOL, self.swing, None, "rpr", 2, top=top, refine=refine, complete=complete
+            return Request.from_degrees(
+                dwell=self.dwell,
+                dwell_tol=DOUBLE_TOL,
+                swing=self.swing,
+                output="rpr",
+                dwells=2,
+                top=top,
+                refine=refine,
+                complete=complete,
             )
-        return request_from_options(
-            self.dwell, None, self.swing, None, self.family, 1, top=top, refine=refine, complete=complete
+        return Request.from_degrees(
+            dwell=self.dwell, swing=self.swing, output=self.family, top=top, refine=refine, complete=complete
         )
 
 
@@ -129,7 +135,7 @@ def summary(rows: list[dict]) -> dict:
 
 
 @click.command("coverage")
-@db_option
+@db_option()
 @click.option("--top", type=click.IntRange(1, 1000), default=10, show_default=True, help="Candidates per query.")
 @click.option(
     "--refine/--no-refine",

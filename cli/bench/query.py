@@ -31,9 +31,8 @@ from pathlib import Path
 import click
 import numpy as np
 
-from cli.atlas import db_option
 from cli.budget import check_time
-from cli.options import writable_file
+from cli.options import db_option, writable_file
 
 FLOOR_MS = 1500.0  # p95 per request with refinement, --top 10 (issue #13 item 7)
 GOAL_MS = 500.0
@@ -79,20 +78,17 @@ REQUESTS: tuple[BenchRequest, ...] = (
 
 
 def _request(r: BenchRequest, top: int, refine: bool = True):
-    from cli.query import request_from_options
+    from synth.query.candidates import Request
 
-    return request_from_options(
-        r.dwell,
-        r.dwell_tol,
-        r.swing,
-        0.5,
-        r.output,
-        r.dwells,
-        0.1,
-        1.0,
-        r.min_transmission,
-        r.max_link_ratio,
-        top,
+    return Request.from_degrees(
+        dwell=r.dwell,
+        dwell_tol=r.dwell_tol,
+        swing=r.swing,
+        output=r.output,
+        dwells=r.dwells,
+        min_transmission=r.min_transmission,
+        max_link_ratio=r.max_link_ratio,
+        top=top,
         refine=refine,
     )
 
@@ -112,7 +108,7 @@ def _percentile(values: list[float], q: float) -> float:
 
 
 @click.command("query")
-@db_option
+@db_option()
 @click.option("--repeat", type=click.IntRange(1, 1000), default=5, show_default=True, help="Runs of every request.")
 @click.option("--top", type=click.IntRange(1, 1000), default=10, show_default=True, help="Candidates per query.")
 @click.option(

@@ -29,6 +29,8 @@ from synth.mechanism.sixbar import OutputDyad, SixBar, SixBars, crank_grid, simu
 from synth.query.pareto import pareto_layers
 
 __all__ = [
+    "DEGREE_FIELDS",
+    "SAMPLES",
     "Candidate",
     "Request",
     "candidate_dimensions",
@@ -49,6 +51,14 @@ __all__ = [
 #: The --output choices: an output tag, or any single-dwell one.
 OUTPUTS = (OutputTag.RPR.value, OutputTag.RRR.value, "any")
 _TAGS = tuple(t.value for t in OutputTag)
+
+#: Crank samples of the exact simulation (0.5°); the figures refine beyond it.
+SAMPLES = 720
+#: The shortest dwell a request may ask for (rad): its deviation window must hold at least two
+#: samples of the simulation's crank grid.
+_SHORTEST_DWELL = math.radians(720.0 / SAMPLES)
+#: The fields :meth:`Request.from_degrees` takes in degrees (the others keep their units).
+DEGREE_FIELDS = frozenset({"dwell", "dwell_tol", "swing", "swing_tol", "band", "min_transmission", "step"})
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -93,54 +103,82 @@ class Request:
     #: (synth.mechanism.tolerance), and the ranking uses it in place of the nominal deviation.
     tolerance: float = 0.0
 
+    @classmethod
+    def from_degrees(cls, **given: float | int | str | bool | None) -> Request:
+        """The request of keyword fields in the command's units: the angles (``DEGREE_FIELDS``)
+        in degrees, the rest as the fields have them; None takes the field's default.
+
+        Raises
+        ------
+        ValueError
+            A value out of its range, naming the field in backticks (:meth:`__post_init__`).
+        TypeError
+            A name that is not a field, or no ``dwell``.
+        """
+        return cls(
+            **{
+                name: math.radians(value) if name in DEGREE_FIELDS else value
+                for name, value in given.items()
+                if value is not None
+            }
+        )
+
     def __post_init__(self) -> None:
+        """Every field within its range; a ValueError names the fields in backticks
+        (`` `swing_tol` ``), which a command turns into its own options' names."""
         bad = ValueError
         if not (math.isfinite(self.dwell) and 0 < self.dwell < 2 * math.pi):
-            raise bad(f"--dwell must be between 0 and 360 degrees (exclusive), got {math.degrees(self.dwell):g}")
+            raise bad(f"`dwell` must be between 0 and 360 degrees (exclusive), got {math.degrees(self.dwell):g}")
+        # the deviation window must hold at least two samples of the simulation's crank grid
+        if self.dwell < _SHORTEST_DWELL:
+            raise bad(
+                f"`dwell` must be at least {720.0 / SAMPLES:g}° (the simulation samples the turn "
+                f"every {360.0 / SAMPLES:g}°), got {math.degrees(self.dwell):g}"
+            )
         if not (math.isfinite(self.dwell_tol) and 0 <= self.dwell_tol < 2 * math.pi):
-            raise bad(f"--dwell-tol must be between 0 and 360 degrees, got {math.degrees(self.dwell_tol):g}")
+            raise bad(f"`dwell_tol` must be between 0 and 360 degrees, got {math.degrees(self.dwell_tol):g}")
         if self.swing is not None and not (math.isfinite(self.swing) and 0 < self.swing < math.pi):
-            raise bad(f"--swing must be between 0 and 180 degrees (exclusive), got {math.degrees(self.swing):g}")
+            raise bad(f"`swing` must be between 0 and 180 degrees (exclusive), got {math.degrees(self.swing):g}")
         if not (math.isfinite(self.swing_tol) and 0 <= self.swing_tol < math.pi):
-            raise bad(f"--swing-tol must be between 0 and 180 degrees, got {math.degrees(self.swing_tol):g}")
+            raise bad(f"`swing_tol` must be between 0 and 180 degrees, got {math.degrees(self.swing_tol):g}")
         if self.output not in OUTPUTS:
-            raise bad(f"--output must be one of {', '.join(OUTPUTS)}, got {self.output!r}")
+            raise bad(f"`output` must be one of {', '.join(OUTPUTS)}, got {self.output!r}")
         if self.dwells not in (1, 2):
-            raise bad(f"--dwells must be 1 or 2, got {self.dwells}")
+            raise bad(f"`dwells` must be 1 or 2, got {self.dwells}")
         if self.swing is None:
-            raise bad("--swing is required (the output's whole swing, for one dwell per turn and for two)")
+            raise bad("`swing` is required (the output's whole swing, for one dwell per turn and for two)")
         if self.dwells == 2 and self.output == OutputTag.RRR:
-            raise bad("two dwells per turn come from a double Ball point with an RPR output; use --output rpr or any")
+            raise bad("two dwells per turn come from a double Ball point with an RPR output; use `output` rpr or any")
         if self.dwells * self.dwell >= 2 * math.pi:
             raise bad(f"{self.dwells} dwell(s) of {math.degrees(self.dwell):g} degrees do not fit in one turn")
         if not (math.isfinite(self.band) and 0 < self.band < math.pi):
-            raise bad(f"--band must be between 0 and 180 degrees (exclusive), got {math.degrees(self.band):g}")
+            raise bad(f"`band` must be between 0 and 180 degrees (exclusive), got {math.degrees(self.band):g}")
         if not (math.isfinite(self.crank) and self.crank > 0):
-            raise bad(f"--crank must be a positive length, got {self.crank:g}")
+            raise bad(f"`crank` must be a positive length, got {self.crank:g}")
         if not (math.isfinite(self.min_transmission) and 0 <= self.min_transmission < math.pi / 2):
-            raise bad(f"--min-transmission must be in [0, 90) degrees, got {math.degrees(self.min_transmission):g}")
+            raise bad(f"`min_transmission` must be in [0, 90) degrees, got {math.degrees(self.min_transmission):g}")
         if not (math.isfinite(self.max_link_ratio) and self.max_link_ratio >= 1):
-            raise bad(f"--max-link-ratio must be at least 1, got {self.max_link_ratio:g}")
+            raise bad(f"`max_link_ratio` must be at least 1, got {self.max_link_ratio:g}")
         if self.top < 1:
-            raise bad(f"--top must be at least 1, got {self.top}")
-        for name, value in (("--min-arm", self.min_arm), ("--min-clearance", self.min_clearance)):
+            raise bad(f"`top` must be at least 1, got {self.top}")
+        for name, value in (("min_arm", self.min_arm), ("min_clearance", self.min_clearance)):
             if not (math.isfinite(value) and value >= 0):
-                raise bad(f"{name} must be a length in cranks >= 0, got {value:g}")
+                raise bad(f"`{name}` must be a length in cranks >= 0, got {value:g}")
         if not (math.isfinite(self.rpm) and self.rpm > 0):
-            raise bad(f"--rpm must be > 0, got {self.rpm:g}")
+            raise bad(f"`rpm` must be > 0, got {self.rpm:g}")
         if self.step is not None and not (math.isfinite(self.step) and 0 < self.step < math.pi and self.dwells == 2):
             raise bad(
-                "--step (the turn between two rests) must be between 0 and 180 degrees (exclusive) and needs --dwells 2"
+                "`step` (the turn between two rests) must be between 0 and 180 degrees (exclusive) and needs `dwells` 2"
             )
         if not (math.isfinite(self.tolerance) and self.tolerance >= 0):
-            raise bad(f"--tolerance must be a length >= 0, got {self.tolerance:g}")
+            raise bad(f"`tolerance` must be a length >= 0, got {self.tolerance:g}")
         if self.step is not None and self.step - self.swing_tol > self.swing + self.swing_tol:
             raise bad(
-                f"--step {math.degrees(self.step):g} is more than --swing {math.degrees(self.swing):g} "
-                f"(± --swing-tol): both rests lie within the output's swing"
+                f"`step` {math.degrees(self.step):g} is more than `swing` {math.degrees(self.swing):g} "
+                f"(± `swing_tol`): both rests lie within the output's swing"
             )
         if self.max_accel is not None and not (math.isfinite(self.max_accel) and self.max_accel > 0):
-            raise bad(f"--max-accel must be > 0 rad/s^2, got {self.max_accel:g}")
+            raise bad(f"`max_accel` must be > 0 rad/s^2, got {self.max_accel:g}")
 
 
 @dataclass(frozen=True, slots=True)

@@ -16,12 +16,9 @@ from synth.kinds import OutputKind
 from synth.mechanism.figures import SixBarFigures, footprints, sixbar_figures
 from synth.mechanism.sixbar import SixBar, SixBars
 from synth.mechanism.sixbar import simulate as simulate_motion
-from synth.query.candidates import Candidate, Request, candidate_id, screen
+from synth.query.candidates import SAMPLES, Candidate, Request, candidate_id, screen
 from synth.query.fitting import Fitted
 from synth.query.result import CONSTRAINTS
-
-#: Crank samples of the exact simulation (0.5°); the figures refine beyond it.
-SAMPLES = 720
 
 
 def violations(request: Request, f: SixBarFigures) -> dict[str, float]:

@@ -626,8 +626,9 @@ def small_atlas(tmp_path_factory) -> tuple[Path, str, dict[str, bytes]]:
     """A small complete atlas, the id of a candidate it answers, and the World's hostile files."""
     from atlas import SweepSpec
     from atlas.build import build_atlas
-    from cli.query import answer, request_from_options
+    from cli.query import answer
     from db import open_atlas
+    from synth.query.candidates import Request
 
     path = tmp_path_factory.mktemp("fuzz") / "atlas.sqlite"
     spec = SweepSpec(
@@ -636,7 +637,8 @@ def small_atlas(tmp_path_factory) -> tuple[Path, str, dict[str, bytes]]:
     build_atlas(str(path), spec, workers=1)
     engine = open_atlas(str(path), readonly=True)
     try:
-        found = answer(engine, request_from_options(40.0, 10.0, 20.0, 5.0, "any", 1, 0.1, 1.0, 30.0, 10.0, 1))
+        request = Request.from_degrees(dwell=40.0, dwell_tol=10.0, swing=20.0, swing_tol=5.0, top=1)
+        found = answer(engine, request)
     finally:
         engine.dispose()
     for side in ("-wal", "-shm"):

@@ -111,3 +111,18 @@ def test_hostile_values_of_every_numeric_option(small_atlas, path, capsys):  # n
     with capsys.disabled():
         print(f"\n{' '.join(path)}: {tally}")
     assert tally["run"] + tally["parser only"] > 0
+
+
+def test_request_errors_name_the_options():
+    """A request's field names (in backticks) become the options that set them, one line, exit 2."""
+    from cli.errors import InputError
+    from cli.options import flag_names, request_errors
+    from synth.query.candidates import Request
+
+    assert (
+        flag_names("`step` 50 is more than `swing` 30 (± `swing_tol`)")
+        == "--step 50 is more than --swing 30 (± --swing-tol)"
+    )
+    with pytest.raises(InputError, match=r"^--min-transmission must be in \[0, 90\) degrees, got 95$"):
+        with request_errors():
+            Request.from_degrees(dwell=60.0, swing=30.0, min_transmission=95.0)

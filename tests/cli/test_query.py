@@ -688,11 +688,12 @@ def test_the_first_answer_freezes_the_long_lived_objects_once(atlas_path, monkey
     nothing more (their garbage stays collectable)."""
     import gc
 
+    import cli.process
     import cli.query as cq
     from db.engine import open_atlas
     from synth.query.candidates import Request
 
-    monkeypatch.setattr(cq, "_heap_settled", False)
+    monkeypatch.setattr(cli.process, "_heap_settled", False)
     gc.unfreeze()
     engine = open_atlas(atlas_path, readonly=True)
     try:
@@ -700,7 +701,7 @@ def test_the_first_answer_freezes_the_long_lived_objects_once(atlas_path, monkey
         assert gc.get_freeze_count() == 0
         cq.answer(engine, request)
         frozen = gc.get_freeze_count()
-        assert frozen > 1000 and cq._heap_settled
+        assert frozen > 1000 and cli.process._heap_settled
         cq.answer(engine, request)
         assert gc.get_freeze_count() <= frozen  # none added (a frozen object freed leaves the count)
     finally:

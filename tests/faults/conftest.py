@@ -28,9 +28,10 @@ def reference(tmp_path_factory) -> Reference:
     engine = open_atlas(str(path), readonly=True)
     try:
         digest = content_digest(engine)
-        from cli.query import answer, request_from_options
+        from cli.query import answer
+        from synth.query.candidates import Request
 
-        request = request_from_options(40.0, 10.0, 20.0, 5.0, "any", 1, 0.1, 1.0, 30.0, 10.0, 3)
+        request = Request.from_degrees(dwell=40.0, dwell_tol=10.0, swing=20.0, swing_tol=5.0, top=3)
         candidates = answer(engine, request).candidates
     finally:
         engine.dispose()

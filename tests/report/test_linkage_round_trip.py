@@ -33,7 +33,7 @@ def grid_answers(tmp_path_factory):
     from cli.bench.coverage import cells
     from db.engine import open_atlas
     from db.queries import AtlasSource
-    from synth.query import answer, fit_key, search_many
+    from synth.query import Request, answer, fit_key, search_many
 
     path = str(tmp_path_factory.mktemp("grid") / "small.sqlite")
     build_atlas(path, PRESETS["demo"].replace(samples=SAMPLES), workers=1)
@@ -41,14 +41,23 @@ def grid_answers(tmp_path_factory):
     try:
         source = AtlasSource(engine)
         from cli.bench.coverage import DOUBLE_TOL, Cell
-        from cli.query import request_from_options
 
         grid = cells()
         requests = [cell.request(TOP, refine=False, complete=True) for cell in grid]
         for dwell, swing in DEMO_DOUBLES:
             grid.append(Cell("double", dwell, swing))
             requests.append(
-                request_from_options(dwell, DOUBLE_TOL, swing, 2, "rpr", 2, top=TOP, refine=False, complete=True)
+                Request.from_degrees(
+                    dwell=dwell,
+                    dwell_tol=DOUBLE_TOL,
+                    swing=swing,
+                    swing_tol=2,
+                    output="rpr",
+                    dwells=2,
+                    top=TOP,
+                    refine=False,
+                    complete=True,
+                )
             )
         groups: dict[tuple, list[int]] = {}
         for k, request in enumerate(requests):

@@ -25,12 +25,12 @@ import sys
 
 import numpy as np
 
-from cli.query import request_from_options
 from db.engine import open_atlas
 from db.queries import AtlasSource
 from synth import query
 from synth.mechanism import dyad as fits
 from synth.mechanism.sixbar import crank_grid
+from synth.query.candidates import Request
 
 DEG = math.pi / 180
 BATCH = 4000
@@ -56,7 +56,7 @@ def _rows(source, request, level, rng=None):
 
 
 def own_circle(source, swing_deg: float) -> None:
-    request = request_from_options(60, None, swing_deg, None, "rrr", 1, top=10, refine=False, complete=True)
+    request = Request.from_degrees(dwell=60, swing=swing_deg, output="rrr", refine=False, complete=True)
     rng = np.random.default_rng(1)
     rows = [r for level, _ in source.tolerance_levels() for batch in _rows(source, request, level, rng) for r in batch]
     fitted = query.fit(request, rows, "arc")
@@ -108,7 +108,7 @@ def own_circle(source, swing_deg: float) -> None:
 
 
 def coarse_scan(source, swing_deg: float = 30.0) -> None:
-    request = request_from_options(60, None, swing_deg, None, "rrr", 1, top=10, refine=False, complete=True)
+    request = Request.from_degrees(dwell=60, swing=swing_deg, output="rrr", refine=False, complete=True)
     phi = crank_grid(query.FIT_SAMPLES)
     for level, _ in source.tolerance_levels():
         rows = next(_rows(source, request, level))

@@ -25,10 +25,10 @@ import sys
 
 import numpy as np
 
-from cli.query import request_from_options
 from db.engine import open_atlas
 from db.queries import AtlasSource
 from synth.query import figures_of, fit
+from synth.query.candidates import Request
 
 DEG = math.pi / 180
 SWINGS = np.arange(10.0, 90.1, 2.5)
@@ -38,9 +38,7 @@ POOL = 40_000
 def dwell_series(path: str, kind: str, per_level: int) -> dict[tuple, dict[float, tuple[float, bool]]]:
     """(segment, level, output, slot) → {swing °: (dwell °, whether it holds the stretch's middle)}."""
     src = AtlasSource(open_atlas(path, readonly=True))
-    base = request_from_options(
-        60, 2, 30, 0.5, "rpr" if kind == "line" else "rrr", 1, 0.1, 1.0, 30, 10, 10, refine=False
-    )
+    base = Request.from_degrees(dwell=60, swing=30, output="rpr" if kind == "line" else "rrr", refine=False)
     limits = dict(
         min_transmission=base.min_transmission, max_length=base.max_link_ratio, min_radius_ratio=1 / base.max_link_ratio
     )

@@ -112,5 +112,5 @@ def test_a_tolerance_no_draw_survives_is_none_and_ranks_last():
     worse = Candidate("b", 1, RRR, f, toleranced_deviation=None)
     better = Candidate("a", 2, RRR, f, toleranced_deviation=math.radians(0.5))
     assert [c.id for c in rank(req, [worse, better])] == ["a", "b"]
-    with pytest.raises(ValueError, match="--tolerance"):
+    with pytest.raises(ValueError, match="`tolerance`"):
         Request(dwell=length, swing=math.radians(30.0), tolerance=-1.0)
