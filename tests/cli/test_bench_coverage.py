@@ -7,18 +7,9 @@ import json
 
 import pytest
 
-from atlas.build import build_atlas
-from atlas.sweep import PRESETS
 from cli.bench.coverage import DOUBLE_DWELLS, DOUBLE_SWINGS, SINGLE_DWELLS, SWINGS
 from cli.main import main
 from synth.query import CONSTRAINTS
-
-
-@pytest.fixture(scope="module")
-def atlas_path(tmp_path_factory) -> str:
-    path = str(tmp_path_factory.mktemp("atlas") / "demo.sqlite")
-    build_atlas(path, PRESETS["demo"].replace(samples=384), workers=1)
-    return path
 
 
 def run(capsys, *args):
@@ -27,12 +18,12 @@ def run(capsys, *args):
     return code, out, err
 
 
-def test_coverage_grid_matches_the_query_cell_by_cell(capsys, atlas_path, tmp_path):
+def test_coverage_grid_matches_the_query_cell_by_cell(capsys, coverage_atlas, tmp_path):
     plot = tmp_path / "coverage.png"
     # without refinement: the grid's 148 cells in seconds (refined, minutes); the cells are
     # held to `dwell query` below in the same mode
     code, out, err = run(
-        capsys, "bench", "coverage", "--db", atlas_path, "--top", "5", "--no-refine", "--json", "--plot", str(plot)
+        capsys, "bench", "coverage", "--db", coverage_atlas, "--top", "5", "--no-refine", "--json", "--plot", str(plot)
     )
     assert code == 0, err
     summary = err
@@ -58,7 +49,9 @@ def test_coverage_grid_matches_the_query_cell_by_cell(capsys, atlas_path, tmp_pa
     assert doc["summary"]["rpr"]["answered"] >= 10, "the demo sweep answers many RPR cells"
     # two cells against `dwell query` itself: same candidates, same best deviation (the double
     # row refined: the test atlas's double dwells are refined near misses)
-    code, out, err = run(capsys, "bench", "coverage", "--db", atlas_path, "--family", "double", "--top", "5", "--json")
+    code, out, err = run(
+        capsys, "bench", "coverage", "--db", coverage_atlas, "--family", "double", "--top", "5", "--json"
+    )
     assert code == 0, err
     doubles = json.loads(out)["cells"]
     for cell, args in (
@@ -70,7 +63,7 @@ def test_coverage_grid_matches_the_query_cell_by_cell(capsys, atlas_path, tmp_pa
             capsys,
             "query",
             "--db",
-            atlas_path,
+            coverage_atlas,
             "--dwell",
             f"{cell['dwell_deg']:g}",
             *extra,
@@ -87,12 +80,12 @@ def test_coverage_grid_matches_the_query_cell_by_cell(capsys, atlas_path, tmp_pa
     assert "rpr" in summary and "cells with ≥ 3" in summary
 
 
-def test_coverage_table_and_bad_input(capsys, atlas_path, tmp_path):
+def test_coverage_table_and_bad_input(capsys, coverage_atlas, tmp_path):
     # the table's form (the refined grid is the test above's; --no-refine keeps this one short)
-    code, out, err = run(capsys, "bench", "coverage", "--db", atlas_path, "--top", "3", "--no-refine")
+    code, out, err = run(capsys, "bench", "coverage", "--db", coverage_atlas, "--top", "3", "--no-refine")
     assert code == 0, err
     assert out.startswith("coverage of demo") and "RRR" in out and "DOUBLE" in out
-    code, out, err = run(capsys, "bench", "coverage", "--db", atlas_path, "--top", "0")
+    code, out, err = run(capsys, "bench", "coverage", "--db", coverage_atlas, "--top", "0")
     assert code == 2 and out == "" and len(err.strip().splitlines()) == 1
     code, out, err = run(capsys, "bench", "coverage", "--db", str(tmp_path / "none.sqlite"))
     assert code == 2 and out == ""
@@ -102,7 +95,7 @@ def test_coverage_table_and_bad_input(capsys, atlas_path, tmp_path):
         "bench",
         "coverage",
         "--db",
-        atlas_path,
+        coverage_atlas,
         "--family",
         "rrr",
         "--dwell",
@@ -118,60 +111,18 @@ def test_coverage_table_and_bad_input(capsys, atlas_path, tmp_path):
         ("rrr", d, s) for d in (10, 180) for s in SWINGS
     ]
     assert all(c["in_the_way"] is None or c["in_the_way"][0] in CONSTRAINTS for c in rows)
-    code, out, err = run(capsys, "bench", "coverage", "--db", atlas_path, "--dwell", "11")
+    code, out, err = run(capsys, "bench", "coverage", "--db", coverage_atlas, "--dwell", "11")
     assert code == 2 and out == "" and len(err.strip().splitlines()) == 1 and "--dwell" in err
 
 
-def test_complete_coverage_measures_the_sampled_query_against_it(capsys, atlas_path, tmp_path):
-    """``--complete --family double``: every cell answered by the complete search (all its
-    six-bars), with the share of them the sampled query finds; the table and the plot of one
-    family."""
-    plot = tmp_path / "double.png"
-    rows = (60,)  # two of the sixteen cells: the complete search over the rest is the same code
-    code, out, err = run(
-        capsys,
-        "bench",
-        "coverage",
-        "--db",
-        atlas_path,
-        "--family",
-        "double",
-        "--complete",
-        "--json",
-        "--plot",
-        str(plot),
-        *(f"--dwell={d}" for d in rows),
-    )
-    assert code == 0, err
-    doc = json.loads(out)
-    assert doc["complete"] is True and list(doc["summary"]) == ["double"]
-    cells = doc["cells"]
-    assert [(c["dwell_deg"], c["swing_deg"]) for c in cells] == [(d, s) for d in rows for s in DOUBLE_SWINGS]
-    for c in cells:
-        assert c["candidates"] == min(10, c["complete"])
-        assert (c["recall"] is None) == (c["complete"] == 0)
-        assert c["recall"] is None or 0.0 <= c["recall"] <= 1.0
-    v = doc["summary"]["double"]
-    # the test atlas holds no double dwell within the default limits at a swing of 20° or 45°
-    # (± 0.5°; its double dwells that keep them swing less or 135°–155°, issue #41): the
-    # complete search answers none of these cells, and there is no recall to report
-    assert v["complete"] == sum(c["complete"] for c in cells) == 0 and v.get("recall") is None
-    # the sample is a subset of the complete answer: it never finds more curves than there are
-    assert all(c["sampled"] <= c["complete"] for c in cells)
-    assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert "the sampled query finds" not in err and "double 0/2 cells with ≥ 3 (0 with ≥ 1)" in err
-    code, out, err = run(capsys, "bench", "coverage", "--db", atlas_path, "--family", "double", "--top", "3")
-    assert code == 0 and out.count("DOUBLE") == 1 and "RPR" not in out
-
-
-def test_query_complete_holds_every_sampled_answer(capsys, atlas_path):
+def test_query_complete_holds_every_sampled_answer(capsys, coverage_atlas):
     """``dwell query --complete``: every six-bar the default (sampled) query returns meets the
     request, so the complete search returns it too (or its mirror image, or a better-ranked
     six-bar of the same segment)."""
     args = [
         "query",
         "--db",
-        atlas_path,
+        coverage_atlas,
         "--dwell",
         "45",
         "--swing",
