@@ -190,6 +190,8 @@ INPUT_STEP = Bounded(1e-9, 1e12, "a step in degrees or a length")
 #: A sweep's proportions (crank = 1), the search's crank step and rays (atlas/sweep.py's ranges).
 PROPORTION = Bounded(*PROPORTION_RANGE, "a length in cranks")
 SEARCH_STEP_DEG = Bounded(*CRANK_STEP_RANGE_DEG, "a crank step of the search in degrees")
+#: An output swing's tolerance, which is also how far two rests' bands must be left between them.
+SWING_TOL_DEG = Bounded(0.0, 180.0, "a swing error in degrees", high_open=True)
 RAYS = Count(*RAYS_RANGE, "rays through the pole")
 #: A seed of a random generator.
 SEED = Count(0, 2**63 - 1, "a seed")

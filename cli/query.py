@@ -18,7 +18,18 @@ from click.core import ParameterSource
 
 from atlas.pool import default_workers
 from cli.errors import InputError
-from cli.options import AUTO, LENGTH, RPM, BandOrAuto, Bounded, Count, db_option, request_errors, units_option
+from cli.options import (
+    AUTO,
+    LENGTH,
+    RPM,
+    SWING_TOL_DEG,
+    BandOrAuto,
+    Bounded,
+    Count,
+    db_option,
+    request_errors,
+    units_option,
+)
 from report.candidate_json import candidate_json, request_json
 from report.query_table import legend_lines, short_table
 from synth.kinds import OutputKind
@@ -448,7 +459,6 @@ def no_match_json(result: QueryResult, units: str = "mm") -> dict:
 DWELL_DEG = Bounded(0.0, 360.0, "a dwell in degrees", low_open=True, high_open=True)
 DWELL_TOL_DEG = Bounded(0.0, 360.0, "a dwell error in degrees", high_open=True)
 SWING_DEG = Bounded(0.01, 180.0, "a swing in degrees", high_open=True)
-SWING_TOL_DEG = Bounded(0.0, 180.0, "a swing error in degrees", high_open=True)
 STEP_DEG = Bounded(0.01, 180.0, "a turn between two rests in degrees", high_open=True)
 BAND_DEG = Bounded(1e-4, 180.0, "an output band in degrees", high_open=True)
 #: ``dwell query --band``: the same, or auto (synth.query.band_search); ``dwell report`` takes a number.

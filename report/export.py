@@ -425,7 +425,10 @@ def write_report(
             drawing = draw_sixbar(geom, out / f"{stem}-drawing.svg")
             dxf = write_dxf(geom, out / f"{stem}-drawing.dxf")
             toml = out / f"{stem}.toml"
-            toml.write_text(linkage_toml(c, units, band=request.band, dwells=request.dwells), encoding="utf-8")
+            toml.write_text(
+                linkage_toml(c, units, band=request.band, dwells=request.dwells, leave=request.swing_tol),
+                encoding="utf-8",
+            )
             files = [p for pf in plots.values() for p in (pf.png, pf.svg)] + [drawing, dxf, toml]
             written += files
             entries.append(

@@ -38,7 +38,12 @@ def _pair(z: complex) -> str:
 
 
 def _body(
-    candidate: Candidate, units: str, configuration: int | None = None, band: float | None = None, dwells: int = 1
+    candidate: Candidate,
+    units: str,
+    configuration: int | None = None,
+    band: float | None = None,
+    dwells: int = 1,
+    leave: float | None = None,
 ) -> list[str]:
     sb = candidate.sixbar
     rrr = sb.dyad.kind == OutputKind.RRR
@@ -100,6 +105,10 @@ def _body(
             f"band = {_num(math.degrees(band))}         # deg: the output band within which it rests",
             f"dwells = {int(dwells)}",
         ]
+        if dwells == 2 and leave is not None:
+            lines.append(
+                f"leave = {_num(math.degrees(leave))}        # deg: how far it leaves the band between its rests"
+            )
     return lines
 
 
@@ -161,16 +170,19 @@ def readable_linkages(candidates: Sequence[Candidate], units: str = "") -> None:
             raise LinkageFileError(f"candidate {c.id}'s linkage file could not be read back ({exc})") from None
 
 
-def linkage_toml(candidate: Candidate, units: str = "", *, band: float | None = None, dwells: int = 1) -> str:
+def linkage_toml(
+    candidate: Candidate, units: str = "", *, band: float | None = None, dwells: int = 1, leave: float | None = None
+) -> str:
     """The linkage description of ``candidate`` (its lengths in the user's units) with its
     assembly configuration and, given the request's ``band`` (rad) and number of ``dwells``,
-    the output band its dwells are measured in; a header comment gives the figures
+    the output band its dwells are measured in (with two, ``leave``, rad: the swing tolerance
+    by which the output leaves the band between its rests); a header comment gives the figures
     ``dwell analyze linkage FILE --limits`` reproduces."""
     # The configuration's number does not depend on the scale; matched at crank = 1, where the
     # assembly solver's products of lengths cannot overflow (report.cycle.unit_motion).
     unit = dataclasses.replace(candidate, sixbar=candidate.sixbar.scaled(1.0 / candidate.sixbar.a))
     config = linkage_configuration(unit, "\n".join(_body(unit, units)) + "\n")
-    body = "\n".join(_body(candidate, units, config, band, dwells)) + "\n"
+    body = "\n".join(_body(candidate, units, config, band, dwells, leave)) + "\n"
     f = candidate.figures
     dwells = ", ".join("{:.3f}..{:.3f} deg".format(*d.ends_deg()) for d in f.dwells)
     header = [

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 #: The agreement the file promises (docs/linkage-files.md), degrees.
 SWING_TOL = 1e-4
@@ -137,16 +138,20 @@ def round_trip(candidates: Sequence, request, units: str = "mm", agreement: Agre
         return agreement
     items = []
     for c in candidates:
-        mech = linkage_from_text(linkage_toml(c, units, band=request.band, dwells=request.dwells))
+        mech = linkage_from_text(
+            linkage_toml(c, units, band=request.band, dwells=request.dwells, leave=request.swing_tol)
+        )
         dec = decompose(mech)
         first = np.zeros((1, 1))
         number, source, start = configuration_start(
             mech, dec, first, configurations(mech, first[0], decomposition=dec), None, "file"
         )
         assert source == "file" and mech.output.band == request.band
+        # two rests are told apart as the query told them: the file carries the swing tolerance
+        assert mech.output.leave == (pytest.approx(request.swing_tol, abs=1e-15) if request.dwells == 2 else None)
         agreement.configurations[number] += 1
         items.append((mech, dec, start, mech.output))
-    found = rests(items, request.band, request.dwells)
+    found = rests(items, request.band, request.dwells, items[0][3].leave)
     phi = crank_grid(720)
     for c, (mech, dec, start, output), dwells in zip(candidates, items, found):
         exact = output_at(mech, start, output, decomposition=dec)

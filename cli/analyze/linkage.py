@@ -20,6 +20,7 @@ from cli.options import (
     INPUT_STEP,
     INPUT_VALUE,
     SPEED,
+    SWING_TOL_DEG,
     Bounded,
     output_options,
     readable_text,
@@ -117,6 +118,14 @@ ANIMATION_POSITIONS = 181
     default=None,
     help="Dwells per turn to find with --band: 1, or 2 (the two longest) (default: the file's, else 1).",
 )
+@click.option(
+    "--leave",
+    type=SWING_TOL_DEG,
+    default=None,
+    metavar="DEG",
+    help="With --dwells 2: how far the output must leave the band between two rests for them to count as "
+    "two, as dwell query's --swing-tol (default: the file's [output] leave, else 0.5).",
+)
 @speed_options
 @click.option(
     "--speed",
@@ -147,6 +156,7 @@ def linkage(
     output_name,
     band,
     dwells,
+    leave,
     rpm,
     omega,
     cw,
@@ -238,6 +248,7 @@ def linkage(
             x_to,
             np.radians(band) if band is not None else (mech.output.band if own else None),
             dwells or (mech.output.dwells if own else 1),
+            np.radians(leave) if leave is not None else (mech.output.leave if own else None),
         )
         summary["limits"] = limits_json(mech, lim)
     table = _motion_table(mech, motion, units, mechanism, summary)

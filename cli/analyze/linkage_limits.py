@@ -56,6 +56,8 @@ class CycleLimits:
     dwells: tuple[Rest, ...] | None
     #: why the dwells were not measured although a band was given (None: measured or no band)
     no_dwells: str | None = None
+    #: two dwells: how far the output had to leave the band between them (rad); else None
+    leave: float | None = None
 
 
 def cycle_limits(
@@ -68,10 +70,13 @@ def cycle_limits(
     x_to: float | None,
     band: float | None,
     dwells: int,
+    leave: float | None = None,
 ) -> CycleLimits:
     """Limit positions over a full turn of an angle input (else over the sweep's range), the
     RRR dyads' smallest transmission angles over the same range, and the dwells within
-    ``band`` (rad) when the output is an angle and the input turns fully."""
+    ``band`` (rad) when the output is an angle and the input turns fully; two dwells are two
+    rests when the output leaves the band by ``leave`` (rad; None: the dwell finder's default)
+    between them."""
     first = mech.inputs[0] if mech.inputs else None
     if first is None:
         raise AssemblyError("--limits needs an input to vary")
@@ -95,18 +100,30 @@ def cycle_limits(
         elif not lim.full_turn:
             why = "the input does not make a full turn"
         else:
-            found = rests([(mech, dec, start, output)], band, dwells)[0]
-    return CycleLimits(lim, transmission, band, found, why)
+            found = rests([(mech, dec, start, output)], band, dwells, leave)[0]
+    if band is not None and dwells == 2 and leave is None:
+        from synth.mechanism.output_range import REST_LEAVE  # numba: imported when asked for
+
+        leave = REST_LEAVE
+    return CycleLimits(lim, transmission, band, found, why, leave if band is not None and dwells == 2 else None)
 
 
 def rests(
-    items: Sequence[tuple[Linkage, Decomposition, Assembly, Output]], band: float, count: int
+    items: Sequence[tuple[Linkage, Decomposition, Assembly, Output]],
+    band: float,
+    count: int,
+    leave: float | None = None,
 ) -> list[tuple[Rest, ...]]:
     """Per item (a linkage, its decomposition, the configuration's start pose and an angle
     output), the ``count`` longest disjoint crank intervals of one turn from the start on
-    which the output stays within ``band`` (rad). One dwell search for all items (the exact
-    output of each row evaluated by its own solver)."""
-    from synth.mechanism.output_range import crank_degrees, dwell_intervals  # numba: imported when asked for
+    which the output stays within ``band`` (rad), two of them separated by ``leave`` (rad;
+    None: :data:`~synth.mechanism.output_range.REST_LEAVE`) of output outside both bands. One
+    dwell search for all items (the exact output of each row evaluated by its own solver)."""
+    from synth.mechanism.output_range import (  # numba: imported when asked for
+        REST_LEAVE,
+        crank_degrees,
+        dwell_intervals,
+    )
     from synth.mechanism.sixbar import crank_grid
 
     if not items:
@@ -123,7 +140,7 @@ def rests(
     def psi_at(at: np.ndarray) -> np.ndarray:
         return np.stack([f(x) for f, x in zip(exact, at)])
 
-    found = dwell_intervals(phi, psi, band, count=count, psi_at=psi_at)
+    found = dwell_intervals(phi, psi, band, count=count, psi_at=psi_at, leave=REST_LEAVE if leave is None else leave)
     out = []
     for row in range(len(items)):
         mine = []
@@ -174,6 +191,8 @@ def limits_json(mech: Linkage, cyc: CycleLimits) -> dict:
             if cyc.dwells is None
             else [{"interval_deg": [d.start, d.end], "dwell_deg": d.length, "rest_deg": d.rest} for d in cyc.dwells]
         )
+        if cyc.leave is not None:
+            doc["leave_deg"] = float(np.degrees(cyc.leave))
         if cyc.no_dwells is not None:
             doc["dwells_not_measured"] = cyc.no_dwells
     return doc

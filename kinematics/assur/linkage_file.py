@@ -67,7 +67,7 @@ _TOP_KEYS = {"name", "units", "configuration", "ground", "links", "prismatic", "
 _LINK_KEYS = {"joints", "length", "points"}
 _PRISMATIC_KEYS = {"name", "guide", "block", "through", "angle", "toward", "block_point", "block_angle"}
 _INPUT_KEYS = {"joint", "link", "relative_to", "value", "range"}
-_OUTPUT_KEYS = {"link", "joint", "band", "dwells"}
+_OUTPUT_KEYS = {"link", "joint", "band", "dwells", "leave"}
 #: Joints closer than this (relative to the linkage size) count as one point.
 _COINCIDENT = 1e-12
 
@@ -524,8 +524,16 @@ def _output(spec: Any, links: list[Link], index: Mapping[str, int], pairs: tuple
             raise LinkageFileError(f"[output] 'dwells' must be 1 or 2, got {_shown(dwells)}")
         if "dwells" in spec and band is None:
             raise LinkageFileError("[output] 'dwells' needs 'band' (the output band within which it rests)")
-        return Output("angle", i, links[i].name, band, int(dwells))
-    for key in ("band", "dwells"):
+        leave = None
+        if "leave" in spec:
+            if dwells != 2:
+                raise LinkageFileError("[output] 'leave' applies to two dwells (dwells = 2)")
+            leave = _number(spec["leave"], "[output] 'leave'")
+            if not 0 <= leave < 180:
+                raise LinkageFileError(f"[output] 'leave' must be at least 0 and below 180 degrees, got {leave:g}")
+            leave = math.radians(leave)
+        return Output("angle", i, links[i].name, band, int(dwells), leave)
+    for key in ("band", "dwells", "leave"):
         if key in spec:
             raise LinkageFileError(
                 f"[output] {key!r} applies to a link's angle, not to a prismatic pair's displacement"

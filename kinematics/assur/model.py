@@ -120,6 +120,9 @@ class Output:
     ``band`` (rad, an angle output only) is the total width of the band within which the
     output counts as at rest: with it the limit positions come with the output's dwells, the
     ``dwells`` longest disjoint crank intervals (1 or 2) on which it stays within the band.
+    ``leave`` (rad, two dwells only; None: the dwell finder's default, 0.5°) is how far the
+    output must leave the band between two rests for them to count as two (``dwell query``'s
+    ``--swing-tol``).
     """
 
     kind: Literal["angle", "slide"]
@@ -127,6 +130,7 @@ class Output:
     name: str
     band: float | None = None
     dwells: int = 1
+    leave: float | None = None
 
 
 @dataclass(frozen=True, slots=True)

@@ -307,3 +307,23 @@ def test_limits_give_transmission_angles_and_dwells(tmp_path, capsys):
     code, out, err = run(capsys, EXAMPLES / "shaper.toml", "--limits", "--band", "1", "--json")
     assert code == 0, err
     assert json.loads(out)["summary"]["limits"]["dwells_not_measured"] == "the output is a slide (a band is an angle)"
+
+
+def test_two_rests_are_told_apart_by_the_file_leave(tmp_path, capsys):
+    """``[output] leave`` (the query's ``--swing-tol``) is how far the output must leave the band
+    between two rests: the rocker swings 77.4° between its two rests, so a leave below that
+    keeps both and one above it leaves only the longer; ``--leave`` overrides the file."""
+    path = tmp_path / "rest.toml"
+    path.write_text(_fourbar_text(output='link = "rocker"\nband = 2.0\ndwells = 2\nleave = 10\n'))
+    code, out, err = run(capsys, path, "--limits", "--json")
+    assert code == 0, err
+    two = json.loads(out)["summary"]["limits"]
+    assert two["leave_deg"] == pytest.approx(10.0, abs=1e-12) and len(two["dwells"]) == 2
+    swing = two["swing_deg"]
+    code, out, err = run(capsys, path, "--limits", "--json", "--leave", str(swing + 1))
+    assert code == 0, err
+    one = json.loads(out)["summary"]["limits"]
+    assert one["leave_deg"] == pytest.approx(swing + 1) and one["dwells"] == two["dwells"][:1]
+    path.write_text(_fourbar_text(output='link = "rocker"\nband = 2.0\ndwells = 2\n'))
+    code, out, err = run(capsys, path, "--limits", "--json")
+    assert json.loads(out)["summary"]["limits"]["leave_deg"] == pytest.approx(0.5, abs=1e-12)  # REST_LEAVE
