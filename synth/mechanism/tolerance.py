@@ -24,6 +24,18 @@ dwell's middle is φ − β; ψ's offset by β does not change a peak-to-peak. A
 assemble somewhere on the turn (or revolves) counts as infinitely bad; when more than 5 % of
 the draws do, the toleranced deviation is None ("does not survive this tolerance").
 
+Only the dwell windows are simulated when no draw can meet a limit of its linkage
+(:func:`clear_of_limits`: the four-bar's crank condition exactly on each draw, the output
+dyad's distance from its limit against a linear bound of how far the tolerance moves it):
+then every draw assembles over the whole turn and its output rocks as the drawing's does, and
+ψ is needed only where a window of the requested length containing the dwell middle can lie,
+sampled every 2° and refined on the exact path (:func:`_window_deviations`). That is ~60 exact
+points a draw for a 60° dwell instead of a 720-sample turn plus ~100 refinement points;
+measured against the whole-turn path on the top ten of eight requests on ``standard``, the
+95th percentile moves by at most 0.0006° (0.6 %), well inside its spread between seeds.
+Otherwise (a draw may not assemble) every draw is simulated over the whole turn on the query's
+720-sample grid, as the nominal figure is.
+
 Lengths are in the six-bar's unit (a :class:`~synth.query.candidates.Candidate`'s six-bar is in the
 user's unit, so ``t`` is too); angles in radians. Pure: no I/O.
 """
@@ -35,13 +47,32 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
+from numpy.typing import NDArray
 
 from synth.kinds import OutputKind
 from synth.mechanism.output_range import output_deviation
-from synth.mechanism.sixbar import ExactOutput, SixBar, SixBars, crank_grid, simulate
+from synth.mechanism.sixbar import (
+    PIN_ON_PIVOT_EPS,
+    ExactOutput,
+    SixBar,
+    SixBars,
+    crank_grid,
+    kernel_inputs,
+    simulate,
+)
 from synth.types import F64
 
-__all__ = ["DRAWS", "PERCENTILE", "SEED", "deviation_draws", "perturbed", "toleranced_deviation", "unit_draws"]
+__all__ = [
+    "DRAWS",
+    "PERCENTILE",
+    "SEED",
+    "clear_of_limits",
+    "crank_turns",
+    "deviation_draws",
+    "perturbed",
+    "toleranced_deviation",
+    "unit_draws",
+]
 
 #: Random six-bars drawn per candidate.
 DRAWS = 256
@@ -52,8 +83,19 @@ SEED = 44_2026
 #: Toleranced dimensions, in the columns of :func:`unit_draws`: a, b, c, u, v, L, ρ, then
 #: A0 x, A0 y, B0 x, B0 y, D x, D y (an RPR ignores L and ρ).
 DIMENSIONS = 13
-#: Crank samples of each draw's simulation: the query's grid (the nominal figure's).
+#: Crank samples of the whole-turn simulation of each draw (the query's grid, the nominal
+#: figure's): the path taken when a draw may meet a limit of its output dyad.
 SAMPLES = 720
+#: Crank samples per turn of the grid the draws' dwell windows are sampled on (1°): between
+#: samples only the window's inside is read, where ψ is nearly still (the ends are refined).
+WINDOW_SAMPLES = 180
+#: How far (rad) a draw's best window start is searched either side of the drawing's.
+WINDOW_SLIDE = math.radians(360.0)
+#: Exact points of the first and the second refinement stage of a window's placement.
+REFINE_POINTS = 8
+FINE_POINTS = 8
+#: Crank samples of the test that no draw meets a limit (:func:`clear_of_limits`).
+LIMIT_SAMPLES = 90
 
 
 @functools.lru_cache(maxsize=8)
@@ -97,7 +139,14 @@ def perturbed(sixbar: SixBar, tolerance: float, unit: F64) -> tuple[SixBars, F64
 
 
 def deviation_draws(
-    sixbar: SixBar, tolerance: float, centres: Sequence[float], length: float, *, draws: int = DRAWS, seed: int = SEED
+    sixbar: SixBar,
+    tolerance: float,
+    centres: Sequence[float],
+    length: float,
+    *,
+    draws: int = DRAWS,
+    seed: int = SEED,
+    whole_turn: bool = False,
 ) -> F64:
     """The output deviation (rad) of each of ``draws`` six-bars made within ±``tolerance`` of
     ``sixbar``: per draw the largest over the dwells of the smallest peak-to-peak of ψ over a
@@ -116,10 +165,15 @@ def deviation_draws(
         Requested dwell length (rad).
     draws, seed : int
         :func:`unit_draws`' arguments.
+    whole_turn : bool
+        Simulate every draw over the whole turn even where :func:`clear_of_limits` allows the
+        dwell windows alone (the reference the windows are tested against).
     """
     if not (math.isfinite(tolerance) and tolerance >= 0):
         raise ValueError(f"tolerance must be a finite length >= 0, got {tolerance!r}")
     batch, beta = perturbed(sixbar, tolerance, unit_draws(draws, seed))
+    if not whole_turn and crank_turns(batch).all() and clear_of_limits(sixbar, tolerance):
+        return _window_deviations(sixbar, batch, beta, centres, length)
     rrr = not batch.rpr[0]
     lengths = [batch.a, batch.b, batch.c, batch.d] + ([batch.rocker, batch.rod] if rrr else [])
     made = np.all(np.stack(lengths) > 0, axis=0)  # a tolerance as large as a link: no such part
@@ -172,3 +226,116 @@ def _percentile_inf(dev: F64) -> float:
     if not math.isfinite(s[hi]):
         return math.inf
     return float(s[lo] + (s[hi] - s[lo]) * (pos - lo))
+
+
+def clear_of_limits(sixbar: SixBar, tolerance: float) -> bool:
+    """Whether no six-bar within ±``tolerance`` of ``sixbar`` meets a limit of its output dyad
+    anywhere on the turn, by a margin: then every draw assembles over the whole turn and turns
+    the output as often as the drawing (zero times: the turn count cannot jump without a
+    limit being crossed), and only the dwell windows need simulating.
+
+    The margin m(φ) is the distance (length) of the output dyad from its limit: an RRR's
+    rod-to-pivot distance r = |D − P| inside (|L − ρ|, L + ρ), an RPR's pin off its slot's
+    pivot. Perturbed one dimension at a time by the whole tolerance, m moves by Δₖ(φ); a draw
+    moves it by at most Σₖ|Δₖ(φ)| to first order. The test asks m(φ) > 2·Σₖ|Δₖ(φ)| (room for
+    the second order) plus the largest change of m between two samples (what the grid can
+    miss), at every sample of a ``LIMIT_SAMPLES`` grid. The four-bar's limits are checked
+    exactly on each draw (:func:`crank_turns`)."""
+    unit = np.vstack([np.zeros(DIMENSIONS), np.eye(DIMENSIONS)])
+    batch, _ = perturbed(sixbar, tolerance, unit)
+    if not crank_turns(batch).all():
+        return False
+    motion = simulate(batch, crank_grid(LIMIT_SAMPLES), order=0)
+    if np.any(motion.status != 0) or abs(motion.psi[0, -1] - motion.psi[0, 0]) >= math.pi:
+        return False
+    r = np.abs(batch.pivot[:, None] - motion.z[0])
+    if batch.rpr[0]:
+        size = np.maximum.reduce([batch.a, batch.b, batch.c, batch.d, np.abs(batch.pivot)])
+        margin = r - PIN_ON_PIVOT_EPS * size[:, None]
+    else:
+        reach = (batch.rocker + batch.rod)[:, None]
+        fold = np.abs(batch.rocker - batch.rod)[:, None]
+        margin = np.minimum(reach - r, r - fold)
+    spread = np.sum(np.abs(margin[1:] - margin[0]), axis=0)
+    between = float(np.max(np.abs(np.diff(margin[0], append=margin[0, :1]))))
+    return bool(np.all(margin[0] > 2.0 * spread + between))
+
+
+def crank_turns(batch: SixBars) -> NDArray[np.bool_]:
+    """Whether each four-bar's crank turns fully: the diagonal from the crank pin to B0 sweeps
+    [|d − a|, d + a], and the coupler and rocker must close a triangle on every length of it,
+    |b − c| < |d − a| and d + a < b + c (strict: at equality the linkage toggles)."""
+    a, b, c, d = batch.a, batch.b, batch.c, batch.d
+    return (np.abs(b - c) < np.abs(d - a)) & (d + a < b + c) & (np.minimum.reduce([a, b, c, d]) > 0)
+
+
+def _window_deviations(
+    sixbar: SixBar, batch: SixBars, beta: F64, centres: Sequence[float], length: float, *, fine: bool = False
+) -> F64:
+    """:func:`deviation_draws` of draws that all assemble (:func:`clear_of_limits`), simulated
+    only over their dwell windows.
+
+    Per dwell, the drawing's best window (:func:`output_deviation` on the query's grid) starts
+    ``off`` before the dwell middle c; in each draw's frame the window's start is searched over
+    ``[c − off − WINDOW_SLIDE, c − off + WINDOW_SLIDE]`` (within [c − L, c], so the window still
+    contains c) on a ``WINDOW_SAMPLES`` grid, then refined on the exact path as
+    :func:`output_deviation` refines (:func:`synth.mechanism.dwell_ends_kernel.refine_deviation_windows`).
+    ψ is sampled only from the first window's start to the last one's end. A window not
+    searched can only be better than the one found, so the figure errs high, never low."""
+    from synth.mechanism.dwell_ends_kernel import refine_deviation_windows  # numba: imported on first use
+    from synth.mechanism.sixbar_kernel import output_angles  # numba: imported on first use
+
+    n = len(batch)
+    phi = crank_grid(SAMPLES)
+    nominal = simulate(sixbar, phi, order=1)
+    exact_nominal = ExactOutput(SixBars.from_sixbars([sixbar]))
+    params, rpr = kernel_inputs(batch)
+    samples = SAMPLES if fine else WINDOW_SAMPLES
+    h = 2 * math.pi / samples
+    slide = WINDOW_SLIDE if not fine else 2 * math.pi
+    nL = int(math.floor(length / h + 1e-9))
+    rows = np.arange(n)
+    worst = np.zeros(n)
+    for centre in centres:
+        _, start = output_deviation(
+            phi, nominal.psi[None, :], float(centre), length, psi_at=exact_nominal, dpsi1=nominal.dpsi[0][None, :]
+        )
+        off = float(np.mod(float(centre) - start[0], 2 * math.pi))  # in [0, L]
+        c = np.mod(float(centre) - beta, 2 * math.pi)  # the dwell middle in each draw's frame
+        lo = np.maximum(c - length, c - off - slide)
+        hi = np.minimum(c, c - off + slide)
+        i_lo = np.ceil(lo / h - 1e-9).astype(np.int64)
+        span = np.floor(hi / h + 1e-9).astype(np.int64) - i_lo + 1
+        J = int(span.max())
+        W = J + nL + 4
+        # the draws' frames turn by |β| ≲ t/d: their slabs share one grid (its sines and cosines
+        # made once), each read from its own first sample
+        first = int(i_lo.min()) - 1
+        shared = (first + np.arange(int(i_lo.max()) - first - 1 + W)) * h
+        psi = output_angles(params, rpr, shared[None, :], PIN_ON_PIVOT_EPS)
+        slab = psi[rows[:, None], (i_lo - 1 - first)[:, None] + np.arange(W)[None, :]]
+        grid_range = np.full((n, J), math.inf)
+        for j in range(J):  # the window from sample i_lo + j holds nL + 1 samples
+            win = slab[:, 1 + j : 2 + j + nL]
+            grid_range[:, j] = np.where(j < span, win.max(axis=1) - win.min(axis=1), math.inf)
+        jbest = np.argmin(grid_range, axis=1)
+        dev, _ = refine_deviation_windows(
+            params,
+            rpr,
+            rows,
+            slab,
+            i_lo,
+            jbest + 1,
+            np.full(n, nL),
+            np.full(n, float(length)),
+            c,
+            grid_range[rows, jbest],
+            (i_lo + jbest) * h,
+            0.0,
+            h,
+            PIN_ON_PIVOT_EPS,
+            REFINE_POINTS,
+            FINE_POINTS,
+        )
+        worst = np.maximum(worst, dev)
+    return worst
