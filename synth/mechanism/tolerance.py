@@ -29,10 +29,13 @@ Only the dwell windows are simulated when no draw can meet a limit of its linkag
 dyad's distance from its limit against a linear bound of how far the tolerance moves it):
 then every draw assembles over the whole turn and its output rocks as the drawing's does, and
 ψ is needed only where a window of the requested length containing the dwell middle can lie,
-sampled every 2° and refined on the exact path (:func:`_window_deviations`). That is ~60 exact
-points a draw for a 60° dwell instead of a 720-sample turn plus ~100 refinement points;
-measured against the whole-turn path on the top ten of eight requests on ``standard``, the
-95th percentile moves by at most 0.0006° (0.6 %), well inside its spread between seeds.
+sampled every 2° and refined on the exact path (:func:`_window_deviations`); for the
+percentile alone, only the draws whose grid bounds leave them able to be its order statistics
+are refined (the same number as refining all). That is ~70 exact points a draw for a 60°
+dwell, plus 36 for a draw refined, instead of a 720-sample turn plus ~100 refinement points.
+Measured against the whole-turn path on the answers of eight requests on ``standard`` (80
+six-bars, docs/tolerance.md), the 95th percentile moves by at most 0.0006° (0.6 %), well
+inside its spread between seeds.
 Otherwise (a draw may not assemble) every draw is simulated over the whole turn on the query's
 720-sample grid, as the nominal figure is.
 
@@ -68,6 +71,7 @@ __all__ = [
     "SEED",
     "clear_of_limits",
     "crank_turns",
+    "deciding_draws",
     "deviation_draws",
     "perturbed",
     "toleranced_deviation",
@@ -89,8 +93,6 @@ SAMPLES = 720
 #: Crank samples per turn of the grid the draws' dwell windows are sampled on (1°): between
 #: samples only the window's inside is read, where ψ is nearly still (the ends are refined).
 WINDOW_SAMPLES = 180
-#: How far (rad) a draw's best window start is searched either side of the drawing's.
-WINDOW_SLIDE = math.radians(360.0)
 #: Exact points of the first and the second refinement stage of a window's placement.
 REFINE_POINTS = 8
 FINE_POINTS = 8
@@ -169,11 +171,26 @@ def deviation_draws(
         Simulate every draw over the whole turn even where :func:`clear_of_limits` allows the
         dwell windows alone (the reference the windows are tested against).
     """
+    return _draws(sixbar, tolerance, centres, length, draws, seed, whole_turn, None)
+
+
+def _draws(
+    sixbar: SixBar,
+    tolerance: float,
+    centres: Sequence[float],
+    length: float,
+    draws: int,
+    seed: int,
+    whole_turn: bool,
+    percentile: float | None,
+) -> F64:
+    """:func:`deviation_draws`; with ``percentile``, good only for that percentile (the
+    dwell-window path then refines only the draws that decide it, :func:`_window_deviations`)."""
     if not (math.isfinite(tolerance) and tolerance >= 0):
         raise ValueError(f"tolerance must be a finite length >= 0, got {tolerance!r}")
     batch, beta = perturbed(sixbar, tolerance, unit_draws(draws, seed))
     if not whole_turn and crank_turns(batch).all() and clear_of_limits(sixbar, tolerance):
-        return _window_deviations(sixbar, batch, beta, centres, length)
+        return _window_deviations(batch, beta, centres, length, percentile=percentile)
     rrr = not batch.rpr[0]
     lengths = [batch.a, batch.b, batch.c, batch.d] + ([batch.rocker, batch.rod] if rrr else [])
     made = np.all(np.stack(lengths) > 0, axis=0)  # a tolerance as large as a link: no such part
@@ -211,8 +228,9 @@ def toleranced_deviation(
 ) -> float | None:
     """The :data:`PERCENTILE`-th percentile (rad) of :func:`deviation_draws` (numpy's linear
     interpolation between order statistics), or None where it falls on draws that do not
-    assemble (more than 5 % of them)."""
-    dev = deviation_draws(sixbar, tolerance, centres, length, draws=draws, seed=seed)
+    assemble (more than 5 % of them). The same number, refining only the draws that can
+    decide it."""
+    dev = _draws(sixbar, tolerance, centres, length, draws, seed, False, PERCENTILE)
     value = float(np.percentile(dev, PERCENTILE)) if np.isfinite(dev).all() else _percentile_inf(dev)
     return value if math.isfinite(value) else None
 
@@ -270,72 +288,101 @@ def crank_turns(batch: SixBars) -> NDArray[np.bool_]:
 
 
 def _window_deviations(
-    sixbar: SixBar, batch: SixBars, beta: F64, centres: Sequence[float], length: float, *, fine: bool = False
+    batch: SixBars, beta: F64, centres: Sequence[float], length: float, *, percentile: float | None = None
 ) -> F64:
     """:func:`deviation_draws` of draws that all assemble (:func:`clear_of_limits`), simulated
-    only over their dwell windows.
+    only where a window of ``length`` containing a dwell middle can lie.
 
-    Per dwell, the drawing's best window (:func:`output_deviation` on the query's grid) starts
-    ``off`` before the dwell middle c; in each draw's frame the window's start is searched over
-    ``[c − off − WINDOW_SLIDE, c − off + WINDOW_SLIDE]`` (within [c − L, c], so the window still
-    contains c) on a ``WINDOW_SAMPLES`` grid, then refined on the exact path as
-    :func:`output_deviation` refines (:func:`synth.mechanism.dwell_ends_kernel.refine_deviation_windows`).
-    ψ is sampled only from the first window's start to the last one's end. A window not
-    searched can only be better than the one found, so the figure errs high, never low."""
+    As :func:`output_deviation` does it, on a ``WINDOW_SAMPLES`` grid instead of the query's:
+    in each draw's frame the window's start runs over [c − L, c] (c the dwell middle there),
+    the best sample start is found from sliding extremes of the samples, then refined on the
+    exact path in two stages of ``REFINE_POINTS`` and ``FINE_POINTS`` points
+    (:func:`synth.mechanism.dwell_ends_kernel.refine_deviation_windows`). ψ is sampled from
+    c − L to c + L only, on one grid the draws share.
+
+    With ``percentile`` (%), only the draws that can decide that percentile are refined
+    (:func:`deciding_draws`); the others get a bound on their side of it, so the percentile (numpy's
+    linear interpolation) is the one of every draw refined, and the array is good for
+    nothing else."""
     from synth.mechanism.dwell_ends_kernel import refine_deviation_windows  # numba: imported on first use
+    from synth.mechanism.sample_ranges import sliding_extremes  # numba: imported on first use
     from synth.mechanism.sixbar_kernel import output_angles  # numba: imported on first use
 
     n = len(batch)
-    phi = crank_grid(SAMPLES)
-    nominal = simulate(sixbar, phi, order=1)
-    exact_nominal = ExactOutput(SixBars.from_sixbars([sixbar]))
     params, rpr = kernel_inputs(batch)
-    samples = SAMPLES if fine else WINDOW_SAMPLES
-    h = 2 * math.pi / samples
-    slide = WINDOW_SLIDE if not fine else 2 * math.pi
-    nL = int(math.floor(length / h + 1e-9))
+    h = 2 * math.pi / WINDOW_SAMPLES
+    nL = int(math.floor(length / h + 1e-9))  # samples i..i+nL lie in [φ_i, φ_i + L]
     rows = np.arange(n)
-    worst = np.zeros(n)
+    upper, lower = np.zeros(n), np.zeros(n)
+    windows = []
     for centre in centres:
-        _, start = output_deviation(
-            phi, nominal.psi[None, :], float(centre), length, psi_at=exact_nominal, dpsi1=nominal.dpsi[0][None, :]
-        )
-        off = float(np.mod(float(centre) - start[0], 2 * math.pi))  # in [0, L]
         c = np.mod(float(centre) - beta, 2 * math.pi)  # the dwell middle in each draw's frame
-        lo = np.maximum(c - length, c - off - slide)
-        hi = np.minimum(c, c - off + slide)
-        i_lo = np.ceil(lo / h - 1e-9).astype(np.int64)
-        span = np.floor(hi / h + 1e-9).astype(np.int64) - i_lo + 1
+        i_lo = np.ceil((c - length) / h - 1e-9).astype(np.int64)
+        span = np.floor(c / h + 1e-9).astype(np.int64) - i_lo + 1
         J = int(span.max())
         W = J + nL + 4
         # the draws' frames turn by |β| ≲ t/d: their slabs share one grid (its sines and cosines
-        # made once), each read from its own first sample
+        # made once), each read from its own first sample i_lo − 1
         first = int(i_lo.min()) - 1
         shared = (first + np.arange(int(i_lo.max()) - first - 1 + W)) * h
         psi = output_angles(params, rpr, shared[None, :], PIN_ON_PIVOT_EPS)
-        slab = psi[rows[:, None], (i_lo - 1 - first)[:, None] + np.arange(W)[None, :]]
-        grid_range = np.full((n, J), math.inf)
-        for j in range(J):  # the window from sample i_lo + j holds nL + 1 samples
-            win = slab[:, 1 + j : 2 + j + nL]
-            grid_range[:, j] = np.where(j < span, win.max(axis=1) - win.min(axis=1), math.inf)
+        slab = np.ascontiguousarray(psi[rows[:, None], (i_lo - 1 - first)[:, None] + np.arange(W)[None, :]])
+        # the window from sample i_lo + j (slab offset 1 + j) holds nL + 1 samples
+        top, bottom = sliding_extremes(slab, 1, J, np.full(n, nL + 1))
+        grid_range = np.where(np.arange(J)[None, :] < span[:, None], top - bottom, math.inf)
         jbest = np.argmin(grid_range, axis=1)
-        dev, _ = refine_deviation_windows(
+        dev = grid_range[rows, jbest]
+        # The refinement keeps the grid window or finds a better one among starts within a
+        # step of it, each holding the samples from one step after the grid start to one step
+        # before its end (slab offsets jbest + 2 .. jbest + nL): their range bounds the refined
+        # figure from below, the grid window's from above.
+        inner = slab[rows[:, None], jbest[:, None] + 2 + np.arange(max(nL - 1, 0))[None, :]]
+        floor = inner.max(axis=1) - inner.min(axis=1) if nL >= 2 else np.zeros(n)
+        upper, lower = np.maximum(upper, dev), np.maximum(lower, np.minimum(floor, dev))
+        windows.append((slab, i_lo, jbest, c, dev))
+    out = upper.copy()
+    todo = rows
+    if percentile is not None:
+        need, out = deciding_draws(lower, upper, percentile)
+        todo = np.flatnonzero(need)
+    worst = np.zeros(len(todo))
+    for slab, i_lo, jbest, c, dev in windows:
+        refined, _ = refine_deviation_windows(
             params,
             rpr,
-            rows,
-            slab,
-            i_lo,
-            jbest + 1,
-            np.full(n, nL),
-            np.full(n, float(length)),
-            c,
-            grid_range[rows, jbest],
-            (i_lo + jbest) * h,
+            todo,
+            slab[todo],
+            i_lo[todo],
+            jbest[todo] + 1,
+            np.full(len(todo), nL),
+            np.full(len(todo), float(length)),
+            c[todo],
+            dev[todo],
+            (i_lo[todo] + jbest[todo]) * h,
             0.0,
             h,
             PIN_ON_PIVOT_EPS,
             REFINE_POINTS,
             FINE_POINTS,
         )
-        worst = np.maximum(worst, dev)
-    return worst
+        worst = np.maximum(worst, refined)
+    out[todo] = worst
+    return out
+
+
+def deciding_draws(lower: F64, upper: F64, percentile: float) -> tuple[NDArray[np.bool_], F64]:
+    """Which draws, their exact figure known to lie in [lower, upper], can be one of the two
+    order statistics numpy interpolates the ``percentile`` (%) between (positions ⌊p⌋ and
+    ⌈p⌉, p = percentile/100·(n − 1)), and a stand-in for the others.
+
+    The k-th order statistic lies between the k-th smallest lower bound and the k-th smallest
+    upper bound: a draw whose upper bound is under the ⌊p⌋-th lower bound stays below both
+    order statistics (its stand-in: its upper bound), one whose lower bound is over the ⌈p⌉-th
+    upper bound stays above them (its stand-in: its lower bound). With the deciding draws'
+    exact figures put in, the stand-ins' percentile is the exact figures' percentile."""
+    n = len(lower)
+    pos = percentile / 100.0 * (n - 1)
+    lo_k, hi_k = math.floor(pos), math.ceil(pos)
+    below = np.partition(lower, lo_k)[lo_k]
+    above = np.partition(upper, hi_k)[hi_k]
+    return (upper >= below) & (lower <= above), np.where(lower > above, lower, upper)

@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from synth.mechanism.figures import sixbar_figures
 from synth.mechanism.output_range import output_deviation
@@ -15,6 +17,7 @@ from synth.mechanism.tolerance import (
     PERCENTILE,
     clear_of_limits,
     crank_turns,
+    deciding_draws,
     deviation_draws,
     perturbed,
     toleranced_deviation,
@@ -105,6 +108,7 @@ def test_percentile_of_256_seeded_draws_is_deterministic_and_grows_with_the_tole
     assert large == toleranced_deviation(RRR, 0.05 / 40, centres, length)
     draws = deviation_draws(RRR, 0.05 / 40, centres, length)
     assert len(draws) == DRAWS
+    # refining only the draws that decide the percentile gives the very number
     assert large == pytest.approx(float(np.percentile(draws, PERCENTILE)), abs=0)
     nominal = max(sixbar_figures(RRR, band=BAND, dwell_length=length).deviations)
     assert nominal < small < large
@@ -163,3 +167,36 @@ def testcrank_turns_is_the_grashof_crank_condition():
     unit[2, 2] = -1.5  # c = 0.99: d + a = 4.938 > b + c = 4.532, the coupler cannot reach
     batch, _ = perturbed(RRR, 1.0, unit)
     np.testing.assert_array_equal(crank_turns(batch), [True, True, False])
+
+
+@pytest.mark.parametrize("q", [50.0, 95.0, 99.0])
+def test_deciding_draws_hold_every_order_statistic_the_percentile_reads(q):
+    rng = np.random.default_rng(7)
+    exact = rng.uniform(0.0, 1.0, 256)
+    lower, upper = exact - rng.uniform(0, 0.05, 256), exact + rng.uniform(0, 0.05, 256)
+    need, stand_in = deciding_draws(lower, upper, q)
+    assert 0 < need.sum() < 128  # most draws are decided by their bounds alone
+    assert np.all((stand_in == lower) | (stand_in == upper))
+    # the others replaced by their stand-ins: the same percentile
+    assert np.percentile(np.where(need, exact, stand_in), q) == np.percentile(exact, q)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.lists(
+        st.tuples(
+            st.floats(0.0, 1.0),
+            st.floats(0.0, 0.5),
+            st.floats(0.0, 0.5),
+        ),
+        min_size=2,
+        max_size=300,
+    ),
+    st.floats(0.0, 100.0),
+)
+def test_deciding_draws_give_the_exact_percentile_for_any_bounds(draws, q):
+    exact = np.array([x for x, _, _ in draws])
+    lower = exact - np.array([a for _, a, _ in draws])
+    upper = exact + np.array([b for _, _, b in draws])
+    need, stand_in = deciding_draws(lower, upper, q)
+    assert np.percentile(np.where(need, exact, stand_in), q) == np.percentile(exact, q)
