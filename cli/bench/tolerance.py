@@ -17,6 +17,7 @@ import os
 import platform
 import time
 from collections.abc import Callable
+from typing import Any
 
 import click
 import numpy as np
@@ -48,6 +49,12 @@ TARGET_S = 0.005
     type=Bounded(0.0, 0.1, "a tolerance in cranks"),
     help="Tolerance in cranks.",
 )
+@click.option(
+    "--answers",
+    multiple=True,
+    type=click.Path(exists=True, dir_okay=False),
+    help="Also every candidate of these `dwell query --json` files: the figure against the whole-turn path's.",
+)
 @click.option("--repeat", default=9, show_default=True, type=click.IntRange(1, 100), help="Timed runs per six-bar.")
 @click.option(
     "--seeds",
@@ -56,7 +63,7 @@ TARGET_S = 0.005
     type=click.IntRange(1, 50),
     help="Seeds whose percentiles give the estimate's spread.",
 )
-def tolerance(draws: int, tolerance: float, repeat: int, seeds: int) -> None:
+def tolerance(draws: int, tolerance: float, answers: tuple[str, ...], repeat: int, seeds: int) -> None:
     """CPU cost per candidate of the toleranced deviation, and its spread over seeds (JSON)."""
     from synth.mechanism.figures import sixbar_figures
     from synth.mechanism.tolerance import SEED, clear_of_limits, deviation_draws, toleranced_deviation
@@ -110,6 +117,7 @@ def tolerance(draws: int, tolerance: float, repeat: int, seeds: int) -> None:
         "tolerance_cranks": tolerance,
         "target_cpu_ms_per_candidate_at_256": TARGET_S * 1e3,
         "results": results,
+        **({"answers": _answers(answers, tolerance, draws)} if answers else {}),
         "platform": {
             "python": platform.python_version(),
             "numpy": np.__version__,
@@ -134,3 +142,47 @@ def _timed(run: Callable[[], object], repeat: int) -> tuple[list[float], list[fl
 def _spread(seconds: list[float]) -> dict[str, float]:
     """min/median/max of ``seconds``, in milliseconds."""
     return {"min": 1e3 * min(seconds), "median": 1e3 * float(np.median(seconds)), "max": 1e3 * max(seconds)}
+
+
+def _answers(paths: tuple[str, ...], tolerance: float, draws: int) -> dict:
+    """Each candidate of the query answers ``paths``: its toleranced deviation (``tolerance``
+    cranks, its CPU time) against the whole-turn path's (its CPU time), summarised."""
+    from report.candidate_json import sixbar_from_json
+    from synth.mechanism.tolerance import clear_of_limits, deviation_draws, toleranced_deviation
+
+    diff, rel, cpu, turn_cpu, windows = [], [], [], [], 0
+    for path in paths:
+        with open(path, encoding="utf-8") as f:
+            doc = json.load(f)
+        length = math.radians(doc["request"]["dwell_deg"])
+        for c in doc["candidates"]:
+            sb = sixbar_from_json(c)
+            t = tolerance * sb.a
+            centres = [math.radians(d["interval_deg"][0] + 0.5 * d["dwell_deg"]) for d in c["dwells"]]
+            windows += clear_of_limits(sb, t)
+            value, seconds = _timed_value(lambda: toleranced_deviation(sb, t, centres, length, draws=draws))
+            turn, turn_seconds = _timed_value(
+                lambda: deviation_draws(sb, t, centres, length, draws=draws, whole_turn=True)
+            )
+            cpu.append(seconds)
+            turn_cpu.append(turn_seconds)
+            reference = float(np.percentile(turn, 95.0)) if np.isfinite(turn).all() else None
+            if value is not None and reference is not None:
+                diff.append(abs(math.degrees(value - reference)))
+                rel.append(abs(value - reference) / reference)
+    return {
+        "candidates": len(cpu),
+        "dwell_windows_only": windows,
+        "largest_difference_deg": max(diff, default=None),
+        "median_difference_deg": float(np.median(diff)) if diff else None,
+        "largest_relative_difference": max(rel, default=None),
+        "cpu_ms_per_candidate": _spread(cpu),
+        "whole_turn_cpu_ms_per_candidate": _spread(turn_cpu),
+    }
+
+
+def _timed_value(run: Callable[[], Any]) -> tuple[Any, float]:
+    """``run()``'s value and its CPU seconds (this process, every thread)."""
+    c = time.process_time()
+    value = run()
+    return value, time.process_time() - c
