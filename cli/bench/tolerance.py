@@ -22,6 +22,7 @@ from typing import Any
 import click
 import numpy as np
 
+from cli.errors import InputError
 from cli.options import Bounded
 from synth.mechanism.sixbar import OutputDyad, SixBar
 
@@ -68,6 +69,7 @@ def tolerance(draws: int, tolerance: float, answers: tuple[str, ...], repeat: in
     from synth.mechanism.figures import sixbar_figures
     from synth.mechanism.tolerance import SEED, clear_of_limits, deviation_draws, toleranced_deviation
 
+    given = _read_answers(answers)
     results = []
     for name, sb, dwell_deg in SIXBARS:
         length = math.radians(dwell_deg)
@@ -117,7 +119,7 @@ def tolerance(draws: int, tolerance: float, answers: tuple[str, ...], repeat: in
         "tolerance_cranks": tolerance,
         "target_cpu_ms_per_candidate_at_256": TARGET_S * 1e3,
         "results": results,
-        **({"answers": _answers(answers, tolerance, draws)} if answers else {}),
+        **({"answers": _answers(given, tolerance, draws)} if answers else {}),
         "platform": {
             "python": platform.python_version(),
             "numpy": np.__version__,
@@ -144,40 +146,54 @@ def _spread(seconds: list[float]) -> dict[str, float]:
     return {"min": 1e3 * min(seconds), "median": 1e3 * float(np.median(seconds)), "max": 1e3 * max(seconds)}
 
 
-def _answers(paths: tuple[str, ...], tolerance: float, draws: int) -> dict:
-    """Each candidate of the query answers ``paths``: its toleranced deviation (``tolerance``
-    cranks, its CPU time) against the whole-turn path's (its CPU time), summarised."""
+def _read_answers(paths: tuple[str, ...]) -> list[tuple[SixBar, list[float], float]]:
+    """Each candidate of the query answers ``paths`` (``dwell query --json``) as (six-bar in
+    its file's unit, dwell middles in rad, requested dwell in rad); a file that is not one is
+    the user's error, before anything is run."""
     from report.candidate_json import sixbar_from_json
+
+    out = []
+    for path in paths:
+        try:
+            with open(path, encoding="utf-8") as f:
+                doc = json.load(f)
+            length = math.radians(float(doc["request"]["dwell_deg"]))
+            for c in doc["candidates"]:
+                centres = [math.radians(float(d["interval_deg"][0]) + 0.5 * float(d["dwell_deg"])) for d in c["dwells"]]
+                out.append((sixbar_from_json(c), centres, length))
+        except (OSError, UnicodeDecodeError, ValueError, KeyError, IndexError, TypeError) as exc:
+            raise InputError(
+                f"--answers {path!r}: not the JSON of `dwell query --json` ({type(exc).__name__})"
+            ) from None
+    return out
+
+
+def _answers(answers: list[tuple[SixBar, list[float], float]], tolerance: float, draws: int) -> dict:
+    """Each candidate of ``answers`` (:func:`_read_answers`): its toleranced deviation
+    (``tolerance`` cranks, its CPU time) against the whole-turn path's (its CPU time),
+    summarised."""
     from synth.mechanism.tolerance import clear_of_limits, deviation_draws, toleranced_deviation
 
     diff, rel, cpu, turn_cpu, windows = [], [], [], [], 0
-    for path in paths:
-        with open(path, encoding="utf-8") as f:
-            doc = json.load(f)
-        length = math.radians(doc["request"]["dwell_deg"])
-        for c in doc["candidates"]:
-            sb = sixbar_from_json(c)
-            t = tolerance * sb.a
-            centres = [math.radians(d["interval_deg"][0] + 0.5 * d["dwell_deg"]) for d in c["dwells"]]
-            windows += clear_of_limits(sb, t)
-            value, seconds = _timed_value(lambda: toleranced_deviation(sb, t, centres, length, draws=draws))
-            turn, turn_seconds = _timed_value(
-                lambda: deviation_draws(sb, t, centres, length, draws=draws, whole_turn=True)
-            )
-            cpu.append(seconds)
-            turn_cpu.append(turn_seconds)
-            reference = float(np.percentile(turn, 95.0)) if np.isfinite(turn).all() else None
-            if value is not None and reference is not None:
-                diff.append(abs(math.degrees(value - reference)))
-                rel.append(abs(value - reference) / reference)
+    for sb, centres, length in answers:
+        t = tolerance * sb.a
+        windows += clear_of_limits(sb, t)
+        value, seconds = _timed_value(lambda: toleranced_deviation(sb, t, centres, length, draws=draws))
+        turn, turn_seconds = _timed_value(lambda: deviation_draws(sb, t, centres, length, draws=draws, whole_turn=True))
+        cpu.append(seconds)
+        turn_cpu.append(turn_seconds)
+        reference = float(np.percentile(turn, 95.0)) if np.isfinite(turn).all() else None
+        if value is not None and reference is not None:
+            diff.append(abs(math.degrees(value - reference)))
+            rel.append(abs(value - reference) / reference)
     return {
         "candidates": len(cpu),
         "dwell_windows_only": windows,
         "largest_difference_deg": max(diff, default=None),
         "median_difference_deg": float(np.median(diff)) if diff else None,
         "largest_relative_difference": max(rel, default=None),
-        "cpu_ms_per_candidate": _spread(cpu),
-        "whole_turn_cpu_ms_per_candidate": _spread(turn_cpu),
+        "cpu_ms_per_candidate": _spread(cpu) if cpu else None,
+        "whole_turn_cpu_ms_per_candidate": _spread(turn_cpu) if turn_cpu else None,
     }
 
 

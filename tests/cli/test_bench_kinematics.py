@@ -156,3 +156,7 @@ def test_bench_tolerance_holds_query_answers_to_the_whole_turn(capsys, tmp_path)
     assert answers["candidates"] == 1 and answers["dwell_windows_only"] == 1
     assert 0 < answers["largest_difference_deg"] < 2e-3  # the figure is not the whole turn's code
     assert answers["whole_turn_cpu_ms_per_candidate"]["min"] > 0
+    path.write_text(json.dumps({"request": {"dwell_deg": dwell}, "candidates": [{"fourbar": {}}]}))
+    assert main(["bench", "tolerance", "--answers", str(path)]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and err.count("\n") == 1 and "--answers" in err
