@@ -189,11 +189,11 @@ def _draws(
     if not (math.isfinite(tolerance) and tolerance >= 0):
         raise ValueError(f"tolerance must be a finite length >= 0, got {tolerance!r}")
     batch, beta = perturbed(sixbar, tolerance, unit_draws(draws, seed))
-    if not whole_turn and crank_turns(batch).all() and clear_of_limits(sixbar, tolerance):
-        return _window_deviations(batch, beta, centres, length, percentile=percentile)
     rrr = not batch.rpr[0]
     lengths = [batch.a, batch.b, batch.c, batch.d] + ([batch.rocker, batch.rod] if rrr else [])
     made = np.all(np.stack(lengths) > 0, axis=0)  # a tolerance as large as a link: no such part
+    if not whole_turn and made.all() and crank_turns(batch).all() and clear_of_limits(sixbar, tolerance):
+        return _window_deviations(batch, beta, centres, length, percentile=percentile)
     if not made.all():  # those draws are simulated as placeholders (crank-sized links) and flagged
         fix = lambda x: np.where(made, x, 1.0)  # noqa: E731
         batch = SixBars(
