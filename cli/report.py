@@ -77,9 +77,17 @@ def canonical_id(text: str) -> str:
     show_default=True,
     help="Crank speed for the output's peak velocity, acceleration and jerk (rev/min).",
 )
+@click.option(
+    "--tolerance",
+    type=LENGTH,
+    default=None,
+    metavar="LEN",
+    help="Manufacturing tolerance (your unit, like --crank): also give each six-bar's output deviation "
+    "95 % of six-bars made within ±LEN of every length and pivot coordinate keep (as `dwell query --tolerance`).",
+)
 @units_option
 @click.argument("more_ids", nargs=-1)
-def report(target, ids, out_dir, dwell, band, crank, min_transmission, rpm, units, more_ids):
+def report(target, ids, out_dir, dwell, band, crank, min_transmission, rpm, tolerance, units, more_ids):
     """Write JSON, CSV, plots, drawings, DXF and an animated HTML page for the candidates."""
     from report.folder import ReportFolderError, check_report_folder
 
@@ -108,6 +116,7 @@ def report(target, ids, out_dir, dwell, band, crank, min_transmission, rpm, unit
             max_link_ratio=1e12,
             top=len(names),
             rpm=rpm,
+            tolerance=tolerance,
         )
     from cli.progress import Progress
 
@@ -115,8 +124,26 @@ def report(target, ids, out_dir, dwell, band, crank, min_transmission, rpm, unit
         candidates, written = _report(target, names, request, out, units, crank, shown)
     for c in candidates:
         dw = " and ".join(f"{math.degrees(d.angle):.2f}°" for d in c.figures.dwells)
-        click.echo(f"{c.rank}. {c.id}: {c.sixbar.dyad.kind}, dwell {dw}, swing {math.degrees(c.figures.swing):.2f}°")
+        tol = ""
+        if request.tolerance > 0:
+            t = c.toleranced_deviation
+            tol = ", toleranced deviation " + (
+                "fails (over 5 % of draws do not assemble)" if t is None else f"{math.degrees(t):.4f}°"
+            )
+        click.echo(
+            f"{c.rank}. {c.id}: {c.sixbar.dyad.kind}, dwell {dw}, swing {math.degrees(c.figures.swing):.2f}°{tol}"
+        )
     click.echo(f"wrote {len(written)} files to {out.resolve()} (open index.html)")
+
+
+def _toleranced(request, candidates: list) -> list:
+    """Each rebuilt candidate with its toleranced deviation over every dwell it has (a double
+    RPR's two: the report's request asks for one, the id says how many)."""
+    import dataclasses
+
+    from synth.query.evaluate import toleranced
+
+    return [toleranced(dataclasses.replace(request, dwells=max(1, len(c.figures.dwells))), [c])[0] for c in candidates]
 
 
 def _report(target, names: list[str], request, out: Path, units: str, crank: float, shown) -> tuple[list, list[Path]]:
@@ -141,6 +168,9 @@ def _report(target, names: list[str], request, out: Path, units: str, crank: flo
         candidates = rebuild(engine, names, request)
     finally:
         engine.dispose()
+    if request.tolerance > 0:
+        shown.stage("toleranced deviations")
+        candidates = _toleranced(request, candidates)
     try:  # every file is written or none: the linkage files are checked first
         readable_linkages(candidates, units)
     except LinkageFileError as exc:

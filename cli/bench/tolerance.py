@@ -1,7 +1,9 @@
-"""``dwell bench tolerance``: the cost of a candidate's toleranced deviation
+"""``dwell bench tolerance``: the CPU cost of a candidate's toleranced deviation
 (:func:`synth.mechanism.tolerance.toleranced_deviation`: ``--draws`` six-bars made within the tolerance,
-simulated and measured as one batch) per candidate, beside how far its 95th percentile moves
-with the seed of the draws (the estimate's own error).
+simulated and measured as one batch) per candidate — min/median/max over ``--repeat`` runs,
+the process's CPU time (every thread's), beside the wall time and the whole-turn reference
+path's cost and figure — and how far its 95th percentile moves with the seed of the draws
+(the estimate's own error).
 
 The six-bars are the demo's best RRR 60°/30° and RPR 45°/40° answers (crank 1); the default
 tolerance is 0.05 on a crank of 40 (``--tolerance 0.05 --crank 40``).
@@ -14,10 +16,13 @@ import math
 import os
 import platform
 import time
+from collections.abc import Callable
+from typing import Any
 
 import click
 import numpy as np
 
+from cli.errors import InputError
 from cli.options import Bounded
 from synth.mechanism.sixbar import OutputDyad, SixBar
 
@@ -30,7 +35,7 @@ SIXBARS = (
     ),
     ("rpr_45_40", SixBar(1.0, 4.072, 1.546, 4.173, 1, 3.794, -0.2963, OutputDyad.rpr(complex(1.982, 2.447))), 45.0),
 )
-#: Target per candidate at 256 draws (s), issue 44.
+#: Target CPU time per candidate at 256 draws (s), issue 44.
 TARGET_S = 0.005
 
 
@@ -45,7 +50,13 @@ TARGET_S = 0.005
     type=Bounded(0.0, 0.1, "a tolerance in cranks"),
     help="Tolerance in cranks.",
 )
-@click.option("--repeat", default=5, show_default=True, type=click.IntRange(1, 100), help="Timed runs (best is kept).")
+@click.option(
+    "--answers",
+    multiple=True,
+    type=click.Path(exists=True, dir_okay=False),
+    help="Also every candidate of these `dwell query --json` files: the figure against the whole-turn path's.",
+)
+@click.option("--repeat", default=9, show_default=True, type=click.IntRange(1, 100), help="Timed runs per six-bar.")
 @click.option(
     "--seeds",
     default=5,
@@ -53,22 +64,25 @@ TARGET_S = 0.005
     type=click.IntRange(1, 50),
     help="Seeds whose percentiles give the estimate's spread.",
 )
-def tolerance(draws: int, tolerance: float, repeat: int, seeds: int) -> None:
-    """Cost per candidate of the toleranced deviation, and its spread over seeds (JSON)."""
+def tolerance(draws: int, tolerance: float, answers: tuple[str, ...], repeat: int, seeds: int) -> None:
+    """CPU cost per candidate of the toleranced deviation, and its spread over seeds (JSON)."""
     from synth.mechanism.figures import sixbar_figures
-    from synth.mechanism.tolerance import SEED, toleranced_deviation
+    from synth.mechanism.tolerance import SEED, clear_of_limits, deviation_draws, toleranced_deviation
 
+    given = _read_answers(answers)
     results = []
     for name, sb, dwell_deg in SIXBARS:
         length = math.radians(dwell_deg)
         f = sixbar_figures(sb, band=math.radians(0.1), dwell_length=length)
         centres = [0.5 * (d.start + d.end) for d in f.dwells]
         value = toleranced_deviation(sb, tolerance, centres, length, draws=draws)  # compiles, warms
-        best = math.inf
-        for _ in range(repeat):
-            t = time.perf_counter()
-            toleranced_deviation(sb, tolerance, centres, length, draws=draws)
-            best = min(best, time.perf_counter() - t)
+        cpu, wall = _timed(lambda: toleranced_deviation(sb, tolerance, centres, length, draws=draws), repeat)
+        # the whole-turn path the dwell windows stand in for: its cost and its figure
+        turn_cpu, _ = _timed(
+            lambda: deviation_draws(sb, tolerance, centres, length, draws=draws, whole_turn=True), max(1, repeat // 3)
+        )
+        turn = deviation_draws(sb, tolerance, centres, length, draws=draws, whole_turn=True)
+        turn_value = float(np.percentile(turn, 95.0)) if np.isfinite(turn).all() else None
         others = [
             toleranced_deviation(sb, tolerance, centres, length, draws=draws, seed=SEED + k) for k in range(1, seeds)
         ]
@@ -76,14 +90,19 @@ def tolerance(draws: int, tolerance: float, repeat: int, seeds: int) -> None:
         results.append(
             {
                 "sixbar": name,
+                "dwell_windows_only": clear_of_limits(sb, tolerance),
                 "nominal_deviation_deg": math.degrees(max(f.deviations)),
                 "toleranced_deviation_deg": None if value is None else math.degrees(value),
-                "seconds_per_candidate": best,
+                "whole_turn_toleranced_deviation_deg": None if turn_value is None else math.degrees(turn_value),
+                "cpu_ms_per_candidate": _spread(cpu),
+                "wall_ms_per_candidate": _spread(wall),
+                "whole_turn_cpu_ms_per_candidate": _spread(turn_cpu),
                 "percentile_spread_over_seeds_deg": (max(finite) - min(finite)) if finite else None,
             }
         )
         click.echo(
-            f"{name}: {best * 1e3:.1f} ms per candidate ({draws} draws); deviation "
+            f"{name}: {np.median(cpu) * 1e3:.2f} ms CPU per candidate (median of {repeat}, {draws} draws; "
+            f"whole turn {np.median(turn_cpu) * 1e3:.1f} ms); deviation "
             f"{math.degrees(max(f.deviations)):.4f}° nominal, "
             + ("fails" if value is None else f"{math.degrees(value):.4f}°")
             + " toleranced",
@@ -93,11 +112,14 @@ def tolerance(draws: int, tolerance: float, repeat: int, seeds: int) -> None:
         "benchmark": "tolerance",
         "what": "synth.mechanism.tolerance.toleranced_deviation: the 95th percentile of the output deviation over six-bars "
         "made within +-tolerance of every length and fixed-pivot coordinate, simulated as one batch; "
+        "cost: CPU time of the process (every thread) per candidate, min/median/max over the runs; "
+        "whole_turn: the same draws simulated over the whole turn (the reference path); "
         "spread: max - min of that percentile over seeds",
         "draws": draws,
         "tolerance_cranks": tolerance,
-        "target_seconds_per_candidate_at_256": TARGET_S,
+        "target_cpu_ms_per_candidate_at_256": TARGET_S * 1e3,
         "results": results,
+        **({"answers": _answers(given, tolerance, draws)} if answers else {}),
         "platform": {
             "python": platform.python_version(),
             "numpy": np.__version__,
@@ -106,3 +128,77 @@ def tolerance(draws: int, tolerance: float, repeat: int, seeds: int) -> None:
         },
     }
     click.echo(json.dumps(doc, indent=1))
+
+
+def _timed(run: Callable[[], object], repeat: int) -> tuple[list[float], list[float]]:
+    """CPU seconds (this process, every thread) and wall seconds of each of ``repeat`` runs."""
+    cpu, wall = [], []
+    for _ in range(repeat):
+        c, w = time.process_time(), time.perf_counter()
+        run()
+        cpu.append(time.process_time() - c)
+        wall.append(time.perf_counter() - w)
+    return cpu, wall
+
+
+def _spread(seconds: list[float]) -> dict[str, float]:
+    """min/median/max of ``seconds``, in milliseconds."""
+    return {"min": 1e3 * min(seconds), "median": 1e3 * float(np.median(seconds)), "max": 1e3 * max(seconds)}
+
+
+def _read_answers(paths: tuple[str, ...]) -> list[tuple[SixBar, list[float], float]]:
+    """Each candidate of the query answers ``paths`` (``dwell query --json``) as (six-bar in
+    its file's unit, dwell middles in rad, requested dwell in rad); a file that is not one is
+    the user's error, before anything is run."""
+    from report.candidate_json import sixbar_from_json
+
+    out = []
+    for path in paths:
+        try:
+            with open(path, encoding="utf-8") as f:
+                doc = json.load(f)
+            length = math.radians(float(doc["request"]["dwell_deg"]))
+            for c in doc["candidates"]:
+                centres = [math.radians(float(d["interval_deg"][0]) + 0.5 * float(d["dwell_deg"])) for d in c["dwells"]]
+                out.append((sixbar_from_json(c), centres, length))
+        except (OSError, UnicodeDecodeError, ValueError, KeyError, IndexError, TypeError) as exc:
+            raise InputError(
+                f"--answers {path!r}: not the JSON of `dwell query --json` ({type(exc).__name__})"
+            ) from None
+    return out
+
+
+def _answers(answers: list[tuple[SixBar, list[float], float]], tolerance: float, draws: int) -> dict:
+    """Each candidate of ``answers`` (:func:`_read_answers`): its toleranced deviation
+    (``tolerance`` cranks, its CPU time) against the whole-turn path's (its CPU time),
+    summarised."""
+    from synth.mechanism.tolerance import clear_of_limits, deviation_draws, toleranced_deviation
+
+    diff, rel, cpu, turn_cpu, windows = [], [], [], [], 0
+    for sb, centres, length in answers:
+        t = tolerance * sb.a
+        windows += clear_of_limits(sb, t)
+        value, seconds = _timed_value(lambda: toleranced_deviation(sb, t, centres, length, draws=draws))
+        turn, turn_seconds = _timed_value(lambda: deviation_draws(sb, t, centres, length, draws=draws, whole_turn=True))
+        cpu.append(seconds)
+        turn_cpu.append(turn_seconds)
+        reference = float(np.percentile(turn, 95.0)) if np.isfinite(turn).all() else None
+        if value is not None and reference is not None:
+            diff.append(abs(math.degrees(value - reference)))
+            rel.append(abs(value - reference) / reference)
+    return {
+        "candidates": len(cpu),
+        "dwell_windows_only": windows,
+        "largest_difference_deg": max(diff, default=None),
+        "median_difference_deg": float(np.median(diff)) if diff else None,
+        "largest_relative_difference": max(rel, default=None),
+        "cpu_ms_per_candidate": _spread(cpu) if cpu else None,
+        "whole_turn_cpu_ms_per_candidate": _spread(turn_cpu) if turn_cpu else None,
+    }
+
+
+def _timed_value(run: Callable[[], Any]) -> tuple[Any, float]:
+    """``run()``'s value and its CPU seconds (this process, every thread)."""
+    c = time.process_time()
+    value = run()
+    return value, time.process_time() - c

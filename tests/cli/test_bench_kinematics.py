@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 
 from cli.main import main
 
@@ -119,7 +120,43 @@ def test_bench_tolerance_json(capsys):
     assert code == 0, err
     doc = json.loads(out)
     assert doc["draws"] == 32 and [r["sixbar"] for r in doc["results"]] == ["rrr_60_30", "rpr_45_40"]
+    assert doc["target_cpu_ms_per_candidate_at_256"] == 5.0
     for r in doc["results"]:
         assert r["toleranced_deviation_deg"] > r["nominal_deviation_deg"] > 0
-        assert 0 < r["seconds_per_candidate"] < 60 and r["percentile_spread_over_seeds_deg"] >= 0
+        assert r["dwell_windows_only"] is True  # 0.05 on a 40 crank is far from every limit
+        assert abs(r["toleranced_deviation_deg"] - r["whole_turn_toleranced_deviation_deg"]) < 2e-3
+        cpu = r["cpu_ms_per_candidate"]
+        assert 0 < cpu["min"] <= cpu["median"] <= cpu["max"] < 60_000
+        assert 0 < r["whole_turn_cpu_ms_per_candidate"]["min"] and r["percentile_spread_over_seeds_deg"] >= 0
     assert main(["bench", "tolerance", "--draws", "8"]) == 2
+
+
+def test_bench_tolerance_holds_query_answers_to_the_whole_turn(capsys, tmp_path):
+    """--answers: each candidate of a query's JSON, its figure against the whole-turn path's."""
+    from cli.bench.tolerance import SIXBARS
+    from synth.mechanism.figures import sixbar_figures
+
+    _, sb, dwell = SIXBARS[1]  # the RPR 45°/40° six-bar, written as the query's JSON writes it
+    f = sixbar_figures(sb, band=math.radians(0.1), dwell_length=math.radians(dwell))
+    candidate = {
+        "length_unit": "mm",
+        "fourbar": {"a_mm": sb.a, "b_mm": sb.b, "c_mm": sb.c, "d_mm": sb.d, "branch": sb.branch},
+        "coupler_point_mm": [sb.u, sb.v],
+        "output": {"type": "RPR", "pivot_mm": [sb.dyad.pivot.real, sb.dyad.pivot.imag]},
+        "dwells": [
+            {"interval_deg": [math.degrees(d.start), 0.0], "dwell_deg": math.degrees(d.angle)} for d in f.dwells
+        ],
+    }
+    path = tmp_path / "answer.json"
+    path.write_text(json.dumps({"request": {"dwell_deg": dwell}, "candidates": [candidate]}))
+    code = main(["bench", "tolerance", "--draws", "32", "--repeat", "1", "--seeds", "1", "--answers", str(path)])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    answers = json.loads(out)["answers"]
+    assert answers["candidates"] == 1 and answers["dwell_windows_only"] == 1
+    assert 0 < answers["largest_difference_deg"] < 2e-3  # the figure is not the whole turn's code
+    assert answers["whole_turn_cpu_ms_per_candidate"]["min"] > 0
+    path.write_text(json.dumps({"request": {"dwell_deg": dwell}, "candidates": [{"fourbar": {}}]}))
+    assert main(["bench", "tolerance", "--answers", str(path)]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and err.count("\n") == 1 and "--answers" in err

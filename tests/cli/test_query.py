@@ -742,6 +742,34 @@ def test_tolerance_adds_a_column_and_ranks_by_it(atlas_path, capsys):
     assert run(capsys, *args, "--tolerance", "-0.05")[0] == 2
 
 
+def test_report_gives_the_toleranced_deviation_the_query_gave(atlas_path, capsys, tmp_path):
+    """dwell report --tolerance: the same figure as the query's, in the report's JSON, CSV,
+    page and summary line; a bad one: exit 2 and nothing written."""
+    common = ["--db", atlas_path, "--crank", "40", "--dwell", "45"]
+    query = ["query", *common, "--swing", "40", "--output", "rpr", "--top", "2", "--no-refine", "--json"]
+    code, out, err = run(capsys, *query, "--tolerance", "0.05")
+    assert code == 0, err
+    queried = json.loads(out)["candidates"]
+    ids = [c["id"] for c in queried]
+    code, out, err = run(
+        capsys, "report", *common, "--candidates", " ".join(ids), "--out", str(tmp_path / "r"), "--tolerance", "0.05"
+    )
+    assert code == 0, err
+    got = json.loads((tmp_path / "r" / "candidates.json").read_text())["candidates"]
+    for q, r in zip(queried, got, strict=True):
+        assert r["toleranced_deviation_deg"] == pytest.approx(q["toleranced_deviation_deg"], abs=1e-9)
+        assert r["toleranced_deviation_deg"] > max(d["output_deviation_deg"] for d in r["dwells"])
+        assert f"toleranced deviation {r['toleranced_deviation_deg']:.4f}°" in out
+    csv = (tmp_path / "r" / "candidates.csv").read_text().splitlines()
+    column = csv[0].split(",").index("toleranced_deviation_deg")
+    assert float(csv[1].split(",")[column]) == pytest.approx(got[0]["toleranced_deviation_deg"], rel=1e-9)
+    assert "toleranced deviation" in (tmp_path / "r" / "index.html").read_text()
+    code, out, err = run(
+        capsys, "report", *common, "--candidates", ids[0], "--out", str(tmp_path / "b"), "--tolerance", "-1"
+    )
+    assert code == 2 and "--tolerance" in err and not (tmp_path / "b").exists()
+
+
 @pytest.mark.parametrize(
     "value, message",
     [

@@ -6,11 +6,23 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from synth.mechanism.figures import sixbar_figures
 from synth.mechanism.output_range import output_deviation
 from synth.mechanism.sixbar import ExactOutput, OutputDyad, SixBar, crank_grid, simulate
-from synth.mechanism.tolerance import DRAWS, PERCENTILE, deviation_draws, perturbed, toleranced_deviation, unit_draws
+from synth.mechanism.tolerance import (
+    DRAWS,
+    PERCENTILE,
+    clear_of_limits,
+    crank_turns,
+    deciding_draws,
+    deviation_draws,
+    perturbed,
+    toleranced_deviation,
+    unit_draws,
+)
 from synth.query.candidates import Candidate, Request, rank
 
 # the demo's best RRR 60°/30° six-bar (crank 1) and an RPR 45°/40° one
@@ -64,10 +76,16 @@ def test_draws_match_a_plain_loop_over_the_same_draws(sb, dwell_deg):
     length = math.radians(dwell_deg)
     centres = _centres(sb, length)
     tol = 0.05 / 40  # 0.05 mm on a 40 mm crank
-    batch = deviation_draws(sb, tol, centres, length, draws=48)
+    assert clear_of_limits(sb, tol)  # far from every limit: the dwell windows are enough
     loop = _brute_force(sb, tol, centres, length, 48)
+    turn = deviation_draws(sb, tol, centres, length, draws=48, whole_turn=True)
+    batch = deviation_draws(sb, tol, centres, length, draws=48)  # the dwell windows only
     assert np.all(np.isfinite(batch)) and np.all(np.isfinite(loop))
-    np.testing.assert_allclose(batch, loop, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(turn, loop, rtol=0, atol=1e-12)
+    # the windows' coarser grid and shorter refinement: within 0.002° of every draw's figure
+    # (measured: 0.001° at most), against deviations of ~0.1°
+    np.testing.assert_allclose(batch, loop, rtol=0, atol=math.radians(0.002))
+    assert np.max(np.abs(batch - loop)) > 0  # the two paths are not the same code
     # the tolerance moves the rest: the draws spread, and some rest worse than the drawing
     nominal = max(sixbar_figures(sb, band=BAND, dwell_length=length).deviations)
     assert batch.max() > nominal * 1.05 and batch.std() > 0
@@ -76,8 +94,10 @@ def test_draws_match_a_plain_loop_over_the_same_draws(sb, dwell_deg):
 def test_zero_tolerance_is_the_nominal_deviation():
     length = math.radians(60.0)
     nominal = max(sixbar_figures(RRR, band=BAND, dwell_length=length).deviations)
-    dev = deviation_draws(RRR, 0.0, _centres(RRR, length), length, draws=8)
+    dev = deviation_draws(RRR, 0.0, _centres(RRR, length), length, draws=8, whole_turn=True)
     np.testing.assert_allclose(dev, nominal, rtol=0, atol=1e-12)
+    dev = deviation_draws(RRR, 0.0, _centres(RRR, length), length, draws=8)
+    np.testing.assert_allclose(dev, nominal, rtol=0, atol=math.radians(0.001))
 
 
 def test_percentile_of_256_seeded_draws_is_deterministic_and_grows_with_the_tolerance():
@@ -88,6 +108,7 @@ def test_percentile_of_256_seeded_draws_is_deterministic_and_grows_with_the_tole
     assert large == toleranced_deviation(RRR, 0.05 / 40, centres, length)
     draws = deviation_draws(RRR, 0.05 / 40, centres, length)
     assert len(draws) == DRAWS
+    # refining only the draws that decide the percentile gives the very number
     assert large == pytest.approx(float(np.percentile(draws, PERCENTILE)), abs=0)
     nominal = max(sixbar_figures(RRR, band=BAND, dwell_length=length).deviations)
     assert nominal < small < large
@@ -114,3 +135,68 @@ def test_a_tolerance_no_draw_survives_is_none_and_ranks_last():
     assert [c.id for c in rank(req, [worse, better])] == ["a", "b"]
     with pytest.raises(ValueError, match="`tolerance`"):
         Request(dwell=length, swing=math.radians(30.0), tolerance=-1.0)
+
+
+def test_near_a_limit_every_draw_is_simulated_over_the_whole_turn():
+    length = math.radians(60.0)
+    centres = _centres(RRR, length)
+    assert clear_of_limits(RRR, 0.05 / 40)
+    # the RRR's rod and rocker reach r = |D − P| ∈ [|L − ρ|, L + ρ]; a tolerance of a tenth of
+    # the smallest margin over the turn leaves no room for the linear bound's factor of two
+    phi = crank_grid(720)
+    r = np.abs(RRR.dyad.pivot - simulate(RRR, phi, order=0).z[0])
+    margin = float(np.min(np.minimum(RRR.dyad.rocker + RRR.dyad.rod - r, r - abs(RRR.dyad.rocker - RRR.dyad.rod))))
+    tol = 0.1 * margin
+    assert not clear_of_limits(RRR, tol)
+    np.testing.assert_array_equal(
+        deviation_draws(RRR, tol, centres, length, draws=16),
+        deviation_draws(RRR, tol, centres, length, draws=16, whole_turn=True),
+    )
+
+
+def testcrank_turns_is_the_grashof_crank_condition():
+    unit = np.zeros((3, 13))
+    unit[1, 0] = 1.0  # a longer crank
+    unit[2, 2] = -1.0  # a shorter rocker
+    batch, _ = perturbed(RRR, 1.0, unit)
+    a, b, c, d = RRR.a, RRR.b, RRR.c, RRR.d
+    assert d + a < b + c and abs(b - c) < d - a  # the drawing: the crank turns
+    # a = 2: |b − c| = 1.052 < d − a = 1.938 and d + a = 5.938 < b + c = 6.032; c = 1.49:
+    # d + a = 4.938 < b + c = 5.032: both still turn
+    np.testing.assert_array_equal(crank_turns(batch), [True, True, True])
+    unit[2, 2] = -1.5  # c = 0.99: d + a = 4.938 > b + c = 4.532, the coupler cannot reach
+    batch, _ = perturbed(RRR, 1.0, unit)
+    np.testing.assert_array_equal(crank_turns(batch), [True, True, False])
+
+
+@pytest.mark.parametrize("q", [50.0, 95.0, 99.0])
+def test_deciding_draws_hold_every_order_statistic_the_percentile_reads(q):
+    rng = np.random.default_rng(7)
+    exact = rng.uniform(0.0, 1.0, 256)
+    lower, upper = exact - rng.uniform(0, 0.05, 256), exact + rng.uniform(0, 0.05, 256)
+    need, stand_in = deciding_draws(lower, upper, q)
+    assert 0 < need.sum() < 128  # most draws are decided by their bounds alone
+    assert np.all((stand_in == lower) | (stand_in == upper))
+    # the others replaced by their stand-ins: the same percentile
+    assert np.percentile(np.where(need, exact, stand_in), q) == np.percentile(exact, q)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.lists(
+        st.tuples(
+            st.floats(0.0, 1.0),
+            st.floats(0.0, 0.5),
+            st.floats(0.0, 0.5),
+        ),
+        min_size=2,
+        max_size=300,
+    ),
+    st.floats(0.0, 100.0),
+)
+def test_deciding_draws_give_the_exact_percentile_for_any_bounds(draws, q):
+    exact = np.array([x for x, _, _ in draws])
+    lower = exact - np.array([a for _, a, _ in draws])
+    upper = exact + np.array([b for _, _, b in draws])
+    need, stand_in = deciding_draws(lower, upper, q)
+    assert np.percentile(np.where(need, exact, stand_in), q) == np.percentile(exact, q)
