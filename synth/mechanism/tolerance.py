@@ -90,7 +90,7 @@ DIMENSIONS = 13
 #: Crank samples of the whole-turn simulation of each draw (the query's grid, the nominal
 #: figure's): the path taken when a draw may meet a limit of its output dyad.
 SAMPLES = 720
-#: Crank samples per turn of the grid the draws' dwell windows are sampled on (1°): between
+#: Crank samples per turn of the grid the draws' dwell windows are sampled on (2°): between
 #: samples only the window's inside is read, where ψ is nearly still (the ends are refined).
 WINDOW_SAMPLES = 180
 #: Exact points of the first and the second refinement stage of a window's placement.
