@@ -43,6 +43,7 @@ from synth.mechanism.figures import *  # noqa: F403
 from synth.mechanism.output_range import *  # noqa: F403
 from synth.mechanism.sixbar import *  # noqa: F403
 from synth.query import *  # noqa: F403
+from synth.query.candidate_ids import *  # noqa: F403
 from synth.query.candidates import *  # noqa: F403
 
 #: The modules whose ``__all__`` is re-exported (no name is exported by two of them).
@@ -59,6 +60,7 @@ _MODULES = (
     "mechanism.output_range",
     "mechanism.sixbar",
     "query",
+    "query.candidate_ids",
     "query.candidates",
 )
 

@@ -16,7 +16,8 @@ from synth.kinds import OutputKind
 from synth.mechanism.figures import SixBarFigures, footprints, sixbar_figures
 from synth.mechanism.sixbar import SixBar, SixBars
 from synth.mechanism.sixbar import simulate as simulate_motion
-from synth.query.candidates import SAMPLES, Candidate, Request, candidate_id, screen
+from synth.query.candidate_ids import candidate_id
+from synth.query.candidates import SAMPLES, Candidate, Request, screen
 from synth.query.fitting import Fitted
 from synth.query.result import CONSTRAINTS
 

@@ -13,7 +13,8 @@ import numpy as np
 
 from synth.kinds import OutputKind, OutputTag, SegmentKind
 from synth.mechanism.sixbar import OutputDyad, SixBar, crank_grid
-from synth.query.candidates import Request, dwell_runs, round_dimensions
+from synth.query.candidate_ids import round_dimensions
+from synth.query.candidates import Request, dwell_runs
 from synth.query.segment_rows import SegmentBatch, SegmentRow
 
 #: Crank samples of the path the dyads are fitted to (1°): a fitted swing is within ~0.01° of
@@ -259,7 +260,7 @@ def reseat(request: Request, fitted: Sequence[Fitted]) -> list[Fitted]:
 
 
 def _as_stored(fitted: Fitted) -> Fitted:
-    """``fitted`` with the dimensions its id will hold (:func:`~synth.query.candidates.round_dimensions`),
+    """``fitted`` with the dimensions its id will hold (:func:`~synth.query.candidate_ids.round_dimensions`),
     so that its figures are the ones a rebuild from the id gives."""
     sb = round_dimensions(fitted.sixbar())
     row = dataclasses.replace(fitted.row, b=sb.b, c=sb.c, d=sb.d, u=sb.u, v=sb.v)
