@@ -15,7 +15,9 @@ Four rooms, each a package (what imports what: curvature ← segment search; six
 * :mod:`synth.query` — the query: requests and candidates (:mod:`~synth.query.candidates`), the
   stage (:func:`synth.query.answer`) and its refinement (:mod:`~synth.query.refine`).
 
-Beside them: the names of segment and output kinds (:mod:`synth.kinds`), the common array types
+Beside them: the linkage every six-bar is built on, one record for the atlas's rows, the query's
+segment rows and the six-bar (:mod:`synth.linkage`: :class:`FourBar`, :class:`CouplerFourBar`),
+the names of segment and output kinds (:mod:`synth.kinds`), the common array types
 (:mod:`synth.types`) and the compiled kernels' row split (:mod:`synth.parallel_rows`). Each
 compiled ``*_kernel.py`` sits beside the numpy module it twins.
 
@@ -37,6 +39,7 @@ from synth.curvature.inflection import *  # noqa: F403
 from synth.curvature.line_scan import *  # noqa: F403
 from synth.curvature.pole import *  # noqa: F403
 from synth.kinds import *  # noqa: F403
+from synth.linkage import *  # noqa: F403
 from synth.mechanism.buildability import *  # noqa: F403
 from synth.mechanism.dyad import *  # noqa: F403
 from synth.mechanism.figures import *  # noqa: F403
@@ -54,6 +57,7 @@ _MODULES = (
     "curvature.line_scan",
     "curvature.pole",
     "kinds",
+    "linkage",
     "mechanism.buildability",
     "mechanism.dyad",
     "mechanism.figures",

@@ -159,9 +159,9 @@ def distinct(ranked: Sequence[Candidate]) -> list[Candidate]:
     seen: set = set()
     unique = []
     for c in ranked:
-        sb = c.sixbar
-        mirror = (round(sb.b, 9), round(sb.c, 9), round(sb.d, 9), sb.dyad.kind, round(sb.u, 3), round(abs(sb.v), 3))
-        key = (c.segment_id, sb.dyad.kind)  # a segment's six-bars have one output (its kind's)
+        kind = c.sixbar.dyad.kind
+        mirror = (*c.sixbar.fourbar.mirror_key(), kind)
+        key = (c.segment_id, kind)  # a segment's six-bars have one output (its kind's)
         if key not in seen and mirror not in seen:
             seen.update((key, mirror))
             unique.append(c)

@@ -19,6 +19,7 @@ from db.rows import linkage_columns, segment_columns
 from kinematics.fourbar import fourbar_motion
 from synth import ball_point, pole
 from synth.kinds import SEGMENT_KINDS, SegmentKind
+from synth.linkage import FourBar
 from synth.segment_search.segments import SegmentSearch, find_segments
 
 SPEC = PRESETS["demo"]
@@ -233,7 +234,13 @@ def test_same_input_same_output(batch):
 def test_no_linkages_no_segments():
     found = find_segments(np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0, int), SegmentSearch())
     assert len(found) == 0
-    links = linkage_columns(0, *(np.zeros(0),) * 4, np.zeros(0, int), np.zeros(0, int), np.zeros((0, 1)))
+    links = linkage_columns(
+        0,
+        np.zeros(0),
+        FourBar(b=np.zeros(0), c=np.zeros(0), d=np.zeros(0), branch=np.zeros(0, int)),
+        np.zeros(0, int),
+        np.zeros((0, 1)),
+    )
     assert [t.rows() for t in segment_columns(found, links)] == [[], []]
 
 
