@@ -18,6 +18,7 @@ from db.packed import PACKING, PackedShard, pack
 from db.rows import TableColumns, linkage_columns, segment_columns
 from kinematics.fourbar import fourbar_motion
 from kinematics.loop import transmission_fold
+from synth.linkage import FourBar
 from synth.segment_search.segments import SegmentSearch, find_segments
 
 __all__ = ["ShardResult", "compute_shard", "handed_over"]
@@ -86,10 +87,9 @@ def compute_shard(spec: SweepSpec, shard_index: int, linkages: SweepLinkages | N
     keep = ok_link
     if not keep.all():  # a crank-rocker closes over the whole turn; anything else is not stored
         skipped["linkage does not assemble over the whole turn"] += int(np.count_nonzero(~keep))
-    links = linkage_columns(
-        shard_index, sweep_index[keep], b[keep], c[keep], d[keep], br[keep], grashof[keep], mu[keep]
-    )
-    found = find_segments(b[keep], c[keep], d[keep], br[keep], SegmentSearch.from_spec(spec))
+    kept = FourBar(b=b[keep], c=c[keep], d=d[keep], branch=br[keep])
+    links = linkage_columns(shard_index, sweep_index[keep], kept, grashof[keep], mu[keep])
+    found = find_segments(kept.b, kept.c, kept.d, kept.branch, SegmentSearch.from_spec(spec))
     skipped.update(found.skipped)
     segments, dwells = segment_columns(found, links)
     digest = shard_digest(links, segments, dwells)  # here, on a worker, from the arrays: the writer stays free

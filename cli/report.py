@@ -27,7 +27,7 @@ def canonical_id(text: str) -> str:
     one a short id stands for (:func:`cli.shown_ids.resolve`); an id in any other spelling is
     refused in one line (the report shows and files ids: they must be the query's)."""
     from cli.shown_ids import resolve
-    from synth.query.candidates import REFINED_MARK, candidate_id, parse_candidate_id
+    from synth.query.candidate_ids import REFINED_MARK, candidate_id, parse_candidate_id
 
     text = resolve(text) or text
     if len(text) > 200 or not _ID.fullmatch(text):

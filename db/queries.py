@@ -36,6 +36,7 @@ from db.rows import length_ceil_milli, line_points, transmission_floor_cdeg
 from db.schema import Dwell, Linkage, Segment, stored_dwell_angle
 from db.spec import last_spec, tolerances
 from synth.kinds import SegmentKind
+from synth.linkage import CouplerFourBar
 from synth.query.contract import DwellWindow
 from synth.query.segment_rows import SegmentBatch, SegmentRow
 
@@ -230,12 +231,9 @@ def _segment_batch(engine: Engine, kind: str, hits: Sequence, tolerance: dict[in
         column(segment_id, np.int64),
         column(levels, np.int64),
         column([tolerance.get(lv, 0.0) for lv in levels]),
-        column(b),
-        column(c),
-        column(d),
-        column(branch, np.int64),
-        column(u),
-        column(v),
+        CouplerFourBar(
+            b=column(b), c=column(c), d=column(d), branch=column(branch, np.int64), u=column(u), v=column(v)
+        ),
         column(phi_gen),
         column(transmission_min),
         parts,
@@ -447,7 +445,8 @@ def segment_row(engine: Engine, segment_id: int, level: int) -> SegmentRow | Non
         ).first()
     if dw is None:
         segment_id, kind, u, v, phi_gen, b, c, d, branch, transmission_min = seg
-        return SegmentRow(segment_id, kind, level, 0.0, b, c, d, branch, u, v, phi_gen, (), transmission_min)
+        fourbar = CouplerFourBar(b=b, c=c, d=d, branch=branch, u=u, v=v)
+        return SegmentRow(segment_id, kind, level, 0.0, fourbar, phi_gen, (), transmission_min)
     return _segment_batch(engine, seg.kind, [(*dw, seg[0], *seg[2:])], dict(tolerance_levels(engine)))[0]
 
 

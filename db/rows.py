@@ -31,6 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from synth.kinds import SEGMENT_KINDS, SegmentKind
+from synth.linkage import FourBar
 from synth.segment_search.dwell_key import arc_dwell_key
 from synth.segment_search.segments import FoundSegments
 
@@ -138,19 +139,13 @@ class TableColumns:
 
 
 def linkage_columns(
-    shard_index: int,
-    sweep_index: NDArray,
-    b: NDArray,
-    c: NDArray,
-    d: NDArray,
-    branch: NDArray,
-    grashof: NDArray,
-    transmission: NDArray,
+    shard_index: int, sweep_index: NDArray, fourbar: FourBar, grashof: NDArray, transmission: NDArray
 ) -> TableColumns:
-    """The ``linkage`` table's columns, one row per four-bar; ``transmission`` (N, M) holds its
+    """The ``linkage`` table's columns, one row per four-bar of ``fourbar`` (a record of (N,)
+    arrays, crank-normalised: its ``a`` is not stored); ``transmission`` (N, M) holds its
     folded transmission angle over the turn (rad; NaN where it does not assemble, not read)."""
     sweep_index = np.asarray(sweep_index, np.int64)
-    branch = np.asarray(branch, np.int64)
+    branch = np.asarray(fourbar.branch, np.int64)
     with warnings.catch_warnings():  # a linkage of no assembled sample (none reaches a row) is all NaN
         warnings.simplefilter("ignore", RuntimeWarning)
         low, high = np.nanmin(transmission, axis=1), np.nanmax(transmission, axis=1)
@@ -159,9 +154,9 @@ def linkage_columns(
             "id": linkage_ids(sweep_index, branch),
             "shard_index": np.full(sweep_index.size, int(shard_index), np.int64),
             "sweep_index": sweep_index,
-            "b": np.asarray(b, np.float64),
-            "c": np.asarray(c, np.float64),
-            "d": np.asarray(d, np.float64),
+            "b": np.asarray(fourbar.b, np.float64),
+            "c": np.asarray(fourbar.c, np.float64),
+            "d": np.asarray(fourbar.d, np.float64),
             "branch": branch,
             "grashof": np.asarray(grashof, np.int64),
             "transmission_min": np.asarray(low, np.float64),

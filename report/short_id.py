@@ -1,6 +1,6 @@
 """Short candidate ids: what the query's table shows in place of the full id.
 
-A full id (:func:`synth.query.candidates.candidate_id`) names the six-bar exactly — its segment,
+A full id (:func:`synth.query.candidate_ids.candidate_id`) names the six-bar exactly — its segment,
 output dyad, slot, tolerance level, swing and, refined, its dimensions in base64url — and runs to
 70 characters. The short id keeps what a person reads (the segment and the output dyad) and
 adds five characters of a hash of the whole full id::

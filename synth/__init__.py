@@ -15,7 +15,9 @@ Four rooms, each a package (what imports what: curvature ← segment search; six
 * :mod:`synth.query` — the query: requests and candidates (:mod:`~synth.query.candidates`), the
   stage (:func:`synth.query.answer`) and its refinement (:mod:`~synth.query.refine`).
 
-Beside them: the names of segment and output kinds (:mod:`synth.kinds`), the common array types
+Beside them: the linkage every six-bar is built on, one record for the atlas's rows, the query's
+segment rows and the six-bar (:mod:`synth.linkage`: :class:`FourBar`, :class:`CouplerFourBar`),
+the names of segment and output kinds (:mod:`synth.kinds`), the common array types
 (:mod:`synth.types`) and the compiled kernels' row split (:mod:`synth.parallel_rows`). Each
 compiled ``*_kernel.py`` sits beside the numpy module it twins.
 
@@ -37,12 +39,14 @@ from synth.curvature.inflection import *  # noqa: F403
 from synth.curvature.line_scan import *  # noqa: F403
 from synth.curvature.pole import *  # noqa: F403
 from synth.kinds import *  # noqa: F403
+from synth.linkage import *  # noqa: F403
 from synth.mechanism.buildability import *  # noqa: F403
 from synth.mechanism.dyad import *  # noqa: F403
 from synth.mechanism.figures import *  # noqa: F403
 from synth.mechanism.output_range import *  # noqa: F403
 from synth.mechanism.sixbar import *  # noqa: F403
 from synth.query import *  # noqa: F403
+from synth.query.candidate_ids import *  # noqa: F403
 from synth.query.candidates import *  # noqa: F403
 
 #: The modules whose ``__all__`` is re-exported (no name is exported by two of them).
@@ -53,12 +57,14 @@ _MODULES = (
     "curvature.line_scan",
     "curvature.pole",
     "kinds",
+    "linkage",
     "mechanism.buildability",
     "mechanism.dyad",
     "mechanism.figures",
     "mechanism.output_range",
     "mechanism.sixbar",
     "query",
+    "query.candidate_ids",
     "query.candidates",
 )
 

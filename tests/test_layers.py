@@ -39,19 +39,13 @@ LAYERS = tuple(ALLOWED)
 #: query's contract, its figures test and the angle wrap sit in modules both sides import). Only shrinks.
 KNOWN_CYCLES: frozenset[frozenset[str]] = frozenset()
 
-#: (importing module, imported module, private name) left in files under redesign by others
-#: (the query, its refinement, the six-bar's figures and output range). Only shrinks.
-KNOWN_PRIVATE_IMPORTS: frozenset[tuple[str, str, str]] = frozenset(
-    {
-        ("tests.synth.test_batched_cma", "synth.query.refine", "_descend"),
-        ("tests.synth.test_band_windows", "synth.mechanism.output_range", "_vertex_bounds"),
-        ("tests.synth.test_pair_search", "synth.mechanism.output_range", "_pair_search"),
-    }
-)
+#: (importing module, imported module, private name) allowed to cross a module boundary (none:
+#: what a test needs is public, in its module's ``__all__``). Only shrinks.
+KNOWN_PRIVATE_IMPORTS: frozenset[tuple[str, str, str]] = frozenset()
 
 
-#: Test files that still put a folder on ``sys.path`` (the fault tests' helpers, being moved).
-KNOWN_PATH_EDITS: frozenset[str] = frozenset({"tests/cli/test_atlas_cli.py"})
+#: Test files that put a folder on ``sys.path`` (none: shared test code is the package ``tests/harness``).
+KNOWN_PATH_EDITS: frozenset[str] = frozenset()
 
 
 @dataclass(frozen=True)

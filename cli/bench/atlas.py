@@ -38,6 +38,7 @@ from cli.options import RAYS, SEARCH_STEP_DEG, writable_file
 from db.rows import linkage_columns, segment_columns
 from kinematics.fourbar import fourbar_motion
 from synth.kinds import SEGMENT_KINDS, SegmentKind
+from synth.linkage import FourBar
 from synth.segment_search.minimum_zone import path_deviation
 from synth.segment_search.segments import SegmentSearch, find_segments
 
@@ -199,7 +200,8 @@ def atlas(
     b, c, d = (np.repeat(x[:n], len(spec.branches)) for x in (sweep.b, sweep.c, sweep.d))
     br = np.tile(np.asarray(spec.branches), n)
     levels = len(spec.tolerances)
-    links = linkage_columns(0, np.arange(b.size), b, c, d, br, np.zeros(b.size, int), np.zeros((b.size, 1)))
+    fourbars = FourBar(b=b, c=c, d=d, branch=br)
+    links = linkage_columns(0, np.arange(b.size), fourbars, np.zeros(b.size, int), np.zeros((b.size, 1)))
 
     def search(step: float, rays: int):
         s = SegmentSearch.from_spec(spec.replace(crank_step_deg=step, rays=rays))

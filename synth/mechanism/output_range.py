@@ -664,38 +664,11 @@ def _fine_path(E, first, steps, K, phi0, h, psi_at, lead):
     return at, vals
 
 
-def _pair_search(left_at, lv, right_at, rv, hi_in, lo_in, band):
-    """The longest (start, end) pair of exact points, start among ``left_at`` and end among
-    ``right_at`` (each ascending, the left ones before the right ones), whose values and the
-    interior's extremes (``hi_in``, ``lo_in``: everything strictly between the two point sets)
-    stay within ``band``. Shapes ``(R, ...)`` plus the points axis. Returns start, end, low,
-    high, the extremes of what lies strictly inside (start, end) less one point at each end
-    (for a finer stage), and the end's linear estimate beyond the last point (ranks pairs).
-
-    For each start the feasible ends are a prefix (the range only grows): its last end, and
-    the share of the next step the band still holds, ψ linear there, rank the pairs — the
-    lengths of pairs that the points alone would tie (a slowly drifting output gives many)
-    differ. Compiled, one query at a time (:func:`synth.mechanism.pair_search.longest_pairs`)."""
-    from synth.mechanism.pair_search import longest_pairs  # numba: imported on first use
-
-    shape = np.shape(hi_in)
-    R = shape[0]
-    nl, nr = lv.shape[-1], rv.shape[-1]
-
-    def flat(x, n):
-        return np.ascontiguousarray(np.broadcast_to(x, shape + (n,)).reshape(-1, n), dtype=float)
-
-    b = np.broadcast_to(np.asarray(band, float).reshape((R,) + (1,) * (len(shape) - 1)), shape)
-    per_query = (np.ascontiguousarray(np.broadcast_to(x, shape).ravel(), dtype=float) for x in (hi_in, lo_in, b))
-    out = longest_pairs(flat(left_at, nl), flat(lv, nl), flat(right_at, nr), flat(rv, nr), *per_query)
-    return tuple(x.reshape(shape) for x in out)
-
-
 def _refine_dwell(E, s, n, band, phi0, h, psi_at, lead, upper, lower):
     """Each candidate grid window refined on the exact path (see :func:`dwell_intervals`):
     start in [φ_{s−1}, φ_s], end in [φ_{e₀}, φ_{e₀+2}] with e₀ = s + n − 2, on ``DWELL_FINE``
     points per grid step, the pair of points that maximises the length within the band.
-    Shapes ``(R, C, W)``; returns what :func:`_pair_search` returns."""
+    Shapes ``(R, C, W)``; returns what :func:`synth.mechanism.pair_search.longest_pair` returns."""
     R = E.shape[0]
     K = DWELL_FINE
     e0 = s + np.maximum(n - 2, 0)
@@ -709,7 +682,9 @@ def _refine_dwell(E, s, n, band, phi0, h, psi_at, lead, upper, lower):
     left_at, lv = _fine_path(E, s - 1, 1, K, phi0, h, psi_at, lead)
     right_at, rv = _fine_path(E, e0, 2, K, phi0, h, psi_at, lead)
     # A window of samples within the band (start at φ_s, end at φ_{e₀}) is among the pairs.
-    return _pair_search(left_at, lv, right_at, rv, hi_in, lo_in, band)
+    from synth.mechanism.pair_search import longest_pair  # numba: imported on first use
+
+    return longest_pair(left_at, lv, right_at, rv, hi_in, lo_in, band)
 
 
 def _samples_between(upper, lower, a, b, phi0, h):
@@ -738,7 +713,9 @@ def _refine_pair(start, end, level, inner_hi, inner_lo, band, step, psi_at, lead
         psi_at, np.concatenate([left_at, right_at], axis=-1), np.concatenate([ref, ref], axis=-1), lead
     )
     lv, rv = both[..., : t.size], both[..., t.size :]
-    return _pair_search(left_at, lv, right_at, rv, inner_hi, inner_lo, band)
+    from synth.mechanism.pair_search import longest_pair  # numba: imported on first use
+
+    return longest_pair(left_at, lv, right_at, rv, inner_hi, inner_lo, band)
 
 
 def _extend_ends(start, end, low, high, band, spacing, psi_at, lead):

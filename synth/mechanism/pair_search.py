@@ -1,4 +1,4 @@
-"""The dwell refinement's pair search compiled (:func:`synth.mechanism.output_range._pair_search`'s
+"""The dwell refinement's pair search compiled (:func:`longest_pair`'s
 work): for each query, the longest (start, end) pair of exact points within the band, one
 pass over the start × end points instead of ``(queries, starts, ends)`` temporaries.
 
@@ -13,7 +13,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["longest_pairs", "pair_query"]
+__all__ = ["longest_pair", "longest_pairs", "pair_query"]
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
@@ -89,7 +89,7 @@ def _pairs(left_at, lv, right_at, rv, hi_in, lo_in, band, out_i, out_f):
 
 
 def longest_pairs(left_at, lv, right_at, rv, hi_in, lo_in, band):
-    """:func:`synth.mechanism.output_range._pair_search` for queries flattened to ``(Q, points)``
+    """:func:`longest_pair` for queries flattened to ``(Q, points)``
     (``left_at``, ``lv``: start points and their ψ; ``right_at``, ``rv``: end points; each
     ascending, C-contiguous float64), ``hi_in``, ``lo_in``, ``band`` ``(Q,)``: (start, end,
     low, high, inner_hi, inner_lo, reach), each ``(Q,)``."""
@@ -98,3 +98,29 @@ def longest_pairs(left_at, lv, right_at, rv, hi_in, lo_in, band):
     out_f = np.empty((Q, 7))
     _pairs(left_at, lv, right_at, rv, hi_in, lo_in, band, out_i, out_f)
     return tuple(out_f[:, k] for k in range(7))
+
+
+def longest_pair(left_at, lv, right_at, rv, hi_in, lo_in, band):
+    """The longest (start, end) pair of exact points, start among ``left_at`` and end among
+    ``right_at`` (each ascending, the left ones before the right ones), whose values and the
+    interior's extremes (``hi_in``, ``lo_in``: everything strictly between the two point sets)
+    stay within ``band``. Shapes ``(R, ...)`` plus the points axis. Returns start, end, low,
+    high, the extremes of what lies strictly inside (start, end) less one point at each end
+    (for a finer stage), and the end's linear estimate beyond the last point (ranks pairs).
+
+    For each start the feasible ends are a prefix (the range only grows): its last end, and
+    the share of the next step the band still holds, ψ linear there, rank the pairs — the
+    lengths of pairs that the points alone would tie (a slowly drifting output gives many)
+    differ. Compiled, one query at a time (:func:`longest_pairs`); the dwell refinement of
+    :func:`synth.mechanism.output_range.dwell_intervals` calls it."""
+    shape = np.shape(hi_in)
+    R = shape[0]
+    nl, nr = lv.shape[-1], rv.shape[-1]
+
+    def flat(x, n):
+        return np.ascontiguousarray(np.broadcast_to(x, shape + (n,)).reshape(-1, n), dtype=float)
+
+    b = np.broadcast_to(np.asarray(band, float).reshape((R,) + (1,) * (len(shape) - 1)), shape)
+    per_query = (np.ascontiguousarray(np.broadcast_to(x, shape).ravel(), dtype=float) for x in (hi_in, lo_in, b))
+    out = longest_pairs(flat(left_at, nl), flat(lv, nl), flat(right_at, nr), flat(rv, nr), *per_query)
+    return tuple(x.reshape(shape) for x in out)

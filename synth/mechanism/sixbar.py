@@ -41,6 +41,7 @@ from kinematics.status import (
     raise_on_flags,
 )
 from synth.kinds import OutputKind
+from synth.linkage import CouplerFourBar
 from synth.types import C128, F64
 
 __all__ = [
@@ -145,46 +146,64 @@ class OutputDyad:
         return cls(OutputKind.RRR, pivot, rocker, rod, branch)
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, init=False)
 class SixBar:
     """A four-bar with a coupler point driving an output dyad (one mechanism).
 
+    Built from its lengths, ``SixBar(a, b, c, d, branch, u, v, dyad)`` (validated), or from a
+    linkage record (:meth:`of`); it holds the linkage as one :class:`~synth.linkage.CouplerFourBar`
+    (the record the atlas's rows and the query's segment rows carry) and reads its fields
+    through it.
+
     Attributes
     ----------
-    a, b, c, d : float
-        Crank, coupler, rocker, ground lengths (> 0); ground pivots A0 = 0, B0 = d.
-    branch : {+1, −1}
-        Four-bar assembly branch (:class:`~kinematics.status.Branch`).
-    u, v : float
-        Coupler point p = u + iv in the coupler frame (origin at the crank pin A, x-axis
-        along A → B).
+    fourbar : CouplerFourBar
+        The four-bar and its coupler point: ``a``, ``b``, ``c``, ``d`` crank, coupler, rocker,
+        ground lengths (> 0; ground pivots A0 = 0, B0 = d), ``branch`` the four-bar's assembly
+        branch (±1, :class:`~kinematics.status.Branch`), ``u``, ``v`` the coupler point
+        p = u + iv in the coupler frame (origin at the crank pin A, x-axis along A → B). Each
+        is also an attribute of the six-bar (``sixbar.b``).
     dyad : OutputDyad
         The output dyad driven by that point.
     """
 
-    a: float
-    b: float
-    c: float
-    d: float
-    branch: int
-    u: float
-    v: float
+    fourbar: CouplerFourBar
     dyad: OutputDyad
 
-    def __post_init__(self) -> None:
-        for name in ("a", "b", "c", "d"):
-            value = float(getattr(self, name))
+    def __init__(
+        self, a: float, b: float, c: float, d: float, branch: int, u: float, v: float, dyad: OutputDyad
+    ) -> None:
+        lengths = {}
+        for name, value in (("a", a), ("b", b), ("c", c), ("d", d)):
+            value = float(value)
             if not (math.isfinite(value) and value > 0):
                 raise AssemblyError(f"length {name} must be finite and > 0, got {value!r}")
-            object.__setattr__(self, name, value)
-        for name in ("u", "v"):
-            value = float(getattr(self, name))
+            lengths[name] = value
+        point = {}
+        for name, value in (("u", u), ("v", v)):
+            value = float(value)
             if not math.isfinite(value):
                 raise AssemblyError(f"coupler point {name} must be finite, got {value!r}")
-            object.__setattr__(self, name, value)
-        if int(self.branch) not in (1, -1):
-            raise ValueError(f"four-bar branch must be +1 or -1, not {self.branch!r}")
-        object.__setattr__(self, "branch", int(self.branch))
+            point[name] = value
+        if int(branch) not in (1, -1):
+            raise ValueError(f"four-bar branch must be +1 or -1, not {branch!r}")
+        object.__setattr__(self, "fourbar", CouplerFourBar(**lengths, branch=int(branch), **point))
+        object.__setattr__(self, "dyad", dyad)
+
+    @classmethod
+    def of(cls, fourbar: CouplerFourBar, dyad: OutputDyad) -> SixBar:
+        """The six-bar of one linkage record and an output dyad (validated as the lengths are)."""
+        f = fourbar
+        return cls(f.a, f.b, f.c, f.d, f.branch, f.u, f.v, dyad)
+
+    # The linkage's fields, read through the record: one spelling of the four-bar and its point.
+    a = property(lambda self: self.fourbar.a, doc="Crank length.")
+    b = property(lambda self: self.fourbar.b, doc="Coupler length.")
+    c = property(lambda self: self.fourbar.c, doc="Rocker length.")
+    d = property(lambda self: self.fourbar.d, doc="Ground length.")
+    branch = property(lambda self: self.fourbar.branch, doc="Four-bar assembly branch (±1).")
+    u = property(lambda self: self.fourbar.u, doc="Coupler point, along A → B.")
+    v = property(lambda self: self.fourbar.v, doc="Coupler point, across A → B.")
 
     @property
     def coupler_point(self) -> complex:

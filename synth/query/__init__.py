@@ -35,6 +35,8 @@ Modules, one step each (each imports only those above it):
 
 * :mod:`~synth.query.contract` — what the query reads (:class:`DwellWindow`,
   :class:`SegmentSource`): the one module ``db/`` imports;
+* :mod:`~synth.query.candidates` — the request, the candidate, the screen and the ranking;
+* :mod:`~synth.query.candidate_ids` — a candidate's id and the dimensions a refined id carries;
 * :mod:`~synth.query.result` — what it answers (:class:`QueryResult`, :class:`NoMatch`);
 * :mod:`~synth.query.windows` — the sample's dwell windows (:func:`select`);
 * :mod:`~synth.query.fitting` — output dyads fitted, prescreened and reseated (:func:`fit`,
@@ -43,8 +45,11 @@ Modules, one step each (each imports only those above it):
   :func:`meets`, :func:`violations`);
 * :mod:`~synth.query.diagnosis` — why nothing met a request (:func:`diagnose`,
   :func:`diagnose_by_bounds`);
+* :mod:`~synth.query.refine_objective`, :mod:`~synth.query.refine` — the refinement's objective
+  and acceptance, and its searches (the polish, the reach);
 * :mod:`~synth.query.refinement` — the hand-off to :mod:`synth.query.refine` (the top, the near misses);
 * :mod:`~synth.query.complete` — the complete search (:func:`search`, :func:`search_many`);
+* :mod:`~synth.query.both_outputs` — ``--output any``: the union of the two output types' answers;
 * :mod:`~synth.query.pipeline` — :func:`answer`: the steps above over one answer's state
   (:class:`~synth.query.pipeline.Answering`);
 * :mod:`~synth.query.rebuilding` — candidates rebuilt from their ids (:func:`rebuild`).
@@ -52,7 +57,8 @@ Modules, one step each (each imports only those above it):
 
 # The names the product and its tests use, from the modules that define them (``__all__``:
 # what ``synth`` re-exports).
-from synth.query.candidates import REFINED_MARK, Candidate, Request, rank
+from synth.query.candidate_ids import REFINED_MARK
+from synth.query.candidates import Candidate, Request, rank
 from synth.query.complete import BATCH, SearchCount, fit_key, search, search_batch, search_many
 from synth.query.contract import ALL_ROWS, BatchMap, DwellWindow, SegmentSource
 from synth.query.diagnosis import diagnose, diagnose_by_bounds, misses_of

@@ -16,7 +16,8 @@ from synth.kinds import OutputKind
 from synth.mechanism.figures import SixBarFigures, footprints, sixbar_figures
 from synth.mechanism.sixbar import SixBar, SixBars
 from synth.mechanism.sixbar import simulate as simulate_motion
-from synth.query.candidates import SAMPLES, Candidate, Request, candidate_id, screen
+from synth.query.candidate_ids import candidate_id
+from synth.query.candidates import SAMPLES, Candidate, Request, screen
 from synth.query.fitting import Fitted
 from synth.query.result import CONSTRAINTS
 
@@ -158,9 +159,9 @@ def distinct(ranked: Sequence[Candidate]) -> list[Candidate]:
     seen: set = set()
     unique = []
     for c in ranked:
-        sb = c.sixbar
-        mirror = (round(sb.b, 9), round(sb.c, 9), round(sb.d, 9), sb.dyad.kind, round(sb.u, 3), round(abs(sb.v), 3))
-        key = (c.segment_id, sb.dyad.kind)  # a segment's six-bars have one output (its kind's)
+        kind = c.sixbar.dyad.kind
+        mirror = (*c.sixbar.fourbar.mirror_key(), kind)
+        key = (c.segment_id, kind)  # a segment's six-bars have one output (its kind's)
         if key not in seen and mirror not in seen:
             seen.update((key, mirror))
             unique.append(c)

@@ -13,7 +13,8 @@ import numpy as np
 
 from synth.kinds import OutputKind, OutputTag, SegmentKind
 from synth.mechanism.sixbar import OutputDyad, SixBar, crank_grid
-from synth.query.candidates import Request, dwell_runs, round_dimensions
+from synth.query.candidate_ids import round_dimensions
+from synth.query.candidates import Request, dwell_runs
 from synth.query.segment_rows import SegmentBatch, SegmentRow
 
 #: Crank samples of the path the dyads are fitted to (1°): a fitted swing is within ~0.01° of
@@ -45,8 +46,7 @@ class Fitted:
     moved: bool = False
 
     def sixbar(self) -> SixBar:
-        r = self.row
-        return SixBar(1.0, r.b, r.c, r.d, r.branch, r.u, r.v, self.dyad)
+        return SixBar.of(self.row.fourbar, self.dyad)
 
     @property
     def key(self) -> tuple:
@@ -61,10 +61,11 @@ def coupler_paths(rows: SegmentBatch | Sequence[SegmentRow], phi: np.ndarray) ->
     from kinematics.fourbar import fourbar_motion
 
     if isinstance(rows, SegmentBatch):
-        b, c, d, branch, uv = rows.b, rows.c, rows.d, rows.branch, rows.coupler_point()
+        fb = rows.fourbar
+        b, c, d, branch, uv = fb.b, fb.c, fb.d, fb.branch, rows.coupler_point()
     else:
-        b, c, d, branch = (np.array([getattr(r, name) for r in rows]) for name in ("b", "c", "d", "branch"))
-        uv = np.array([complex(r.u, r.v) for r in rows])
+        b, c, d, branch = (np.array([getattr(r.fourbar, name) for r in rows]) for name in ("b", "c", "d", "branch"))
+        uv = np.array([complex(r.fourbar.u, r.fourbar.v) for r in rows])
     motion = fourbar_motion(1.0, b[:, None], c[:, None], d[:, None], phi, branch[:, None], order=0)
     return motion.A + motion.e_theta * uv[:, None]
 
@@ -259,8 +260,8 @@ def reseat(request: Request, fitted: Sequence[Fitted]) -> list[Fitted]:
 
 
 def _as_stored(fitted: Fitted) -> Fitted:
-    """``fitted`` with the dimensions its id will hold (:func:`~synth.query.candidates.round_dimensions`),
+    """``fitted`` with the dimensions its id will hold (:func:`~synth.query.candidate_ids.round_dimensions`),
     so that its figures are the ones a rebuild from the id gives."""
     sb = round_dimensions(fitted.sixbar())
-    row = dataclasses.replace(fitted.row, b=sb.b, c=sb.c, d=sb.d, u=sb.u, v=sb.v)
+    row = dataclasses.replace(fitted.row, fourbar=sb.fourbar)  # a = 1: the id's dimensions are crank-normalised
     return dataclasses.replace(fitted, row=row, dyad=sb.dyad)

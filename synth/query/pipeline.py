@@ -2,7 +2,7 @@
 state (the rows read, the fits, the figures already computed, the clock): the sample, sampled
 wider, the moved pivots and the deeper read while the answer is sparse, ranking, refinement,
 the near misses and the diagnosis. ``--output any`` with one dwell is the best of both
-output types (:func:`_best_of_both`).
+output types (:func:`_best_of_both`, :func:`~synth.query.both_outputs.union_of`).
 """
 
 from __future__ import annotations
@@ -15,10 +15,12 @@ from dataclasses import dataclass, field
 
 from synth.kinds import OutputTag, SegmentKind
 from synth.mechanism.figures import SixBarFigures
-from synth.query.candidates import REFINED_MARK, Candidate, Request, rank
+from synth.query.both_outputs import Answered, union_of
+from synth.query.candidate_ids import REFINED_MARK
+from synth.query.candidates import Candidate, Request, rank
 from synth.query.complete import SearchCount, search
 from synth.query.contract import BatchMap, SegmentSource
-from synth.query.diagnosis import diagnose, diagnose_by_bounds, either_no_match, misses_of, unfitted_reach
+from synth.query.diagnosis import diagnose, diagnose_by_bounds, misses_of, unfitted_reach
 from synth.query.evaluate import candidate_of, distinct, meets, screened_figures, toleranced
 from synth.query.fitting import Fitted, fit, fit_arrays, fits_of, prescreen, reseat
 from synth.query.refinement import no_worse_than_fits, refined_candidates, refined_misses, with_origins
@@ -75,17 +77,6 @@ def answer(
     return _answer_one(request, source, on_progress=on_progress, map_batches=map_batches, searched=searched).result
 
 
-@dataclass(frozen=True, slots=True)
-class _Answered:
-    """One output type's answer and which of its candidates are refined near misses (FILL)
-    and six-bars with a moved output pivot (by id): what :func:`_best_of_both` recounts for
-    the candidates that stay in the union's top."""
-
-    result: QueryResult
-    misses: frozenset[str]
-    reseated: frozenset[str]
-
-
 def _best_of_both(
     request: Request,
     source: SegmentSource,
@@ -97,9 +88,7 @@ def _best_of_both(
     """``request`` (``output="any"``, one dwell) answered as RPR and as RRR, then the best
     ``request.top`` of the union of the two answers by :func:`~synth.query.candidates.rank` (Pareto
     layer, score, id, over the union: a six-bar's layer depends on what it is ranked with).
-    The two answers share no six-bar (their dyads differ), so :func:`distinct` keeps the
-    union whole. Times, counts and refinements add up; with nothing in either, the no-match
-    is the two diagnoses in one (:func:`either_no_match`). ``searched`` (a complete search
+    The union: :func:`~synth.query.both_outputs.union_of`. ``searched`` (a complete search
     of both kinds, :func:`search_many`) is split by output type; its counts go to the RPR
     part, so that the sums are the search's own."""
     parts = []
@@ -121,32 +110,7 @@ def _best_of_both(
                 searched=mine,
             )
         )
-    t = time.perf_counter()
-    top = rank(request, [c for p in parts for c in p.result.candidates])[: request.top]
-    clock: dict[str, float] = {}
-    for p in parts:
-        for k, v in p.result.seconds.items():
-            clock[k] = clock.get(k, 0.0) + v
-    clock["rank"] = clock.get("rank", 0.0) + time.perf_counter() - t
-    results = [p.result for p in parts]
-    no_match = None if top else either_no_match(request, [r.no_match for r in results])
-    below = [r.nearest[0] for r in results if r.nearest[0] is not None]
-    above = [r.nearest[1] for r in results if r.nearest[1] is not None]
-    nearest = (None, None) if top else (max(below, default=None), min(above, default=None))
-    ids = {c.id for c in top}
-    return QueryResult(
-        request,
-        top,
-        sum(r.considered for r in results),
-        sum(r.simulated for r in results),
-        nearest,
-        clock,
-        no_match,
-        (sum(r.refined[0] for r in results), sum(r.refined[1] for r in results)),
-        from_misses=bool(top) and all(r.from_misses or not r.candidates for r in results),
-        misses_met=sum(len(p.misses & ids) for p in parts),
-        reseated=sum(len(p.reseated & ids) for p in parts),
-    )
+    return union_of(request, parts)
 
 
 @dataclass(slots=True)
@@ -343,7 +307,7 @@ def _answer_one(
     on_progress: Callable[[int, int], None] | None = None,
     map_batches: BatchMap | None = None,
     searched: tuple[list[Candidate], SearchCount] | None = None,
-) -> _Answered:
+) -> Answered:
     """:func:`answer` for one output type (or a double dwell): candidates (the complete
     search's or the sample's), ranked, the top refined, filled from the near misses while
     sparse, and diagnosed when empty."""
@@ -387,7 +351,7 @@ def _answer_one(
             nearest = source.nearest_dwell_angles(state.kinds, request.dwell)
             no_match = dataclasses.replace(no_match, reach=unfitted_reach(request, source, state.kinds))
     reseated = frozenset(c.id for c in top if c.id.split(REFINED_MARK)[0] in state.moved_ids)
-    return _Answered(
+    return Answered(
         QueryResult(
             request,
             top,

@@ -9,7 +9,8 @@ from collections.abc import Sequence
 
 from synth.kinds import OutputTag
 from synth.mechanism.sixbar import SixBar
-from synth.query.candidates import Candidate, Request, candidate_dimensions, parse_candidate_id
+from synth.query.candidate_ids import candidate_dimensions, parse_candidate_id
+from synth.query.candidates import Candidate, Request
 from synth.query.contract import SegmentSource
 from synth.query.evaluate import candidate_of, figures_of, rest_position, scaled_figures
 from synth.query.fitting import fit

@@ -32,12 +32,12 @@ through g(D − tol/2) ≤ band (a dwell at least that long) and g(D + tol/2) �
 clearance and the peak acceleration. A six-bar that already meets the request is held, in
 the loop, to no worse than it is on the ranking's objectives the grid can measure: its dwell
 within its own dwell error of the request (g(D − e₀) ≤ band, g(D + e₀) ≥ band), its worst
-transmission angle and its peak |ψ″| (:func:`_bounds`) — a stiller rest bought with a longer
+transmission angle and its peak |ψ″| (:func:`~synth.query.refine_objective.hold_bounds`) — a stiller rest bought with a longer
 dwell, a poorer transmission or a harder output would be refused by the check. A six-bar that
 does not assemble over the turn, toggles or revolves is worse than any other.
 
 The result is then checked as the query checks any six-bar: rounded to what its id holds
-(:func:`~synth.query.candidates.round_dimensions`), its full figures from
+(:func:`~synth.query.candidate_ids.round_dimensions`), its full figures from
 :func:`~synth.mechanism.figures.sixbar_figures` (720 samples, refined dwell ends), and kept only if it
 meets the request and — for a six-bar that met it before — it is no worse on any of the
 ranking's objectives and better on one (:func:`better_or_equal`: the dwell error, the
@@ -48,30 +48,27 @@ not kept: the designer asked for the same six-bar, better.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from synth.kinds import OutputKind
-from synth.mechanism.buildability import clearances
-from synth.mechanism.figures import SixBarFigures, link_ratios, sixbar_figures
-from synth.mechanism.output_range import output_deviation
-from synth.mechanism.sixbar import SixBar, SixBars, crank_grid, simulate
+from synth.mechanism.figures import SixBarFigures, sixbar_figures
+from synth.mechanism.sixbar import SixBar, SixBars, crank_grid
 from synth.query.batched_cma import cma_es
-from synth.query.candidates import Request, dimension_vector, objectives, round_dimensions, sixbar_from_vector
+from synth.query.candidate_ids import dimension_vector, round_dimensions, sixbar_from_vector
+from synth.query.candidates import Request
 from synth.query.evaluate import meets
+from synth.query.refine_objective import WORST, better_or_equal, hold_bounds, trial_objective
 
-__all__ = ["PARAMETERS", "Refinement", "better_or_equal", "refine"]
+__all__ = ["PARAMETERS", "Evaluate", "Refinement", "descend", "refine"]
 
 #: The dimensions moved, in the order of the optimisation vector (crank-normalised; a = 1).
 PARAMETERS = ("b", "c", "d", "u", "v", "pivot_x", "pivot_y", "rocker", "rod")
 _LENGTHS = np.array([1, 1, 1, 0, 0, 0, 0, 1, 1], bool)
 #: Crank samples of the simulation inside the loop (1°); the check uses the query's 720.
 SAMPLES = 360
-#: The loop's clearance and torque arm on every 3rd sample (3°; the margins and the check cover it).
-CLEARANCE_EVERY = 3
 #: Trust region: largest relative change of a dimension (see the module docstring).
 RADIUS = 0.05
 #: Trial six-bars per candidate and iteration (mirrored pairs), and iterations at most.
@@ -81,9 +78,6 @@ ITERATIONS = 20
 #: last ``STALL`` iterations.
 STALL = 6
 STALL_GAIN = 0.01
-#: Weight of the constraint excesses against the deviation (in bands).
-PENALTY = 1000.0
-_WORST = 1e12
 #: The reach (near misses toward a request they miss; see :func:`_reach`): a wider trust
 #: region, CMA-ES's first step size (a fraction of it), population and iterations at most.
 #: Measured on ``standard`` with the 16 nearest misses of six sparse requests (RRR 150°/30°,
@@ -97,10 +91,6 @@ REACH_ITERATIONS = 160
 #: The reach stops a candidate at an objective below this (it meets the request, its deviation
 #: over the requested dwell inside the band); the polish takes it on.
 REACHED = 1.0
-#: Margins: the grid's figures must meet the request by this much (fractions of the band, the
-#: swing tolerance, degrees of transmission, percent of limits).
-_BAND_MARGIN = 0.03
-_TRANSMISSION_MARGIN = math.radians(0.25)
 
 
 @dataclass(frozen=True, slots=True)
@@ -136,136 +126,11 @@ def _sixbar(p: np.ndarray, like: SixBar) -> SixBar:
     return sixbar_from_vector([float(x) for x in p], like.branch, like.dyad.branch, like.dyad.kind is OutputKind.RRR)
 
 
-def _batch(p: np.ndarray, branch: np.ndarray, rpr: np.ndarray, dyad_branch: np.ndarray) -> SixBars:
-    """Rows of dimension vectors (R, 9) as a batch (no validation: the box keeps lengths > 0)."""
-    n = p.shape[0]
-    return SixBars(
-        np.ones(n),
-        p[:, 0],
-        p[:, 1],
-        p[:, 2],
-        branch.astype(float),
-        p[:, 3],
-        p[:, 4],
-        rpr,
-        p[:, 5] + 1j * p[:, 6],
-        np.where(rpr, 0.0, p[:, 7]),
-        np.where(rpr, 0.0, p[:, 8]),
-        dyad_branch.astype(float),
-    )
-
-
-def _objective(
-    request: Request, p: np.ndarray, branch, rpr, dyad_branch, centres: np.ndarray, bounds: np.ndarray, phi: np.ndarray
-) -> np.ndarray:
-    """(R,) objective of the dimension rows ``p`` (R, 9) whose dwells should sit around crank
-    angles ``centres`` (R, C) rad, held to ``bounds`` (R, 4: :func:`_bounds`) (see the module
-    docstring); lower is better."""
-    batch = _batch(p, branch, rpr, dyad_branch)
-    # trial six-bars may degenerate (a link ratio over a zero-length reach): such a row's
-    # objective is not finite and is set to the worst below, so the arithmetic stays quiet
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        return _objective_rows(request, batch, rpr, centres, bounds, phi)
-
-
-def _bounds(request: Request, before: Sequence[SixBarFigures]) -> np.ndarray:
-    """(K, 4) what the loop holds each six-bar to: the half-width (rad) of the dwell's window
-    about the requested dwell, the smallest worst transmission angle (rad), the largest peak
-    |ψ″| (rad/rad², inf: none) and the band's margin (a fraction) on that window's ends. For a
-    six-bar that meets the request, no worse than it is on the ranking's objectives (its dwell
-    error, transmission, peak acceleration; the footprint is left to the check) with no band
-    margin (its dwell error may be far below the grid's step: the check decides): a change
-    that trades them for deviation would be refused by the check (:func:`better_or_equal`).
-    For a miss, the request's: half the dwell tolerance, its minimum transmission, its
-    ``max_accel``, ``_BAND_MARGIN``."""
-    w = 2 * math.pi * request.rpm / 60
-    cap = math.inf if request.max_accel is None else request.max_accel / (w * w)
-    out = np.empty((len(before), 4))
-    for k, f in enumerate(before):
-        if meets(request, f):
-            error = max(abs(d.angle - request.dwell) for d in f.dwells[: request.dwells])
-            out[k] = (
-                min(0.5 * request.dwell_tol, error),
-                min(f.transmission_fourbar, f.transmission_output),
-                min(cap, f.build.peak_rates[1]) if f.build is not None else cap,
-                0.0,
-            )
-        else:
-            out[k] = (0.5 * request.dwell_tol, request.min_transmission, cap, _BAND_MARGIN)
-    return out
-
-
-def _objective_rows(
-    request: Request, batch: SixBars, rpr: np.ndarray, centres: np.ndarray, bounds: np.ndarray, phi: np.ndarray
-) -> np.ndarray:
-    margin, mu_floor, accel_cap, band_margin = bounds.T
-    capped = np.isfinite(accel_cap)
-    order = 2 if capped.any() else 0
-    motion = simulate(batch, phi, order=order)
-    psi = motion.psi
-    R, M = psi.shape
-    h = 2 * math.pi / M
-    good = np.all(motion.status == 0, axis=1) & (np.abs(psi[:, -1] - psi[:, 0]) < math.pi)
-
-    band = request.band
-    longest = 2 * math.pi - 2 * h
-    lengths = np.stack(
-        [
-            np.clip(request.dwell - margin, 2 * h, longest),
-            np.full(R, min(request.dwell, longest)),
-            np.minimum(request.dwell + margin, longest),
-        ],
-        axis=1,
-    )  # (R, 3)
-    C = centres.shape[1]
-    dev, _ = output_deviation(
-        phi,
-        np.broadcast_to(psi[:, None, None, :], (R, C, 3, M)),
-        np.broadcast_to(centres[:, :, None], (R, C, 3)),
-        np.broadcast_to(lengths[:, None, :], (R, C, 3)),
-    )
-    objective = dev[:, :, 1].max(axis=1) / band
-    excess = np.maximum(0.0, dev[:, :, 0] - (band * (1 - band_margin))[:, None]).sum(axis=1) / band
-    excess += np.where(
-        request.dwell + margin < longest,
-        np.maximum(0.0, (band * (1 + band_margin))[:, None] - dev[:, :, 2]).sum(axis=1) / band,
-        0.0,
-    )
-    if request.swing is not None:
-        swing = psi.max(axis=1) - psi.min(axis=1)
-        unit = max(request.swing_tol, math.radians(0.01))
-        excess += np.maximum(0.0, np.abs(swing - request.swing) - 0.5 * request.swing_tol) / unit
-    mu = np.minimum(motion.transmission_fourbar.min(axis=1), motion.transmission_output.min(axis=1))
-    excess += np.maximum(0.0, mu_floor + _TRANSMISSION_MARGIN - mu) / math.radians(1.0)
-    _, clear, _, _ = clearances(batch, motion, every=CLEARANCE_EVERY)
-    reach = np.abs(motion.z[0] - batch.pivot[:, None])
-    ratio = link_ratios(batch, motion)  # the figures' own formula, on the loop's grid
-    excess += np.maximum(0.0, ratio / request.max_link_ratio - 0.999) / 0.01
-    arm = reach.min(axis=1)
-    excess += np.where(rpr, np.maximum(0.0, request.min_arm * 1.02 + 1e-3 - arm), 0.0) / 0.01
-    excess += np.maximum(0.0, request.min_clearance * 1.02 + 1e-3 - clear) / 0.01
-    if order == 2:
-        peak = np.abs(motion.dpsi[1]).max(axis=1)
-        excess += np.where(capped, np.maximum(0.0, peak / np.where(capped, accel_cap, 1.0) - 0.99) / 0.01, 0.0)
-    f = objective + PENALTY * excess
-    return np.where(good & np.isfinite(f), f, _WORST)
-
-
-def better_or_equal(request: Request, new: SixBarFigures, old: SixBarFigures) -> bool:
-    """Whether figures ``new`` may replace ``old`` in a ranking for ``request``: no worse on
-    any of the ranking's objectives (:func:`~synth.query.candidates.objectives`: dwell error,
-    output deviation, worst transmission angle, footprint, peak output acceleration) and
-    better on one, both rounded as :func:`~synth.query.candidates.rank` rounds them (so that the
-    last bits of a simulation do not decide). Both in the same units (e.g. crank lengths)."""
-    obj = np.round(objectives(request, [new, old]), 10)
-    return bool(np.all(obj[0] <= obj[1]) and np.any(obj[0] < obj[1]))
-
-
 #: evaluate(x, who): the objective of steps x (len(who), T, 9) of the candidates ``who``.
 Evaluate = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
-def _descend(
+def descend(
     evaluate: Evaluate, start: np.ndarray, radius: float, iterations: int, population: int, seed: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The polish: the batched elitist (1 + λ) evolution strategy of the module docstring, from
@@ -278,7 +143,7 @@ def _descend(
     fx = evaluate(x[:, None, :], np.arange(K))[:, 0]
     sigma = np.full(K, 0.25 * radius)
     count = np.ones(K, int)
-    active = fx < _WORST
+    active = fx < WORST
     history = [fx.copy()]
     for _ in range(iterations):
         who = np.flatnonzero(active)
@@ -391,7 +256,7 @@ def refine(
     branch = np.array([sixbars[k].branch for k in rows])
     dyad_branch = np.array([sixbars[k].dyad.branch for k in rows])
     centres = np.array([[0.5 * (d.start + d.end) for d in before[k].dwells[:dwells]] for k in rows])
-    bounds = _bounds(request, [before[k] for k in rows])
+    bounds = hold_bounds(request, [before[k] for k in rows])
     phi = crank_grid(samples)
 
     def steps(
@@ -409,7 +274,7 @@ def refine(
             g = only[who]
             rep = lambda a: np.repeat(a[g], T, axis=0)  # noqa: E731
             p = (start[g, None, :] + scale[g, None, :] * x).reshape(-1, 9)
-            f = _objective(request, p, rep(branch), rep(rpr), rep(dyad_branch), rep(centres), rep(bounds), phi)
+            f = trial_objective(request, p, rep(branch), rep(rpr), rep(dyad_branch), rep(centres), rep(bounds), phi)
             return f.reshape(len(who), T)
 
         x, f, n = search(evaluate, start[only], *args, seed)
@@ -420,12 +285,12 @@ def refine(
 
     # the polish; with ``reach``, the candidates it leaves short of the request are reached
     # for, then polished again
-    p, f, count = steps(_descend, p0, np.arange(K), radius, iterations, population)
+    p, f, count = steps(descend, p0, np.arange(K), radius, iterations, population)
     short = np.flatnonzero(f >= REACHED)
     if reach and len(short):
         p, _, n = steps(_reach, p, short, REACH_RADIUS, REACH_ITERATIONS, REACH_POPULATION)
         count += n
-        p, _, n = steps(_descend, p, short, radius, iterations, population)
+        p, _, n = steps(descend, p, short, radius, iterations, population)
         count += n
 
     # the check: rounded as the id holds it, then the query's exact figures

@@ -11,10 +11,12 @@ import math
 from collections.abc import Sequence
 
 from synth.mechanism.figures import SixBarFigures
-from synth.query.candidates import REFINED_MARK, Candidate, Request, candidate_id, with_dimensions
+from synth.query.candidate_ids import REFINED_MARK, candidate_id, with_dimensions
+from synth.query.candidates import Candidate, Request
 from synth.query.evaluate import candidate_of, distinct, figures_of, rest_position, scaled_figures
 from synth.query.fitting import Fitted
-from synth.query.refine import better_or_equal, refine
+from synth.query.refine import refine
+from synth.query.refine_objective import better_or_equal
 
 #: Nearest misses refined toward a request that fewer than FILL six-bars met, this many at a
 #: time (nearest first), for at most MISS_ROUNDS rounds while the answer still holds fewer.
@@ -26,7 +28,7 @@ MISS_ROUNDS = 2
 def no_worse_than_fits(request: Request, moved: list[Candidate], answered: list[Candidate]) -> list[Candidate]:
     """The ``moved`` six-bars (:func:`reseat`) that may stand for their fit: a moved pivot is a
     change of the fit it was moved from (its ``refined_from``), kept only if no worse on every
-    objective of the ranking (:func:`synth.query.refine.better_or_equal`) where that fit met the
+    objective of the ranking (:func:`synth.query.refine_objective.better_or_equal`) where that fit met the
     request itself (it is then among the ``answered``); beside a fit that missed, it is new."""
     met = {c.id: c.figures for c in answered}
     return [

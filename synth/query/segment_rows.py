@@ -17,6 +17,8 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+from synth.linkage import CouplerFourBar
+
 __all__ = ["Part", "SegmentBatch", "SegmentRow"]
 
 
@@ -54,12 +56,8 @@ class SegmentRow:
     kind: str
     level: int
     tolerance: float
-    b: float
-    c: float
-    d: float
-    branch: int
-    u: float
-    v: float
+    #: the segment's linkage (crank-normalised: a = 1) and its coupler point
+    fourbar: CouplerFourBar
     phi_gen: float
     #: per stretch: a :class:`Part` (start, end, x, y, direction or None, radius or None)
     parts: tuple[Part, ...]
@@ -76,7 +74,9 @@ class SegmentBatch(Sequence[SegmentRow]):
     without making an object per row (most rows yield no six-bar). A :class:`SegmentRow` is
     spelled out only for the rows that need one (:meth:`__getitem__`).
 
-    ``parts`` holds, per part, a (rows, 6) float array in :data:`Part` order with NaN for a
+    ``fourbar`` is one :class:`~synth.linkage.CouplerFourBar` of (rows,) arrays (the kernels
+    read its columns as they are; a row's is spelled out as a record of floats). ``parts``
+    holds, per part, a (rows, 6) float array in :data:`Part` order with NaN for a
     direction or radius the part has not (a line has no radius, an arc no direction), and
     ``has_parts`` (rows,) how many parts each row has (a double line with one stretch at a
     level has one)."""
@@ -85,12 +85,8 @@ class SegmentBatch(Sequence[SegmentRow]):
     segment_id: NDArray[np.int64]
     level: NDArray[np.int64]
     tolerance: NDArray[np.float64]
-    b: NDArray[np.float64]
-    c: NDArray[np.float64]
-    d: NDArray[np.float64]
-    branch: NDArray[np.int64]
-    u: NDArray[np.float64]
-    v: NDArray[np.float64]
+    #: the rows' linkages (crank-normalised: a = 1) and coupler points, a record of arrays
+    fourbar: CouplerFourBar
     phi_gen: NDArray[np.float64]
     fourbar_transmission_min: NDArray[np.float64]
     parts: tuple[NDArray[np.float64], ...]
@@ -124,12 +120,12 @@ class SegmentBatch(Sequence[SegmentRow]):
                 self.segment_id,
                 self.level,
                 self.tolerance,
-                self.b,
-                self.c,
-                self.d,
-                self.branch,
-                self.u,
-                self.v,
+                self.fourbar.b,
+                self.fourbar.c,
+                self.fourbar.d,
+                self.fourbar.branch,
+                self.fourbar.u,
+                self.fourbar.v,
                 self.phi_gen,
                 self.fourbar_transmission_min,
                 self.has_parts,
@@ -142,7 +138,8 @@ class SegmentBatch(Sequence[SegmentRow]):
                 Part(s, e, x, y, None if dr != dr else dr, None if r != r else r)  # x != x: NaN
                 for s, e, x, y, dr, r in (part[k] for part in parts[:n_parts])
             )
-            out.append(SegmentRow(sid, self.kind, level, tol, b, c, d, branch, u, v, phi_gen, spelled, mu))
+            fourbar = CouplerFourBar(b=b, c=c, d=d, branch=branch, u=u, v=v)
+            out.append(SegmentRow(sid, self.kind, level, tol, fourbar, phi_gen, spelled, mu))
         return out
 
     def part(self, k: int, field: str) -> NDArray[np.float64]:
@@ -156,7 +153,7 @@ class SegmentBatch(Sequence[SegmentRow]):
 
     def coupler_point(self) -> NDArray[np.complex128]:
         """The coupler point u + iv in the coupler's frame."""
-        return _complex(self.u, self.v)
+        return _complex(self.fourbar.u, self.fourbar.v)
 
     @classmethod
     def of_rows(cls, rows: Sequence[SegmentRow], kind: str) -> SegmentBatch:
@@ -185,14 +182,24 @@ class SegmentBatch(Sequence[SegmentRow]):
         def column(name: str, dtype) -> np.ndarray:
             return np.array([getattr(r, name) for r in rows], dtype).reshape(n)
 
+        def linkage(name: str, dtype=np.float64) -> np.ndarray:
+            return np.array([getattr(r.fourbar, name) for r in rows], dtype).reshape(n)
+
+        fourbar = CouplerFourBar(
+            b=linkage("b"),
+            c=linkage("c"),
+            d=linkage("d"),
+            branch=linkage("branch", np.int64),
+            u=linkage("u"),
+            v=linkage("v"),
+        )
         return cls(
             kind,
             column("segment_id", np.int64),
             column("level", np.int64),
             column("tolerance", np.float64),
-            *(column(name, np.float64) for name in ("b", "c", "d")),
-            column("branch", np.int64),
-            *(column(name, np.float64) for name in ("u", "v", "phi_gen", "fourbar_transmission_min")),
+            fourbar,
+            *(column(name, np.float64) for name in ("phi_gen", "fourbar_transmission_min")),
             tuple(parts),
             np.array([len(r.parts) for r in rows], np.int64).reshape(n),
         )

@@ -13,19 +13,16 @@ import os
 import re
 import signal
 import sqlite3
-import sys
 import time
 from pathlib import Path
 
 import pytest
+from harness.processes import N_SHARDS, SMALL, SPEC, shard_rows, spawn, wait_for_shards
 
 from atlas.build import build_atlas
 from cli.main import main
 from db import SCHEMA_VERSION, open_atlas
 from db.digest import content_digest
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "faults"))
-from processes import N_SHARDS, SMALL, SPEC, shard_rows, spawn, wait_for_shards  # noqa: E402 - the fault tests' helpers
 
 
 @pytest.fixture(scope="module")

@@ -671,7 +671,7 @@ def test_no_refine_gives_the_retrieved_six_bars(capsys, atlas_path):
             assert c["dwells"][0]["output_deviation_deg"] == before
         else:
             assert c["refinement"]["before"]["output_deviation_deg"] == pytest.approx(before, abs=1e-12)
-            # no worse on any objective of the ranking, better on one (synth.query.refine.better_or_equal)
+            # no worse on any objective of the ranking, better on one (synth.query.refine_objective.better_or_equal)
             assert c["dwells"][0]["output_deviation_deg"] <= before
     doc = json.loads(out)["refinement"]
     assert doc["from_nearest_misses"] is False and doc["sixbars_refined"] == len(plain) and doc["near_misses_met"] == 0

@@ -26,6 +26,7 @@ from db.rows import (
     transmission_floor_cdeg,
 )
 from synth.kinds import SEGMENT_KINDS, SegmentKind
+from synth.linkage import FourBar
 from synth.segment_search.dwell_key import arc_dwell_key
 from synth.segment_search.segments import SegmentSearch, find_segments
 
@@ -167,7 +168,13 @@ def test_a_double_line_needs_both_stretches_at_a_level(shard):
 
 def test_no_segments_no_rows():
     found = find_segments(np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0, int), SegmentSearch())
-    links = linkage_columns(0, *(np.zeros(0),) * 4, np.zeros(0, int), np.zeros(0, int), np.zeros((0, 1)))
+    links = linkage_columns(
+        0,
+        np.zeros(0),
+        FourBar(b=np.zeros(0), c=np.zeros(0), d=np.zeros(0), branch=np.zeros(0, int)),
+        np.zeros(0, int),
+        np.zeros((0, 1)),
+    )
     assert [t.rows() for t in segment_columns(found, links)] == [[], []]
 
 

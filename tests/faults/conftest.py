@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
-from processes import SPEC
+from harness.processes import SPEC
 
 from atlas.build import build_atlas
 from db import open_atlas

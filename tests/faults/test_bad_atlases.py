@@ -20,7 +20,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from processes import N_SHARDS, QUERY, SMALL, info, run
+from harness.processes import N_SHARDS, QUERY, SMALL, info, run
 
 from db import SCHEMA_VERSION
 

@@ -7,7 +7,7 @@ import os
 from pathlib import Path
 
 import pytest
-from processes import run
+from harness.processes import run
 
 import cli.bench.faults as faults
 

@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 
 import pytest
-from processes import N_SHARDS, QUERY, SMALL, info, run, shard_rows, spawn, wait_for_shards
+from harness.processes import N_SHARDS, QUERY, SMALL, info, run, shard_rows, spawn, wait_for_shards
 
 needs_proc = pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc (Linux)")
 #: "Promptly": far above a read's own time, far below being blocked by a writer (busy timeout 30 s).

@@ -15,7 +15,7 @@ import sqlite3
 from pathlib import Path
 
 import pytest
-from processes import QUERY, SMALL, run
+from harness.processes import QUERY, SMALL, run
 from test_bad_atlases import snapshot
 
 from db import open_atlas

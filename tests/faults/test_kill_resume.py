@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 
 import pytest
-from processes import N_SHARDS, SMALL, info, kill_group, run, shard_rows, spawn, wait_for_shards
+from harness.processes import N_SHARDS, SMALL, info, kill_group, run, shard_rows, spawn, wait_for_shards
 
 needs_proc = pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc (Linux)")
 #: Seconds each shard is slowed by in the killed runs (compute is on top).

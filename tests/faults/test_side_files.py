@@ -20,7 +20,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from processes import N_SHARDS, QUERY, SMALL, info, kill_group, run, spawn
+from harness.processes import N_SHARDS, QUERY, SMALL, info, kill_group, run, spawn
 from test_bad_atlases import snapshot, unfinished, wal_mode
 
 from db.engine import SQLITE_PAGE_SIZE

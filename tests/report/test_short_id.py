@@ -8,7 +8,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from report.short_id import MAX_LENGTH, SHORT_ID, short_id
-from synth.query.candidates import candidate_id
+from synth.query.candidate_ids import candidate_id
 
 #: A refined RRR id as the query prints it (standard atlas, RRR 60°/30°).
 REFINED = "991900016-rrr1.2@30~BkCQh0U__OzUQJiDoECCWatAU0AkwA64VUEPfUs_pehpQNDG0A"

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from synth.mechanism.band_windows import longest_windows
-from synth.mechanism.output_range import _vertex_bounds
+from synth.mechanism.sample_ranges import vertex_bounds
 
 
 def exhaustive(upper, lower, band, m):
@@ -51,7 +51,7 @@ def test_random_walks_and_plateaus():
         E = np.cumsum(rng.normal(size=(R, 2 * m)), axis=1)
         if trial % 2:
             E = np.round(E)  # plateaus: equal values in the queues
-        upper, lower = _vertex_bounds(E)
+        upper, lower = vertex_bounds(E)
         length, _, _ = check(upper, lower, rng.uniform(0, 4, R), m)
         assert length.min() >= 1 and length.max() <= m
 
@@ -75,7 +75,7 @@ def test_six_bar_outputs():
     sixbars = SixBars.from_sixbars([c.sixbar for c in single_dwell_candidates() + double_dwell_candidates()])
     psi = simulate(sixbars, crank_grid(72), order=0).psi
     E = np.concatenate([psi, psi], axis=1)
-    upper, lower = _vertex_bounds(E)
+    upper, lower = vertex_bounds(E)
     for band in (1e-3, 1e-2, 0.1, 1.0):
         check(upper, lower, np.full(len(psi), band), 72)
 
@@ -93,5 +93,5 @@ samples = hnp.arrays(
 def test_any_samples(E, band, data):
     R, T = E.shape
     m = T // 2 if data is None else data.draw(st.integers(1, (T + 1) // 2))
-    upper, lower = _vertex_bounds(E)
+    upper, lower = vertex_bounds(E)
     check(upper, lower, np.full(R, band), m)

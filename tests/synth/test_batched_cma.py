@@ -49,13 +49,13 @@ def test_rotated_ill_conditioned_quadratics_are_solved_in_a_batch():
 def test_an_isotropic_strategy_stalls_where_it_does_not():
     """The reason for CMA-ES: at condition 1e6 the (1 + λ) polish of synth.query.refine with the same
     number of evaluations ends far above the minimum; CMA-ES reaches it."""
-    from synth.query.refine import _descend
+    from synth.query.refine import descend
 
     K, n = 4, 9
     evaluate, _ = _ellipsoids(K, n, 1e6, seed=2)
     start = np.zeros((K, n))
     out = cma_es(evaluate, start, 0.3, _rngs(K), population=16, iterations=800, box=1.0)
-    x, f, count = _descend(evaluate, start, 1.0, 800, 16, 0)
+    x, f, count = descend(evaluate, start, 1.0, 800, 16, 0)
     assert np.all(out.f < 1e-8)
     assert np.all(f > 1e3 * out.f.max()) and np.all(count <= out.evaluations.max() + 16)
 

@@ -156,7 +156,7 @@ SPLIT_ID = "138000012-dbl0.2@free~AT_Xd2dABzmBQCcZlEAk2VjACAjUQHKuJ8ESP6o"
 
 def test_the_demo_atlas_split_rest_is_not_two_dwells():
     from synth.mechanism.figures import sixbar_figures
-    from synth.query.candidates import candidate_dimensions
+    from synth.query.candidate_ids import candidate_dimensions
 
     sb = candidate_dimensions(SPLIT_ID)
     f = sixbar_figures(sb, band=BAND, dwell_length=30 * DEG, dwells=2, leave=LEAVE)

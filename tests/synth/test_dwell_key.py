@@ -71,9 +71,9 @@ def test_stored_keys_are_the_rows_dwell_and_excursion(source):
     for level, tolerance in source.tolerance_levels():
         rows, keys = _arc_rows(source, level)
         assert len(rows) > 100
-        b, c, d = (np.array([getattr(r, n) for r in rows])[:, None] for n in "bcd")
-        m = fourbar_motion(1.0, b, c, d, phi, np.array([r.branch for r in rows])[:, None], order=0)
-        z = m.A + m.e_theta * np.array([complex(r.u, r.v) for r in rows])[:, None]
+        b, c, d = (np.array([getattr(r.fourbar, n) for r in rows])[:, None] for n in "bcd")
+        m = fourbar_motion(1.0, b, c, d, phi, np.array([r.fourbar.branch for r in rows])[:, None], order=0)
+        z = m.A + m.e_theta * np.array([complex(r.fourbar.u, r.fourbar.v) for r in rows])[:, None]
         centre = np.array([complex(r.parts[0][2], r.parts[0][3]) for r in rows])[:, None]
         radius = np.array([r.parts[0][5] for r in rows])[:, None]
         excursion = np.abs(np.abs(z - centre) - radius).max(axis=1)

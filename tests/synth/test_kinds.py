@@ -6,7 +6,7 @@ from sqlalchemy import CheckConstraint
 from db.schema import Segment
 from synth.kinds import SEGMENT_KINDS, OutputKind, OutputTag, SegmentKind
 from synth.mechanism.sixbar import OutputDyad
-from synth.query.candidates import candidate_id, parse_candidate_id
+from synth.query.candidate_ids import candidate_id, parse_candidate_id
 
 
 def test_segment_kinds_keep_their_stored_spelling_and_codes():

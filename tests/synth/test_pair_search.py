@@ -8,7 +8,7 @@ import numpy as np
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from synth.mechanism.output_range import _pair_search
+from synth.mechanism.pair_search import longest_pair
 
 
 def _numpy_pair_search(left_at, lv, right_at, rv, hi_in, lo_in, band):
@@ -103,7 +103,7 @@ def test_compiled_pair_search_is_the_numpy_one_bit_for_bit(lead, nl, nr, quantum
     if drift:
         hi_in, lo_in = np.full(lead, -np.inf), np.full(lead, np.inf)
         band = np.min((rv[..., -1] - lv[..., 0]).reshape(R, -1), axis=1) * rng.uniform(0.9, 1.0, R)
-    got = _pair_search(left_at, lv, right_at, rv, hi_in, lo_in, band)
+    got = longest_pair(left_at, lv, right_at, rv, hi_in, lo_in, band)
     want = _numpy_pair_search(left_at, lv, right_at, rv, hi_in, lo_in, band)
     for g, w in zip(got, want):
         assert g.shape == lead

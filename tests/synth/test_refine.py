@@ -15,17 +15,17 @@ from hypothesis import strategies as st
 from synth.mechanism.figures import sixbar_figures
 from synth.mechanism.sixbar import OutputDyad, SixBar
 from synth.query import FILL, answer, meets, rebuild
-from synth.query.candidates import (
-    Request,
+from synth.query.candidate_ids import (
     candidate_dimensions,
     candidate_id,
     decode_dimensions,
     encode_dimensions,
-    objectives,
     parse_candidate_id,
     round_dimensions,
 )
-from synth.query.refine import better_or_equal, refine
+from synth.query.candidates import Request, objectives
+from synth.query.refine import refine
+from synth.query.refine_objective import better_or_equal
 
 DEG = math.pi / 180
 

@@ -15,7 +15,6 @@ import pytest
 from scipy.optimize import linprog
 
 from atlas.sweep import PRESETS, sweep_linkages
-from db.rows import linkage_columns, segment_columns
 from kinematics.fourbar import fourbar_motion
 from synth import ball_point, pole
 from synth.kinds import SEGMENT_KINDS, SegmentKind
@@ -232,9 +231,7 @@ def test_same_input_same_output(batch):
 
 def test_no_linkages_no_segments():
     found = find_segments(np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0, int), SegmentSearch())
-    assert len(found) == 0
-    links = linkage_columns(0, *(np.zeros(0),) * 4, np.zeros(0, int), np.zeros(0, int), np.zeros((0, 1)))
-    assert [t.rows() for t in segment_columns(found, links)] == [[], []]
+    assert len(found) == 0  # and no rows from it: tests/db/test_rows.py::test_no_segments_no_rows
 
 
 def test_one_straight_stretch_seen_twice_is_no_double_line():

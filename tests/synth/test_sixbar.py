@@ -314,7 +314,7 @@ def test_one_drifting_rest_is_not_two_dwells():
     next to the first, which refinement on the exact path slides back into the first. Found by
     the query's refined near misses (the same interval reported as both dwells of a "double
     dwell", step 0): the second dwell is not found, the first is the rest itself."""
-    from synth.query.candidates import candidate_dimensions
+    from synth.query.candidate_ids import candidate_dimensions
 
     sb = candidate_dimensions("26600020-dbl0.0@free~AUBV0QtAbVtfQD58GECTNV2_qdBMPcBOQ8CfRgM")
     f = sixbar_figures(sb, band=math.radians(0.1), dwell_length=math.radians(50), dwells=2)
