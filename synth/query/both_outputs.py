@@ -5,12 +5,14 @@ whole pipeline and hands both answers here.
 
 from __future__ import annotations
 
+import dataclasses
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from synth.query.candidates import Request, rank
 from synth.query.diagnosis import either_no_match
-from synth.query.result import QueryResult
+from synth.query.result import NoMatch, QueryResult
 
 __all__ = ["Answered", "union_of"]
 
@@ -24,6 +26,20 @@ class Answered:
     result: QueryResult
     misses: frozenset[str]
     reseated: frozenset[str]
+    #: an empty answer made without its diagnosis: the step that works out its no-match and
+    #: the stored dwells nearest the request (:meth:`diagnosed`); None otherwise
+    diagnosis: Callable[[], tuple[NoMatch, tuple[float | None, float | None]]] | None = None
+
+    def diagnosed(self) -> Answered:
+        """This answer with its no-match worked out, if it was left for later. The diagnosis
+        simulates every fit (most of an unrefined answer's time), so ``--output any`` asks for
+        it only when both output types came back empty."""
+        if self.diagnosis is None:
+            return self
+        no_match, nearest = self.diagnosis()  # its time goes to the answer's own clock
+        return dataclasses.replace(
+            self, result=dataclasses.replace(self.result, no_match=no_match, nearest=nearest), diagnosis=None
+        )
 
 
 def union_of(request: Request, parts: list[Answered]) -> QueryResult:

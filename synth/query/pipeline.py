@@ -8,6 +8,7 @@ output types (:func:`_best_of_both`, :func:`~synth.query.both_outputs.union_of`)
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import time
 from collections.abc import Callable
@@ -88,7 +89,8 @@ def _best_of_both(
     """``request`` (``output="any"``, one dwell) answered as RPR and as RRR, then the best
     ``request.top`` of the union of the two answers by :func:`~synth.query.candidates.rank` (Pareto
     layer, score, id, over the union: a six-bar's layer depends on what it is ranked with).
-    The union: :func:`~synth.query.both_outputs.union_of`. ``searched`` (a complete search
+    The union: :func:`~synth.query.both_outputs.union_of`; each part is diagnosed only if both
+    are empty (:meth:`~synth.query.both_outputs.Answered.diagnosed`). ``searched`` (a complete search
     of both kinds, :func:`search_many`) is split by output type; its counts go to the RPR
     part, so that the sums are the search's own."""
     parts = []
@@ -108,8 +110,11 @@ def _best_of_both(
                 on_progress=on_progress,
                 map_batches=map_batches,
                 searched=mine,
+                diagnosed=False,  # one kind's no-match matters only if the other has none either
             )
         )
+    if not any(p.result.candidates for p in parts):
+        parts = [p.diagnosed() for p in parts]
     return union_of(request, parts)
 
 
@@ -307,10 +312,11 @@ def _answer_one(
     on_progress: Callable[[int, int], None] | None = None,
     map_batches: BatchMap | None = None,
     searched: tuple[list[Candidate], SearchCount] | None = None,
+    diagnosed: bool = True,
 ) -> Answered:
     """:func:`answer` for one output type (or a double dwell): candidates (the complete
     search's or the sample's), ranked, the top refined, filled from the near misses while
-    sparse, and diagnosed when empty."""
+    sparse, and diagnosed when empty (not ``diagnosed``: left to :meth:`Answered.diagnosed`)."""
     t = time.perf_counter()
     state = Answering(request, source, kinds_for(request))
     if request.complete:
@@ -340,16 +346,11 @@ def _answer_one(
         filled = _fill_from_misses(state, top, refined)
     top, no_match = filled.top, filled.no_match
     nearest: tuple[float | None, float | None] = (None, None)
-    if not top:
-        if no_match is None:
-            if request.complete and not state.fitted:
-                _sampled(state)  # nothing in the whole atlas: diagnose the sample's near misses
-            t = time.perf_counter()
-            no_match = diagnose_by_bounds(request, state.fitted, state.known)
-            state.add_time("simulate", t)
-        if not no_match.fitted:  # no six-bar to show: the stored dwells the atlas has instead
-            nearest = source.nearest_dwell_angles(state.kinds, request.dwell)
-            no_match = dataclasses.replace(no_match, reach=unfitted_reach(request, source, state.kinds))
+    later = None
+    if not top and diagnosed:
+        no_match, nearest = _no_match(state, no_match)
+    elif not top:
+        later = functools.partial(_no_match, state, no_match)
     reseated = frozenset(c.id for c in top if c.id.split(REFINED_MARK)[0] in state.moved_ids)
     return Answered(
         QueryResult(
@@ -367,4 +368,22 @@ def _answer_one(
         ),
         filled.miss_ids,
         reseated,
+        later,
     )
+
+
+def _no_match(state: Answering, found: NoMatch | None) -> tuple[NoMatch, tuple[float | None, float | None]]:
+    """Why nothing met the request (``found``: the near misses' diagnosis, if the fill made
+    one) and, with no six-bar to show, the stored dwell angles nearest the request."""
+    request, source = state.request, state.source
+    nearest: tuple[float | None, float | None] = (None, None)
+    if found is None:
+        if request.complete and not state.fitted:
+            _sampled(state)  # nothing in the whole atlas: diagnose the sample's near misses
+        t = time.perf_counter()
+        found = diagnose_by_bounds(request, state.fitted, state.known)
+        state.add_time("simulate", t)
+    if not found.fitted:  # no six-bar to show: the stored dwells the atlas has instead
+        nearest = source.nearest_dwell_angles(state.kinds, request.dwell)
+        found = dataclasses.replace(found, reach=unfitted_reach(request, source, state.kinds))
+    return found, nearest
