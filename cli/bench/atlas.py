@@ -23,8 +23,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import platform
 import tempfile
 import time
 from pathlib import Path
@@ -33,6 +31,7 @@ import click
 import numpy as np
 
 from atlas.sweep import PRESETS, sweep_linkages
+from cli.bench.machine import machine_facts
 from cli.budget import check_time
 from cli.options import RAYS, SEARCH_STEP_DEG, writable_file
 from db.rows import linkage_columns, segment_columns
@@ -263,7 +262,7 @@ def atlas(
             "linkages_per_s": round(b.size / ref_seconds, 2),
         },
         "resolutions": results,
-        "machine": {"cpus": os.cpu_count(), "python": platform.python_version(), "machine": platform.machine()},
+        "machine": machine_facts(),
     }
     if build_samples:
         report["build"] = timed_build(spec, build_samples, workers)

@@ -12,14 +12,13 @@ against the extended-precision reference (:func:`cli.bench.reference.residuals`)
 from __future__ import annotations
 
 import json
-import os
-import platform
 import time
 
 import click
 import numpy as np
 
 from cli.bench import reference
+from cli.bench.machine import machine_facts
 from cli.budget import check_memory, check_time
 from cli.options import SEED
 from kinematics.fourbar import fourbar_motion
@@ -192,11 +191,6 @@ def curvature(linkages, angles, rays, batch, repeat, n_double, seed):
         "ns_per_instant": {k: v / instants * 1e9 for k, v in clock.items()},
         "double_ball": double,
         "max_residual_vs_extended_precision": _errors(seed, rays),
-        "platform": {
-            "python": platform.python_version(),
-            "numpy": np.__version__,
-            "machine": platform.machine(),
-            "cpus": os.cpu_count(),
-        },
+        "platform": machine_facts(),
     }
     click.echo(json.dumps(doc, indent=1))

@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import json
 import os
-import platform
 import random
 import signal
 import subprocess
@@ -45,6 +44,7 @@ from pathlib import Path
 
 import click
 
+from cli.bench.machine import machine_facts
 from cli.errors import InputError
 from cli.options import SEED
 
@@ -573,7 +573,7 @@ def faults(trials, max_kills, seed, db_kind, postgres_url, samples, shard_size, 
         "concurrent_builder_refused": all(r["concurrent_builder"]["passed"] for r in runs),
         "runs": runs,
         "seconds": round(time.perf_counter() - t0, 2),
-        "machine": {"cpus": os.cpu_count(), "python": platform.python_version(), "machine": platform.machine()},
+        "machine": machine_facts(),
     }
     click.echo(json.dumps(doc, indent=2))
     parts = [

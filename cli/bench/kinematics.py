@@ -9,13 +9,12 @@ evaluated in extended precision (numpy longdouble) plus the loop-closure residua
 from __future__ import annotations
 
 import json
-import os
-import platform
 import time
 
 import click
 import numpy as np
 
+from cli.bench.machine import machine_facts
 from cli.bench.plain import fourbar_positions
 from cli.budget import check_memory, check_time
 from cli.options import SEED
@@ -173,11 +172,6 @@ def kinematics(sizes: str, angles: int, repeat: int, seed: int) -> None:
         "floor_positions_per_s_per_core": 5_000_000,
         "results": results,
         "max_error_vs_extended_precision": _accuracy(200, angles, seed),
-        "platform": {
-            "python": platform.python_version(),
-            "numpy": np.__version__,
-            "machine": platform.machine(),
-            "cpus": os.cpu_count(),
-        },
+        "platform": machine_facts(),
     }
     click.echo(json.dumps(doc, indent=1))

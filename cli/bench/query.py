@@ -21,8 +21,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import platform
 import statistics
 import time
 from dataclasses import dataclass
@@ -31,6 +29,7 @@ from pathlib import Path
 import click
 import numpy as np
 
+from cli.bench.machine import machine_facts
 from cli.budget import check_time
 from cli.options import db_option, writable_file
 
@@ -224,7 +223,7 @@ def query(db, repeat, top, plot, compare):
             "meets_floor": bool(_percentile(plain_every, 95) <= PLAIN_FLOOR_MS),
         },
         "requests": rows,
-        "machine": {"cpus": os.cpu_count(), "python": platform.python_version(), "machine": platform.machine()},
+        "machine": machine_facts(),
     }
     click.echo(json.dumps(report, indent=2, allow_nan=False))
     plain_note = (

@@ -17,13 +17,12 @@ beside it (``*_threads``).
 from __future__ import annotations
 
 import json
-import os
-import platform
 
 import click
 import numpy as np
 
 from cli.bench.kinematics import MIN_POSITIONS_PER_RUN, best_time, check_positions, random_linkages, sizes_option
+from cli.bench.machine import machine_facts
 from cli.bench.plain import sixbar_rrr_positions
 from cli.options import SEED
 from synth import parallel_rows
@@ -133,11 +132,6 @@ def sixbar(sizes: str, angles: int, repeat: int, seed: int) -> None:
         "threads": cores,
         "floor_ratio_to_plain_numpy_at_10000": 1.0,
         "results": results,
-        "platform": {
-            "python": platform.python_version(),
-            "numpy": np.__version__,
-            "machine": platform.machine(),
-            "cpus": os.cpu_count(),
-        },
+        "platform": machine_facts(),
     }
     click.echo(json.dumps(doc, indent=1))
