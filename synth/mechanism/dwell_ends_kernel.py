@@ -28,7 +28,7 @@ import numpy as np
 from synth.mechanism.pair_search import pair_query
 from synth.mechanism.sample_ranges import range_max_min
 from synth.mechanism.sixbar_kernel import output_phasor
-from synth.parallel_rows import over_rows
+from synth.parallel_rows import one_signature, over_rows
 from synth.types import F64
 
 __all__ = ["refine_deviation_windows", "refine_windows"]
@@ -194,6 +194,9 @@ def refine_windows(
     )
     six = np.ascontiguousarray(six, np.int64)
     band = np.ascontiguousarray(band, float)
+    # band arrives writable or read-only (a broadcast): one compile for both
+    whole = (params, rpr, six, *args, band, phi0, h, cs, ok, nn, pin_eps, fine, extend_points, out)
+    one_signature(_refine, whole, read_only=(6,))
 
     def block(lo: int, hi: int) -> None:
         _refine(
