@@ -397,6 +397,9 @@ def refine_deviation_windows(
     out_dev, out_start = np.empty(R), np.empty(R)
     ints = [np.ascontiguousarray(x, np.int64) for x in (six, i_lo, k, nL)]
     floats = [np.ascontiguousarray(x, float) for x in (slab, L, c, dev, s_best)]
+    # L, c, dev and s_best arrive writable or read-only (broadcasts): one compile for both
+    whole = (params, rpr, ints[0], floats[0], *ints[1:], *floats[1:], phi0, h, pin_eps, steps, fine, out_dev, out_start)
+    one_signature(_windows, whole, read_only=(7, 8, 9, 10))
 
     def block(lo: int, hi: int) -> None:
         _windows(
