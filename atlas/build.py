@@ -128,7 +128,8 @@ def run_shards(
         min(workers, len(indices)),
         initializer=_init_worker,
         initargs=(spec, sweep),
-        preload=("atlas.build",),
+        # the forkserver computes a small shard first: the workers inherit the compiled kernels
+        preload=("atlas.build", "atlas.warm_kernels"),
         tick=tick,
     )
 

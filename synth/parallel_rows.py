@@ -21,8 +21,11 @@ import os
 import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from typing import Any
 
-__all__ = ["MIN_WORK_NS", "over_rows", "set_threads", "threads"]
+import numba
+
+__all__ = ["MIN_WORK_NS", "one_signature", "over_rows", "set_threads", "threads"]
 
 #: Estimated work (ns) below which a batch runs in the caller's thread: split, it would save
 #: less than the ~0.1 ms a hand-off costs.
@@ -103,3 +106,36 @@ def over_rows(rows: int, work: Callable[[int, int], None], cost_ns: float) -> No
             f.exception()
     for f in futures:
         f.result()
+
+
+_compile_lock = threading.Lock()
+
+
+def one_signature(
+    kernel: Any, args: tuple[Any, ...], *, any_layout: tuple[int, ...] = (), read_only: tuple[int, ...] = ()
+) -> None:
+    """Before ``kernel(*args)`` (a ``numba.njit`` dispatcher) is called, on whole arrays or on
+    :func:`over_rows`'s blocks: compile it (or load it from numba's cache) for ``args``' types
+    with the arrays at positions ``any_layout`` typed as any-layout ('A') and those at
+    ``read_only`` as read-only, then forbid numba further compiles at call time, so that
+    contiguous and strided blocks, writable and read-only inputs all call that one machine
+    code (numba's dispatcher converts an argument to the wider type only when it may not
+    compile; otherwise it compiles every layout and writability it meets, ~1–3 s of CPU
+    each). The positions must be arrays the kernel only reads (``read_only``) or indexes
+    (``any_layout``). A call whose types still differ (another dtype or number of
+    dimensions) gets its own compile here."""
+    types = [numba.typeof(a) for a in args]
+    for i in any_layout:
+        types[i] = types[i].copy(layout="A")
+    for i in read_only:
+        types[i] = types[i].copy(readonly=True)
+    key = tuple(types)
+    if key in kernel.overloads:
+        return
+    with _compile_lock:
+        if key not in kernel.overloads:
+            kernel.disable_compile(False)
+            try:
+                kernel.compile(key)
+            finally:
+                kernel.disable_compile(True)

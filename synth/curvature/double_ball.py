@@ -470,7 +470,10 @@ def _box_pairs(p0: C128, p1: C128, start: I64, end: I64, link: I64) -> tuple[I64
     from synth.curvature.double_ball_kernel import box_sweep  # numba: imported on first use
 
     first, size, _ = _groups(link)
-    return box_sweep(p0, p1, start, end, first, size)
+    # every linkage's segments in order of their smallest x, all linkages in one sort (ties
+    # may fall in any order: the sweep finds the same pairs)
+    by_left = np.lexsort((np.minimum(p0.real, p1.real), link))
+    return box_sweep(p0, p1, start, end, first, size, by_left)
 
 
 def _refine(a, b, c, d, br, phi1, phi2, max_step) -> tuple[F64, F64, NDArray[np.bool_], C128]:

@@ -15,24 +15,23 @@ __all__ = ["box_sweep"]
 
 
 @numba.njit(cache=True, nogil=True)
-def box_sweep(p0, p1, start, end, first, size):
+def box_sweep(p0, p1, start, end, first, size, by_left):
     """Pairs (i, j), i < j, of segments p0→p1 whose closed boxes meet and that are not
     neighbours along the track (``end`` of one is the ``start`` sample of the other); linkage
-    g holds segments ``first[g] : first[g] + size[g]``. Grouped by linkage, in no particular
-    order within one."""
+    g holds segments ``first[g] : first[g] + size[g]``, and ``by_left[first[g] : first[g] +
+    size[g]]`` are their indices in order of their smallest x (sorted by the caller: a sort
+    compiled here, numba's ``np.argsort``, cost ~5 s of CPU to compile on a first run).
+    Grouped by linkage, in no particular order within one."""
     n_max = size.max() if size.size else 0
     # one linkage's boxes in x order, copied contiguous for the inner loop
     x0, x1, y0, y1 = np.empty(n_max), np.empty(n_max), np.empty(n_max), np.empty(n_max)
     s_start, s_end = np.empty(n_max, np.int64), np.empty(n_max, np.int64)
-    left = np.empty(n_max)
     cap = 4 * p0.size + 64
     out_i, out_j = np.empty(cap, np.int64), np.empty(cap, np.int64)
     m = 0
     for g in range(first.size):
         lo, n = first[g], size[g]
-        for a in range(n):
-            left[a] = min(p0[lo + a].real, p1[lo + a].real)
-        order = np.argsort(left[:n]) + lo
+        order = by_left[lo : lo + n]
         for a in range(n):
             k = order[a]
             u, v = p0[k], p1[k]

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from synth.parallel_rows import over_rows
+from synth.parallel_rows import one_signature, over_rows
 
 __all__ = ["longest_windows"]
 
@@ -86,6 +86,8 @@ def longest_windows(
     length = np.empty((R, m), np.int64)
     w_max = np.empty((R, m))
     w_min = np.empty((R, m))
+    # band arrives writable or read-only (a broadcast): one compile for both
+    one_signature(_windows, (upper, lower, band, int(m), length, w_max, w_min), read_only=(2,))
     over_rows(
         R,
         lambda lo, hi: _windows(

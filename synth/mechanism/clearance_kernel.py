@@ -93,7 +93,8 @@ def pair_clearances(A, B, P, Q, psi, d, pivot, rpr, every: int):
     N, M = psi.shape
     reach = np.empty((N, len(range(0, M, every))))
     smallest = np.empty((N, 16))
-    d, pivot, rpr = np.asarray(d, float), np.asarray(pivot, complex), np.asarray(rpr, np.bool_)
+    # d contiguous: a strided column would compile the kernel a second time (~1.2 s of CPU)
+    d, pivot, rpr = np.ascontiguousarray(d, float), np.asarray(pivot, complex), np.asarray(rpr, np.bool_)
 
     def block(lo: int, hi: int) -> None:
         _clearances(

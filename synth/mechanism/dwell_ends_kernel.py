@@ -28,7 +28,7 @@ import numpy as np
 from synth.mechanism.pair_search import pair_query
 from synth.mechanism.sample_ranges import range_max_min
 from synth.mechanism.sixbar_kernel import output_phasor
-from synth.parallel_rows import over_rows
+from synth.parallel_rows import one_signature, over_rows
 from synth.types import F64
 
 __all__ = ["refine_deviation_windows", "refine_windows"]
@@ -194,6 +194,9 @@ def refine_windows(
     )
     six = np.ascontiguousarray(six, np.int64)
     band = np.ascontiguousarray(band, float)
+    # band arrives writable or read-only (a broadcast): one compile for both
+    whole = (params, rpr, six, *args, band, phi0, h, cs, ok, nn, pin_eps, fine, extend_points, out)
+    one_signature(_refine, whole, read_only=(6,))
 
     def block(lo: int, hi: int) -> None:
         _refine(
@@ -394,6 +397,9 @@ def refine_deviation_windows(
     out_dev, out_start = np.empty(R), np.empty(R)
     ints = [np.ascontiguousarray(x, np.int64) for x in (six, i_lo, k, nL)]
     floats = [np.ascontiguousarray(x, float) for x in (slab, L, c, dev, s_best)]
+    # L, c, dev and s_best arrive writable or read-only (broadcasts): one compile for both
+    whole = (params, rpr, ints[0], floats[0], *ints[1:], *floats[1:], phi0, h, pin_eps, steps, fine, out_dev, out_start)
+    one_signature(_windows, whole, read_only=(7, 8, 9, 10))
 
     def block(lo: int, hi: int) -> None:
         _windows(

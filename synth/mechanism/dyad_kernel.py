@@ -25,7 +25,7 @@ import numpy as np
 
 from synth.mechanism.sample_ranges import parabola_rise
 from synth.mechanism.sixbar_kernel import closing_point
-from synth.parallel_rows import over_rows
+from synth.parallel_rows import one_signature, over_rows
 
 __all__ = ["direction_estimates", "pseudo_angle", "rpr_swing", "rrr_swing", "solve_rpr", "solve_rrr"]
 
@@ -71,6 +71,8 @@ def direction_estimates(wx, wy, A, inv_a_rho, half, rho, c, s, branch, target, r
     :meth:`synth.mechanism.dyad.RrrTerms.estimate`'s quantities before its arccos."""
     R, J = c.shape
     out = [np.empty((R, J)) for _ in range(4)] + [np.empty((R, J), np.bool_)]
+    # ratio arrives writable or read-only (a broadcast): one compile for both
+    one_signature(_estimates, (wx, wy, A, inv_a_rho, half, rho, c, s, branch, target, ratio, *out), read_only=(10,))
     # ~4 ns a sample and direction
     over_rows(
         R,
@@ -282,6 +284,8 @@ def solve_rrr(
     n = rows.shape[0]
     u, S, conv = np.empty(n), np.empty(n), np.empty(n, np.bool_)
     dyads = (rows, ex, ey, branch, rho, lo, hi, u0, target, active)
+    # u0 and active arrive writable or read-only (broadcasts): one compile for both
+    one_signature(_solve_rrr, (wx, wy, *dyads, check_far, tol, max_iter, u, S, conv), read_only=(9, 11))
     # ~56 ns a sample, the iterations included
     over_rows(
         n,
@@ -314,6 +318,7 @@ def solve_rpr(t_s, n_s, rows, side, t_end, lo, hi, u0, target, active, check_far
     n = rows.shape[0]
     u, S, conv = np.empty(n), np.empty(n), np.empty(n, np.bool_)
     dyads = (rows, side, t_end, lo, hi, u0, target, active)
+    one_signature(_solve_rpr, (t_s, n_s, *dyads, check_far, tol, max_iter, u, S, conv), read_only=(7, 9))
     # ~17 ns a sample, the iterations included
     over_rows(
         n,

@@ -28,7 +28,7 @@ import numpy as np
 
 from kinematics.loop import COINCIDENT_EPS, HERON_SAFE, TOGGLE_EPS
 from kinematics.status import Status
-from synth.parallel_rows import over_rows
+from synth.parallel_rows import one_signature, over_rows
 
 __all__ = ["closing_point", "output_angles", "output_phasor", "sixbar_positions"]
 
@@ -281,6 +281,11 @@ def _positions(params, rpr, phi, pin_eps, order, full, points, angles, derivs, s
             px, py, prev_p1 = ex, ey, p1
 
 
+#: :func:`_positions`'s paged outputs (points, angles, derivs) and its read inputs (params, rpr, phi).
+_POSITIONS_PAGES = (6, 7, 8)
+_POSITIONS_INPUTS = (0, 1, 2)
+
+
 def output_angles(params: np.ndarray, rpr: np.ndarray, phi: np.ndarray, pin_eps: float) -> np.ndarray:
     """The continuous output angle ψ alone (``(N, M)``, rad), as :func:`sixbar_positions` gives
     it, without the points and transmission angles (the refinements' many small calls)."""
@@ -288,6 +293,13 @@ def output_angles(params: np.ndarray, rpr: np.ndarray, phi: np.ndarray, pin_eps:
     angles = np.empty((3, n, m))  # only ψ is written (the other two pages are never touched)
     status_fourbar, status = np.empty((n, m), np.uint8), np.empty((n, m), np.uint16)
     none_c, none_f = np.empty((3, 0, 0), np.complex128), np.empty((0, 0, 0))
+    # the pages of a block are strided (A) or, unsplit, contiguous (C): one compile for both
+    one_signature(
+        _positions,
+        (params, rpr, phi, pin_eps, 0, False, none_c, angles, none_f, status_fourbar, status),
+        any_layout=_POSITIONS_PAGES,
+        read_only=_POSITIONS_INPUTS,
+    )
 
     def block(lo: int, hi: int) -> None:
         _positions(
@@ -332,6 +344,12 @@ def sixbar_positions(params: np.ndarray, rpr: np.ndarray, phi: np.ndarray, pin_e
     derivs = np.empty((3 * order, n, m))
     status_fourbar = np.empty((n, m), np.uint8)
     status = np.empty((n, m), np.uint16)
+    one_signature(
+        _positions,
+        (params, rpr, phi, pin_eps, order, True, points, angles, derivs, status_fourbar, status),
+        any_layout=_POSITIONS_PAGES,
+        read_only=_POSITIONS_INPUTS,
+    )
 
     def block(lo: int, hi: int) -> None:
         _positions(

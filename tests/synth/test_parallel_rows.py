@@ -92,6 +92,36 @@ def test_six_bar_motion_the_same_on_any_number_of_threads(threads, order):
         for a, b in zip(results[0], other):
             np.testing.assert_array_equal(a, b)
     assert np.any(results[0][3] != 0) and np.any(results[0][3] == 0)  # flagged positions among them
+    # unsplit (contiguous pages) and split (strided pages), ψ alone or the whole motion: one compile
+    from synth.mechanism import sixbar_kernel
+
+    assert len(sixbar_kernel._positions.signatures) == 1
+
+
+def test_one_signature_serves_contiguous_strided_and_read_only_arrays():
+    import numba
+
+    @numba.njit
+    def weighted_sums(x, w, out):
+        for i in range(x.shape[0]):
+            out[i] = x[i].sum() * w[i]
+
+    x = np.arange(12.0).reshape(3, 4)
+    w = np.array([1.0, 2.0, 3.0])
+    frozen = w.copy()
+    frozen.flags.writeable = False
+    out = np.empty(3)
+    parallel_rows.one_signature(weighted_sums, (x, w, out), any_layout=(0,), read_only=(1,))
+    weighted_sums(x, w, out)  # C-contiguous, writable
+    np.testing.assert_array_equal(out, [6.0, 44.0, 114.0])
+    weighted_sums(x[:, 1:3], frozen, out)  # strided, read-only
+    np.testing.assert_array_equal(out, [3.0, 22.0, 57.0])
+    assert len(weighted_sums.signatures) == 1
+    # another dtype is not a layout: it gets a compile of its own
+    parallel_rows.one_signature(weighted_sums, (x.astype(np.int64), w, out), any_layout=(0,), read_only=(1,))
+    weighted_sums(x.astype(np.int64)[:, :2], w, out)
+    np.testing.assert_array_equal(out, [1.0, 18.0, 51.0])
+    assert len(weighted_sums.signatures) == 2
 
 
 def test_clearances_band_windows_and_vertex_bounds_the_same_on_any_number_of_threads(threads):
