@@ -276,10 +276,15 @@ def clear_of_limits(sixbar: SixBar, tolerance: float) -> bool:
     batch, _ = perturbed(sixbar, tolerance, unit)
     if not crank_turns(batch).all():
         return False
-    motion = simulate(batch, crank_grid(LIMIT_SAMPLES), order=0)
-    if np.any(motion.status != 0) or abs(motion.psi[0, -1] - motion.psi[0, 0]) >= math.pi:
+    from synth.mechanism.sixbar_kernel import sixbar_positions  # numba: imported on first use
+
+    # the kernel without simulate's motion records (~80 µs of this test's ~500): the coupler
+    # point z, ψ and the statuses are all it reads
+    params, rpr = kernel_inputs(batch)
+    points, angles, _, _, status = sixbar_positions(params, rpr, crank_grid(LIMIT_SAMPLES)[None, :], PIN_ON_PIVOT_EPS)
+    if np.any(status != 0) or abs(angles[0, 0, -1] - angles[0, 0, 0]) >= math.pi:
         return False
-    r = np.abs(batch.pivot[:, None] - motion.z[0])
+    r = np.abs(batch.pivot[:, None] - points[1])
     if batch.rpr[0]:
         size = np.maximum.reduce([batch.a, batch.b, batch.c, batch.d, np.abs(batch.pivot)])
         margin = r - PIN_ON_PIVOT_EPS * size[:, None]
@@ -352,7 +357,7 @@ def _window_deviations(
         # (one more sample where L is not a whole number of steps), widened by how far ψ can
         # rise between two samples (an eighth of the largest second difference there).
         reach = nL + 1 + (nL * h < length - 1e-12)
-        held = slab[rows[:, None], jbest[:, None] + 1 + np.arange(reach)[None, :]]
+        held = slab.ravel().take((W * rows + jbest + 1)[:, None] + np.arange(reach)[None, :])
         bend = np.abs(np.diff(held, 2, axis=1)).max(axis=1, initial=0.0) / 8
         inner = held[:, 1 : max(nL, 1)]
         floor = inner.max(axis=1) - inner.min(axis=1) if nL >= 2 else np.zeros(n)
