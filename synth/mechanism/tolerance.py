@@ -500,8 +500,21 @@ def _refined_bounds(
     step = np.arange(q1)[None, :] / REFINE_POINTS
     f = (i_lo - 2 + k)[:, None] * h + 2 * h * step
     fv, gv = np.hsplit(_cubic(flat, row_start + p0, np.hstack([2 * step, 2 * step + span])), 2)
-    inner = flat.take(row_start + p0 + 3 + np.arange(nL - 2)[None, :], mode="clip")
-    r1 = _window_ranges(fv, gv, inner.max(axis=1, initial=-math.inf), inner.min(axis=1, initial=math.inf))
+    # The samples between a window's exact points: the first stage's are slab offsets k + 2 …
+    # k + nL − 1, the second's those strictly inside (f_best + d, f_best − d + L), from i0 ∈
+    # [k, k + 2] to one in [k + nL − 2, k + nL + 1]; both hold the core k + 2 … k + nL − 2,
+    # whose extremes are taken once, and a few of the edges.
+    core = flat.take(row_start + p0 + 3 + np.arange(max(nL - 3, 0))[None, :], mode="clip")
+    core_hi, core_lo = core.max(axis=1, initial=-math.inf), core.min(axis=1, initial=math.inf)
+    edge_at = np.array([0, 1, nL - 1, nL, nL + 1])  # offsets from k
+    edge = flat.take(row_start + p0 + 1 + edge_at[None, :], mode="clip")
+    last_in = nL >= 3  # offset k + nL − 1 is the first stage's last sample
+    r1 = _window_ranges(
+        fv,
+        gv,
+        np.maximum(core_hi, edge[:, 2]) if last_in else core_hi,
+        np.minimum(core_lo, edge[:, 2]) if last_in else core_lo,
+    )
     r1 = np.where((f >= (c - length)[:, None] - 1e-12) & (f <= c[:, None] + 1e-12), r1, math.inf)
     j = np.argmin(r1, axis=1)
     fine = r1[rows, j]
@@ -518,17 +531,15 @@ def _refined_bounds(
         t3[FINE_POINTS] = 1.0
         f3 = f_best[:, None] + d * t3[None, :]
         i0 = np.floor((f_best + d) / h - (i_lo - 1)).astype(np.int64) + 1
-        cnt = np.ceil((f_best - d + length) / h - (i_lo - 1)).astype(np.int64) - i0
-        between = np.arange(int(max(cnt.max(), 0)))[None, :]
-        mid = flat.take(row_start + np.minimum(i0[:, None] + between, cols - 1), mode="clip")
-        inside = between < cnt[:, None]
+        end = np.ceil((f_best - d + length) / h - (i_lo - 1)).astype(np.int64)  # one past the last
+        at = (k[:, None] + edge_at[None, :] - i0[:, None] >= 0) & (k[:, None] + edge_at[None, :] < end[:, None])
         after, before = points > j[:, None], points < j[:, None]
         top = np.maximum(
-            np.where(inside, mid, -math.inf).max(axis=1, initial=-math.inf),
+            np.maximum(core_hi, np.where(at, edge, -math.inf).max(axis=1)),
             np.where(after, fv, np.where(before, gv, -math.inf)).max(axis=1),
         )
         bottom = np.minimum(
-            np.where(inside, mid, math.inf).min(axis=1, initial=math.inf),
+            np.minimum(core_lo, np.where(at, edge, math.inf).min(axis=1)),
             np.where(after, fv, np.where(before, gv, math.inf)).min(axis=1),
         )
         offset = 2 * step[:, j].T + (d / h) * t3[None, :]  # f3 − f₀, in steps
