@@ -149,6 +149,27 @@ def test_bounds_hold_every_draw_and_leave_few_to_refine(monkeypatch, sb, dwell_d
     assert value == float(np.percentile(every, PERCENTILE))
 
 
+@pytest.mark.parametrize("seed", [SEED, 1])
+def test_samples_bounds_hold_where_the_dwell_is_not_whole_grid_steps(monkeypatch, seed):
+    # 45° is 22.5 steps of 2°: every refined window reaches half a step past the grid window,
+    # whose range alone is no upper bound (about half these draws refine above it, by up to
+    # 0.009°); 64 draws stay under CLOSER_BOUNDS, so the samples' bounds are the final ones
+    length = math.radians(45.0)
+    centres = _centres(RPR, length)
+    tol = 0.2 / 40
+    seen = {}
+
+    def spy_decide(lower, upper, q):
+        seen["lower"], seen["upper"] = lower.copy(), upper.copy()
+        return deciding_draws(lower, upper, q)
+
+    monkeypatch.setattr(tolerance_module, "deciding_draws", spy_decide)
+    value = toleranced_deviation(RPR, tol, centres, length, draws=64, seed=seed)
+    every = deviation_draws(RPR, tol, centres, length, draws=64, seed=seed)
+    assert np.all(seen["lower"] <= every) and np.all(every <= seen["upper"])
+    assert value == float(np.percentile(every, PERCENTILE))
+
+
 def test_moved_ground_pivots_turn_the_frame():
     unit = np.zeros((1, 13))
     unit[0, 8] = 1.0  # A0 moved up by the tolerance: the ground line turns clockwise
