@@ -9,12 +9,16 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import synth.mechanism.tolerance as tolerance_module
+from synth.mechanism import dwell_ends_kernel
 from synth.mechanism.figures import sixbar_figures
 from synth.mechanism.output_range import output_deviation
 from synth.mechanism.sixbar import ExactOutput, OutputDyad, SixBar, crank_grid, simulate
 from synth.mechanism.tolerance import (
+    CLOSER_BOUNDS,
     DRAWS,
     PERCENTILE,
+    SEED,
     clear_of_limits,
     crank_turns,
     deciding_draws,
@@ -112,6 +116,58 @@ def test_percentile_of_256_seeded_draws_is_deterministic_and_grows_with_the_tole
     assert large == pytest.approx(float(np.percentile(draws, PERCENTILE)), abs=0)
     nominal = max(sixbar_figures(RRR, band=BAND, dwell_length=length).deviations)
     assert nominal < small < large
+
+
+@pytest.mark.parametrize("sb, dwell_deg", [(RRR, 60.0), (RPR, 45.0)])
+@pytest.mark.parametrize("tol_mm, seed", [(0.05, SEED), (0.02, 1), (0.2, 2)])
+def test_bounds_hold_every_draw_and_leave_few_to_refine(monkeypatch, sb, dwell_deg, tol_mm, seed):
+    length = math.radians(dwell_deg)
+    centres = _centres(sb, length)
+    tol = tol_mm / 40
+    seen, refined = {}, []
+
+    def spy_decide(lower, upper, q):
+        seen["lower"], seen["upper"] = lower.copy(), upper.copy()
+        return deciding_draws(lower, upper, q)
+
+    def spy_refine(params, rpr, six, *rest):
+        refined.append(len(six))
+        return real_refine(params, rpr, six, *rest)
+
+    real_refine = dwell_ends_kernel.refine_deviation_windows
+    monkeypatch.setattr(tolerance_module, "deciding_draws", spy_decide)
+    monkeypatch.setattr(dwell_ends_kernel, "refine_deviation_windows", spy_refine)
+    value = toleranced_deviation(sb, tol, centres, length, seed=seed)
+    lower, upper = seen["lower"], seen["upper"]
+    assert sum(refined) <= CLOSER_BOUNDS  # measured: 60-74 (RRR at 0.05 and 0.2 mm), 2-5 otherwise
+    if sb is RPR:
+        # its draws spread over ~0.005°, less than the samples' own bounds leave open: the
+        # interpolated bounds (~5e-5° wide) decide all but a few
+        assert sum(refined) <= 8
+    every = deviation_draws(sb, tol, centres, length, seed=seed)  # every draw refined
+    assert np.all(lower <= every) and np.all(every <= upper)
+    assert value == float(np.percentile(every, PERCENTILE))
+
+
+@pytest.mark.parametrize("seed", [SEED, 1])
+def test_samples_bounds_hold_where_the_dwell_is_not_whole_grid_steps(monkeypatch, seed):
+    # 45° is 22.5 steps of 2°: every refined window reaches half a step past the grid window,
+    # whose range alone is no upper bound (about half these draws refine above it, by up to
+    # 0.009°); 64 draws stay under CLOSER_BOUNDS, so the samples' bounds are the final ones
+    length = math.radians(45.0)
+    centres = _centres(RPR, length)
+    tol = 0.2 / 40
+    seen = {}
+
+    def spy_decide(lower, upper, q):
+        seen["lower"], seen["upper"] = lower.copy(), upper.copy()
+        return deciding_draws(lower, upper, q)
+
+    monkeypatch.setattr(tolerance_module, "deciding_draws", spy_decide)
+    value = toleranced_deviation(RPR, tol, centres, length, draws=64, seed=seed)
+    every = deviation_draws(RPR, tol, centres, length, draws=64, seed=seed)
+    assert np.all(seen["lower"] <= every) and np.all(every <= seen["upper"])
+    assert value == float(np.percentile(every, PERCENTILE))
 
 
 def test_moved_ground_pivots_turn_the_frame():
