@@ -13,8 +13,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import platform
 import time
 from collections.abc import Callable
 from typing import Any
@@ -22,6 +20,7 @@ from typing import Any
 import click
 import numpy as np
 
+from cli.bench.machine import machine_facts
 from cli.errors import InputError
 from cli.options import Bounded
 from synth.mechanism.sixbar import OutputDyad, SixBar
@@ -120,12 +119,7 @@ def tolerance(draws: int, tolerance: float, answers: tuple[str, ...], repeat: in
         "target_cpu_ms_per_candidate_at_256": TARGET_S * 1e3,
         "results": results,
         **({"answers": _answers(given, tolerance, draws)} if answers else {}),
-        "platform": {
-            "python": platform.python_version(),
-            "numpy": np.__version__,
-            "machine": platform.machine(),
-            "cpus": os.cpu_count(),
-        },
+        "platform": machine_facts(),
     }
     click.echo(json.dumps(doc, indent=1))
 
