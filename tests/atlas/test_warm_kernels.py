@@ -33,8 +33,9 @@ def test_after_the_warm_shard_a_real_shard_compiles_nothing():
         warm_shard_kernels()
         assert parallel_rows.threads() == 3  # put back
         before = _compiled()
-        assert before["synth.segment_search.dwell_measure.measure_dwells"] == 1
-        assert before["synth.curvature.double_ball_kernel.box_sweep"] == 1
+        # compiled (once, or more if another test of this process met other types)
+        assert before["synth.segment_search.dwell_measure.measure_dwells"] >= 1
+        assert before["synth.curvature.double_ball_kernel.box_sweep"] >= 1
         parallel_rows.set_threads(1)  # as a worker with the cores shared out
         result = compute_shard(PRESETS["demo"], 7)
         assert result.n_segments > 100

@@ -48,9 +48,21 @@ def test_coverage_grid_matches_the_query_cell_by_cell(capsys, coverage_atlas, tm
     assert all((c["best_deviation_deg"] is None) == (c["candidates"] == 0) for c in cells)
     assert doc["summary"]["rpr"]["answered"] >= 10, "the demo sweep answers many RPR cells"
     # two cells against `dwell query` itself: same candidates, same best deviation (the double
-    # row refined: the test atlas's double dwells are refined near misses)
+    # row refined: the test atlas's double dwells are refined near misses; its 10° row's two
+    # cells answer in ~1 s, where the whole row reaches for misses in 16 cells for ~100 s)
     code, out, err = run(
-        capsys, "bench", "coverage", "--db", coverage_atlas, "--family", "double", "--top", "5", "--json"
+        capsys,
+        "bench",
+        "coverage",
+        "--db",
+        coverage_atlas,
+        "--family",
+        "double",
+        "--dwell",
+        "10",
+        "--top",
+        "5",
+        "--json",
     )
     assert code == 0, err
     doubles = json.loads(out)["cells"]
