@@ -127,8 +127,11 @@ class Bounded(click.FloatRange):
             hi = "" if self.max is None else f" {'<' if self.max_open else '<='} {self.max:g}"
             self.fail(f"must be {lo}x{hi} ({self.what}), got {number:g}", param, ctx)
         if number != 0 and abs(number) < sys.float_info.min:  # subnormal: no precision left
+            zero = "" if self.min == 0 and self.min_open else "0 or "
             self.fail(
-                f"must be 0 or at least {sys.float_info.min:.3g} in magnitude ({self.what}), got {number:g}", param, ctx
+                f"must be {zero}at least {sys.float_info.min:.3g} in magnitude ({self.what}), got {number:g}",
+                param,
+                ctx,
             )
         return number
 
@@ -191,7 +194,11 @@ INPUT_STEP = Bounded(1e-9, 1e12, "a step in degrees or a length")
 PROPORTION = Bounded(*PROPORTION_RANGE, "a length in cranks")
 SEARCH_STEP_DEG = Bounded(*CRANK_STEP_RANGE_DEG, "a crank step of the search in degrees")
 #: An output swing's tolerance, which is also how far two rests' bands must be left between them.
-SWING_TOL_DEG = Bounded(0.0, 180.0, "a swing error in degrees", high_open=True)
+#: The swing a request allows (> 0: the swing is measured by simulation, and an exact one is a
+#: no-match found only after the whole refinement's reach has run).
+SWING_TOL_DEG = Bounded(0.0, 180.0, "a swing error in degrees, > 0", low_open=True, high_open=True)
+#: How far the output leaves the band between two rests (0: any departure splits them).
+LEAVE_DEG = Bounded(0.0, 180.0, "a swing in degrees", high_open=True)
 RAYS = Count(*RAYS_RANGE, "rays through the pole")
 #: A seed of a random generator.
 SEED = Count(0, 2**63 - 1, "a seed")

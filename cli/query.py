@@ -457,7 +457,9 @@ def no_match_json(result: QueryResult, units: str = "mm") -> dict:
 #: --help. synth.query.candidates.Request checks the same meaning again for library callers; the
 #: floors here keep a value meaningful (a 1e-320° swing is no mechanism) and the numerics quiet.
 DWELL_DEG = Bounded(0.0, 360.0, "a dwell in degrees", low_open=True, high_open=True)
-DWELL_TOL_DEG = Bounded(0.0, 360.0, "a dwell error in degrees", high_open=True)
+#: > 0: an exact dwell is never met (the dwell is a simulated interval), and asking for one ran
+#: the whole refinement's reach for nothing.
+DWELL_TOL_DEG = Bounded(0.0, 360.0, "a dwell error in degrees, > 0", low_open=True, high_open=True)
 SWING_DEG = Bounded(0.01, 180.0, "a swing in degrees", high_open=True)
 STEP_DEG = Bounded(0.01, 180.0, "a turn between two rests in degrees", high_open=True)
 BAND_DEG = Bounded(1e-4, 180.0, "an output band in degrees", high_open=True)

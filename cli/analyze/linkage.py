@@ -19,8 +19,8 @@ from cli.analyze.linkage_limits import cycle_limits, limits_json, limits_text
 from cli.options import (
     INPUT_STEP,
     INPUT_VALUE,
+    LEAVE_DEG,
     SPEED,
-    SWING_TOL_DEG,
     Bounded,
     output_options,
     readable_text,
@@ -120,7 +120,7 @@ ANIMATION_POSITIONS = 181
 )
 @click.option(
     "--leave",
-    type=SWING_TOL_DEG,
+    type=LEAVE_DEG,
     default=None,
     metavar="DEG",
     help="With --dwells 2: how far the output must leave the band between two rests for them to count as "
