@@ -199,6 +199,7 @@ import hashlib  # noqa: E402
 import json  # noqa: E402
 import os  # noqa: E402
 import random  # noqa: E402
+import shutil  # noqa: E402
 import signal  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
@@ -338,10 +339,14 @@ def test_killed_report_leaves_the_old_or_the_new_report(tmp_path, small_atlas):
     subprocess.run(report(old_args, out), check=True, capture_output=True)
     full = time.perf_counter() - t0
     old = _digest(out)
+    pristine = tmp_path / "old"
+    shutil.copytree(out, pristine)
     rng = random.Random(17)
     outcomes = {"old": 0, "new": 0}
     for _ in range(int(os.environ.get("DWELL_KILL_TRIALS", "4"))):
-        subprocess.run(report(old_args, out), check=True, capture_output=True)  # back to the old report
+        # back to the old report: its copy (what a kill left beside the folder stays, as after a crash)
+        shutil.rmtree(out)
+        shutil.copytree(pristine, out)
         proc = subprocess.Popen(report(new_args, out), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         time.sleep(rng.uniform(0.3, 1.3) * full)
         proc.send_signal(signal.SIGKILL)
