@@ -401,11 +401,11 @@ def test_bench_query_reports_latency_and_answers(atlas_path, capsys, tmp_path):
 
     plot = tmp_path / "latency.png"
     code, out, err = run(
-        capsys, "bench", "query", "--db", atlas_path, "--repeat", "2", "--top", "3", "--plot", str(plot)
+        capsys, "bench", "query", "--db", atlas_path, "--repeat", "1", "--top", "3", "--plot", str(plot)
     )
     assert code == 0, err
     doc = json.loads(out)
-    assert doc["queries"] == 2 * len(REQUESTS)
+    assert doc["queries"] == len(REQUESTS)  # one run each: the figures' arithmetic is the same
     assert doc["atlas"]["preset"] == SPEC.name and doc["atlas"]["linkages"] > 0
     assert doc["ms_p50"] <= doc["ms_p95"] <= doc["ms_max"]
     assert doc["meets_floor"] == (doc["ms_p95"] <= doc["floor_ms_p95"])
