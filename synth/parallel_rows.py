@@ -24,6 +24,7 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import numba
+import numpy as np
 
 __all__ = ["MIN_WORK_NS", "one_signature", "over_rows", "set_threads", "threads"]
 
@@ -109,6 +110,19 @@ def over_rows(rows: int, work: Callable[[int, int], None], cost_ns: float) -> No
 
 
 _compile_lock = threading.Lock()
+#: The (kernel, positions, argument kinds) :func:`one_signature` has seen compiled: a batch of
+#: small blocks calls it thousands of times, and ``numba.typeof`` on every array of every call
+#: was ~15 % of a complete RRR search's time (its dispatcher's own typing of the call is C).
+_signed: set[tuple] = set()
+
+
+def _type_key(value: Any) -> tuple:
+    """What decides ``numba.typeof(value)`` for the kernels' arguments, cheaply: an array's
+    dtype, dimensions, layout, writability and alignment; a scalar's Python type."""
+    if isinstance(value, np.ndarray):
+        flags = value.flags
+        return (value.dtype.str, value.ndim, flags.c_contiguous, flags.f_contiguous, flags.writeable, flags.aligned)
+    return (type(value),)
 
 
 def one_signature(
@@ -124,6 +138,9 @@ def one_signature(
     each). The positions must be arrays the kernel only reads (``read_only``) or indexes
     (``any_layout``). A call whose types still differ (another dtype or number of
     dimensions) gets its own compile here."""
+    seen = (kernel, any_layout, read_only, *map(_type_key, args))
+    if seen in _signed:
+        return
     types = [numba.typeof(a) for a in args]
     for i in any_layout:
         types[i] = types[i].copy(layout="A")
@@ -131,6 +148,7 @@ def one_signature(
         types[i] = types[i].copy(readonly=True)
     key = tuple(types)
     if key in kernel.overloads:
+        _signed.add(seen)
         return
     with _compile_lock:
         if key not in kernel.overloads:
@@ -139,3 +157,4 @@ def one_signature(
                 kernel.compile(key)
             finally:
                 kernel.disable_compile(True)
+    _signed.add(seen)
