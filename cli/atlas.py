@@ -15,7 +15,7 @@ import click
 from atlas.pool import default_workers
 from atlas.sweep import PRESETS, SAMPLES_RANGE, SHARD_SIZE_RANGE, SWEEP_BYTES_PER_SAMPLE
 from cli.budget import check_memory
-from cli.options import PROPORTION, RAYS, SEARCH_STEP_DEG, SEED, Bounded, Count, db_option
+from cli.options import PROPORTION, RAYS, SEARCH_STEP_DEG, SEED, Bounded, Count, check_engine, db_option, engine_options
 
 __all__ = ["atlas", "sweep_spec_from_options"]
 
@@ -126,20 +126,7 @@ def parse_tolerances(text: str | None) -> tuple[float, ...] | None:
     help=f"Worker processes of the local engine (default: all CPUs, here {default_workers()}); "
     "ignored with --engine dask, where the cluster's workers decide.",
 )
-@click.option(
-    "--engine",
-    type=click.Choice(["local", "dask"]),
-    default="local",
-    show_default=True,
-    help="Where shards are computed: local processes, or a dask.distributed cluster (needs --scheduler "
-    "and the dask extra). The database is written by this process either way.",
-)
-@click.option(
-    "--scheduler",
-    metavar="ADDR",
-    default=None,
-    help="Address of a running dask scheduler (tcp://host:8786), with --engine dask.",
-)
+@engine_options("shards", "The database is written by this process either way.")
 @click.option(
     "--replace",
     is_flag=True,
@@ -174,10 +161,7 @@ def build(
     from atlas.build import build_atlas
     from cli.progress import BuildBar
 
-    if engine == "dask" and scheduler is None:
-        raise click.UsageError("--engine dask needs --scheduler ADDR (a running dask scheduler, e.g. tcp://host:8786)")
-    if engine != "dask" and scheduler is not None:
-        raise click.UsageError("--scheduler needs --engine dask")
+    check_engine(engine, scheduler)
     spec = sweep_spec_from_options(
         preset,
         {

@@ -31,7 +31,9 @@ __all__ = [
     "Count",
     "crank_angle_options",
     "crank_angles_deg",
+    "check_engine",
     "db_option",
+    "engine_options",
     "flag_names",
     "fourbar_options",
     "output_options",
@@ -78,6 +80,40 @@ def db_option(
         metavar="PATH|URL",
         help=help,
     )
+
+
+#: ``--engine``'s choices: local processes, or a running dask.distributed cluster.
+ENGINES = ("local", "dask")
+
+
+def engine_options(work: str, writer: str) -> Callable:
+    """``--engine local|dask`` and ``--scheduler ADDR`` (checked by :func:`check_engine`):
+    where ``work`` runs (``shards``, ``the complete search's batches``); ``writer`` says what
+    this process does either way."""
+    return _stack(
+        click.option(
+            "--engine",
+            type=click.Choice(ENGINES),
+            default="local",
+            show_default=True,
+            help=f"Where {work} are computed: local processes, or a dask.distributed cluster (needs "
+            f"--scheduler and the dask extra). {writer}",
+        ),
+        click.option(
+            "--scheduler",
+            metavar="ADDR",
+            default=None,
+            help="Address of a running dask scheduler (tcp://host:8786), with --engine dask.",
+        ),
+    )
+
+
+def check_engine(engine: str, scheduler: str | None) -> None:
+    """A scheduler exactly with ``--engine dask``: else a usage error (one line, exit 2)."""
+    if engine == "dask" and scheduler is None:
+        raise click.UsageError("--engine dask needs --scheduler ADDR (a running dask scheduler, e.g. tcp://host:8786)")
+    if engine != "dask" and scheduler is not None:
+        raise click.UsageError("--scheduler needs --engine dask")
 
 
 def flag_names(message: str) -> str:

@@ -11,7 +11,10 @@ import dataclasses
 import functools
 import json
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 from click.core import ParameterSource
@@ -26,7 +29,9 @@ from cli.options import (
     BandOrAuto,
     Bounded,
     Count,
+    check_engine,
     db_option,
+    engine_options,
     request_errors,
     units_option,
 )
@@ -35,6 +40,9 @@ from report.query_table import legend_lines, short_table
 from synth.kinds import OutputKind
 from synth.query import QueryResult, RebuildError
 from synth.query.candidates import OUTPUTS, Request
+
+if TYPE_CHECKING:
+    from atlas.dask_cluster import DaskCluster
 
 __all__ = [
     "BAD_INPUT",
@@ -58,11 +66,14 @@ def default_deg(name: str) -> float:
     return round(math.degrees(_DEFAULTS[name]), 9)
 
 
-def answer(engine, request: Request, *, progress: bool | None = False, workers: int = 1) -> QueryResult:
+def answer(
+    engine, request: Request, *, progress: bool | None = False, workers: int = 1, cluster: DaskCluster | None = None
+) -> QueryResult:
     """:func:`synth.query.answer` on the atlas behind ``engine``; with ``progress`` (None: if
     stderr is a terminal) a line on stderr once it runs past a second (a complete search's
     rows as a bar; not a terminal: a complete search's status every 10 s, :mod:`cli.progress`).
-    A complete search runs its batches on ``workers`` processes (the sampled query in this one)."""
+    A complete search runs its batches on ``workers`` processes, or on ``cluster`` when given
+    (the sampled query in this process)."""
     from cli.process import answering
     from cli.progress import Progress, SearchBar
     from db.queries import AtlasSource
@@ -74,13 +85,18 @@ def answer(engine, request: Request, *, progress: bool | None = False, workers: 
     ):
         shown.stage("answering the request")
         return answer_(
-            request, AtlasSource(engine), on_progress=SearchBar(progress=shown), map_batches=batch_map(workers)
+            request, AtlasSource(engine), on_progress=SearchBar(progress=shown), map_batches=batch_map(workers, cluster)
         )
 
 
-def batch_map(workers: int):
-    """The ``map_batches`` of :func:`synth.query.search`: None (this process) for one worker,
-    else a pool of ``workers`` processes (:func:`atlas.pool.pool_map`)."""
+def batch_map(workers: int, cluster: DaskCluster | None = None):
+    """The ``map_batches`` of :func:`synth.query.search`: on ``cluster`` when given
+    (:func:`atlas.dask_search.search_map`), else None (this process) for one worker, else a
+    pool of ``workers`` processes (:func:`atlas.pool.pool_map`)."""
+    if cluster is not None:
+        from atlas.dask_search import search_map
+
+        return search_map(cluster)
     if workers <= 1:
         return None
     from atlas.pool import pool_map
@@ -94,7 +110,7 @@ workers_option = click.option(
     type=click.IntRange(min=1),
     default=None,
     help=f"Worker processes of a complete search (default: all CPUs, here {default_workers()}); "
-    "the sampled query runs in one.",
+    "the sampled query runs in one; ignored with --engine dask, where the cluster's workers decide.",
 )
 
 
@@ -250,15 +266,17 @@ def table(result: QueryResult, units: str = "", *, wide: bool = False) -> str:
     return "\n".join(lines)
 
 
-def answer_tightest(engine, request: Request, *, workers: int = 1):
+def answer_tightest(engine, request: Request, *, workers: int = 1, cluster: DaskCluster | None = None):
     """:func:`synth.query.band_search.answer_tightest` on the atlas behind ``engine``: the band
     searched with sampled probes, the request answered at the band reached as :func:`answer`
-    answers it (a complete search with its progress bar and ``workers``)."""
+    answers it (a complete search with its progress bar, on ``workers`` or ``cluster``)."""
     from db.queries import AtlasSource
     from synth.query.band_search import answer_tightest as answer_tightest_
 
     return answer_tightest_(
-        request, AtlasSource(engine), answer_at=lambda r: answer(engine, r, progress=None, workers=workers)
+        request,
+        AtlasSource(engine),
+        answer_at=lambda r: answer(engine, r, progress=None, workers=workers, cluster=cluster),
     )
 
 
@@ -601,6 +619,10 @@ FOUND, NONE_FOUND, BAD_INPUT = 0, 1, 2
     "seconds to minutes, with a progress bar) instead of the segments nearest the request.",
 )
 @workers_option
+@engine_options(
+    "a complete search's batches",
+    "The atlas is read by this process either way: the rows travel to the workers.",
+)
 @click.option("--json", "as_json", is_flag=True, help="JSON on stdout instead of a table.")
 @click.option(
     "--wide",
@@ -638,12 +660,17 @@ def query(
     refine,
     complete,
     workers,
+    engine,
+    scheduler,
     as_json,
     wide,
     report_dir,
     units,
 ):
     """Ranked six-bars for a requested dwell and swing (docs/query.md)."""
+    check_engine(engine, scheduler)
+    if engine == "dask" and not complete:
+        raise click.UsageError("--engine dask runs the complete search on a cluster: add --complete")
     auto = band == AUTO
     with request_errors():
         request = Request.from_degrees(
@@ -669,26 +696,8 @@ def query(
         )
     if report_dir is not None:
         _check_report_dir(Path(report_dir))
-    from db.engine import open_atlas
-
-    engine = open_atlas(target, readonly=True)
-    try:
-        if auto:
-            searched = answer_tightest(engine, request, workers=workers or default_workers())
-            result = searched.result
-        else:
-            searched = None
-            result = answer(engine, request, progress=None, workers=workers or default_workers())
-        # no --band given: one cheap probe names a stiller rest the atlas holds (docs/query.md)
-        tighter = (
-            tighter_band(engine, result)
-            if searched is None
-            and result.candidates
-            and click.get_current_context().get_parameter_source("band") is ParameterSource.DEFAULT
-            else None
-        )
-    finally:
-        engine.dispose()
+    with _cluster(scheduler) as cluster:  # reached before the atlas is opened: a bad address reads nothing
+        result, searched, tighter = _answered(target, request, auto, workers or default_workers(), cluster)
     if report_dir is not None:
         from kinematics.assur import LinkageFileError
         from report.linkage_toml import readable_linkages
@@ -737,6 +746,47 @@ def query(
         click.echo(f"report: {len(written)} files in {report_dir}", err=True)
     if tighter is not None and not as_json:  # last: an answer whose report failed says only why
         click.echo(tighter_text(tighter, request), err=True)
+
+
+@contextmanager
+def _cluster(scheduler: str | None) -> Iterator[DaskCluster | None]:
+    """The cluster at ``scheduler`` (None: no cluster), connected now and closed after; what
+    the cluster does wrong, here or during the search, is one line, exit 2."""
+    if scheduler is None:
+        yield None
+        return
+    from atlas.dask_cluster import ClusterError, DaskCluster
+
+    try:
+        with DaskCluster.connect(scheduler, log=lambda msg: click.echo(f"dwell: {msg}", err=True)) as cluster:
+            yield cluster
+    except ClusterError as exc:
+        raise click.ClickException(str(exc)) from None
+
+
+def _answered(target: str, request: Request, auto: bool, workers: int, cluster: DaskCluster | None):
+    """(result, the band search or None, the tighter band or None) on the atlas ``target``."""
+    from db.engine import open_atlas
+
+    engine = open_atlas(target, readonly=True)
+    try:
+        if auto:
+            searched = answer_tightest(engine, request, workers=workers, cluster=cluster)
+            result = searched.result
+        else:
+            searched = None
+            result = answer(engine, request, progress=None, workers=workers, cluster=cluster)
+        # no --band given: one cheap probe names a stiller rest the atlas holds (docs/query.md)
+        tighter = (
+            tighter_band(engine, result)
+            if searched is None
+            and result.candidates
+            and click.get_current_context().get_parameter_source("band") is ParameterSource.DEFAULT
+            else None
+        )
+    finally:
+        engine.dispose()
+    return result, searched, tighter
 
 
 def _check_report_dir(path: Path) -> None:

@@ -10,7 +10,6 @@ import os
 import platform
 import re
 import signal
-import socket
 import sqlite3
 import subprocess
 import sys
@@ -24,9 +23,10 @@ from atlas.malloc import raise_malloc_thresholds
 pytest.importorskip("distributed")
 
 import dask
-from distributed import Client, LocalCluster
+from distributed import Client
+from harness.dask_cluster import drained, free_port, local_cluster, tasks_on
 
-from atlas import PRESETS, dask_engine, sweep_linkages
+from atlas import PRESETS, dask_cluster, sweep_linkages
 from atlas.build import build_atlas, run_shards
 from atlas.dask_engine import ClusterError, DaskRunner
 from cli.main import main
@@ -41,22 +41,9 @@ N_SHARDS = sweep_linkages(SPEC).n_shards(SPEC.shard_size)
 
 @pytest.fixture(scope="module")
 def cluster():
-    """Two single-threaded worker processes with dask's default settings. Their nannies run in
-    this process and put the workers' environment (MALLOC_TRIM_THRESHOLD_, OMP_NUM_THREADS …)
-    into ``os.environ`` too: put it back, or every process the later tests start inherits it."""
-    saved = dict(os.environ)
-    try:
-        with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
-            _restore_environ(saved)
-            yield cluster
-    finally:
-        _restore_environ(saved)
-
-
-def _restore_environ(saved: dict[str, str]) -> None:
-    for key in set(os.environ) - set(saved):
-        del os.environ[key]
-    os.environ.update(saved)
+    """Two single-threaded worker processes (:func:`harness.dask_cluster.local_cluster`)."""
+    with local_cluster(2) as cluster:
+        yield cluster
 
 
 @pytest.fixture(scope="module")
@@ -93,20 +80,6 @@ def dwell(capsys, *args: str) -> tuple[int, str, str]:
     rc = main(["atlas", *args])
     out, err = capsys.readouterr()
     return rc, out, err
-
-
-def tasks_on(client: Client) -> int:
-    return client.run_on_scheduler(lambda dask_scheduler: len(dask_scheduler.tasks))
-
-
-def drained(client: Client, timeout: float = 10.0) -> bool:
-    """True once the scheduler holds no task at all (our shards and scattered data are gone)."""
-    deadline = time.monotonic() + timeout
-    while tasks_on(client):
-        if time.monotonic() > deadline:
-            return False
-        time.sleep(0.05)
-    return True
 
 
 def test_a_dask_build_equals_the_local_build(tmp_path, cluster, client, reference, capsys):
@@ -232,7 +205,7 @@ def test_workers_get_glibcs_malloc_thresholds_back(client):
 
 
 def test_a_worker_with_another_version_is_refused(tmp_path, client, monkeypatch):
-    monkeypatch.setattr(dask_engine, "_installed_version", lambda: "0.0-other")  # the driver's view only
+    monkeypatch.setattr(dask_cluster, "installed_version", lambda: "0.0-other")  # the driver's view only
     path = tmp_path / "mixed-versions.sqlite"
     with pytest.raises(
         ClusterError,
@@ -242,13 +215,6 @@ def test_a_worker_with_another_version_is_refused(tmp_path, client, monkeypatch)
         build_atlas(str(path), SPEC, runner=DaskRunner(client))
     assert shard_indices(path) == []
     assert drained(client)
-
-
-def free_port() -> int:
-    """A local TCP port nobody listens on (connections are refused)."""
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def build_on_an_unreachable_scheduler(folder: Path, capsys) -> float:
