@@ -118,11 +118,12 @@ _signed: set[tuple] = set()
 
 def _type_key(value: Any) -> tuple:
     """What decides ``numba.typeof(value)`` for the kernels' arguments, cheaply: an array's
-    dtype, dimensions, layout, writability and alignment; a scalar's Python type."""
+    dtype, dimensions, layout, writability and alignment; anything else's own numba type (a
+    Python int's depends on its magnitude)."""
     if isinstance(value, np.ndarray):
         flags = value.flags
         return (value.dtype.str, value.ndim, flags.c_contiguous, flags.f_contiguous, flags.writeable, flags.aligned)
-    return (type(value),)
+    return (numba.typeof(value),)
 
 
 def one_signature(

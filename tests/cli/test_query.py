@@ -429,6 +429,17 @@ def test_bench_query_reports_latency_and_answers(atlas_path, capsys, tmp_path):
     assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+@pytest.mark.parametrize(("option", "value"), [("--dwell-tol", "0"), ("--swing-tol", "-0"), ("--dwell-tol", "5e-324")])
+def test_an_exact_dwell_or_swing_is_refused_before_the_atlas_is_read(capsys, tmp_path, option, value):
+    """A tolerance of 0 is a request no simulated six-bar meets: one line naming the option, exit
+    2, before the atlas is opened (the path does not exist and is not made)."""
+    atlas = tmp_path / "none.sqlite"
+    code, out, err = run(capsys, "query", "--db", str(atlas), "--dwell", "40", "--swing", "20", option, value)
+    assert code == 2 and out == "" and not atlas.exists()
+    (line,) = err.strip().splitlines()
+    assert option in line and "> 0" in line
+
+
 def test_help_shows_the_request_defaults_and_ranges(capsys):
     """The defaults in --help are the fields of Request (one definition), in degrees."""
     from synth.query.candidates import Request

@@ -125,6 +125,9 @@ def test_one_signature_serves_contiguous_strided_and_read_only_arrays():
     weighted_sums(x.astype(np.int64)[:, :2], w, out)
     np.testing.assert_array_equal(out, [1.0, 18.0, 51.0])
     assert len(weighted_sums.signatures) == 2
+    # asked again for kinds it has seen (a strided block of the first), it compiles nothing
+    parallel_rows.one_signature(weighted_sums, (x[:, 1:3], w, out), any_layout=(0,), read_only=(1,))
+    assert len(weighted_sums.signatures) == 2
 
 
 def test_clearances_band_windows_and_vertex_bounds_the_same_on_any_number_of_threads(threads):
