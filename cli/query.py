@@ -67,13 +67,20 @@ def default_deg(name: str) -> float:
 
 
 def answer(
-    engine, request: Request, *, progress: bool | None = False, workers: int = 1, cluster: DaskCluster | None = None
+    engine,
+    request: Request,
+    *,
+    progress: bool | None = False,
+    workers: int = 1,
+    cluster: DaskCluster | None = None,
+    seeded=(),
 ) -> QueryResult:
     """:func:`synth.query.answer` on the atlas behind ``engine``; with ``progress`` (None: if
     stderr is a terminal) a line on stderr once it runs past a second (a complete search's
     rows as a bar; not a terminal: a complete search's status every 10 s, :mod:`cli.progress`).
     A complete search runs its batches on ``workers`` processes, or on ``cluster`` when given
-    (the sampled query in this process)."""
+    (the sampled query in this process). ``seeded``: six-bars that meet ``request`` found
+    otherwise (``--band auto``'s), answered with the atlas's."""
     from cli.process import answering
     from cli.progress import Progress, SearchBar
     from db.queries import AtlasSource
@@ -85,7 +92,11 @@ def answer(
     ):
         shown.stage("answering the request")
         return answer_(
-            request, AtlasSource(engine), on_progress=SearchBar(progress=shown), map_batches=batch_map(workers, cluster)
+            request,
+            AtlasSource(engine),
+            on_progress=SearchBar(progress=shown),
+            map_batches=batch_map(workers, cluster),
+            seeded=seeded,
         )
 
 
@@ -268,15 +279,18 @@ def table(result: QueryResult, units: str = "", *, wide: bool = False) -> str:
 
 def answer_tightest(engine, request: Request, *, workers: int = 1, cluster: DaskCluster | None = None):
     """:func:`synth.query.band_search.answer_tightest` on the atlas behind ``engine``: the band
-    searched with sampled probes, the request answered at the band reached as :func:`answer`
-    answers it (a complete search with its progress bar, on ``workers`` or ``cluster``)."""
+    measured on the six-bars of the sample at bands down to 1e-4° (and those moved to stiller
+    rests), the request answered at the band reached as :func:`answer` answers it (a complete
+    search with its progress bar, on ``workers`` or ``cluster``), with the six-bars met there."""
     from db.queries import AtlasSource
     from synth.query.band_search import answer_tightest as answer_tightest_
 
     return answer_tightest_(
         request,
         AtlasSource(engine),
-        answer_at=lambda r: answer(engine, r, progress=None, workers=workers, cluster=cluster),
+        answer_at=lambda r, seeded=(): answer(
+            engine, r, progress=None, workers=workers, cluster=cluster, seeded=seeded
+        ),
     )
 
 
@@ -289,15 +303,18 @@ def tighter_band(engine, result: QueryResult):
 
 
 def band_search_json(searched) -> dict:
-    """``band_search`` of ``--json`` with ``--band auto``: the band reached (°), whether a probe
-    met the request there (false: the request's own band, unsearched), the probes (band °,
-    six-bars met) and per candidate its dwells at the band reached and at the reference band."""
+    """``band_search`` of ``--json`` with ``--band auto``: the band reached (°), whether it holds
+    enough six-bars (false: the request's own band, unsearched), the six-bars the search fitted
+    and moved to stiller rests, the bands it checked (band °, six-bars met) and per candidate
+    its dwells at the band reached and at the reference band."""
     from synth.query.band_search import REFERENCE_BAND
 
     req = searched.result.request
     return {
         "band_deg": math.degrees(searched.band),
         "settled": searched.settled,
+        "pooled": searched.pooled,
+        "stiller": searched.stiller,
         "reference_band_deg": math.degrees(REFERENCE_BAND),
         "probes": [{"band_deg": math.degrees(p.band), "met": p.met} for p in searched.probes],
         "candidates": [
@@ -318,15 +335,16 @@ def band_search_text(searched) -> str:
 
     req = searched.result.request
     ref = f"{math.degrees(REFERENCE_BAND):g}°"
+    searched_ = f"{searched.pooled} six-bars fitted, {searched.stiller} moved to stiller rests"
     if searched.settled:
         head = (
-            f"band auto: {math.degrees(searched.band):.3g}°, the tightest at which {needed(req)} six-bars of the "
-            f"sample meet the request unrefined ({len(searched.probes)} probes)"
+            f"band auto: {math.degrees(searched.band):.3g}°, the tightest at which {needed(req)} six-bars "
+            f"meet the request ({searched_})"
         )
     else:
         head = (
-            f"band auto: no band down to 1e-4° holds {needed(req)} six-bars of the unrefined sample; "
-            f"answered at {math.degrees(searched.band):g}° ({len(searched.probes)} probes)"
+            f"band auto: no band down to 1e-4° holds {needed(req)} six-bars ({searched_}); "
+            f"answered at {math.degrees(searched.band):g}°"
         )
     lines = [head]
     for c, dwells in zip(searched.result.candidates, searched.reference_dwells):

@@ -22,7 +22,7 @@ refinement on the exact path is described in :func:`dwell_intervals` and :func:`
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -40,6 +40,7 @@ __all__ = [
     "dwell_angle_bounds",
     "dwell_intervals",
     "grid_step",
+    "least_bands",
     "output_deviation",
     "output_swing",
     "rests_separated",
@@ -610,6 +611,28 @@ def _near_longest(length: NDArray[np.int64], longest: NDArray[np.int64], reach: 
     valid = np.take_along_axis(ok, order, 1)
     valid[:, 0] = True  # something to refine in every row (a missing dwell is dropped later)
     return np.stack([order, valid.astype(np.int64)], axis=1)
+
+
+def least_bands(psi: F64, widths: Sequence[int]) -> F64:
+    """The narrowest output band (rad) in which some ``w`` consecutive samples of ψ stand, per
+    row of ``psi`` ``(R, M)`` (ψ on the uniform crank grid over the turn; cyclic) and per ``w``
+    of ``widths`` (1 ≤ w ≤ M): the smallest max − min of ψ over any such run, shape
+    ``(R, len(widths))``; +inf for a row that does not close over the turn (an output that
+    revolves, or not finite). A dwell of (w − 1)·h or more (h = 2π/M) at a band below that
+    figure is impossible on the grid: the band a rest of that length needs, as sampled."""
+    psi = np.asarray(psi, dtype=float)
+    R, M = psi.shape
+    out = np.full((R, len(widths)), np.inf)
+    closed = np.all(np.isfinite(psi), axis=1) & (np.abs(psi[:, -1] - psi[:, 0]) < math.pi)
+    if not closed.any():
+        return out
+    turns = np.concatenate([psi[closed], psi[closed]], axis=1)  # a window may run over the turn's end
+    for k, w in enumerate(widths):
+        if not 1 <= w <= M:
+            raise ValueError(f"a run of {w} samples does not fit a turn of {M}")
+        hi, lo = _sliding_extremes(turns, 0, M, w)
+        out[closed, k] = (hi - lo).min(axis=1)
+    return out
 
 
 def _vertex_bounds(E: F64) -> tuple[F64, F64]:

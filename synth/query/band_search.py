@@ -9,72 +9,149 @@ stiller for the same request. :func:`answer_tightest` finds the narrowest band, 
 (its dwell ± ``dwell_tol`` *at that band*, its swing, every limit), then answers the request
 at that band.
 
-Search: each probe is the sampled query with refinement off (:func:`probe`: the cheap part of
-the query, ~0.05–0.2 s on ``standard``), asked at one band. How many six-bars meet is not
-monotonic in the band — each band samples the atlas around its own target (a rest measured at
-a narrower band is shorter, so other stored segments predict it) and a six-bar meets only on a
-narrow range of bands, about ±4·dwell_tol/dwell around the one its rest fills exactly — so a
-plain bisection from the two ends could settle on a loose band with a tighter one left
-unseen. The search first probes a ladder of :data:`LADDER` bands per decade from the
-request's band (the loosest tried) down to :data:`FLOOR`, takes the tightest rung that meets,
-then bisects on a log scale between it and the next tighter rung until the two are within a
-factor :data:`RESOLUTION`. The request is then answered once at the band reached, with its own
-refinement and ``complete`` setting: refinement runs only there.
+Each six-bar has its own bands: its dwell at a band grows with the band, so it meets the
+request on the bands from the one at which its rest first holds ``dwell − dwell_tol`` up to
+the one at which it holds more than ``dwell + dwell_tol``; every other constraint does not
+depend on the band. The search therefore measures bands, it does not probe them:
 
-When no probe meets (the unrefined sample is sparse at every band: long RRR rests on
-``standard``), the request is answered at its own band, as without ``auto``.
+1. **The pool** (:func:`pool`): the fits of the segments the query's sample takes at bands
+   from the request's own down to :data:`FLOOR`, :data:`POOL_PER_DECADE` per decade (a
+   stiller rest of the same length is predicted by other stored segments), each simulated
+   once; per six-bar, the band its rest needs and the band past which it rests too long
+   (:func:`~synth.mechanism.output_range.least_bands` on the query's crank grid), and its
+   figures at its own band — those that meet every band-free constraint stay
+   (:func:`~synth.query.evaluate.meets_but_dwells`).
+2. **Stiller** (with refinement on; :func:`~synth.query.refine.stiller`): the :data:`STILLER`
+   stillest distinct six-bars of the pool moved to the stillest rest a local search finds near
+   each, every other constraint held; measured as in 1. Rests moved to their stillest are as a
+   rule too long at one another's bands, so the same six-bars (each in its stiller version)
+   are then refined toward one band (:func:`~synth.query.refine.refine`, its reach), the one
+   at which :func:`needed` of the stiller rests stand; those that meet it there are measured.
+3. **The sweep** (:func:`sweep`): the candidate bands — every six-bar's own band and a ladder
+   of :data:`LADDER` per decade, tightest first — at which enough six-bars' bands cover them
+   (:func:`covered_bands`) are checked in turn with the exact figures of those six-bars
+   (:func:`~synth.query.evaluate.meets`), until one holds enough.
+
+The request is then answered at the band reached as any request is (its sample, refinement
+and ``complete`` setting), with the six-bars that met there joining its candidates
+(:func:`synth.query.answer`'s ``seeded``). When no band holds enough, the request is answered
+at its own band, as without ``auto``.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from synth.mechanism.figures import sixbar_figures
-from synth.mechanism.sixbar import SixBars
+from synth.mechanism.figures import SixBarFigures, sixbar_figures
+from synth.mechanism.output_range import least_bands
+from synth.mechanism.sixbar import SixBar, SixBars, crank_grid, output_angle
 from synth.query import QueryResult, SegmentSource, answer
-from synth.query.candidates import Request
+from synth.query.candidate_ids import with_dimensions
+from synth.query.candidates import SAMPLES, Candidate, Request
+from synth.query.evaluate import candidate_of, distinct, figures_of, meets, meets_but_dwells, rest_position
+from synth.query.fitting import Fitted, fit
+from synth.query.refine import refine, stiller
+from synth.query.windows import PER_LEVEL, kinds_for, select
 
 __all__ = [
     "FLOOR",
     "LADDER",
     "MEET",
+    "POOL_PER_DECADE",
+    "POOL_PER_LEVEL",
     "REFERENCE_BAND",
-    "RESOLUTION",
+    "STILLER",
     "BandAnswer",
     "BandProbe",
+    "StillSixBar",
     "answer_tightest",
+    "covered_bands",
+    "dwell_bands",
     "ladder",
     "needed",
+    "pool",
     "probe",
     "reference_dwells",
+    "still_six_bars",
+    "sweep",
     "tighter_band",
-    "tightest_band",
 ]
 
 #: The narrowest band searched (rad): 1e-4°, the ``--band`` option's own floor.
 FLOOR = math.radians(1e-4)
 #: Six-bars that must meet the request at a band for it to count (or ``--top``, if fewer).
 MEET = 3
-#: Rungs of the first pass per decade of band (log-spaced): 6 → 0.1°, 0.068°, 0.046°, …
+#: Bands per decade whose samples make the pool (0.1°, 0.032°, 0.01°, … down to the floor),
+#: and segments per tolerance level and target each takes (the sample's wider read).
+POOL_PER_DECADE = 2
+POOL_PER_LEVEL = 3 * PER_LEVEL
+#: Bands per decade the sweep checks besides the six-bars' own (two rests: a six-bar's own
+#: band is that of its stillest rest alone, a lower bound).
 LADDER = 6
-#: The bisection stops when the band that meets is within this factor of the one that fails.
-RESOLUTION = 1.25
+#: The stillest distinct six-bars of the pool the search moves to stiller rests.
+STILLER = 8
+#: Bands the sweep checks with exact figures at most.
+CHECKS = 40
 #: The band every candidate's dwell is also reported at (rad): the query's default, 0.1°.
 REFERENCE_BAND = math.radians(0.1)
+#: A six-bar's own band is checked this much wider (a fraction) than measured on the grid: ψ
+#: strays between the samples, and at a still rest's own band the exact dwell is far shorter
+#: (RRR 60°/30° on ``standard``: 40–55° at the grid's band, 60.0–60.4° at 1 % more).
+_OWN_BAND_MARGIN = 0.01
 
 
 @dataclass(frozen=True, slots=True)
 class BandProbe:
-    """One probe of the search: the ``band`` asked (rad) and how many six-bars the sampled,
-    unrefined query found meeting the request there (at most the count needed)."""
+    """One check of a band: the ``band`` (rad) and how many distinct six-bars met the request
+    there."""
 
     band: float
     met: int
+
+
+@dataclass(frozen=True, slots=True)
+class StillSixBar:
+    """A six-bar of the search with the bands it can meet the request on.
+
+    Attributes
+    ----------
+    fitted : Fitted
+        The fit it is (or was moved from, ``moved``).
+    sixbar : SixBar
+        The six-bar, crank-normalised.
+    lowest : float
+        The band (rad) its rest needs to hold ``dwell − dwell_tol`` on the crank grid.
+    highest : float
+        The band (rad) from which it holds more than ``dwell + dwell_tol`` (inf: never).
+    moved : bool
+        Moved to a stiller rest by the search (:func:`~synth.query.refine.stiller`): its id
+        carries its dimensions.
+    """
+
+    fitted: Fitted
+    sixbar: SixBar
+    lowest: float
+    highest: float
+    moved: bool = False
+
+    def candidate(self, request: Request, figures: SixBarFigures) -> Candidate:
+        """The candidate it is for ``request``, with its ``figures`` (crank-normalised) there."""
+        c = candidate_of(request, self.fitted, figures)
+        if not self.moved:
+            return c
+        rest = rest_position(self.sixbar, figures)
+        return dataclasses.replace(
+            c,
+            id=with_dimensions(c.id, self.sixbar),
+            sixbar=self.sixbar.scaled(request.crank),
+            dwell_position=None if rest is None else rest * request.crank,
+        )
 
 
 @dataclass(frozen=True, slots=True)
@@ -86,15 +163,19 @@ class BandAnswer:
     result : QueryResult
         The answer at ``band`` (``result.request.band == band``).
     band : float
-        The band reached (rad): the tightest probe that met, or the request's own band when
-        none did (``settled`` False).
+        The band reached (rad): the tightest checked that held enough six-bars, or the
+        request's own band when none did (``settled`` False).
     settled : bool
-        Some probe met the request (else ``band`` is the request's band, unsearched).
+        Some band held enough six-bars (else ``band`` is the request's band, unsearched).
     probes : tuple of BandProbe
-        Every probe, in the order made.
+        Every band checked, in the order checked.
     reference_dwells : tuple of tuple of float
         Per candidate of ``result``, its dwells (rad) measured at :data:`REFERENCE_BAND`
         (empty where its output does not rest within that band).
+    pooled : int
+        Six-bars the pool fitted.
+    stiller : int
+        Six-bars moved to a stiller rest that then met every band-free constraint.
     """
 
     result: QueryResult
@@ -102,6 +183,8 @@ class BandAnswer:
     settled: bool
     probes: tuple[BandProbe, ...]
     reference_dwells: tuple[tuple[float, ...], ...]
+    pooled: int = 0
+    stiller: int = 0
 
 
 def needed(request: Request) -> int:
@@ -109,13 +192,225 @@ def needed(request: Request) -> int:
     return min(request.top, MEET)
 
 
+def ladder(ceiling: float, floor: float, per_decade: int = LADDER) -> np.ndarray:
+    """Bands from ``ceiling`` down to ``floor`` (rad), ``per_decade`` per decade, both ends in."""
+    steps = max(1, math.ceil(per_decade * math.log10(ceiling / floor) - 1e-9))
+    return np.geomspace(ceiling, floor, steps + 1)
+
+
+def pool(request: Request, source: SegmentSource, floor: float = FLOOR) -> list[Fitted]:
+    """The fits of every segment the query's sample (:func:`~synth.query.windows.select`, at
+    :data:`POOL_PER_LEVEL`) takes at the bands of :func:`ladder` (``request.band`` down to
+    ``floor``, :data:`POOL_PER_DECADE` per decade), each (segment, level) once."""
+    kinds = kinds_for(request)
+    rows, seen = [], set()
+    for band in ladder(request.band, min(floor, request.band), POOL_PER_DECADE):
+        for r in select(source, dataclasses.replace(request, band=float(band)), kinds, POOL_PER_LEVEL):
+            if (r.segment_id, r.level) not in seen:
+                seen.add((r.segment_id, r.level))
+                rows.append(r)
+    return [f for kind in kinds for f in fit(request, [r for r in rows if r.kind == kind], kind)]
+
+
+def dwell_bands(request: Request, sixbars: Sequence[SixBar]) -> tuple[np.ndarray, np.ndarray]:
+    """The bands (rad) on which each of ``sixbars`` (crank-normalised) can meet ``request``:
+    (lowest, highest) of :class:`StillSixBar`, from ψ on the query's grid:
+    a dwell of ``dwell − dwell_tol`` holds ⌈(dwell − tol)/h⌉ + 1 samples, one longer than
+    ``dwell + dwell_tol`` holds ⌊(dwell + tol)/h⌋ + 2."""
+    h = 2 * math.pi / SAMPLES
+    shortest = math.ceil((request.dwell - request.dwell_tol) / h) + 1
+    longest = math.floor((request.dwell + request.dwell_tol) / h) + 2
+    psi = output_angle(SixBars.from_sixbars(list(sixbars)), crank_grid(SAMPLES))
+    if longest > SAMPLES:
+        return least_bands(psi, [shortest])[:, 0], np.full(len(sixbars), np.inf)
+    bands = least_bands(psi, [shortest, longest])
+    return bands[:, 0], bands[:, 1]
+
+
+def still_six_bars(
+    request: Request, fitted: Sequence[Fitted], sixbars: Sequence[SixBar] | None = None, *, moved: bool = False
+) -> tuple[list[StillSixBar], list[SixBarFigures]]:
+    """The six-bars of ``fitted`` (or ``sixbars``, one per fit, moved from it) whose own band
+    is below ``request.band`` and which meet every band-free constraint there
+    (:func:`~synth.query.evaluate.meets_but_dwells`), with their figures at that band."""
+    if sixbars is None:
+        sixbars = [f.sixbar() for f in fitted]
+    if not len(sixbars):
+        return [], []
+    lowest, highest = dwell_bands(request, sixbars)
+    near = np.flatnonzero(np.isfinite(lowest) & (lowest < request.band))
+    if not len(near):
+        return [], []
+    figures = sixbar_figures(
+        SixBars.from_sixbars([sixbars[i] for i in near]),
+        band=lowest[near] * (1 + _OWN_BAND_MARGIN),
+        dwell_length=request.dwell,
+        dwells=request.dwells,
+        samples=SAMPLES,
+        footprint=False,
+        leave=request.swing_tol,
+    )
+    kept = [
+        (StillSixBar(fitted[i], sixbars[i], float(lowest[i]), float(highest[i]), moved), f)
+        for i, f in zip(near.tolist(), figures)
+        if meets_but_dwells(request, f)
+    ]
+    return [k for k, _ in kept], [f for _, f in kept]
+
+
+def _stillest(still: Sequence[StillSixBar], n: int) -> list[int]:
+    """Indices of the ``n`` stillest distinct six-bars of ``still`` (one per segment and output
+    type, one of a mirror pair), stillest first."""
+    chosen, seen = [], set()
+    for i in sorted(range(len(still)), key=lambda i: still[i].lowest):
+        s = still[i]
+        key, mirror = (s.fitted.row.segment_id, s.fitted.output), s.sixbar.fourbar.mirror_key()
+        if key in seen or mirror in seen:
+            continue
+        seen.update((key, mirror))
+        chosen.append(i)
+        if len(chosen) == n:
+            break
+    return chosen
+
+
+def covered_bands(
+    lowest: np.ndarray, highest: np.ndarray, need: int, ceiling: float, floor: float = FLOOR
+) -> Iterator[tuple[float, np.ndarray]]:
+    """The bands worth checking, tightest first, with the six-bars that may meet there: of the
+    six-bars' own bands (``lowest`` widened by the margin) and the :func:`ladder` from
+    ``ceiling`` to ``floor`` (rad), clipped to [``floor``, ``ceiling``], those covered by
+    ``need`` or more of the intervals [``lowest``, ``highest``) — (band, their indices)."""
+    own = np.clip(lowest * (1 + _OWN_BAND_MARGIN), floor, ceiling)
+    for band in np.unique(np.concatenate([own, ladder(ceiling, min(floor, ceiling))])).tolist():
+        live = np.flatnonzero((lowest <= band) & (band < highest))
+        if len(live) >= need:
+            yield band, live
+
+
+def sweep(
+    request: Request, still: Sequence[StillSixBar], floor: float = FLOOR
+) -> tuple[float | None, list[Candidate], tuple[BandProbe, ...]]:
+    """The tightest band (rad) in [``floor``, ``request.band``] at which :func:`needed`
+    distinct six-bars of ``still`` meet ``request`` (exact figures), the candidates that meet
+    it there, and the bands checked: those of :func:`covered_bands`, in turn, :data:`CHECKS`
+    at most."""
+    need = needed(request)
+    lowest = np.array([s.lowest for s in still])
+    highest = np.array([s.highest for s in still])
+    probes: list[BandProbe] = []
+    for band, live in itertools.islice(covered_bands(lowest, highest, need, request.band, floor), CHECKS):
+        at = dataclasses.replace(request, band=band)
+        figures = figures_of(at, [still[i].sixbar for i in live], footprint=True)
+        met = distinct([still[i].candidate(at, f) for i, f in zip(live.tolist(), figures) if meets(at, f)])
+        probes.append(BandProbe(band, len(met)))
+        if len(met) >= need:
+            return band, met, tuple(probes)
+    return None, [], tuple(probes)
+
+
+def answer_tightest(
+    request: Request,
+    source: SegmentSource,
+    *,
+    answer_at: Callable[..., QueryResult] | None = None,
+    floor: float = FLOOR,
+) -> BandAnswer:
+    """``request`` answered at the tightest band it can be met at (the module docstring),
+    searched from ``request.band`` down to ``floor`` (rad), or at ``request.band`` if no band
+    holds enough six-bars.
+
+    ``answer_at(request, seeded=…)`` answers the final request (default
+    :func:`synth.query.answer` on ``source``; a caller passes its own to add a progress bar or
+    worker processes to a complete search).
+    """
+    fitted = pool(request, source, floor)
+    still, figures = still_six_bars(request, fitted)
+    chosen = _stillest(still, STILLER) if request.refine else []
+    moved = _made_stiller(request, [still[i] for i in chosen], [figures[i] for i in chosen])
+    band, met, probes = sweep(request, [*still, *moved], floor)
+    target = _target(request, [*still, *moved], floor)
+    if chosen and target is not None and (band is None or target < band):
+        # the rests moved to their stillest are as a rule too long at one another's bands:
+        # the chosen are refined toward one band, the one the stiller rests show is near
+        starts = _stillest_versions([still[i] for i in chosen], moved)
+        reached = _reached(dataclasses.replace(request, band=target), starts)
+        tighter, meeting, more = sweep(request, [*still, *moved, *reached], floor)
+        probes += more
+        moved = [*moved, *reached]
+        if tighter is not None and (band is None or tighter < band):
+            band, met = tighter, meeting
+    final = request if band is None else dataclasses.replace(request, band=band)
+    respond = answer_at or (lambda r, seeded=(): answer(r, source, seeded=seeded))
+    result = respond(final, seeded=met)
+    return BandAnswer(
+        result, final.band, band is not None, probes, reference_dwells(final, result), len(fitted), len(moved)
+    )
+
+
+def _made_stiller(
+    request: Request, chosen: Sequence[StillSixBar], figures: Sequence[SixBarFigures]
+) -> list[StillSixBar]:
+    """The six-bars ``chosen`` (with their ``figures`` at their own bands) moved to the stillest
+    rests near them (:func:`~synth.query.refine.stiller`) that still meet every band-free
+    constraint, measured (:func:`still_six_bars`)."""
+    if not chosen:
+        return []
+    # the search's objective is in units of a band: the chosen six-bars' own, as measured
+    at = dataclasses.replace(request, band=float(np.median([s.lowest for s in chosen])))
+    found = stiller(at, [s.sixbar for s in chosen], figures)
+    changed = [(s.fitted, sb) for s, sb in zip(chosen, found) if sb is not s.sixbar]
+    if not changed:
+        return []
+    return still_six_bars(request, [f for f, _ in changed], [sb for _, sb in changed], moved=True)[0]
+
+
+def _target(request: Request, still: Sequence[StillSixBar], floor: float) -> float | None:
+    """The band (rad) the :func:`needed`-th stillest distinct six-bar of ``still`` rests within
+    (its own band and the margin), not below ``floor``; None if there are fewer."""
+    chosen = _stillest(still, needed(request))
+    if len(chosen) < needed(request):
+        return None
+    return max(floor, max(still[i].lowest for i in chosen) * (1 + _OWN_BAND_MARGIN))
+
+
+def _stillest_versions(chosen: Sequence[StillSixBar], moved: Sequence[StillSixBar]) -> list[StillSixBar]:
+    """Each of ``chosen``, or its version in ``moved`` (the same fit) where that one is stiller."""
+    by_fit = {m.fitted.key: m for m in moved}
+    return [
+        by_fit[s.fitted.key] if s.fitted.key in by_fit and by_fit[s.fitted.key].lowest < s.lowest else s for s in chosen
+    ]
+
+
+def _reached(at: Request, starts: Sequence[StillSixBar]) -> list[StillSixBar]:
+    """``starts`` refined toward the request ``at`` (its band the target; the refinement's reach
+    for those that miss it, :func:`~synth.query.refine.refine`), those that now meet it,
+    measured (:func:`still_six_bars`)."""
+    if not starts:
+        return []
+    sixbars = [s.sixbar for s in starts]
+    found = refine(at, sixbars, figures_of(at, sixbars, footprint=False), reach=True)
+    kept = [(s.fitted, r.sixbar) for s, r in zip(starts, found) if r.refined]
+    if not kept:
+        return []
+    request = dataclasses.replace(at, band=math.pi / 2)  # any band above the six-bars' own
+    return still_six_bars(request, [f for f, _ in kept], [sb for _, sb in kept], moved=True)[0]
+
+
+def probe(request: Request, source: SegmentSource, band: float) -> BandProbe:
+    """How many six-bars meet ``request`` at ``band`` (rad) in the sampled query without
+    refinement (``top`` cut to :func:`needed`: the count is all it is asked for; an empty
+    answer's diagnosis skips the stored dwells, :class:`_Counting`)."""
+    asked = dataclasses.replace(request, band=band, refine=False, complete=False, top=needed(request))
+    return BandProbe(band, len(answer(asked, _Counting(source)).candidates))
+
+
 @dataclass(frozen=True, slots=True)
 class _Counting:
     """``source`` as a probe reads it: the same segments, but no stored dwells near the
     request (:meth:`nearest_dwell_angles` answers ``(None, None)``). A probe needs only a
     count; an empty sample otherwise makes the query look the nearest stored dwells up for
-    its no-match message — 0.7–0.9 s of SQL per empty RRR probe on ``standard``, most of a
-    search whose tight bands sample nothing."""
+    its no-match message — 0.7–0.9 s of SQL per empty RRR probe on ``standard``."""
 
     source: SegmentSource
 
@@ -138,57 +433,6 @@ class _Counting:
         return self.source.count_segments(kind, level, **limits)
 
 
-def probe(request: Request, source: SegmentSource, band: float) -> BandProbe:
-    """How many six-bars meet ``request`` at ``band`` (rad) in the sampled query without
-    refinement (``top`` cut to :func:`needed`: the count is all the search uses; an empty
-    answer's diagnosis skips the stored dwells, :class:`_Counting`)."""
-    asked = dataclasses.replace(request, band=band, refine=False, complete=False, top=needed(request))
-    return BandProbe(band, len(answer(asked, _Counting(source)).candidates))
-
-
-def ladder(ceiling: float, floor: float) -> np.ndarray:
-    """Bands from ``ceiling`` down to ``floor`` (rad), :data:`LADDER` per decade, both ends in."""
-    steps = max(1, math.ceil(LADDER * math.log10(ceiling / floor) - 1e-9))
-    return np.geomspace(ceiling, floor, steps + 1)
-
-
-def tightest_band(
-    request: Request, count: Callable[[float], BandProbe], *, floor: float = FLOOR
-) -> tuple[float | None, tuple[BandProbe, ...]]:
-    """The tightest band (rad) in [``floor``, ``request.band``] at which ``count(band).met``
-    reaches :func:`needed`, within :data:`RESOLUTION` (None if no probe does), and the probes.
-
-    The ladder (:func:`ladder`) is probed from the floor up and stops at the first rung that
-    meets; a bisection on log(band) between that rung and the next tighter one follows.
-    """
-    need = needed(request)
-    ceiling = request.band
-    if ceiling <= floor:
-        found = count(ceiling)
-        return (ceiling if found.met >= need else None), (found,)
-    probes: list[BandProbe] = []
-
-    def meets(band: float) -> bool:
-        probes.append(count(float(band)))
-        return probes[-1].met >= need
-
-    rungs = ladder(ceiling, floor)[::-1]  # tightest first
-    hit = next((k for k, band in enumerate(rungs) if meets(band)), None)
-    if hit is None:
-        return None, tuple(probes)
-    good = float(rungs[hit])
-    if hit == 0:
-        return good, tuple(probes)
-    bad = float(rungs[hit - 1])
-    while good / bad > RESOLUTION:
-        middle = math.sqrt(good * bad)
-        if meets(middle):
-            good = middle
-        else:
-            bad = middle
-    return good, tuple(probes)
-
-
 def reference_dwells(
     request: Request, result: QueryResult, band: float = REFERENCE_BAND
 ) -> tuple[tuple[float, ...], ...]:
@@ -205,27 +449,6 @@ def reference_dwells(
         leave=request.swing_tol,
     )
     return tuple(tuple(d.angle for d in f.dwells[: request.dwells]) for f in figures)
-
-
-def answer_tightest(
-    request: Request,
-    source: SegmentSource,
-    *,
-    answer_at: Callable[[Request], QueryResult] | None = None,
-    floor: float = FLOOR,
-) -> BandAnswer:
-    """``request`` answered at the tightest band it can be met at (:func:`tightest_band`,
-    searched from ``request.band`` down to ``floor``, rad), or at ``request.band`` if no
-    probe meets it.
-
-    ``answer_at`` answers the final request (default :func:`synth.query.answer` on
-    ``source``; a caller passes its own to add a progress bar or worker processes to a
-    complete search).
-    """
-    band, probes = tightest_band(request, lambda b: probe(request, source, b), floor=floor)
-    final = request if band is None else dataclasses.replace(request, band=band)
-    result = (answer_at or (lambda r: answer(r, source)))(final)
-    return BandAnswer(result, final.band, band is not None, probes, reference_dwells(final, result))
 
 
 def tighter_band(request: Request, source: SegmentSource, factor: float = 10.0) -> BandProbe | None:

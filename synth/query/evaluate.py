@@ -70,9 +70,19 @@ def meets(request: Request, f: SixBarFigures) -> bool:
         return False
     if any(abs(d.angle - request.dwell) > request.dwell_tol for d in f.dwells[: request.dwells]):
         return False
-    if request.swing is not None and abs(f.swing - request.swing) > request.swing_tol:
-        return False
     if request.step is not None and abs(f.step - request.step) > request.swing_tol:
+        return False
+    return meets_but_dwells(request, f)
+
+
+def meets_but_dwells(request: Request, f: SixBarFigures) -> bool:
+    """Whether the figures ``f`` (crank-normalised) meet every constraint of ``request`` that
+    does not depend on its band: the six-bar assembles over the turn without toggling or
+    revolving, and its swing, transmission, buildability and link ratio meet the request (the
+    dwells, and the step between two rests, are measured at the band)."""
+    if not f.acceptable:
+        return False
+    if request.swing is not None and abs(f.swing - request.swing) > request.swing_tol:
         return False
     if min(f.transmission_fourbar, f.transmission_output) < request.min_transmission:
         return False

@@ -11,7 +11,7 @@ import dataclasses
 import functools
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 from synth.kinds import OutputTag, SegmentKind
@@ -63,19 +63,26 @@ def answer(
     on_progress: Callable[[int, int], None] | None = None,
     map_batches: BatchMap | None = None,
     searched: tuple[list[Candidate], SearchCount] | None = None,
+    seeded: Sequence[Candidate] = (),
 ) -> QueryResult:
     """Ranked candidates for ``request`` from ``source`` (a pure read): from the sample of
     segments :func:`select` takes, or with ``request.complete`` from every six-bar the atlas
     yields (:func:`search`, which reports ``on_progress`` and runs its batches through
-    ``map_batches``; or ``searched``, its result for this request from :func:`search_many`).
+    ``map_batches``; or ``searched``, its result for this request from :func:`search_many`),
+    and ``seeded``: six-bars found otherwise that meet ``request`` (the band search's,
+    :mod:`synth.query.band_search`), ranked, refined and counted with them.
 
     ``--output any`` with one dwell is the best of both output types: the request answered as
     RPR and as RRR, each through the whole pipeline (its sparse-answer steps and refinement
     sized for ``request.top``), then the union of the two answers ranked once
     (:func:`~synth.query.candidates.rank`) and cut to ``request.top`` (:func:`_best_of_both`)."""
     if request.output == "any" and request.dwells == 1:
-        return _best_of_both(request, source, on_progress=on_progress, map_batches=map_batches, searched=searched)
-    return _answer_one(request, source, on_progress=on_progress, map_batches=map_batches, searched=searched).result
+        return _best_of_both(
+            request, source, on_progress=on_progress, map_batches=map_batches, searched=searched, seeded=seeded
+        )
+    return _answer_one(
+        request, source, on_progress=on_progress, map_batches=map_batches, searched=searched, seeded=seeded
+    ).result
 
 
 def _best_of_both(
@@ -85,6 +92,7 @@ def _best_of_both(
     on_progress: Callable[[int, int], None] | None,
     map_batches: BatchMap | None,
     searched: tuple[list[Candidate], SearchCount] | None,
+    seeded: Sequence[Candidate] = (),
 ) -> QueryResult:
     """``request`` (``output="any"``, one dwell) answered as RPR and as RRR, then the best
     ``request.top`` of the union of the two answers by :func:`~synth.query.candidates.rank` (Pareto
@@ -110,6 +118,7 @@ def _best_of_both(
                 on_progress=on_progress,
                 map_batches=map_batches,
                 searched=mine,
+                seeded=[c for c in seeded if c.sixbar.dyad.kind == output.dyad],
                 diagnosed=False,  # one kind's no-match matters only if the other has none either
             )
         )
@@ -238,12 +247,13 @@ def _moved_pivots(state: Answering, answered: list[Candidate]) -> list[Candidate
     return found
 
 
-def _from_sample(state: Answering) -> list[Candidate]:
-    """The candidates of the sample: a sparse answer (fewer than FILL) samples wider, is filled
-    towards --top with the fits' pivots moved (short rests), and if still sparse reads deeper
-    along the arcs' keys (long rests) and the double lines' dwells."""
+def _from_sample(state: Answering, seeded: Sequence[Candidate] = ()) -> list[Candidate]:
+    """The candidates of the sample and ``seeded`` (which count toward the answer's size): a
+    sparse answer (fewer than FILL) samples wider, is filled towards --top with the fits'
+    pivots moved (short rests), and if still sparse reads deeper along the arcs' keys (long
+    rests) and the double lines' dwells."""
     request = state.request
-    candidates = _meeting(state, _sampled(state))
+    candidates = [*seeded, *_meeting(state, _sampled(state))]
     sparse = request.refine and len(distinct(candidates)) < min(FILL, request.top)
     if sparse:
         candidates += _meeting(state, _sampled(state, WIDER * PER_LEVEL))
@@ -312,6 +322,7 @@ def _answer_one(
     on_progress: Callable[[int, int], None] | None = None,
     map_batches: BatchMap | None = None,
     searched: tuple[list[Candidate], SearchCount] | None = None,
+    seeded: Sequence[Candidate] = (),
     diagnosed: bool = True,
 ) -> Answered:
     """:func:`answer` for one output type (or a double dwell): candidates (the complete
@@ -327,8 +338,9 @@ def _answer_one(
         )
         state.clock["search"] = time.perf_counter() - t
         considered, state.simulated = count.rows, count.simulated
+        candidates = [*candidates, *seeded]
     else:
-        candidates = _from_sample(state)
+        candidates = _from_sample(state, seeded)
         considered = len({r.segment_id for r in state.rows})
     t = time.perf_counter()
     top = _ranked(request, toleranced(request, candidates))

@@ -60,9 +60,9 @@ from synth.query.batched_cma import cma_es
 from synth.query.candidate_ids import dimension_vector, round_dimensions, sixbar_from_vector
 from synth.query.candidates import Request
 from synth.query.evaluate import meets
-from synth.query.refine_objective import WORST, better_or_equal, hold_bounds, trial_objective
+from synth.query.refine_objective import WORST, better_or_equal, hold_bounds, request_bounds, trial_objective
 
-__all__ = ["PARAMETERS", "Evaluate", "Refinement", "descend", "refine"]
+__all__ = ["PARAMETERS", "Evaluate", "Refinement", "descend", "refine", "stiller"]
 
 #: The dimensions moved, in the order of the optimisation vector (crank-normalised; a = 1).
 PARAMETERS = ("b", "c", "d", "u", "v", "pivot_x", "pivot_y", "rocker", "rod")
@@ -91,6 +91,13 @@ REACH_ITERATIONS = 160
 #: The reach stops a candidate at an objective below this (it meets the request, its deviation
 #: over the requested dwell inside the band); the polish takes it on.
 REACHED = 1.0
+#: The search for the stillest rest (:func:`stiller`, the reach's population): its box, first
+#: step (a fraction of the box) and iterations. A rest of a few thousandths of a degree is
+#: lost to a relative change of 1e-5 in one length alone: the first step is small, and CMA-ES
+#: learns the directions along which the rest stays.
+STILL_RADIUS = 0.05
+STILL_SIGMA = 0.01
+STILL_ITERATIONS = 150
 
 
 @dataclass(frozen=True, slots=True)
@@ -169,7 +176,14 @@ def descend(
 
 
 def _reach(
-    evaluate: Evaluate, start: np.ndarray, radius: float, iterations: int, population: int, seed: int
+    evaluate: Evaluate,
+    start: np.ndarray,
+    radius: float,
+    iterations: int,
+    population: int,
+    seed: int,
+    stop_below: float = REACHED,
+    sigma: float = REACH_SIGMA,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The reach: a CMA-ES per candidate (:func:`synth.query.batched_cma.cma_es`: all candidates'
     populations simulated in one call per iteration; box [−radius, radius]), from x = 0 at the
@@ -177,7 +191,8 @@ def _reach(
     are drawn from a generator seeded by ``seed`` and its own starting row, so its reach does
     not depend on which other misses are reached with it. Returns the best steps x (K, 9)
     found (0 where nothing beat the start), the objective there and the six-bars each
-    candidate simulated.
+    candidate simulated. ``stop_below``: the objective at which a candidate stops; ``sigma``:
+    the first step, a fraction of ``radius``.
 
     Why not the polish: a near miss meets the request only after the dimensions move together
     along a narrow valley (a longer rest at the same band couples every length and the coupler
@@ -187,15 +202,93 @@ def _reach(
     result = cma_es(
         evaluate,
         np.zeros_like(start),
-        REACH_SIGMA * radius,
+        sigma * radius,
         rngs,
         population=population,
         iterations=iterations,
         box=radius,
-        stop_below=REACHED,
+        stop_below=stop_below,
         tol_sigma=1e-3 * radius,
     )
     return result.x, result.f, result.evaluations
+
+
+@dataclass(frozen=True, slots=True)
+class _Trials:
+    """What every trial six-bar of one refinement is simulated and judged with: the request,
+    per candidate its kinds of link (RPR or RRR, assembly branches), the crank angles its
+    dwells sit around (rad, (K, C)) and its bounds (:func:`hold_bounds`), the loop's crank grid
+    and the objective (``stillest``: :func:`~synth.query.refine_objective.trial_objective`'s)."""
+
+    request: Request
+    rpr: np.ndarray
+    branch: np.ndarray
+    dyad_branch: np.ndarray
+    centres: np.ndarray
+    bounds: np.ndarray
+    phi: np.ndarray
+    stillest: bool = False
+
+    @classmethod
+    def of(
+        cls,
+        request: Request,
+        sixbars: Sequence[SixBar],
+        before: Sequence[SixBarFigures],
+        samples: int,
+        stillest: bool = False,
+    ) -> _Trials:
+        """The trials of ``sixbars`` (each with at least the request's dwells in ``before``)."""
+        return cls(
+            request,
+            np.array([sb.dyad.kind is OutputKind.RPR for sb in sixbars]),
+            np.array([sb.branch for sb in sixbars]),
+            np.array([sb.dyad.branch for sb in sixbars]),
+            np.array([[0.5 * (d.start + d.end) for d in f.dwells[: request.dwells]] for f in before]),
+            request_bounds(request, len(before)) if stillest else hold_bounds(request, before),
+            crank_grid(samples),
+            stillest,
+        )
+
+    def steps(
+        self,
+        search: Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray]],
+        start: np.ndarray,
+        only: np.ndarray,
+        *args,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``search`` run (``*args`` then its seed last) for the candidates ``only`` from their
+        dimension rows in ``start`` (K, 9), in the space scaled at them: every candidate's rows
+        after it (the others as they were), its objective there (inf for the others) and the
+        six-bars it simulated."""
+        K = len(start)
+        scale = np.where(_LENGTHS, np.abs(start), np.maximum(np.abs(start), 1.0))
+        scale[self.rpr, 7:] = 0.0  # an RPR has no rocker or rod
+
+        def evaluate(x: np.ndarray, who: np.ndarray) -> np.ndarray:
+            """x (len(who), T, 9) → (len(who), T); ``who`` indexes ``only``."""
+            T = x.shape[1]
+            g = only[who]
+            rep = lambda a: np.repeat(a[g], T, axis=0)  # noqa: E731
+            p = (start[g, None, :] + scale[g, None, :] * x).reshape(-1, 9)
+            f = trial_objective(
+                self.request,
+                p,
+                rep(self.branch),
+                rep(self.rpr),
+                rep(self.dyad_branch),
+                rep(self.centres),
+                rep(self.bounds),
+                self.phi,
+                stillest=self.stillest,
+            )
+            return f.reshape(len(who), T)
+
+        x, f, n = search(evaluate, start[only], *args)
+        end, objective, count = start.copy(), np.full(K, np.inf), np.zeros(K, int)
+        end[only] = start[only] + scale[only] * x
+        objective[only], count[only] = f, n
+        return end, objective, count
 
 
 def refine(
@@ -252,45 +345,16 @@ def refine(
         return out
     K = len(rows)
     p0 = np.array([dimension_vector(sixbars[k]) for k in rows])
-    rpr = np.array([sixbars[k].dyad.kind is OutputKind.RPR for k in rows])
-    branch = np.array([sixbars[k].branch for k in rows])
-    dyad_branch = np.array([sixbars[k].dyad.branch for k in rows])
-    centres = np.array([[0.5 * (d.start + d.end) for d in before[k].dwells[:dwells]] for k in rows])
-    bounds = hold_bounds(request, [before[k] for k in rows])
-    phi = crank_grid(samples)
-
-    def steps(
-        search: Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray]], start: np.ndarray, only: np.ndarray, *args
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``search`` run for the candidates ``only`` from their dimension rows in ``start``
-        (K, 9), in the space scaled at them: every candidate's rows after it (the others as
-        they were), its objective there (inf for the others) and the six-bars it simulated."""
-        scale = np.where(_LENGTHS, np.abs(start), np.maximum(np.abs(start), 1.0))
-        scale[rpr, 7:] = 0.0  # an RPR has no rocker or rod
-
-        def evaluate(x: np.ndarray, who: np.ndarray) -> np.ndarray:
-            """x (len(who), T, 9) → (len(who), T); ``who`` indexes ``only``."""
-            T = x.shape[1]
-            g = only[who]
-            rep = lambda a: np.repeat(a[g], T, axis=0)  # noqa: E731
-            p = (start[g, None, :] + scale[g, None, :] * x).reshape(-1, 9)
-            f = trial_objective(request, p, rep(branch), rep(rpr), rep(dyad_branch), rep(centres), rep(bounds), phi)
-            return f.reshape(len(who), T)
-
-        x, f, n = search(evaluate, start[only], *args, seed)
-        end, objective, count = start.copy(), np.full(K, np.inf), np.zeros(K, int)
-        end[only] = start[only] + scale[only] * x
-        objective[only], count[only] = f, n
-        return end, objective, count
+    trials = _Trials.of(request, [sixbars[k] for k in rows], [before[k] for k in rows], samples)
 
     # the polish; with ``reach``, the candidates it leaves short of the request are reached
     # for, then polished again
-    p, f, count = steps(descend, p0, np.arange(K), radius, iterations, population)
+    p, f, count = trials.steps(descend, p0, np.arange(K), radius, iterations, population, seed)
     short = np.flatnonzero(f >= REACHED)
     if reach and len(short):
-        p, _, n = steps(_reach, p, short, REACH_RADIUS, REACH_ITERATIONS, REACH_POPULATION)
+        p, _, n = trials.steps(_reach, p, short, REACH_RADIUS, REACH_ITERATIONS, REACH_POPULATION, seed)
         count += n
-        p, _, n = steps(descend, p, short, radius, iterations, population)
+        p, _, n = trials.steps(descend, p, short, radius, iterations, population, seed)
         count += n
 
     # the check: rounded as the id holds it, then the query's exact figures
@@ -319,4 +383,37 @@ def refine(
         if k not in moved:
             i = rows[k]
             out[i] = Refinement(out[i].sixbar, out[i].figures, out[i].before, False, out[i].meets, int(count[k]))
+    return out
+
+
+def stiller(
+    request: Request,
+    sixbars: Sequence[SixBar],
+    before: Sequence[SixBarFigures],
+    *,
+    radius: float = STILL_RADIUS,
+    iterations: int = STILL_ITERATIONS,
+    population: int = REACH_POPULATION,
+    samples: int = SAMPLES,
+    seed: int = 0,
+) -> list[SixBar]:
+    """Each six-bar of ``sixbars`` moved to the stillest rest the reach's search (a CMA-ES per
+    candidate, :func:`_reach`, run to its ``iterations`` — no objective stops it) finds in the
+    box of ``radius``: the deviation over the requested dwell minimised for itself, no band holding
+    the dwell, every other constraint of ``request`` held as the refinement holds a near miss's
+    (the ``stillest`` objective of :func:`~synth.query.refine_objective.trial_objective`, in
+    units of ``request.band``). Rounded as an id holds it; the six-bar itself where nothing
+    was better or it has fewer dwells in ``before`` (its figures at some band) than asked.
+    Nothing is checked here: the band search measures each result's band and checks it
+    there (:mod:`synth.query.band_search`)."""
+    rows = [k for k, f in enumerate(before) if f.acceptable and len(f.dwells) >= request.dwells]
+    out = list(sixbars)
+    if not rows:
+        return out
+    p0 = np.array([dimension_vector(sixbars[k]) for k in rows])
+    trials = _Trials.of(request, [sixbars[k] for k in rows], [before[k] for k in rows], samples, stillest=True)
+    p, _, _ = trials.steps(_reach, p0, np.arange(len(rows)), radius, iterations, population, seed, -np.inf, STILL_SIGMA)
+    for k, i in enumerate(rows):
+        if np.any(p[k] != p0[k]):
+            out[i] = round_dimensions(_sixbar(p[k], sixbars[i]))
     return out

@@ -20,7 +20,16 @@ from synth.mechanism.sixbar import SixBars, simulate
 from synth.query.candidates import Request, objectives
 from synth.query.evaluate import meets
 
-__all__ = ["CLEARANCE_EVERY", "PENALTY", "WORST", "better_or_equal", "hold_bounds", "trial_batch", "trial_objective"]
+__all__ = [
+    "CLEARANCE_EVERY",
+    "PENALTY",
+    "WORST",
+    "better_or_equal",
+    "hold_bounds",
+    "request_bounds",
+    "trial_batch",
+    "trial_objective",
+]
 
 #: The loop's clearance and torque arm on every 3rd sample (3°; the margins and the check cover it).
 CLEARANCE_EVERY = 3
@@ -55,16 +64,27 @@ def trial_batch(p: np.ndarray, branch: np.ndarray, rpr: np.ndarray, dyad_branch:
 
 
 def trial_objective(
-    request: Request, p: np.ndarray, branch, rpr, dyad_branch, centres: np.ndarray, bounds: np.ndarray, phi: np.ndarray
+    request: Request,
+    p: np.ndarray,
+    branch,
+    rpr,
+    dyad_branch,
+    centres: np.ndarray,
+    bounds: np.ndarray,
+    phi: np.ndarray,
+    *,
+    stillest: bool = False,
 ) -> np.ndarray:
     """(R,) objective of the dimension rows ``p`` (R, 9) whose dwells should sit around crank
     angles ``centres`` (R, C) rad, held to ``bounds`` (R, 4: :func:`hold_bounds`) (see the module
-    docstring); lower is better."""
+    docstring); lower is better. ``stillest``: no band holds the dwell — the deviation over the
+    requested dwell is minimised for itself (in units of ``request.band``) under every other
+    constraint, for a search of the tightest band (:mod:`synth.query.band_search`)."""
     batch = trial_batch(p, branch, rpr, dyad_branch)
     # trial six-bars may degenerate (a link ratio over a zero-length reach): such a row's
     # objective is not finite and is set to the worst below, so the arithmetic stays quiet
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        return _objective_rows(request, batch, rpr, centres, bounds, phi)
+        return _objective_rows(request, batch, rpr, centres, bounds, phi, stillest)
 
 
 def hold_bounds(request: Request, before: Sequence[SixBarFigures]) -> np.ndarray:
@@ -90,12 +110,27 @@ def hold_bounds(request: Request, before: Sequence[SixBarFigures]) -> np.ndarray
                 0.0,
             )
         else:
-            out[k] = (0.5 * request.dwell_tol, request.min_transmission, cap, _BAND_MARGIN)
+            out[k] = request_bounds(request, 1)[0]
     return out
 
 
+def request_bounds(request: Request, n: int) -> np.ndarray:
+    """(n, 4) the bounds of :func:`hold_bounds` for six-bars held to the request alone: half the
+    dwell tolerance, its minimum transmission, its ``max_accel`` (rad/rad², inf: none) and
+    ``_BAND_MARGIN``."""
+    w = 2 * math.pi * request.rpm / 60
+    cap = math.inf if request.max_accel is None else request.max_accel / (w * w)
+    return np.tile([0.5 * request.dwell_tol, request.min_transmission, cap, _BAND_MARGIN], (n, 1))
+
+
 def _objective_rows(
-    request: Request, batch: SixBars, rpr: np.ndarray, centres: np.ndarray, bounds: np.ndarray, phi: np.ndarray
+    request: Request,
+    batch: SixBars,
+    rpr: np.ndarray,
+    centres: np.ndarray,
+    bounds: np.ndarray,
+    phi: np.ndarray,
+    stillest: bool = False,
 ) -> np.ndarray:
     margin, mu_floor, accel_cap, band_margin = bounds.T
     capped = np.isfinite(accel_cap)
@@ -124,12 +159,15 @@ def _objective_rows(
         np.broadcast_to(lengths[:, None, :], (R, C, 3)),
     )
     objective = dev[:, :, 1].max(axis=1) / band
-    excess = np.maximum(0.0, dev[:, :, 0] - (band * (1 - band_margin))[:, None]).sum(axis=1) / band
-    excess += np.where(
-        request.dwell + margin < longest,
-        np.maximum(0.0, (band * (1 + band_margin))[:, None] - dev[:, :, 2]).sum(axis=1) / band,
-        0.0,
-    )
+    if stillest:  # the band follows the rest: whatever it is, the dwell is measured at it
+        excess = np.zeros(R)
+    else:
+        excess = np.maximum(0.0, dev[:, :, 0] - (band * (1 - band_margin))[:, None]).sum(axis=1) / band
+        excess += np.where(
+            request.dwell + margin < longest,
+            np.maximum(0.0, (band * (1 + band_margin))[:, None] - dev[:, :, 2]).sum(axis=1) / band,
+            0.0,
+        )
     if request.swing is not None:
         swing = psi.max(axis=1) - psi.min(axis=1)
         unit = max(request.swing_tol, math.radians(0.01))

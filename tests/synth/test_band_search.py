@@ -1,98 +1,153 @@
-"""The band search of ``--band auto`` (``synth.query.band_search``): the search rule on made-up
-counts, then on the small demo atlas against a brute-force scan of the ladder's bands."""
+"""The band search of ``--band auto`` (``synth.query.band_search``): the narrowest band a run of
+samples stands in (``least_bands``) against a brute force, the bands the sweep checks against a
+brute-force count of intervals, then the search on the small demo atlas: at the band reached
+enough six-bars meet the request by an independent simulation, and no band of a fine ladder
+well below it holds as many six-bars of the search's pool."""
 
 from __future__ import annotations
 
 import dataclasses
 import math
 
+import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
 
+from synth.mechanism.figures import sixbar_figures
+from synth.mechanism.output_range import least_bands
+from synth.mechanism.sixbar import SixBars
 from synth.query import answer
 from synth.query.band_search import (
     FLOOR,
-    LADDER,
     MEET,
     REFERENCE_BAND,
-    RESOLUTION,
-    BandProbe,
     answer_tightest,
+    covered_bands,
+    dwell_bands,
     ladder,
     needed,
+    pool,
     probe,
-    tightest_band,
+    still_six_bars,
+    sweep,
 )
 from synth.query.candidates import Request
+from synth.query.evaluate import distinct, figures_of, meets
+from synth.query.refine import stiller
 
 RPR_60 = Request(dwell=math.radians(60.0), swing=math.radians(30.0), output="rpr", refine=False)
 
 
-def _counts(rule):
-    """A probe function from ``rule(band in degrees) -> six-bars met``, and the probes it made."""
-    made = []
-
-    def count(band: float) -> BandProbe:
-        made.append(band)
-        return BandProbe(band, rule(math.degrees(band)))
-
-    return count, made
+def _brute_least_band(row: np.ndarray, width: int) -> float:
+    M = len(row)
+    turns = np.concatenate([row, row])
+    return min(float(np.ptp(turns[j : j + width])) for j in range(M))
 
 
-@pytest.mark.parametrize("edge", [0.00321, 0.0123, 0.0999])
-def test_monotone_counts_give_the_edge_within_the_resolution(edge):
-    """Three six-bars meet at every band ≥ edge: the band found lies in [edge, edge·RESOLUTION]."""
-    count, made = _counts(lambda b: 3 if b >= edge else 2)
-    band, probes = tightest_band(RPR_60, count)
-    assert edge <= math.degrees(band) <= edge * RESOLUTION
-    # the ladder (19 rungs from 0.1° to 1e-4°) stops at the first rung that meets; the
-    # bisection between two rungs (a factor 10^(1/6) = 1.47) takes one or two probes
-    assert len(ladder(RPR_60.band, FLOOR)) == 3 * LADDER + 1
-    assert len(probes) == len(made) <= 3 * LADDER + 1 + 2
-    assert all(p.met == (3 if math.degrees(p.band) >= edge else 2) for p in probes)
-
-
-def test_an_island_below_a_gap_is_found():
-    """Counts that are not monotonic in the band: the tighter island (0.002°–0.003°) wins over
-    the loose bands, although the bands between them (0.003°–0.05°) fail."""
-    count, _ = _counts(lambda b: 3 if 0.002 <= b <= 0.003 or b >= 0.05 else 0)
-    band, _ = tightest_band(RPR_60, count)
-    assert 0.002 <= math.degrees(band) <= 0.003
-
-
-def test_nothing_meets_and_top_lowers_the_count():
-    count, made = _counts(lambda b: 2)
-    band, probes = tightest_band(RPR_60, count)
-    assert band is None and len(probes) == 3 * LADDER + 1  # every rung tried, none met
-    assert needed(RPR_60) == MEET == 3
-    two = dataclasses.replace(RPR_60, top=2)
-    assert needed(two) == 2
-    band, probes = tightest_band(two, count)
-    assert band == pytest.approx(FLOOR) and len(probes) == 1  # the floor meets at once
-
-
-@pytest.mark.parametrize(
-    "request_",
-    [
-        RPR_60,
-        Request(dwell=math.radians(40.0), swing=math.radians(20.0), output="rpr", top=2, refine=False),
-    ],
-    ids=["rpr-60-30", "rpr-40-20-top-2"],
+@settings(max_examples=150, deadline=None)
+@given(
+    rows=hnp.arrays(float, st.tuples(st.integers(1, 4), st.integers(2, 40)), elements=st.floats(-3.0, 3.0)),
+    data=st.data(),
 )
-def test_search_matches_a_scan_of_the_atlas(source, request_):
-    """On the demo atlas: at the band found ≥ min(top, 3) six-bars meet; a scan of every
-    ladder rung tighter than the band found finds none where as many meet; and a probe within
-    a factor RESOLUTION below the band found failed."""
-    need = needed(request_)
-    band, probes = tightest_band(request_, lambda b: probe(request_, source, b))
-    assert band is not None and band < request_.band
-    assert probe(request_, source, band).met >= need
-    tighter = [float(b) for b in ladder(request_.band, FLOOR) if b < band * (1 - 1e-9)]
-    assert len(tighter) >= 6 and all(probe(request_, source, b).met < need for b in tighter)
-    failed_below = [p.band for p in probes if p.band < band]
-    assert failed_below and band / max(failed_below) <= RESOLUTION
-    assert all(p.met < need for p in probes if p.band < band)
+@example(rows=np.array([[0.0, 1.0, 0.0, 1.0]]), data=None)
+def test_least_bands_is_the_smallest_range_of_any_cyclic_run(rows, data):
+    """Per row and width, the smallest max − min over every run of that many consecutive samples,
+    cyclic over the turn (a brute force over every start)."""
+    M = rows.shape[1]
+    widths = [1, M, 2] if data is None else data.draw(st.lists(st.integers(1, M), min_size=1, max_size=3))
+    widths = [w for w in widths if w <= M]
+    got = least_bands(rows, widths)
+    assert got.shape == (rows.shape[0], len(widths))
+    for r, row in enumerate(rows):
+        closed = abs(row[-1] - row[0]) < math.pi
+        for k, w in enumerate(widths):
+            assert got[r, k] == (_brute_least_band(row, w) if closed else math.inf)
+
+
+def test_leastdwell_bands_an_output_that_revolves_is_infinite():
+    psi = np.stack([np.linspace(0.0, 2 * math.pi, 720, endpoint=False), np.sin(np.linspace(0, 2 * math.pi, 720))])
+    got = least_bands(psi, [1, 100])
+    assert np.all(np.isinf(got[0])) and got[1, 0] == 0.0 and 0 < got[1, 1] < 2
+    with pytest.raises(ValueError, match="does not fit"):
+        least_bands(psi, [721])
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    intervals=st.lists(st.tuples(st.floats(-6.5, -1.0), st.floats(0.0, 3.0)), max_size=12),
+    need=st.integers(1, 4),
+)
+def test_covered_bands_are_every_band_enough_intervals_cover(intervals, need):
+    """The bands yielded, tightest first, are exactly the candidate bands (the six-bars' own,
+    widened by the margin, and the ladder) at which ≥ need of the intervals [lo, hi) are live,
+    each with those intervals."""
+    ceiling = math.radians(0.1)
+    lo = np.array([10.0**x for x, _ in intervals])
+    hi = np.array([10.0 ** (x + w) for x, w in intervals])
+    got = list(covered_bands(lo, hi, need, ceiling))
+    bands = [b for b, _ in got]
+    assert bands == sorted(set(bands))
+    candidates = sorted({*np.clip(lo * 1.01, FLOOR, ceiling).tolist(), *ladder(ceiling, FLOOR).tolist()})
+    expected = [b for b in candidates if np.count_nonzero((lo <= b) & (b < hi)) >= need]
+    assert bands == pytest.approx(expected, rel=1e-12)
+    for b, live in got:
+        assert set(live.tolist()) == set(np.flatnonzero((lo <= b) & (b < hi)).tolist())
+
+
+def test_the_ladder_runs_from_ceiling_to_floor():
+    rungs = ladder(math.radians(0.1), FLOOR)
+    assert (
+        len(rungs) == 3 * 6 + 1 and rungs[0] == pytest.approx(math.radians(0.1)) and rungs[-1] == pytest.approx(FLOOR)
+    )
+    assert len(ladder(math.radians(0.1), FLOOR, 2)) == 7
+    assert needed(RPR_60) == MEET == 3 and needed(dataclasses.replace(RPR_60, top=2)) == 2
+
+
+@pytest.mark.parametrize("refine", [False, True], ids=["pool", "stiller"])
+def test_the_band_reached_holds_enough_six_bars(source, refine):
+    """At the band reached, ≥ 3 of the answer's six-bars meet the request by a simulation of
+    their own (the figures worked out afresh at that band); each one's dwell there is within
+    60° ± 2° and at the 0.1° reference band longer; the band is far below 0.1°. With refinement
+    on, the stiller rests make the band no looser than the pool's alone."""
+    request = dataclasses.replace(RPR_60, refine=refine)
+    found = answer_tightest(request, source)
+    assert found.settled and found.band < math.radians(0.02)
+    result = found.result
+    assert result.request.band == found.band and len(result.candidates) >= 3
+    at = dataclasses.replace(request, band=found.band)
+    figures = sixbar_figures(
+        SixBars.from_sixbars([c.sixbar.scaled(1.0 / request.crank) for c in result.candidates]),
+        band=found.band,
+        dwell_length=request.dwell,
+        samples=720,
+        footprint=False,
+        leave=request.swing_tol,
+    )
+    assert sum(meets(at, f) for f in figures) >= 3
+    for c, ref in zip(result.candidates, found.reference_dwells):
+        here = c.figures.dwells[0].angle
+        assert abs(math.degrees(here) - 60.0) <= 2.0 + 1e-9
+        assert ref and ref[0] > here + math.radians(5.0)
+    assert REFERENCE_BAND == math.radians(0.1)
+    if refine:
+        assert found.band <= answer_tightest(RPR_60, source).band * (1 + 1e-12)
+
+
+def test_no_band_well_below_the_one_reached_holds_enough_of_the_pool(source):
+    """A scan of the pool: at every band of a 12-per-decade ladder below the band reached by
+    more than a factor 1.2 (the grid's own band and the exact dwell differ by a sample or
+    two), fewer than 3 distinct six-bars of the pool meet the request (exact figures)."""
+    still, _ = still_six_bars(RPR_60, pool(RPR_60, source))
+    band, met, probes = sweep(RPR_60, still)
+    assert band is not None and len(distinct(met)) >= 3 and probes[-1].band == band and probes[-1].met >= 3
+    sixbars = [s.sixbar for s in still]
+    for b in ladder(RPR_60.band, FLOOR, 12):
+        if b < band / 1.2:
+            at = dataclasses.replace(RPR_60, band=float(b))
+            meeting = [s for s, f in zip(still, figures_of(at, sixbars, footprint=False)) if meets(at, f)]
+            assert len({s.fitted.row.segment_id for s in meeting}) < 3
 
 
 @pytest.mark.parametrize("band_deg", [0.1, 0.01, 0.0001])
@@ -105,41 +160,19 @@ def test_a_probe_counts_what_the_query_answers(source, band_deg):
     assert band_deg != 0.0001 or (not full.candidates and full.nearest != (None, None))
 
 
-def test_answer_at_the_band_reached(source):
-    """The answer is the request at the band reached: each candidate's dwell there within
-    60° ± 2°, and at the reference band 0.1° (wider) a longer dwell of the same six-bar."""
-    found = answer_tightest(RPR_60, source)
-    assert found.settled and found.band < math.radians(0.02)
-    result = found.result
-    assert result.request.band == found.band and len(result.candidates) >= 3
-    assert len(found.reference_dwells) == len(result.candidates)
-    for c, ref in zip(result.candidates, found.reference_dwells):
-        here = c.figures.dwells[0].angle
-        assert abs(math.degrees(here) - 60.0) <= 2.0 + 1e-9
-        assert ref and ref[0] > here + math.radians(5.0)  # a 0.1° band holds far more than 0.01°
-    assert REFERENCE_BAND == math.radians(0.1)
-
-
-@settings(max_examples=200, deadline=None)
-@given(islands=st.lists(st.tuples(st.floats(-4.0, -1.0), st.floats(0.0, 1.5)), max_size=4), top=st.integers(1, 5))
-def test_the_rule_on_any_counts(islands, top):
-    """Counts made of islands [10^x, 10^(x+w)] (degrees) where enough six-bars meet: the band
-    found meets; no ladder rung tighter than it does; a failing probe lies within a factor
-    RESOLUTION below it; with no island the search says none."""
-    request = dataclasses.replace(RPR_60, top=top)
-    need = needed(request)
-
-    def met(b: float) -> int:
-        return need if any(10**x <= b <= 10 ** (x + w) for x, w in islands) else need - 1
-
-    count, _ = _counts(met)
-    band, probes = tightest_band(request, count)
-    rungs = [float(r) for r in ladder(request.band, FLOOR)]
-    if band is None:
-        assert all(met(math.degrees(r)) < need for r in rungs)
-        return
-    assert met(math.degrees(band)) >= need
-    assert all(met(math.degrees(r)) < need for r in rungs if r < band * (1 - 1e-9))
-    below = [p.band for p in probes if p.band < band]
-    assert not below or band / max(below) <= RESOLUTION * (1 + 1e-9)
-    assert below or band == pytest.approx(FLOOR)
+def test_stiller_rests_are_stiller_and_keep_every_other_constraint(source):
+    """The search's stillest-rest step (``refine.stiller``) on the pool's four stillest
+    six-bars: every six-bar it moves still meets every band-free constraint and its rest needs
+    a band no wider than before (a run of dwell − tol on the grid); most get markedly stiller."""
+    request = dataclasses.replace(RPR_60, refine=True)
+    still, figures = still_six_bars(request, pool(request, source))
+    order = sorted(range(len(still)), key=lambda i: still[i].lowest)[:4]
+    at = dataclasses.replace(request, band=still[order[0]].lowest)
+    moved = stiller(at, [still[i].sixbar for i in order], [figures[i] for i in order])
+    changed = [(still[i], sb) for i, sb in zip(order, moved) if sb is not still[i].sixbar]
+    assert len(changed) >= 3
+    kept, _ = still_six_bars(request, [s.fitted for s, _ in changed], [sb for _, sb in changed], moved=True)
+    assert len(kept) == len(changed)
+    before = np.array([s.lowest for s, _ in changed])
+    after, _ = dwell_bands(request, [sb for _, sb in changed])
+    assert np.all(after <= before * 1.001) and np.count_nonzero(after < 0.8 * before) >= 2
