@@ -98,6 +98,11 @@ LADDER = 6
 STILLER = 8
 #: Bands the sweep checks with exact figures at most.
 CHECKS = 40
+#: Rounds of refinement toward a tighter band, the first step down (a factor) and the factor
+#: between a band missed and one met at which the rounds stop.
+ROUNDS = 3
+STEP = 2.5
+RESOLUTION = 1.5
 #: The band every candidate's dwell is also reported at (rad): the query's default, 0.1°.
 REFERENCE_BAND = math.radians(0.1)
 #: A six-bar's own band is checked this much wider (a fraction) than measured on the grid: ψ
@@ -329,17 +334,9 @@ def answer_tightest(
     chosen = _stillest(still, STILLER) if request.refine else []
     moved = _made_stiller(request, [still[i] for i in chosen], [figures[i] for i in chosen])
     band, met, probes = sweep(request, [*still, *moved], floor)
-    target = _target(request, [*still, *moved], floor)
-    if chosen and target is not None and (band is None or target < band):
-        # the rests moved to their stillest are as a rule too long at one another's bands:
-        # the chosen are refined toward one band, the one the stiller rests show is near
-        starts = _stillest_versions([still[i] for i in chosen], moved)
-        reached = _reached(dataclasses.replace(request, band=target), starts)
-        tighter, meeting, more = sweep(request, [*still, *moved, *reached], floor)
+    if chosen:
+        band, met, more, moved = _descend(request, still, moved, band, met, floor)
         probes += more
-        moved = [*moved, *reached]
-        if tighter is not None and (band is None or tighter < band):
-            band, met = tighter, meeting
     final = request if band is None else dataclasses.replace(request, band=band)
     respond = answer_at or (lambda r, seeded=(): answer(r, source, seeded=seeded))
     result = respond(final, seeded=met)
@@ -365,6 +362,44 @@ def _made_stiller(
     return still_six_bars(request, [f for f, _ in changed], [sb for _, sb in changed], moved=True)[0]
 
 
+def _descend(
+    request: Request,
+    still: list[StillSixBar],
+    moved: list[StillSixBar],
+    band: float | None,
+    met: list[Candidate],
+    floor: float,
+) -> tuple[float | None, list[Candidate], tuple[BandProbe, ...], list[StillSixBar]]:
+    """At most :data:`ROUNDS` rounds of the :data:`STILLER` stillest distinct six-bars found so
+    far (each in its stillest version) refined toward a target band below ``band`` (the one
+    reached, rad; None: none yet), each round followed by a sweep of everything found: the
+    first target is the tighter of the band the stiller rests show (:func:`_target`) and
+    ``band`` / :data:`STEP`; a target met is stepped below again, one missed is bisected (on a
+    log scale) with the band reached. Returns the band reached, the six-bars met there, the
+    bands checked and every six-bar moved."""
+    probes: tuple[BandProbe, ...] = ()
+    ceiling = request.band if band is None else band
+    target = min(_target(request, [*still, *moved], floor) or ceiling, ceiling / STEP)
+    missed = None
+    for _ in range(ROUNDS):
+        if target < floor or (missed is not None and ceiling / missed < RESOLUTION):
+            break
+        starts = _stillest_versions(still, moved)
+        reached = _reached(dataclasses.replace(request, band=target), starts)
+        moved = [*moved, *reached]
+        tighter, meeting, more = sweep(request, [*still, *moved], floor)
+        probes += more
+        if tighter is not None and (band is None or tighter < band):
+            band, met = tighter, meeting
+        if band is not None and band <= target * (1 + _OWN_BAND_MARGIN):
+            ceiling = band
+            target = ceiling / STEP if missed is None else math.sqrt(missed * ceiling)
+        else:
+            missed = target
+            target = math.sqrt(missed * ceiling)
+    return band, met, probes, moved
+
+
 def _target(request: Request, still: Sequence[StillSixBar], floor: float) -> float | None:
     """The band (rad) the :func:`needed`-th stillest distinct six-bar of ``still`` rests within
     (its own band and the margin), not below ``floor``; None if there are fewer."""
@@ -374,12 +409,15 @@ def _target(request: Request, still: Sequence[StillSixBar], floor: float) -> flo
     return max(floor, max(still[i].lowest for i in chosen) * (1 + _OWN_BAND_MARGIN))
 
 
-def _stillest_versions(chosen: Sequence[StillSixBar], moved: Sequence[StillSixBar]) -> list[StillSixBar]:
-    """Each of ``chosen``, or its version in ``moved`` (the same fit) where that one is stiller."""
-    by_fit = {m.fitted.key: m for m in moved}
-    return [
-        by_fit[s.fitted.key] if s.fitted.key in by_fit and by_fit[s.fitted.key].lowest < s.lowest else s for s in chosen
-    ]
+def _stillest_versions(still: Sequence[StillSixBar], moved: Sequence[StillSixBar]) -> list[StillSixBar]:
+    """The :data:`STILLER` stillest distinct six-bars among ``still`` and ``moved`` (one per fit:
+    the stillest of its versions)."""
+    best: dict[tuple, StillSixBar] = {}
+    for s in [*still, *moved]:
+        if s.fitted.key not in best or s.lowest < best[s.fitted.key].lowest:
+            best[s.fitted.key] = s
+    versions = list(best.values())
+    return [versions[i] for i in _stillest(versions, STILLER)]
 
 
 def _reached(at: Request, starts: Sequence[StillSixBar]) -> list[StillSixBar]:
