@@ -281,17 +281,24 @@ def answer_tightest(engine, request: Request, *, workers: int = 1, cluster: Dask
     """:func:`synth.query.band_search.answer_tightest` on the atlas behind ``engine``: the band
     measured on the six-bars of the sample at bands down to 1e-4° (and those moved to stiller
     rests), the request answered at the band reached as :func:`answer` answers it (a complete
-    search with its progress bar, on ``workers`` or ``cluster``), with the six-bars met there."""
+    search with its progress bar, on ``workers`` or ``cluster``), with the six-bars met there.
+    Its steps on one progress line (a terminal; a complete search's status in a log)."""
+    from cli.process import answering
+    from cli.progress import Progress, SearchBar
     from db.queries import AtlasSource
+    from synth.query import answer as answer_
     from synth.query.band_search import answer_tightest as answer_tightest_
 
-    return answer_tightest_(
-        request,
-        AtlasSource(engine),
-        answer_at=lambda r, seeded=(): answer(
-            engine, r, progress=None, workers=workers, cluster=cluster, seeded=seeded
-        ),
-    )
+    source = AtlasSource(engine)
+    with answering(), Progress("query", terminal=None, log=request.complete) as shown:
+        return answer_tightest_(
+            request,
+            source,
+            answer_at=lambda r, seeded=(): answer_(
+                r, source, on_progress=SearchBar(progress=shown), map_batches=batch_map(workers, cluster), seeded=seeded
+            ),
+            on_stage=shown.stage,
+        )
 
 
 def tighter_band(engine, result: QueryResult):

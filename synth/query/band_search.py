@@ -320,6 +320,7 @@ def answer_tightest(
     *,
     answer_at: Callable[..., QueryResult] | None = None,
     floor: float = FLOOR,
+    on_stage: Callable[[str], None] | None = None,
 ) -> BandAnswer:
     """``request`` answered at the tightest band it can be met at (the module docstring),
     searched from ``request.band`` down to ``floor`` (rad), or at ``request.band`` if no band
@@ -327,17 +328,22 @@ def answer_tightest(
 
     ``answer_at(request, seeded=…)`` answers the final request (default
     :func:`synth.query.answer` on ``source``; a caller passes its own to add a progress bar or
-    worker processes to a complete search).
+    worker processes to a complete search). ``on_stage(text)`` is told each step as it starts.
     """
+    tell = on_stage or (lambda text: None)
+    tell("band auto: fitting the sample at bands down to 1e-4°")
     fitted = pool(request, source, floor)
     still, figures = still_six_bars(request, fitted)
     chosen = _stillest(still, STILLER) if request.refine else []
+    if chosen:
+        tell("band auto: moving the stillest rests stiller")
     moved = _made_stiller(request, [still[i] for i in chosen], [figures[i] for i in chosen])
     band, met, probes = sweep(request, [*still, *moved], floor)
     if chosen:
-        band, met, more, moved = _descend(request, still, moved, band, met, floor)
+        band, met, more, moved = _descend(request, still, moved, band, met, floor, tell)
         probes += more
     final = request if band is None else dataclasses.replace(request, band=band)
+    tell(f"band auto: answering at {math.degrees(final.band):.3g}°")
     respond = answer_at or (lambda r, seeded=(): answer(r, source, seeded=seeded))
     result = respond(final, seeded=met)
     return BandAnswer(
@@ -369,6 +375,7 @@ def _descend(
     band: float | None,
     met: list[Candidate],
     floor: float,
+    tell: Callable[[str], None],
 ) -> tuple[float | None, list[Candidate], tuple[BandProbe, ...], list[StillSixBar]]:
     """At most :data:`ROUNDS` rounds of the :data:`STILLER` stillest distinct six-bars found so
     far (each in its stillest version) refined toward a target band below ``band`` (the one
@@ -376,7 +383,7 @@ def _descend(
     first target is the tighter of the band the stiller rests show (:func:`_target`) and
     ``band`` / :data:`STEP`; a target met is stepped below again, one missed is bisected (on a
     log scale) with the band reached. Returns the band reached, the six-bars met there, the
-    bands checked and every six-bar moved."""
+    bands checked and every six-bar moved; ``tell`` is told each round's target."""
     probes: tuple[BandProbe, ...] = ()
     ceiling = request.band if band is None else band
     target = min(_target(request, [*still, *moved], floor) or ceiling, ceiling / STEP)
@@ -384,6 +391,7 @@ def _descend(
     for _ in range(ROUNDS):
         if target < floor or (missed is not None and ceiling / missed < RESOLUTION):
             break
+        tell(f"band auto: refining the stillest toward {math.degrees(target):.3g}°")
         starts = _stillest_versions(still, moved)
         reached = _reached(dataclasses.replace(request, band=target), starts)
         moved = [*moved, *reached]
