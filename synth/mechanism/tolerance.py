@@ -334,18 +334,21 @@ def _window_deviations(
         i_lo = np.ceil((c - length) / h - 1e-9).astype(np.int64)
         span = np.floor(c / h + 1e-9).astype(np.int64) - i_lo + 1
         J = int(span.max())
-        W = J + nL + 4
-        # the draws' frames turn by |β| ≲ t/d: their slabs share one grid (its sines and cosines
-        # made once), each read from its own first sample i_lo − 1
+        # the draws' frames turn by |β| ≲ t/d: their samples share one grid from sample
+        # `first` on (its sines and cosines made once), and every draw reads it as its slab,
+        # draw r's from column i_lo − 1 − first: its starts j are columns off + j
         first = int(i_lo.min()) - 1
-        shared = (first + np.arange(int(i_lo.max()) - first - 1 + W)) * h
-        psi = output_angles(params, rpr, shared[None, :], PIN_ON_PIVOT_EPS)
-        slab = np.ascontiguousarray(psi[rows[:, None], (i_lo - 1 - first)[:, None] + np.arange(W)[None, :]])
-        # the window from sample i_lo + j (slab offset 1 + j) holds nL + 1 samples
-        top, bottom = sliding_extremes(slab, 1, J, np.full(n, nL + 1))
-        grid_range = np.where(np.arange(J)[None, :] < span[:, None], top - bottom, math.inf)
+        off = i_lo - 1 - first
+        spread = int(off.max())
+        shared = (first + np.arange(spread + J + nL + 4)) * h
+        slab = output_angles(params, rpr, shared[None, :], PIN_ON_PIVOT_EPS)
+        # the window from column 1 + j holds nL + 1 samples
+        top, bottom = sliding_extremes(slab, 1, spread + J, np.full(n, nL + 1))
+        j = np.arange(spread + J)[None, :]
+        grid_range = np.where((j >= off[:, None]) & (j < (off + span)[:, None]), top - bottom, math.inf)
         jbest = np.argmin(grid_range, axis=1)
         dev = grid_range[rows, jbest]
+        i_lo = np.full(n, first + 1)
         windows.append((slab, i_lo, jbest, c, dev))
     out = np.empty(n)
     todo = rows
