@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import synth.mechanism.tolerance as tolerance_module
-from synth.mechanism import dwell_ends_kernel, tolerance_kernel
+from synth.mechanism import dwell_ends_kernel, sixbar_kernel, tolerance_kernel
 from synth.mechanism.figures import sixbar_figures
 from synth.mechanism.output_range import output_deviation
 from synth.mechanism.sixbar import ExactOutput, OutputDyad, SixBar, crank_grid, simulate
@@ -96,7 +96,7 @@ def _brute_force(sb: SixBar, tol: float, centres: list[float], length: float, dr
     return np.array(out)
 
 
-@pytest.mark.parametrize("sb, dwell_deg", [(RRR, 60.0), (RPR, 45.0)])
+@pytest.mark.parametrize("sb, dwell_deg", [(RRR, 60.0), (RPR, 45.0), (RPR_LONG, 135.0), (RRR_LONG, 120.0)])
 def test_draws_match_a_plain_loop_over_the_same_draws(sb, dwell_deg):
     length = math.radians(dwell_deg)
     centres = _centres(sb, length)
@@ -114,6 +114,47 @@ def test_draws_match_a_plain_loop_over_the_same_draws(sb, dwell_deg):
     # the tolerance moves the rest: the draws spread, and some rest worse than the drawing
     nominal = max(sixbar_figures(sb, band=BAND, dwell_length=length).deviations)
     assert batch.max() > nominal * 1.05 and batch.std() > 0
+
+
+@pytest.mark.parametrize(
+    "sb, dwell_deg, zone, redone",
+    [(RPR_LONG, 135.0, 1, (64, 64)), (RRR_LONG, 120.0, 2, (2, 63)), (RRR_LONG, 120.0, 0, (64, 64))],
+)
+def test_windows_sampled_near_the_first_draws_best_are_those_sampled_whole(monkeypatch, sb, dwell_deg, zone, redone):
+    # a long dwell's draws are sampled every step only near the first draw's best window
+    # start (ZONE steps either side); a zone too narrow for some draws (measured: 19 of 64 at
+    # 2 steps for this RRR) or for all of them sends those back to every sample: the same
+    # figures either way
+    length = math.radians(dwell_deg)
+    centres = _centres(sb, length)
+    whole_grid, rows_sampled_whole = {}, {}
+    real = sixbar_kernel.output_angles
+
+    def spy(params, rpr, phi, eps):
+        if phi.shape[1] == widest[0]:
+            rows_sampled_whole[name] += len(params)
+        return real(params, rpr, phi, eps)
+
+    monkeypatch.setattr(sixbar_kernel, "output_angles", spy)
+    for name, steps in [("zone", tolerance_module.ZONE), ("narrow", zone), ("whole", 10_000)]:
+        monkeypatch.setattr(tolerance_module, "ZONE", steps)
+        widest, rows_sampled_whole[name] = [0], 0
+        real_window = tolerance_module._window_samples
+
+        def window(params, rpr, phi, *rest):
+            widest[0] = len(phi)
+            return real_window(params, rpr, phi, *rest)
+
+        monkeypatch.setattr(tolerance_module, "_window_samples", window)
+        whole_grid[name] = deviation_draws(sb, 0.05 / 40, centres, length, draws=64)
+        monkeypatch.setattr(tolerance_module, "_window_samples", real_window)
+    # the first draw sampled whole, then: none, some, every one again
+    assert rows_sampled_whole["zone"] == 1
+    assert redone[0] <= rows_sampled_whole["narrow"] - 1 <= redone[1]
+    assert rows_sampled_whole["whole"] == 1 + 64
+    # ψ summed over other samples rounds differently in the last bits
+    np.testing.assert_allclose(whole_grid["zone"], whole_grid["whole"], rtol=0, atol=1e-13)
+    np.testing.assert_allclose(whole_grid["narrow"], whole_grid["whole"], rtol=0, atol=1e-13)
 
 
 def test_zero_tolerance_is_the_nominal_deviation():
