@@ -416,15 +416,18 @@ def _window_samples(
         best = np.argmin(grid_range, axis=1)
         return psi, best, grid_range[np.arange(len(lo)), best]
 
+    fine = 2 * ZONE + nL + 12  # samples taken every step
+    if fine + (G - fine) / OUTSIDE_STEP > 0.8 * G:  # little to save: every sample
+        return whole(params, rpr, low_start, high_start)
     _, j0, _ = whole(params[:1], rpr[:1], low_start[:1], high_start[:1])
     zs, ze = 1 + int(j0[0]) - ZONE, 1 + int(j0[0]) + ZONE
     fine_lo, fine_hi = zs - 5, ze + nL + 6
+    if fine_lo < 0 or fine_hi >= G:  # the zone runs off the samples
+        return whole(params, rpr, low_start, high_start)
     lattice = np.arange(fine_lo % OUTSIDE_STEP, G, OUTSIDE_STEP)
     taken = np.zeros(G, bool)
     taken[lattice] = True
-    taken[max(fine_lo, 0) : fine_hi + 1] = True
-    if fine_lo < 0 or fine_hi >= G or taken.sum() > 0.8 * G:  # little to save: every sample
-        return whole(params, rpr, low_start, high_start)
+    taken[fine_lo : fine_hi + 1] = True
     cols = np.flatnonzero(taken)
     slab = np.full((n, G), math.nan)
     slab[:, cols] = output_angles(params, rpr, phi[cols][None, :], PIN_ON_PIVOT_EPS)
