@@ -3,7 +3,8 @@
 simulated and measured as one batch) per candidate — min/median/max over ``--repeat`` runs,
 the process's CPU time (every thread's), beside the wall time and the whole-turn reference
 path's cost and figure — and how far its 95th percentile moves with the seed of the draws
-(the estimate's own error).
+(the estimate's own error). With ``--answers``, the same for every candidate of query
+answers (each timed ``--repeat`` times, its median), over all and per answers file.
 
 The six-bars are the demo's best RRR 60°/30° and RPR 45°/40° answers (crank 1); the default
 tolerance is 0.05 on a crank of 40 (``--tolerance 0.05 --crank 40``).
@@ -53,7 +54,8 @@ TARGET_S = 0.005
     "--answers",
     multiple=True,
     type=click.Path(exists=True, dir_okay=False),
-    help="Also every candidate of these `dwell query --json` files: the figure against the whole-turn path's.",
+    help="Also every candidate of these `dwell query --json` files: its cost (median of --repeat runs) and "
+    "its figure against the whole-turn path's.",
 )
 @click.option("--repeat", default=9, show_default=True, type=click.IntRange(1, 100), help="Timed runs per six-bar.")
 @click.option(
@@ -118,7 +120,7 @@ def tolerance(draws: int, tolerance: float, answers: tuple[str, ...], repeat: in
         "tolerance_cranks": tolerance,
         "target_cpu_ms_per_candidate_at_256": TARGET_S * 1e3,
         "results": results,
-        **({"answers": _answers(given, tolerance, draws)} if answers else {}),
+        **({"answers": _answers(given, tolerance, draws, repeat)} if answers else {}),
         "platform": machine_facts(),
     }
     click.echo(json.dumps(doc, indent=1))
@@ -140,10 +142,10 @@ def _spread(seconds: list[float]) -> dict[str, float]:
     return {"min": 1e3 * min(seconds), "median": 1e3 * float(np.median(seconds)), "max": 1e3 * max(seconds)}
 
 
-def _read_answers(paths: tuple[str, ...]) -> list[tuple[SixBar, list[float], float]]:
-    """Each candidate of the query answers ``paths`` (``dwell query --json``) as (six-bar in
-    its file's unit, dwell middles in rad, requested dwell in rad); a file that is not one is
-    the user's error, before anything is run."""
+def _read_answers(paths: tuple[str, ...]) -> list[tuple[str, SixBar, list[float], float]]:
+    """Each candidate of the query answers ``paths`` (``dwell query --json``) as (its file,
+    six-bar in its file's unit, dwell middles in rad, requested dwell in rad); a file that is
+    not one is the user's error, before anything is run."""
     from report.candidate_json import sixbar_from_json
 
     out = []
@@ -154,7 +156,7 @@ def _read_answers(paths: tuple[str, ...]) -> list[tuple[SixBar, list[float], flo
             length = math.radians(float(doc["request"]["dwell_deg"]))
             for c in doc["candidates"]:
                 centres = [math.radians(float(d["interval_deg"][0]) + 0.5 * float(d["dwell_deg"])) for d in c["dwells"]]
-                out.append((sixbar_from_json(c), centres, length))
+                out.append((path, sixbar_from_json(c), centres, length))
         except (OSError, UnicodeDecodeError, ValueError, KeyError, IndexError, TypeError) as exc:
             raise InputError(
                 f"--answers {path!r}: not the JSON of `dwell query --json` ({type(exc).__name__})"
@@ -162,32 +164,54 @@ def _read_answers(paths: tuple[str, ...]) -> list[tuple[SixBar, list[float], flo
     return out
 
 
-def _answers(answers: list[tuple[SixBar, list[float], float]], tolerance: float, draws: int) -> dict:
+def _answers(answers: list[tuple[str, SixBar, list[float], float]], tolerance: float, draws: int, repeat: int) -> dict:
     """Each candidate of ``answers`` (:func:`_read_answers`): its toleranced deviation
-    (``tolerance`` cranks, its CPU time) against the whole-turn path's (its CPU time),
-    summarised."""
+    (``tolerance`` cranks; its CPU time, the median of ``repeat`` runs) against the whole-turn
+    path's (one run's CPU time), summarised over all and per file."""
     from synth.mechanism.tolerance import clear_of_limits, deviation_draws, toleranced_deviation
 
-    diff, rel, cpu, turn_cpu, windows = [], [], [], [], 0
-    for sb, centres, length in answers:
+    rows = []
+    for path, sb, centres, length in answers:
         t = tolerance * sb.a
-        windows += clear_of_limits(sb, t)
         value, seconds = _timed_value(lambda: toleranced_deviation(sb, t, centres, length, draws=draws))
+        if repeat > 1:
+            cpu, _ = _timed(lambda: toleranced_deviation(sb, t, centres, length, draws=draws), repeat)
+            seconds = float(np.median(cpu))
         turn, turn_seconds = _timed_value(lambda: deviation_draws(sb, t, centres, length, draws=draws, whole_turn=True))
-        cpu.append(seconds)
-        turn_cpu.append(turn_seconds)
         reference = float(np.percentile(turn, 95.0)) if np.isfinite(turn).all() else None
-        if value is not None and reference is not None:
-            diff.append(abs(math.degrees(value - reference)))
-            rel.append(abs(value - reference) / reference)
+        both = value is not None and reference is not None
+        rows.append(
+            {
+                "file": path,
+                "dwell_deg": math.degrees(length),
+                "windows": clear_of_limits(sb, t),
+                "cpu": seconds,
+                "turn_cpu": turn_seconds,
+                "diff": abs(math.degrees(value - reference)) if both else None,
+                "rel": abs(value - reference) / reference if both else None,
+            }
+        )
     return {
-        "candidates": len(cpu),
-        "dwell_windows_only": windows,
+        **_summary(rows),
+        "per_file": [
+            {"file": f, **_summary([r for r in rows if r["file"] == f])} for f in dict.fromkeys(r["file"] for r in rows)
+        ],
+    }
+
+
+def _summary(rows: list[dict]) -> dict:
+    """The figures of :func:`_answers` over ``rows``."""
+    diff = [r["diff"] for r in rows if r["diff"] is not None]
+    rel = [r["rel"] for r in rows if r["rel"] is not None]
+    return {
+        "candidates": len(rows),
+        "dwell_deg": sorted({round(r["dwell_deg"], 6) for r in rows}),
+        "dwell_windows_only": sum(r["windows"] for r in rows),
         "largest_difference_deg": max(diff, default=None),
         "median_difference_deg": float(np.median(diff)) if diff else None,
         "largest_relative_difference": max(rel, default=None),
-        "cpu_ms_per_candidate": _spread(cpu) if cpu else None,
-        "whole_turn_cpu_ms_per_candidate": _spread(turn_cpu) if turn_cpu else None,
+        "cpu_ms_per_candidate": _spread([r["cpu"] for r in rows]) if rows else None,
+        "whole_turn_cpu_ms_per_candidate": _spread([r["turn_cpu"] for r in rows]) if rows else None,
     }
 
 

@@ -31,13 +31,13 @@ then every draw assembles over the whole turn and its output rocks as the drawin
 ψ is needed only where a window of the requested length containing the dwell middle can lie,
 sampled every 2° and refined on the exact path (:func:`_window_deviations`); for the
 percentile alone, only the draws whose bounds leave them able to be its order statistics are
-refined (the same number as refining all). The bounds come from the samples: first the
-window's sample extremes; where those leave more than :data:`CLOSER_BOUNDS` draws open (a
-six-bar whose draws spread less than a grid step moves ψ), the refinement's two stages
-followed on a cubic interpolation of the samples, whose error a fourth difference bounds
-(:func:`_refined_bounds`: ~1e-4° wide, a few draws left to refine). That is ~70 exact
-points a draw for a 60° dwell, plus 36 for a draw refined, instead of a 720-sample turn plus
-~100 refinement points.
+refined (the same number as refining all). The bounds come from the samples, in one compiled
+pass (:func:`synth.mechanism.tolerance_kernel.window_bounds`): the window's sample extremes
+(~0.02° wide), and the refinement's two stages followed on a cubic interpolation of the
+samples, whose error a fourth difference bounds (~5e-5° wide); 2–5 draws are left to refine.
+That is ~65 exact points a draw for a 60° dwell (~105 for 135°, the draws sampled every 2°
+only near the first draw's best window, :func:`_window_samples`), plus 36 for a draw refined,
+instead of a 720-sample turn plus ~100 refinement points.
 Measured against the whole-turn path on the answers of eight requests on ``standard`` (80
 six-bars, docs/tolerance.md), the 95th percentile moves by at most 0.0006° (0.6 %), well
 inside its spread between seeds.
@@ -103,14 +103,15 @@ REFINE_POINTS = 8
 FINE_POINTS = 8
 #: Crank samples of the test that no draw meets a limit (:func:`clear_of_limits`).
 LIMIT_SAMPLES = 90
-#: How many times the larger nearby fourth difference of the samples the bounds allow for
-#: ψ⁽⁴⁾h⁴ between samples (:func:`_cubic`): ψ is smooth and slowly varying wherever
-#: :func:`clear_of_limits` holds.
+#: Grid steps either side of the first draw's best window start within which every draw's
+#: best start is looked for on samples taken every step (:func:`_window_samples`).
+ZONE = 8
+#: Grid steps between the samples taken elsewhere, which show a start there worse.
+OUTSIDE_STEP = 4
+#: How many times the larger nearby fourth difference of the samples the interpolated bounds
+#: allow for ψ⁽⁴⁾h⁴ between samples (:mod:`synth.mechanism.tolerance_kernel`): ψ is smooth and
+#: slowly varying wherever :func:`clear_of_limits` holds.
 SAFETY = 4.0
-#: Draws left undecided by the grid's bounds above which the interpolated bounds
-#: (:func:`_refined_bounds`, ~40 array operations whatever the count) cost less than refining
-#: them (~4 µs a draw).
-CLOSER_BOUNDS = 96
 
 
 @functools.lru_cache(maxsize=8)
@@ -316,66 +317,47 @@ def _window_deviations(
     the best sample start is found from sliding extremes of the samples, then refined on the
     exact path in two stages of ``REFINE_POINTS`` and ``FINE_POINTS`` points
     (:func:`synth.mechanism.dwell_ends_kernel.refine_deviation_windows`). ψ is sampled from
-    c − L to c + L only, on one grid the draws share.
+    c − L to c + L only, on one grid the draws share, and every step only near the first
+    draw's best window (:func:`_window_samples`).
 
     With ``percentile`` (%), only the draws that can decide that percentile are refined
-    (:func:`deciding_draws`, on the samples' bounds, then on :func:`_refined_bounds` where
-    those leave more than :data:`CLOSER_BOUNDS` open); the others get a bound on their side of
+    (:func:`deciding_draws`, on the bounds of
+    :func:`synth.mechanism.tolerance_kernel.window_bounds`); the others get a bound on their side of
     it, so the percentile (numpy's linear interpolation) is the one of every draw refined, and
     the array is good for nothing else."""
     from synth.mechanism.dwell_ends_kernel import refine_deviation_windows  # numba: imported on first use
-    from synth.mechanism.sample_ranges import sliding_extremes  # numba: imported on first use
-    from synth.mechanism.sixbar_kernel import output_angles  # numba: imported on first use
+    from synth.mechanism.tolerance_kernel import window_bounds  # numba: imported on first use
 
     n = len(batch)
     params, rpr = kernel_inputs(batch)
     h = 2 * math.pi / WINDOW_SAMPLES
     nL = int(math.floor(length / h + 1e-9))  # samples i..i+nL lie in [φ_i, φ_i + L]
     rows = np.arange(n)
-    upper, lower = np.zeros(n), np.zeros(n)
     windows = []
     for centre in centres:
         c = np.mod(float(centre) - beta, 2 * math.pi)  # the dwell middle in each draw's frame
         i_lo = np.ceil((c - length) / h - 1e-9).astype(np.int64)
         span = np.floor(c / h + 1e-9).astype(np.int64) - i_lo + 1
         J = int(span.max())
-        W = J + nL + 4
-        # the draws' frames turn by |β| ≲ t/d: their slabs share one grid (its sines and cosines
-        # made once), each read from its own first sample i_lo − 1
+        # the draws' frames turn by |β| ≲ t/d: their samples share one grid from sample
+        # `first` on (its sines and cosines made once), and every draw reads it as its slab,
+        # draw r's from column i_lo − 1 − first: its starts j are columns off + j
         first = int(i_lo.min()) - 1
-        shared = (first + np.arange(int(i_lo.max()) - first - 1 + W)) * h
-        psi = output_angles(params, rpr, shared[None, :], PIN_ON_PIVOT_EPS)
-        slab = np.ascontiguousarray(psi[rows[:, None], (i_lo - 1 - first)[:, None] + np.arange(W)[None, :]])
-        # the window from sample i_lo + j (slab offset 1 + j) holds nL + 1 samples
-        top, bottom = sliding_extremes(slab, 1, J, np.full(n, nL + 1))
-        grid_range = np.where(np.arange(J)[None, :] < span[:, None], top - bottom, math.inf)
-        jbest = np.argmin(grid_range, axis=1)
-        dev = grid_range[rows, jbest]
-        # The refinement's figure lies within the window's grid extremes: above the range of
-        # the samples every refined window holds (one step after the grid start to one step
-        # before its end), below that of the samples over [s, s + L] from the grid start s
-        # (one more sample where L is not a whole number of steps), widened by how far ψ can
-        # rise between two samples (an eighth of the largest second difference there).
-        reach = nL + 1 + (nL * h < length - 1e-12)
-        held = slab.ravel().take((W * rows + jbest + 1)[:, None] + np.arange(reach)[None, :])
-        bend = np.abs(np.diff(held, 2, axis=1)).max(axis=1, initial=0.0) / 8
-        inner = held[:, 1 : max(nL, 1)]
-        floor = inner.max(axis=1) - inner.min(axis=1) if nL >= 2 else np.zeros(n)
-        upper = np.maximum(upper, held.max(axis=1) - held.min(axis=1) + 2 * bend)
-        lower = np.maximum(lower, np.minimum(floor, dev))
+        off = i_lo - 1 - first
+        shared = (first + np.arange(int(off.max()) + J + nL + 4)) * h
+        slab, jbest, dev = _window_samples(params, rpr, shared, off, span, nL)
+        i_lo = np.full(n, first + 1)
         windows.append((slab, i_lo, jbest, c, dev))
-    out = upper
+    out = np.empty(n)
     todo = rows
     if percentile is not None:
-        need, out = deciding_draws(lower, upper, percentile)
-        if need.sum() > CLOSER_BOUNDS:  # the grid's bounds decide too few: interpolate
-            sub = np.flatnonzero(need)
-            low, high = np.zeros(len(sub)), np.zeros(len(sub))
-            for slab, i_lo, jbest, c, _ in windows:
-                lo_c, hi_c = _refined_bounds(slab[sub], i_lo[sub], jbest[sub] + 1, nL, float(length), c[sub], h)
-                low, high = np.maximum(low, lo_c), np.maximum(high, hi_c)
-            lower[sub], upper[sub] = np.maximum(lower[sub], low), np.minimum(upper[sub], high)
-            need, out = deciding_draws(lower, upper, percentile)
+        # each draw's refined figure, bounded from its samples (synth.mechanism.tolerance_kernel)
+        lower, upper, low, high = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
+        for slab, i_lo, jbest, c, dev in windows:
+            bounds = window_bounds(slab, i_lo, jbest + 1, nL, length, c, dev, h, SAFETY, REFINE_POINTS, FINE_POINTS)
+            lower, upper = np.maximum(lower, bounds[0]), np.maximum(upper, bounds[1])
+            low, high = np.maximum(low, bounds[2]), np.maximum(high, bounds[3])
+        need, out = deciding_draws(np.maximum(lower, low), np.minimum(upper, high), percentile)
         todo = np.flatnonzero(need)
     worst = np.zeros(len(todo))
     for slab, i_lo, jbest, c, dev in windows:
@@ -402,6 +384,74 @@ def _window_deviations(
     return out
 
 
+def _window_samples(
+    params: F64, rpr: NDArray[np.bool_], phi: F64, off: NDArray[np.int64], span: NDArray[np.int64], nL: int
+) -> tuple[F64, NDArray[np.int64], F64]:
+    """ψ (rad) of each draw on the crank grid ``phi`` (rad, step h, shared by the draws) where
+    its windows of ``nL + 1`` samples can start at columns 1 + off + j, j < ``span`` (per draw),
+    the best start (a window from column 1 + jbest) and that window's range (rad).
+
+    The draws are near one another: the first's best start a₀ is found on all its samples, and
+    the others are sampled every step only where a best start within :data:`ZONE` steps of a₀
+    reads its samples (from 5 steps before the start to 6 after its window's end, as the
+    refinement and its bounds do), and every :data:`OUTSIDE_STEP` steps elsewhere. A start
+    outside the zone must be shown worse than the best inside by the every-4th samples its
+    window holds ((nL + 1) // 4 of them from the first at or after it); a draw where one is not
+    is sampled whole, as the first is, and its best start taken among all. Samples not taken
+    (never read) are NaN. ψ is summed along each row over the samples taken, so the same draws
+    give the same samples whatever else is in the batch."""
+    from synth.mechanism.sample_ranges import sliding_extremes  # numba: imported on first use
+    from synth.mechanism.sixbar_kernel import output_angles  # numba: imported on first use
+
+    n, G = len(off), len(phi)
+    rows = np.arange(n)
+    low_start, high_start = 1 + off, off + span  # columns of each draw's allowed starts
+
+    def whole(params: F64, rpr: NDArray[np.bool_], lo: NDArray[np.int64], hi: NDArray[np.int64]):
+        psi = output_angles(params, rpr, phi[None, :], PIN_ON_PIVOT_EPS)
+        count = int(hi.max())
+        top, bottom = sliding_extremes(psi, 1, count, np.full(len(lo), nL + 1))
+        s = 1 + np.arange(count)
+        grid_range = np.where((s >= lo[:, None]) & (s <= hi[:, None]), top - bottom, math.inf)
+        best = np.argmin(grid_range, axis=1)
+        return psi, best, grid_range[np.arange(len(lo)), best]
+
+    fine = 2 * ZONE + nL + 12  # samples taken every step
+    if fine + (G - fine) / OUTSIDE_STEP > 0.8 * G:  # little to save: every sample
+        return whole(params, rpr, low_start, high_start)
+    _, j0, _ = whole(params[:1], rpr[:1], low_start[:1], high_start[:1])
+    zs, ze = 1 + int(j0[0]) - ZONE, 1 + int(j0[0]) + ZONE
+    fine_lo, fine_hi = zs - 5, ze + nL + 6
+    if fine_lo < 0 or fine_hi >= G:  # the zone runs off the samples
+        return whole(params, rpr, low_start, high_start)
+    lattice = np.arange(fine_lo % OUTSIDE_STEP, G, OUTSIDE_STEP)
+    taken = np.zeros(G, bool)
+    taken[lattice] = True
+    taken[fine_lo : fine_hi + 1] = True
+    cols = np.flatnonzero(taken)
+    slab = np.full((n, G), math.nan)
+    slab[:, cols] = output_angles(params, rpr, phi[cols][None, :], PIN_ON_PIVOT_EPS)
+    top, bottom = sliding_extremes(slab, zs, 2 * ZONE + 1, np.full(n, nL + 1))
+    s = zs + np.arange(2 * ZONE + 1)
+    grid_range = np.where((s >= low_start[:, None]) & (s <= high_start[:, None]), top - bottom, math.inf)
+    k = np.argmin(grid_range, axis=1)
+    best = grid_range[rows, k]
+    width = (nL + 1) // OUTSIDE_STEP
+    high, low = sliding_extremes(np.ascontiguousarray(slab[:, lattice]), 0, len(lattice) - width + 1, np.full(n, width))
+    x = np.arange(int(low_start.min()), int(high_start.max()) + 1)
+    x = x[(x < zs) | (x > ze)]
+    at = np.searchsorted(lattice, x)
+    shown = at <= len(lattice) - width
+    at = np.minimum(at, len(lattice) - width)
+    outside = (x >= low_start[:, None]) & (x <= high_start[:, None])
+    worse = shown & (high[:, at] - low[:, at] > best[:, None])
+    redo = np.flatnonzero(~np.isfinite(best) | np.any(outside & ~worse, axis=1))
+    jbest = s[k] - 1
+    if len(redo):
+        slab[redo], jbest[redo], best[redo] = whole(params[redo], rpr[redo], low_start[redo], high_start[redo])
+    return slab, jbest, best
+
+
 def deciding_draws(lower: F64, upper: F64, percentile: float) -> tuple[NDArray[np.bool_], F64]:
     """Which draws, their exact figure known to lie in [lower, upper], can be one of the two
     order statistics numpy interpolates the ``percentile`` (%) between (positions ⌊p⌋ and
@@ -418,134 +468,3 @@ def deciding_draws(lower: F64, upper: F64, percentile: float) -> tuple[NDArray[n
     below = np.partition(lower, lo_k)[lo_k]
     above = np.partition(upper, hi_k)[hi_k]
     return (upper >= below) & (lower <= above), np.where(lower > above, lower, upper)
-
-
-def _cubic(flat: F64, row_start: NDArray[np.int64], at: F64) -> F64:
-    """ψ (rad) at fractional positions ``at`` ``(R, P)`` (or ``(1, P)``) along each row of
-    the samples, given as ``flat`` (rows laid end to end, row r's column 0 at ``row_start[r]``,
-    shape ``(R, 1)``): the cubic through the four nearest samples. Its error bound is
-    :func:`_error_bound`'s."""
-    whole = np.floor(at)
-    t = at - whole
-    a, b, c, d = t + 1, t, t - 1, t - 2  # t less each node m − 1 … m + 2: Lagrange's weights
-    m = row_start + whole.astype(np.int64)
-    ad, bc = a * d, b * c
-    value = (bc * d) * (-1 / 6) * flat.take(m - 1, mode="clip") + (a * c * d) * 0.5 * flat.take(m, mode="clip")
-    value += (ad * b) * (-0.5) * flat.take(m + 1, mode="clip")
-    return value + (a * bc) * (1 / 6) * flat.take(m + 2, mode="clip")
-
-
-def _error_bound(flat: F64, row_start: NDArray[np.int64], first: NDArray[np.int64]) -> F64:
-    """A bound (rad, ``(R,)``) of :func:`_cubic`'s error at positions whose cells start at
-    columns ``first[:, i]`` … ``first[:, i] + 3`` of each row (``(R, B)``: B such blocks).
-
-    Notes
-    -----
-    The cubic through samples m − 1 … m + 2 at m + t (0 ≤ t ≤ 1) is off by
-    ψ⁽⁴⁾(ξ) h⁴ (t + 1) t (t − 1) (t − 2) / 24, at most 9/16 · ψ⁽⁴⁾h⁴ / 24; ψ⁽⁴⁾h⁴ is taken as
-    :data:`SAFETY` times the largest fourth difference of the samples centred at m − 1 … m + 2
-    (the cubic's stencil and one more each side), plus 1e-13 rad for rounding."""
-    y = flat.take(row_start[:, :, None] + first[:, :, None] - 3 + np.arange(10)[None, None, :], mode="clip")
-    return SAFETY * (9 / 16) / 24 * np.abs(np.diff(y, 4)).max(axis=(1, 2)) + 1e-13
-
-
-def _window_ranges(starts: F64, ends: F64, top: F64, bottom: F64) -> F64:
-    """The refinement's range of each window of a stage ``(R, Q)``: window q holds the stage's
-    starts q … Q − 1 (ψ ``starts``), its ends 0 … q (``ends``) and points between whose
-    extremes are ``top``, ``bottom`` ``(R,)``."""
-    n = starts.shape[0]
-    both = np.concatenate([starts[:, ::-1], ends])  # suffixes of the starts as prefixes
-    high, low = np.maximum.accumulate(both, axis=1), np.minimum.accumulate(both, axis=1)
-    high = np.maximum(np.maximum(high[:n, ::-1], high[n:]), top[:, None])
-    return high - np.minimum(np.minimum(low[:n, ::-1], low[n:]), bottom[:, None])
-
-
-def _refined_bounds(
-    slab: F64, i_lo: NDArray[np.int64], k: NDArray[np.int64], nL: int, length: float, c: F64, h: float
-) -> tuple[F64, F64]:
-    """Bounds (rad) of what :func:`~synth.mechanism.dwell_ends_kernel.refine_deviation_windows`
-    returns for each row, from the samples alone: its two stages followed with ψ at the
-    window ends interpolated (:func:`_cubic`) instead of computed.
-
-    ``slab`` holds the refinement's samples (from i_lo − 1 on); ``k`` is
-    the best grid start's slab offset, ``nL`` the samples per grid window, ``length`` the
-    window (rad), ``c`` the dwell middle (rad), ``h`` the grid step (rad). Where the first
-    stage's winner is not clear of the other starts by the interpolation's error, where the
-    interpolation's stencils run off the slab (a best grid start at an end of the starts
-    allowed) or where the grid alone places the window (``nL`` < 2), the row gets [0, inf):
-    it must be refined.
-
-    Notes
-    -----
-    The refinement measures a window from f as the range of ψ at the exact points of its stage
-    inside the window and the samples between (not a continuous range), and keeps the least
-    among the starts allowed in [c − L, c]. With every exact value within E of its
-    interpolation (E the row's error bound), each such range, and so their least, is within
-    2E of the same computed on the interpolations."""
-    n, cols = slab.shape
-    if nL < 2:
-        return np.zeros(n), np.full(n, math.inf)
-    rows = np.arange(n)
-    flat = slab.ravel()  # read with mode="clip": a row whose stencils leave it is not used
-    row_start = (cols * rows)[:, None]
-    # in columns of the slab, the kernel's first start f₀ = grid start − h lies at p0 and its
-    # window's end at p0 + L/h; the stages' starts lie within [p0 − 1/4, p0 + 9/4]
-    p0 = (k - 1)[:, None]
-    span = length / h
-    e = _error_bound(flat, row_start, np.hstack([p0 - 1, p0 + math.floor(span - 0.25)]))
-    on_slab = (p0[:, 0] >= 4) & (p0[:, 0] + math.floor(span - 0.25) + 6 < cols)
-    q1 = REFINE_POINTS + 1
-    # stage 1: REFINE_POINTS + 1 starts over the two steps around the grid start (the
-    # kernel's own arithmetic for f, to allow the same starts)
-    step = np.arange(q1)[None, :] / REFINE_POINTS
-    f = (i_lo - 2 + k)[:, None] * h + 2 * h * step
-    fv, gv = np.hsplit(_cubic(flat, row_start + p0, np.hstack([2 * step, 2 * step + span])), 2)
-    # The samples between a window's exact points: the first stage's are slab offsets k + 2 …
-    # k + nL − 1, the second's those strictly inside (f_best + d, f_best − d + L), from i0 ∈
-    # [k, k + 2] to one in [k + nL − 2, k + nL + 1]; both hold the core k + 2 … k + nL − 2,
-    # whose extremes are taken once, and a few of the edges.
-    core = flat.take(row_start + p0 + 3 + np.arange(max(nL - 3, 0))[None, :], mode="clip")
-    core_hi, core_lo = core.max(axis=1, initial=-math.inf), core.min(axis=1, initial=math.inf)
-    edge_at = np.array([0, 1, nL - 1, nL, nL + 1])  # offsets from k
-    edge = flat.take(row_start + p0 + 1 + edge_at[None, :], mode="clip")
-    last_in = nL >= 3  # offset k + nL − 1 is the first stage's last sample
-    r1 = _window_ranges(
-        fv,
-        gv,
-        np.maximum(core_hi, edge[:, 2]) if last_in else core_hi,
-        np.minimum(core_lo, edge[:, 2]) if last_in else core_lo,
-    )
-    r1 = np.where((f >= (c - length)[:, None] - 1e-12) & (f <= c[:, None] + 1e-12), r1, math.inf)
-    j = np.argmin(r1, axis=1)
-    fine = r1[rows, j]
-    points = np.arange(q1)[None, :]
-    runner_up = np.where(points == j[:, None], math.inf, r1).min(axis=1)
-    clear = (fine + 4 * e < runner_up) & np.isfinite(fine) & on_slab
-    if nL >= 4:
-        # stage 2: FINE_POINTS + 1 starts within one first-stage step of the winner, each
-        # window holding the samples strictly inside (f_best + d, f_best − d + L) and the
-        # first stage's starts after the winner and ends before it
-        f_best = f[rows, j]
-        d = 2 * h / REFINE_POINTS
-        t3 = -1.0 + np.arange(FINE_POINTS + 1) * (2.0 / FINE_POINTS)
-        t3[FINE_POINTS] = 1.0
-        f3 = f_best[:, None] + d * t3[None, :]
-        i0 = np.floor((f_best + d) / h - (i_lo - 1)).astype(np.int64) + 1
-        end = np.ceil((f_best - d + length) / h - (i_lo - 1)).astype(np.int64)  # one past the last
-        at = (k[:, None] + edge_at[None, :] - i0[:, None] >= 0) & (k[:, None] + edge_at[None, :] < end[:, None])
-        after, before = points > j[:, None], points < j[:, None]
-        top = np.maximum(
-            np.maximum(core_hi, np.where(at, edge, -math.inf).max(axis=1)),
-            np.where(after, fv, np.where(before, gv, -math.inf)).max(axis=1),
-        )
-        bottom = np.minimum(
-            np.minimum(core_lo, np.where(at, edge, math.inf).min(axis=1)),
-            np.where(after, fv, np.where(before, gv, math.inf)).min(axis=1),
-        )
-        offset = 2 * step[:, j].T + (d / h) * t3[None, :]  # f3 − f₀, in steps
-        psi3 = _cubic(flat, row_start + p0, np.hstack([offset, offset + span]))
-        r3 = _window_ranges(*np.hsplit(psi3, 2), top, bottom)
-        r3 = np.where((f3 >= (c - length)[:, None] - 1e-12) & (f3 <= c[:, None] + 1e-12), r3, math.inf)
-        # the refinement returns the second stage's best where it is below the first's
-        fine = np.minimum(fine, r3.min(axis=1))
-    return np.where(clear, np.maximum(fine - 2 * e, 0.0), 0.0), np.where(clear, fine + 2 * e, math.inf)

@@ -156,6 +156,9 @@ def test_bench_tolerance_holds_query_answers_to_the_whole_turn(capsys, tmp_path)
     assert answers["candidates"] == 1 and answers["dwell_windows_only"] == 1
     assert 0 < answers["largest_difference_deg"] < 2e-3  # the figure is not the whole turn's code
     assert answers["whole_turn_cpu_ms_per_candidate"]["min"] > 0
+    (per_file,) = answers["per_file"]  # one file: its figures are the whole's
+    assert per_file["file"] == str(path) and abs(per_file["dwell_deg"][0] - dwell) < 1e-9
+    assert per_file["largest_difference_deg"] == answers["largest_difference_deg"]
     path.write_text(json.dumps({"request": {"dwell_deg": dwell}, "candidates": [{"fourbar": {}}]}))
     assert main(["bench", "tolerance", "--answers", str(path)]) == 2
     out, err = capsys.readouterr()
