@@ -269,7 +269,7 @@ def _stillest(still: Sequence[StillSixBar], n: int) -> list[int]:
     chosen, seen = [], set()
     for i in sorted(range(len(still)), key=lambda i: still[i].lowest):
         s = still[i]
-        key, mirror = (s.fitted.row.segment_id, s.fitted.output), s.sixbar.fourbar.mirror_key()
+        key, mirror = (s.fitted.row.segment_id, s.fitted.output), (*s.sixbar.fourbar.mirror_key(), s.fitted.output)
         if key in seen or mirror in seen:
             continue
         seen.update((key, mirror))
