@@ -23,6 +23,11 @@ refined by the reach first (``reach=True``, :func:`_reach`): a CMA-ES per candid
 (:mod:`synth.query.batched_cma`) in a wider box (``REACH_RADIUS``), with more iterations, whose
 adapted covariance follows the narrow valleys along which a miss comes to meet the request.
 
+For ``--band auto`` (:mod:`synth.query.band_search`), :func:`stiller` runs the reach's search
+with no band holding the dwell: the deviation over the requested dwell minimised for itself,
+every other constraint held as for a near miss, from a small first step (a still rest is lost
+to a relative change of 1e-5 in one length); the band search measures and checks the result.
+
 Objective (on the grid, cheap): the deviation g(D) / band, g(L) the smallest peak-to-peak of ψ
 over a crank window of length L containing the retrieved dwell's middle
 (:func:`~synth.mechanism.output_range.output_deviation`), D the requested dwell; plus ``PENALTY`` × the sum of
