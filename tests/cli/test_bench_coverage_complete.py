@@ -54,5 +54,7 @@ def test_complete_coverage_measures_the_sampled_query_against_it(capsys, coverag
     assert all(c["sampled"] <= c["complete"] for c in cells)
     assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "the sampled query finds" not in err and "double 0/2 cells with ≥ 3 (0 with ≥ 1)" in err
-    code, out, err = run(capsys, "bench", "coverage", "--db", coverage_atlas, "--family", "double", "--top", "3")
+    code, out, err = run(
+        capsys, "bench", "coverage", "--db", coverage_atlas, "--family", "double", "--top", "3", "--dwell=60"
+    )
     assert code == 0 and out.count("DOUBLE") == 1 and "RPR" not in out
