@@ -145,6 +145,12 @@ class StillSixBar:
     highest: float
     moved: bool = False
 
+    @property
+    def segment_id(self) -> int:
+        """The stored segment it was fitted to (with :attr:`sixbar`, what
+        :func:`~synth.query.evaluate.distinct` tells six-bars apart by)."""
+        return self.fitted.row.segment_id
+
     def candidate(self, request: Request, figures: SixBarFigures) -> Candidate:
         """The candidate it is for ``request``, with its ``figures`` (crank-normalised) there."""
         c = candidate_of(request, self.fitted, figures)
@@ -264,19 +270,11 @@ def still_six_bars(
 
 
 def _stillest(still: Sequence[StillSixBar], n: int) -> list[int]:
-    """Indices of the ``n`` stillest distinct six-bars of ``still`` (one per segment and output
-    type, one of a mirror pair), stillest first."""
-    chosen, seen = [], set()
-    for i in sorted(range(len(still)), key=lambda i: still[i].lowest):
-        s = still[i]
-        key, mirror = (s.fitted.row.segment_id, s.fitted.output), (*s.sixbar.fourbar.mirror_key(), s.fitted.output)
-        if key in seen or mirror in seen:
-            continue
-        seen.update((key, mirror))
-        chosen.append(i)
-        if len(chosen) == n:
-            break
-    return chosen
+    """Indices of the ``n`` stillest distinct six-bars of ``still`` (as
+    :func:`~synth.query.evaluate.distinct` tells them apart), stillest first."""
+    order = sorted(range(len(still)), key=lambda i: still[i].lowest)
+    kept = {id(s) for s in distinct([still[i] for i in order])[:n]}
+    return [i for i in order if id(still[i]) in kept]
 
 
 def covered_bands(
@@ -393,7 +391,7 @@ def _descend(
             break
         tell(f"band auto: refining the stillest toward {math.degrees(target):.3g}°")
         starts = _stillest_versions(still, moved)
-        reached = _reached(dataclasses.replace(request, band=target), starts)
+        reached = _reached(request, target, starts)
         moved = [*moved, *reached]
         tighter, meeting, more = sweep(request, [*still, *moved], floor)
         probes += more
@@ -428,18 +426,18 @@ def _stillest_versions(still: Sequence[StillSixBar], moved: Sequence[StillSixBar
     return [versions[i] for i in _stillest(versions, STILLER)]
 
 
-def _reached(at: Request, starts: Sequence[StillSixBar]) -> list[StillSixBar]:
-    """``starts`` refined toward the request ``at`` (its band the target; the refinement's reach
-    for those that miss it, :func:`~synth.query.refine.refine`), those that now meet it,
+def _reached(request: Request, target: float, starts: Sequence[StillSixBar]) -> list[StillSixBar]:
+    """``starts`` refined toward ``request`` at the band ``target`` (rad; the refinement's reach
+    for those that miss it there, :func:`~synth.query.refine.refine`), those that now meet it,
     measured (:func:`still_six_bars`)."""
     if not starts:
         return []
+    at = dataclasses.replace(request, band=target)
     sixbars = [s.sixbar for s in starts]
     found = refine(at, sixbars, figures_of(at, sixbars, footprint=False), reach=True)
     kept = [(s.fitted, r.sixbar) for s, r in zip(starts, found) if r.refined]
     if not kept:
         return []
-    request = dataclasses.replace(at, band=math.pi / 2)  # any band above the six-bars' own
     return still_six_bars(request, [f for f, _ in kept], [sb for _, sb in kept], moved=True)[0]
 
 

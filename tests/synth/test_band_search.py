@@ -18,7 +18,7 @@ from hypothesis.extra import numpy as hnp
 from synth.mechanism.figures import sixbar_figures
 from synth.mechanism.output_range import least_bands
 from synth.mechanism.sixbar import SixBars
-from synth.query import answer
+from synth.query import answer, rebuild
 from synth.query.band_search import (
     FLOOR,
     MEET,
@@ -33,6 +33,7 @@ from synth.query.band_search import (
     still_six_bars,
     sweep,
 )
+from synth.query.candidate_ids import dimension_vector
 from synth.query.candidates import Request
 from synth.query.evaluate import distinct, figures_of, meets
 from synth.query.refine import stiller
@@ -176,3 +177,9 @@ def test_stiller_rests_are_stiller_and_keep_every_other_constraint(source):
     before = np.array([s.lowest for s, _ in changed])
     after, _ = dwell_bands(request, [sb for _, sb in changed])
     assert np.all(after <= before * 1.001) and np.count_nonzero(after < 0.8 * before) >= 2
+    # a moved six-bar's id carries its dimensions: a report rebuilds that six-bar from the id
+    at = dataclasses.replace(request, band=kept[0].lowest * 1.01)
+    c = kept[0].candidate(at, figures_of(at, [kept[0].sixbar], footprint=False)[0])
+    (back,) = rebuild([c.id], source, at)
+    assert back.id == c.id and c.sixbar.scaled(1.0) == kept[0].sixbar
+    assert np.allclose(dimension_vector(back.sixbar), dimension_vector(kept[0].sixbar), rtol=0, atol=1e-12)
