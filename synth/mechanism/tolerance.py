@@ -35,9 +35,12 @@ refined (the same number as refining all). The bounds come from the samples, in 
 pass (:func:`synth.mechanism.tolerance_kernel.window_bounds`): the window's sample extremes
 (~0.02° wide), and the refinement's two stages followed on a cubic interpolation of the
 samples, whose error a fourth difference bounds (~5e-5° wide); 2–5 draws are left to refine.
-That is ~65 exact points a draw for a 60° dwell (~105 for 135°, the draws sampled every 2°
-only near the first draw's best window, :func:`_window_samples`), plus 36 for a draw refined,
-instead of a 720-sample turn plus ~100 refinement points.
+That is ~65 samples a draw for a 60° dwell (~105 for 135°, the draws sampled every 2° only
+near the first draw's best window), plus 36 exact points for a draw refined, instead of a
+720-sample turn plus ~100 refinement points. The samples are ψ alone, sampled, and the best
+start found on them, in one compiled pass per draw
+(:func:`synth.mechanism.tolerance_kernel.window_samples`: the two closing triangles and the
+angle, ~35 ns a sample against the whole position kernel's ~85).
 Measured against the whole-turn path on the answers of eight requests on ``standard`` (80
 six-bars, docs/tolerance.md), the 95th percentile moves by at most 0.0006° (0.6 %), well
 inside its spread between seeds.
@@ -104,7 +107,8 @@ FINE_POINTS = 8
 #: Crank samples of the test that no draw meets a limit (:func:`clear_of_limits`).
 LIMIT_SAMPLES = 90
 #: Grid steps either side of the first draw's best window start within which every draw's
-#: best start is looked for on samples taken every step (:func:`_window_samples`).
+#: best start is looked for on samples taken every step
+#: (:func:`synth.mechanism.tolerance_kernel.window_samples`).
 ZONE = 8
 #: Grid steps between the samples taken elsewhere, which show a start there worse.
 OUTSIDE_STEP = 4
@@ -318,7 +322,7 @@ def _window_deviations(
     exact path in two stages of ``REFINE_POINTS`` and ``FINE_POINTS`` points
     (:func:`synth.mechanism.dwell_ends_kernel.refine_deviation_windows`). ψ is sampled from
     c − L to c + L only, on one grid the draws share, and every step only near the first
-    draw's best window (:func:`_window_samples`).
+    draw's best window (:func:`synth.mechanism.tolerance_kernel.window_samples`).
 
     With ``percentile`` (%), only the draws that can decide that percentile are refined
     (:func:`deciding_draws`, on the bounds of
@@ -326,7 +330,7 @@ def _window_deviations(
     it, so the percentile (numpy's linear interpolation) is the one of every draw refined, and
     the array is good for nothing else."""
     from synth.mechanism.dwell_ends_kernel import refine_deviation_windows  # numba: imported on first use
-    from synth.mechanism.tolerance_kernel import window_bounds  # numba: imported on first use
+    from synth.mechanism.tolerance_kernel import window_bounds, window_samples  # numba: imported on first use
 
     n = len(batch)
     params, rpr = kernel_inputs(batch)
@@ -345,7 +349,8 @@ def _window_deviations(
         first = int(i_lo.min()) - 1
         off = i_lo - 1 - first
         shared = (first + np.arange(int(off.max()) + J + nL + 4)) * h
-        slab, jbest, dev = _window_samples(params, rpr, shared, off, span, nL)
+        middle = np.rint(c / h).astype(np.int64) - first  # each draw's angles are taken from there
+        slab, jbest, dev, _ = window_samples(params, rpr, shared, middle, 1 + off, off + span, nL, ZONE, OUTSIDE_STEP)
         i_lo = np.full(n, first + 1)
         windows.append((slab, i_lo, jbest, c, dev))
     out = np.empty(n)
@@ -382,74 +387,6 @@ def _window_deviations(
         worst = np.maximum(worst, refined)
     out[todo] = worst
     return out
-
-
-def _window_samples(
-    params: F64, rpr: NDArray[np.bool_], phi: F64, off: NDArray[np.int64], span: NDArray[np.int64], nL: int
-) -> tuple[F64, NDArray[np.int64], F64]:
-    """ψ (rad) of each draw on the crank grid ``phi`` (rad, step h, shared by the draws) where
-    its windows of ``nL + 1`` samples can start at columns 1 + off + j, j < ``span`` (per draw),
-    the best start (a window from column 1 + jbest) and that window's range (rad).
-
-    The draws are near one another: the first's best start a₀ is found on all its samples, and
-    the others are sampled every step only where a best start within :data:`ZONE` steps of a₀
-    reads its samples (from 5 steps before the start to 6 after its window's end, as the
-    refinement and its bounds do), and every :data:`OUTSIDE_STEP` steps elsewhere. A start
-    outside the zone must be shown worse than the best inside by the every-4th samples its
-    window holds ((nL + 1) // 4 of them from the first at or after it); a draw where one is not
-    is sampled whole, as the first is, and its best start taken among all. Samples not taken
-    (never read) are NaN. ψ is summed along each row over the samples taken, so the same draws
-    give the same samples whatever else is in the batch."""
-    from synth.mechanism.sample_ranges import sliding_extremes  # numba: imported on first use
-    from synth.mechanism.sixbar_kernel import output_angles  # numba: imported on first use
-
-    n, G = len(off), len(phi)
-    rows = np.arange(n)
-    low_start, high_start = 1 + off, off + span  # columns of each draw's allowed starts
-
-    def whole(params: F64, rpr: NDArray[np.bool_], lo: NDArray[np.int64], hi: NDArray[np.int64]):
-        psi = output_angles(params, rpr, phi[None, :], PIN_ON_PIVOT_EPS)
-        count = int(hi.max())
-        top, bottom = sliding_extremes(psi, 1, count, np.full(len(lo), nL + 1))
-        s = 1 + np.arange(count)
-        grid_range = np.where((s >= lo[:, None]) & (s <= hi[:, None]), top - bottom, math.inf)
-        best = np.argmin(grid_range, axis=1)
-        return psi, best, grid_range[np.arange(len(lo)), best]
-
-    fine = 2 * ZONE + nL + 12  # samples taken every step
-    if fine + (G - fine) / OUTSIDE_STEP > 0.8 * G:  # little to save: every sample
-        return whole(params, rpr, low_start, high_start)
-    _, j0, _ = whole(params[:1], rpr[:1], low_start[:1], high_start[:1])
-    zs, ze = 1 + int(j0[0]) - ZONE, 1 + int(j0[0]) + ZONE
-    fine_lo, fine_hi = zs - 5, ze + nL + 6
-    if fine_lo < 0 or fine_hi >= G:  # the zone runs off the samples
-        return whole(params, rpr, low_start, high_start)
-    lattice = np.arange(fine_lo % OUTSIDE_STEP, G, OUTSIDE_STEP)
-    taken = np.zeros(G, bool)
-    taken[lattice] = True
-    taken[fine_lo : fine_hi + 1] = True
-    cols = np.flatnonzero(taken)
-    slab = np.full((n, G), math.nan)
-    slab[:, cols] = output_angles(params, rpr, phi[cols][None, :], PIN_ON_PIVOT_EPS)
-    top, bottom = sliding_extremes(slab, zs, 2 * ZONE + 1, np.full(n, nL + 1))
-    s = zs + np.arange(2 * ZONE + 1)
-    grid_range = np.where((s >= low_start[:, None]) & (s <= high_start[:, None]), top - bottom, math.inf)
-    k = np.argmin(grid_range, axis=1)
-    best = grid_range[rows, k]
-    width = (nL + 1) // OUTSIDE_STEP
-    high, low = sliding_extremes(np.ascontiguousarray(slab[:, lattice]), 0, len(lattice) - width + 1, np.full(n, width))
-    x = np.arange(int(low_start.min()), int(high_start.max()) + 1)
-    x = x[(x < zs) | (x > ze)]
-    at = np.searchsorted(lattice, x)
-    shown = at <= len(lattice) - width
-    at = np.minimum(at, len(lattice) - width)
-    outside = (x >= low_start[:, None]) & (x <= high_start[:, None])
-    worse = shown & (high[:, at] - low[:, at] > best[:, None])
-    redo = np.flatnonzero(~np.isfinite(best) | np.any(outside & ~worse, axis=1))
-    jbest = s[k] - 1
-    if len(redo):
-        slab[redo], jbest[redo], best[redo] = whole(params[redo], rpr[redo], low_start[redo], high_start[redo])
-    return slab, jbest, best
 
 
 def deciding_draws(lower: F64, upper: F64, percentile: float) -> tuple[NDArray[np.bool_], F64]:

@@ -1,10 +1,19 @@
-"""Bounds of the toleranced draws' refined deviations from their samples alone, compiled: the
-two bounds :func:`synth.mechanism.tolerance.toleranced_deviation` decides its refined draws on,
-one pass per row.
+"""The toleranced draws' dwell windows, compiled: their ψ samples and best grid starts
+(:func:`window_samples`), and the two bounds of their refined deviations that
+:func:`synth.mechanism.tolerance.toleranced_deviation` decides its refined draws on
+(:func:`window_bounds`), one pass per row each.
 
-Per draw and dwell window, from the samples of ψ every grid step (the slab the refinement
-reads, :func:`synth.mechanism.dwell_ends_kernel.refine_deviation_windows`) and the best grid
-start:
+The samples are ψ alone: the four-bar's closing triangle for the coupler point and the output
+dyad's for the rocker (RPR: the slot through the pin), each without the statuses, rates and
+placeholders of :mod:`synth.mechanism.sixbar_kernel` (every draw here assembles over the whole
+turn), and the angle taken from the draw's direction at its dwell middle, where an odd series
+replaces the library's arctangent. ~35 ns a sample against the position kernel's ~85, which
+computed every joint and the transmission angles. A sample's ψ depends on no other sample
+(but for its 2π branch), so sampling a draw at some columns or at all gives the same values.
+
+The bounds, per draw and dwell window, from the samples of ψ every grid step (the slab the
+refinement reads, :func:`synth.mechanism.dwell_ends_kernel.refine_deviation_windows`) and the
+best grid start:
 
 - the samples' bounds: below, the range of the samples every refined window holds, or the
   grid's range where that is less; above, the range of the samples over the window from the
@@ -16,9 +25,8 @@ start:
   allowed the cubic's error, bounded by ``safety`` times the nearby fourth difference.
 
 The numpy form of these bounds ran ~40 whole-array operations per call: at 256 draws, more
-than 1 ms, about what refining every draw costs, so it paid only where the samples' bounds
-left more than a third of the draws open. Here each row is a few hundred operations in one
-loop, 0.2 ms for 256 draws, and both bounds are taken for every draw.
+than 1 ms, about what refining every draw costs. Here each row is a few hundred operations in
+one loop, 0.2 ms for 256 draws, and both bounds are taken for every draw.
 ``tests/synth/test_tolerance.py`` holds every draw's refined figure inside both bounds.
 """
 
@@ -29,10 +37,10 @@ import math
 import numba
 import numpy as np
 
-from synth.parallel_rows import one_signature
+from synth.parallel_rows import one_signature, over_rows
 from synth.types import F64
 
-__all__ = ["window_bounds"]
+__all__ = ["window_bounds", "window_samples"]
 
 
 def window_bounds(
@@ -75,6 +83,94 @@ def window_bounds(
     one_signature(_bounds, args)
     _bounds(*args)
     return out[0], out[1], out[2], out[3]
+
+
+def window_samples(
+    params: F64,
+    rpr: np.ndarray,
+    phi: F64,
+    ref: np.ndarray,
+    first: np.ndarray,
+    last: np.ndarray,
+    nL: int,
+    zone: int,
+    step: int,
+) -> tuple[F64, np.ndarray, F64, np.ndarray]:
+    """ψ (rad) of each draw (``params``/``rpr``: :func:`synth.mechanism.sixbar.kernel_inputs`
+    of draws that assemble over the whole turn) on the crank grid ``phi`` (rad, one step apart,
+    shared by the draws) where its windows of ``nL`` + 1 samples can start (columns
+    ``first[i]`` … ``last[i]``), the best start's column less one, that window's range (rad),
+    and which draws were sampled at every column. ``ref[i]``: the column of draw i's dwell
+    middle, the direction its angles are taken from.
+
+    The draws are near one another: the first is sampled at every column and its best start
+    a₀ found; the others at every column only where a best start within ``zone`` columns of a₀
+    reads its samples (from 5 before the start to 6 after its window's end, as the refinement
+    and :func:`window_bounds` do) and every ``step``-th column elsewhere. A start outside the
+    zone must be shown worse than the best inside by the every-``step``-th samples its window
+    holds ((nL + 1) // step of them from the first at or after it); a draw where one is not is
+    sampled whole, as the first is, and its best start taken among all. Where that would save
+    less than a fifth of the samples, every draw is sampled whole. Columns not sampled (never
+    read) are NaN."""
+    n, G = params.shape[0], len(phi)
+    cosg, sing = np.cos(phi), np.sin(phi)
+    ref = np.clip(np.asarray(ref, dtype=np.int64), 0, G - 1)
+    first = np.ascontiguousarray(first, dtype=np.int64)
+    last = np.ascontiguousarray(last, dtype=np.int64)
+    slab = np.full((n, G), math.nan)
+    start, width = np.empty(n, np.int64), np.empty(n)
+    whole = np.zeros(n, bool)
+
+    def rows_whole(lo: int, hi: int) -> None:
+        sl = slice(lo, hi)
+        _whole_rows(params[sl], rpr[sl], cosg, sing, ref[sl], first[sl], last[sl], nL, slab[sl], start[sl], width[sl])
+        whole[sl] = True
+
+    fine = 2 * zone + nL + 12  # columns sampled every step
+    if fine + (G - fine) / step > 0.8 * G:  # little to save: every column
+        over_rows(n, rows_whole, _POINT_NS * n * G)
+        return slab, start - 1, width, whole
+    rows_whole(0, 1)
+    zs, ze = int(start[0]) - zone, int(start[0]) + zone
+    fine_lo, fine_hi = zs - 5, ze + nL + 6
+    if start[0] < 0 or fine_lo < 0 or fine_hi >= G:  # the zone runs off the samples
+        over_rows(n - 1, lambda lo, hi: rows_whole(lo + 1, hi + 1), _POINT_NS * (n - 1) * G)
+        return slab, start - 1, width, whole
+    l0 = fine_lo % step
+    taken = np.zeros(G, bool)
+    taken[l0::step] = True
+    taken[fine_lo : fine_hi + 1] = True
+    cols = np.flatnonzero(taken)
+
+    def rows_zone(lo: int, hi: int) -> None:
+        sl = slice(lo + 1, hi + 1)
+        _zone_rows(
+            params[sl],
+            rpr[sl],
+            cosg,
+            sing,
+            ref[sl],
+            first[sl],
+            last[sl],
+            nL,
+            cols,
+            zs,
+            ze,
+            l0,
+            step,
+            slab[sl],
+            start[sl],
+            width[sl],
+            whole[sl],
+        )
+
+    over_rows(n - 1, rows_zone, _POINT_NS * (n - 1) * len(cols))
+    return slab, start - 1, width, whole
+
+
+#: Cost of one sample of :func:`window_samples` (ns, the 2-core machine): the four-bar's and
+#: the dyad's closing triangles and the angle, ~30–40 ns against the full kernel's ~85.
+_POINT_NS = 40
 
 
 @numba.njit(cache=True, nogil=True)
@@ -214,3 +310,175 @@ def _bounds(slab, i_lo, k, nL, length, c, dev, h, safety, steps, fine, out):
             for q in range(q3):
                 best = min(best, r3[q])
         out[2, r], out[3, r] = max(best - 2 * e, 0.0), best + 2 * e
+
+
+#: |tan| of an angle from a draw's reference direction below which its arctangent is the odd
+#: series (terms to t¹⁵: the next, t¹⁷/17, is under 1e-26·|t| at 1/32).
+_SERIES_TAN = 1.0 / 32.0
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _direction(p, rpr, cphi, sphi):
+    """The output's direction at crank angle φ (cos φ, sin φ) of the six-bar of parameter row
+    ``p`` (:func:`synth.mechanism.sixbar.kernel_inputs`' columns), as an unnormalised vector
+    (X, Y) with ψ = atan2(Y, X): the closed forms of
+    :func:`synth.mechanism.sixbar_kernel.closing_point` for the four-bar's coupler angle and the
+    RRR's rocker, without a status, placeholders or the rates. Only for a six-bar that
+    assembles at φ (the draws of :func:`synth.mechanism.tolerance.clear_of_limits`).
+
+    Both loops are circles of radii l₁ and l₂ about the two ends of R: the first link's
+    direction is (R(r² − (l₂ − l₁)(l₁ + l₂)) ± iR·√H)/(2l₁r²) with Heron's
+    H = (r² − (l₂ − l₁)²)((l₁ + l₂)² − r²), r = |R|; the second's is (l₁e₁ − R)/l₂. The coupler
+    needs its unit direction (one division); ψ needs no scale at all, so the RRR's rocker is
+    2r²(l₁e₁ − R) and the RPR's slot P − D."""
+    a, b, c, d, br, u, v = p[0], p[1], p[2], p[3], p[4], p[5], p[6]
+    rx, ry = d - a * cphi, -(a * sphi)
+    r2 = rx * rx + ry * ry
+    d21, s12 = c - b, b + c
+    near = r2 - d21 * s12
+    root = math.sqrt(max((r2 - d21 * d21) * (s12 * s12 - r2), 0.0)) * br
+    w = 1.0 / (2.0 * b * r2)
+    ct = (rx * near - ry * root) * w
+    st = (rx * root + ry * near) * w
+    zx = a * cphi + (ct * u - st * v)
+    zy = a * sphi + (ct * v + st * u)
+    if rpr:
+        return zx - p[7], zy - p[8]
+    rx, ry = p[7] - zx, p[8] - zy
+    r2 = rx * rx + ry * ry
+    d21, s12 = p[9] - p[10], p[10] + p[9]
+    root = math.sqrt(max((r2 - d21 * d21) * (s12 * s12 - r2), 0.0)) * p[11]
+    far = r2 + d21 * s12
+    return -(rx * far) - ry * root, -(ry * far) + rx * root
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _angle_from(x, y):
+    """atan2(y, x) (rad): near the reference direction (x > 0, |y/x| ≤ 1/32, the dwell) by the
+    arctangent's odd series, which costs a division and seven multiply-adds instead of the
+    library's ~35 ns; elsewhere the library's."""
+    if x > 0.0 and abs(y) <= _SERIES_TAN * x:
+        t = y / x
+        q = t * t
+        s = -1.0 / 15.0
+        s = 1.0 / 13.0 + q * s
+        s = -1.0 / 11.0 + q * s
+        s = 1.0 / 9.0 + q * s
+        s = -1.0 / 7.0 + q * s
+        s = 1.0 / 5.0 + q * s
+        s = -1.0 / 3.0 + q * s
+        return t + t * (q * s)
+    return math.atan2(y, x)
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _sample_row(params, rpr, cosg, sing, i, ref, cols, count, slab):
+    """ψ (rad) of draw ``i`` at the ``count`` grid columns ``cols[:count]`` (increasing) into
+    row i of ``slab``: ψ at column ``ref`` (the dwell middle) plus the angle from that direction,
+    each on the 2π branch nearest the previous column's. A column's value depends on no other
+    column but through that branch, so a draw sampled at some columns or at all of them has
+    the same ψ at each."""
+    p = params[i]
+    kind = rpr[i]
+    X, Y = _direction(p, kind, cosg[ref], sing[ref])
+    norm = math.hypot(X, Y)
+    cr, sr = X / norm, Y / norm
+    base = math.atan2(sr, cr)
+    prev = 0.0
+    for q in range(count):
+        j = cols[q]
+        X, Y = _direction(p, kind, cosg[j], sing[j])
+        rel = _angle_from(X * cr + Y * sr, Y * cr - X * sr)
+        if q > 0:
+            if rel - prev > math.pi:
+                rel -= 2.0 * math.pi
+            elif rel - prev < -math.pi:
+                rel += 2.0 * math.pi
+        prev = rel
+        slab[i, j] = base + rel
+
+
+@numba.njit(cache=True, nogil=True)
+def _best_start(slab, i, first, last, nL, top, bottom):
+    """The start column in [first, last] of row i's window of nL + 1 samples with the least
+    range (the first such), and that range; (−1, inf) for an empty interval. Every window
+    holds column ``last`` when last − first ≤ nL: the extremes of [s, last] (a suffix) and of
+    [last, s + nL] (a prefix) make each window's in one pass (``top``/``bottom``: scratch)."""
+    if last < first:
+        return -1, math.inf
+    best, best_range = -1, math.inf
+    if last - first <= nL:
+        hi, lo = -math.inf, math.inf
+        for s in range(last, first - 1, -1):
+            hi, lo = max(hi, slab[i, s]), min(lo, slab[i, s])
+            top[s - first], bottom[s - first] = hi, lo
+        hi, lo = slab[i, last], slab[i, last]
+        for s in range(first, last + 1):
+            if s > first:
+                hi, lo = max(hi, slab[i, s + nL]), min(lo, slab[i, s + nL])
+            else:
+                for col in range(last, s + nL + 1):
+                    hi, lo = max(hi, slab[i, col]), min(lo, slab[i, col])
+            width = max(hi, top[s - first]) - min(lo, bottom[s - first])
+            if width < best_range:
+                best, best_range = s, width
+        return best, best_range
+    for s in range(first, last + 1):  # starts farther apart than a window: each read whole
+        hi, lo = slab[i, s], slab[i, s]
+        for col in range(s + 1, s + nL + 1):
+            hi, lo = max(hi, slab[i, col]), min(lo, slab[i, col])
+        if hi - lo < best_range:
+            best, best_range = s, hi - lo
+    return best, best_range
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _whole_rows(params, rpr, cosg, sing, ref, first, last, nL, slab, start, width):
+    """Rows of :func:`window_samples` sampled at every column, their best start among all."""
+    n, G = slab.shape
+    cols = np.arange(G)
+    top, bottom = np.empty(G), np.empty(G)
+    for i in range(n):
+        _sample_row(params, rpr, cosg, sing, i, ref[i], cols, G, slab)
+        start[i], width[i] = _best_start(slab, i, first[i], last[i], nL, top, bottom)
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _zone_rows(params, rpr, cosg, sing, ref, first, last, nL, cols, zs, ze, l0, step, slab, start, width, whole):
+    """Rows of :func:`window_samples` sampled at ``cols`` (every column of the fine stretch and
+    every ``step``-th, from ``l0``, elsewhere), their best start in the zone [zs, ze]; a row
+    whose starts outside the zone are not all shown worse by the lattice is sampled whole
+    (``whole[i]`` set) and its best start taken among all."""
+    n, G = slab.shape
+    every = np.arange(G)
+    top, bottom = np.empty(G), np.empty(G)
+    lattice = (G - 1 - l0) // step + 1  # columns l0, l0 + step, …
+    held = (nL + 1) // step  # lattice samples in a window from the first at or after its start
+    for i in range(n):
+        _sample_row(params, rpr, cosg, sing, i, ref[i], cols, cols.shape[0], slab)
+        s, best = _best_start(slab, i, max(zs, first[i]), min(ze, last[i]), nL, top, bottom)
+        redo = not (best < math.inf) or held < 1
+        seen, seen_range = -1, 0.0
+        x = first[i]
+        while not redo and x <= last[i]:
+            if zs <= x <= ze:  # the zone's own starts are compared one by one
+                x = ze + 1
+                continue
+            at = (x - l0 + step - 1) // step
+            if at > lattice - held:
+                redo = True
+                break
+            if at != seen:
+                hi, lo = -math.inf, math.inf
+                for k in range(at, at + held):
+                    col = l0 + k * step
+                    hi, lo = max(hi, slab[i, col]), min(lo, slab[i, col])
+                seen, seen_range = at, hi - lo
+            if not seen_range > best:
+                redo = True
+            x += 1
+        if redo:
+            whole[i] = True
+            _sample_row(params, rpr, cosg, sing, i, ref[i], every, G, slab)
+            s, best = _best_start(slab, i, first[i], last[i], nL, top, bottom)
+        start[i], width[i] = s, best
