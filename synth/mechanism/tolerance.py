@@ -277,29 +277,11 @@ def clear_of_limits(sixbar: SixBar, tolerance: float) -> bool:
     the second order) plus the largest change of m between two samples (what the grid can
     miss), at every sample of a ``LIMIT_SAMPLES`` grid. The four-bar's limits are checked
     exactly on each draw (:func:`crank_turns`)."""
-    unit = np.vstack([np.zeros(DIMENSIONS), np.eye(DIMENSIONS)])
-    batch, _ = perturbed(sixbar, tolerance, unit)
-    if not crank_turns(batch).all():
-        return False
-    from synth.mechanism.sixbar_kernel import sixbar_positions  # numba: imported on first use
+    from synth.mechanism.tolerance_kernel import limits_clear  # numba: imported on first use
 
-    # the kernel without simulate's motion records (~80 µs of this test's ~500): the coupler
-    # point z, ψ and the statuses are all it reads
+    batch, _ = perturbed(sixbar, tolerance, np.vstack([np.zeros(DIMENSIONS), np.eye(DIMENSIONS)]))
     params, rpr = kernel_inputs(batch)
-    points, angles, _, _, status = sixbar_positions(params, rpr, crank_grid(LIMIT_SAMPLES)[None, :], PIN_ON_PIVOT_EPS)
-    if np.any(status != 0) or abs(angles[0, 0, -1] - angles[0, 0, 0]) >= math.pi:
-        return False
-    r = np.abs(batch.pivot[:, None] - points[1])
-    if batch.rpr[0]:
-        size = np.maximum.reduce([batch.a, batch.b, batch.c, batch.d, np.abs(batch.pivot)])
-        margin = r - PIN_ON_PIVOT_EPS * size[:, None]
-    else:
-        reach = (batch.rocker + batch.rod)[:, None]
-        fold = np.abs(batch.rocker - batch.rod)[:, None]
-        margin = np.minimum(reach - r, r - fold)
-    spread = np.sum(np.abs(margin[1:] - margin[0]), axis=0)
-    between = float(np.max(np.abs(np.diff(margin[0], append=margin[0, :1]))))
-    return bool(np.all(margin[0] > 2.0 * spread + between))
+    return limits_clear(params, rpr, crank_grid(LIMIT_SAMPLES), PIN_ON_PIVOT_EPS)
 
 
 def crank_turns(batch: SixBars) -> NDArray[np.bool_]:

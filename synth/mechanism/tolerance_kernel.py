@@ -37,10 +37,11 @@ import math
 import numba
 import numpy as np
 
+from kinematics.loop import COINCIDENT_EPS, TOGGLE_EPS
 from synth.parallel_rows import one_signature, over_rows
 from synth.types import F64
 
-__all__ = ["window_bounds", "window_samples"]
+__all__ = ["limits_clear", "window_bounds", "window_samples"]
 
 
 def window_bounds(
@@ -171,6 +172,90 @@ def window_samples(
 #: Cost of one sample of :func:`window_samples` (ns, the 2-core machine): the four-bar's and
 #: the dyad's closing triangles and the angle, ~30–40 ns against the full kernel's ~85.
 _POINT_NS = 40
+
+
+def limits_clear(params: F64, rpr: np.ndarray, phi: F64, pin_eps: float) -> bool:
+    """The test of :func:`synth.mechanism.tolerance.clear_of_limits` on its six-bars
+    (``params``/``rpr``: :func:`synth.mechanism.sixbar.kernel_inputs` rows, the drawing first,
+    then the drawing with each dimension moved by the whole tolerance) at the crank angles
+    ``phi`` (rad, one turn, equally spaced): every four-bar's crank turns and it closes without
+    a toggle, the drawing's output turns back (ψ ends within π of where it started), and at
+    every sample the drawing's margin m from its output dyad's limit exceeds twice the sum of
+    the moved six-bars' |Δm| plus the largest change of m between two samples. ``pin_eps``:
+    the RPR's pin-on-pivot distance in units of the six-bar's size."""
+    margin = np.empty((params.shape[0], len(phi)))
+    args = (
+        np.ascontiguousarray(params, dtype=float),
+        np.ascontiguousarray(rpr, dtype=bool),
+        np.cos(phi),
+        np.sin(phi),
+        float(pin_eps),
+        margin,
+    )
+    return bool(_limits_clear(*args))
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _limits_clear(params, rpr, cosg, sing, pin_eps, margin):
+    R, M = margin.shape
+    turned, px, py = 0.0, 1.0, 0.0
+    for i in range(R):
+        a, b, c, d, br, u, v = (
+            params[i, 0],
+            params[i, 1],
+            params[i, 2],
+            params[i, 3],
+            params[i, 4],
+            params[i, 5],
+            params[i, 6],
+        )
+        dx, dy, rocker, rod = params[i, 7], params[i, 8], params[i, 9], params[i, 10]
+        # the crank turns: the diagonal A–B0 sweeps [|d − a|, d + a] inside (|b − c|, b + c)
+        if not (abs(b - c) < abs(d - a) and d + a < b + c and min(min(a, b), min(c, d)) > 0):
+            return False
+        size = max(max(max(a, b), max(c, d)), math.hypot(dx, dy))
+        for j in range(M):
+            cphi, sphi = cosg[j], sing[j]
+            # closing_point's operations: the coupler's direction, and its toggle test
+            rx, ry = d - a * cphi, -(a * sphi)
+            r2 = rx * rx + ry * ry
+            r = math.sqrt(r2)
+            s12, d21 = b + c, c - b
+            heron = (r + d21) * (s12 - r) * (r - d21) * (r + s12)
+            if heron < 0 or r <= COINCIDENT_EPS * s12:
+                return False
+            root = math.sqrt(heron)
+            inv_2r = 0.5 / (b * r)
+            cb = (r2 - d21 * s12) * inv_2r
+            sb = root * (br * inv_2r)
+            if abs(r * sb) < TOGGLE_EPS * c:
+                return False
+            inv_r = 1.0 / r
+            ct, st = (rx * cb - ry * sb) * inv_r, (rx * sb + ry * cb) * inv_r
+            zx = a * cphi + (ct * u - st * v)
+            zy = a * sphi + (ct * v + st * u)
+            dist = math.hypot(dx - zx, dy - zy)
+            if rpr[i]:
+                margin[i, j] = dist - pin_eps * size
+            else:
+                margin[i, j] = min((rocker + rod) - dist, dist - abs(rocker - rod))
+            if i == 0:  # the drawing's output turns back: ψ's steps summed over the turn
+                ex, ey = _direction(params[0], rpr[0], cphi, sphi)
+                if j > 0:
+                    turned += math.atan2(ey * px - ex * py, ex * px + ey * py)
+                px, py = ex, ey
+    if abs(turned) >= math.pi:
+        return False
+    between = 0.0  # what the grid can miss: the largest change between two samples, round the turn
+    for k in range(M):
+        between = max(between, abs(margin[0, (k + 1) % M] - margin[0, k]))
+    for j in range(M):
+        spread = 0.0  # the linear bound of how far the tolerance moves the margin
+        for i in range(1, R):
+            spread += abs(margin[i, j] - margin[0, j])
+        if not margin[0, j] > 2.0 * spread + between:
+            return False
+    return True
 
 
 @numba.njit(cache=True, nogil=True)
