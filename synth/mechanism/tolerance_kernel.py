@@ -121,31 +121,11 @@ def window_samples(
     slab = np.full((n, G), math.nan)
     start, width = np.empty(n, np.int64), np.empty(n)
     whole = np.zeros(n, bool)
+    every = np.arange(G)
 
-    def rows_whole(lo: int, hi: int) -> None:
+    def rows(lo: int, hi: int, cols: np.ndarray, zs: int, ze: int, l0: int) -> None:
         sl = slice(lo, hi)
-        _whole_rows(params[sl], rpr[sl], cosg, sing, ref[sl], first[sl], last[sl], nL, slab[sl], start[sl], width[sl])
-        whole[sl] = True
-
-    fine = 2 * zone + nL + 12  # columns sampled every step
-    if fine + (G - fine) / step > 0.8 * G:  # little to save: every column
-        over_rows(n, rows_whole, _POINT_NS * n * G)
-        return slab, start - 1, width, whole
-    rows_whole(0, 1)
-    zs, ze = int(start[0]) - zone, int(start[0]) + zone
-    fine_lo, fine_hi = zs - 5, ze + nL + 6
-    if start[0] < 0 or fine_lo < 0 or fine_hi >= G:  # the zone runs off the samples
-        over_rows(n - 1, lambda lo, hi: rows_whole(lo + 1, hi + 1), _POINT_NS * (n - 1) * G)
-        return slab, start - 1, width, whole
-    l0 = fine_lo % step
-    taken = np.zeros(G, bool)
-    taken[l0::step] = True
-    taken[fine_lo : fine_hi + 1] = True
-    cols = np.flatnonzero(taken)
-
-    def rows_zone(lo: int, hi: int) -> None:
-        sl = slice(lo + 1, hi + 1)
-        _zone_rows(
+        _sample_rows(
             params[sl],
             rpr[sl],
             cosg,
@@ -165,7 +145,26 @@ def window_samples(
             whole[sl],
         )
 
-    over_rows(n - 1, rows_zone, _POINT_NS * (n - 1) * len(cols))
+    def rows_whole(lo: int, hi: int) -> None:
+        rows(lo, hi, every, 1, 0, 0)
+
+    fine = 2 * zone + nL + 12  # columns sampled every step
+    if fine + (G - fine) / step > 0.8 * G:  # little to save: every column
+        over_rows(n, rows_whole, _POINT_NS * n * G)
+        return slab, start - 1, width, whole
+    rows_whole(0, 1)
+    zs, ze = int(start[0]) - zone, int(start[0]) + zone
+    fine_lo, fine_hi = zs - 5, ze + nL + 6
+    if start[0] < 0 or fine_lo < 0 or fine_hi >= G:  # the zone runs off the samples
+        over_rows(n - 1, lambda lo, hi: rows_whole(lo + 1, hi + 1), _POINT_NS * (n - 1) * G)
+        return slab, start - 1, width, whole
+    l0 = fine_lo % step
+    taken = np.zeros(G, bool)
+    taken[l0::step] = True
+    taken[fine_lo : fine_hi + 1] = True
+    cols = np.flatnonzero(taken)
+
+    over_rows(n - 1, lambda lo, hi: rows(lo + 1, hi + 1, cols, zs, ze, l0), _POINT_NS * (n - 1) * len(cols))
     return slab, start - 1, width, whole
 
 
@@ -438,25 +437,6 @@ def _direction(p, rpr, cphi, sphi):
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def _angle_from(x, y):
-    """atan2(y, x) (rad): near the reference direction (x > 0, |y/x| ≤ 1/32, the dwell) by the
-    arctangent's odd series, which costs a division and seven multiply-adds instead of the
-    library's ~35 ns; elsewhere the library's."""
-    if x > 0.0 and abs(y) <= _SERIES_TAN * x:
-        t = y / x
-        q = t * t
-        s = -1.0 / 15.0
-        s = 1.0 / 13.0 + q * s
-        s = -1.0 / 11.0 + q * s
-        s = 1.0 / 9.0 + q * s
-        s = -1.0 / 7.0 + q * s
-        s = 1.0 / 5.0 + q * s
-        s = -1.0 / 3.0 + q * s
-        return t + t * (q * s)
-    return math.atan2(y, x)
-
-
-@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _sample_row(params, rpr, cosg, sing, i, ref, cols, count, slab):
     """ψ (rad) of draw ``i`` at the ``count`` grid columns ``cols[:count]`` (increasing) into
     row i of ``slab``: ψ at column ``ref`` (the dwell middle) plus the angle from that direction,
@@ -473,7 +453,22 @@ def _sample_row(params, rpr, cosg, sing, i, ref, cols, count, slab):
     for q in range(count):
         j = cols[q]
         X, Y = _direction(p, kind, cosg[j], sing[j])
-        rel = _angle_from(X * cr + Y * sr, Y * cr - X * sr)
+        x, y = X * cr + Y * sr, Y * cr - X * sr
+        # near the reference (the dwell) the arctangent's odd series (a division and seven
+        # multiply-adds) instead of the library's atan2 (~35 ns)
+        if x > 0.0 and abs(y) <= _SERIES_TAN * x:
+            t = y / x
+            tt = t * t
+            series = -1.0 / 15.0
+            series = 1.0 / 13.0 + tt * series
+            series = -1.0 / 11.0 + tt * series
+            series = 1.0 / 9.0 + tt * series
+            series = -1.0 / 7.0 + tt * series
+            series = 1.0 / 5.0 + tt * series
+            series = -1.0 / 3.0 + tt * series
+            rel = t + t * (tt * series)
+        else:
+            rel = math.atan2(y, x)
         if q > 0:
             if rel - prev > math.pi:
                 rel -= 2.0 * math.pi
@@ -518,28 +513,23 @@ def _best_start(slab, i, first, last, nL, top, bottom):
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def _whole_rows(params, rpr, cosg, sing, ref, first, last, nL, slab, start, width):
-    """Rows of :func:`window_samples` sampled at every column, their best start among all."""
-    n, G = slab.shape
-    cols = np.arange(G)
-    top, bottom = np.empty(G), np.empty(G)
-    for i in range(n):
-        _sample_row(params, rpr, cosg, sing, i, ref[i], cols, G, slab)
-        start[i], width[i] = _best_start(slab, i, first[i], last[i], nL, top, bottom)
-
-
-@numba.njit(cache=True, nogil=True, error_model="numpy")
-def _zone_rows(params, rpr, cosg, sing, ref, first, last, nL, cols, zs, ze, l0, step, slab, start, width, whole):
+def _sample_rows(params, rpr, cosg, sing, ref, first, last, nL, cols, zs, ze, l0, step, slab, start, width, whole):
     """Rows of :func:`window_samples` sampled at ``cols`` (every column of the fine stretch and
     every ``step``-th, from ``l0``, elsewhere), their best start in the zone [zs, ze]; a row
     whose starts outside the zone are not all shown worse by the lattice is sampled whole
-    (``whole[i]`` set) and its best start taken among all."""
+    (``whole[i]`` set) and its best start taken among all. With zs > ze, every row is sampled
+    whole."""
     n, G = slab.shape
     every = np.arange(G)
     top, bottom = np.empty(G), np.empty(G)
     lattice = (G - 1 - l0) // step + 1  # columns l0, l0 + step, …
     held = (nL + 1) // step  # lattice samples in a window from the first at or after its start
     for i in range(n):
+        if zs > ze:
+            whole[i] = True
+            _sample_row(params, rpr, cosg, sing, i, ref[i], every, G, slab)
+            start[i], width[i] = _best_start(slab, i, first[i], last[i], nL, top, bottom)
+            continue
         _sample_row(params, rpr, cosg, sing, i, ref[i], cols, cols.shape[0], slab)
         s, best = _best_start(slab, i, max(zs, first[i]), min(ze, last[i]), nL, top, bottom)
         redo = not (best < math.inf) or held < 1
