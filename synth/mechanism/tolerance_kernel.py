@@ -199,16 +199,10 @@ def _limits_clear(params, rpr, cosg, sing, pin_eps, margin):
     R, M = margin.shape
     turned, px, py = 0.0, 1.0, 0.0
     for i in range(R):
-        a, b, c, d, br, u, v = (
-            params[i, 0],
-            params[i, 1],
-            params[i, 2],
-            params[i, 3],
-            params[i, 4],
-            params[i, 5],
-            params[i, 6],
-        )
-        dx, dy, rocker, rod = params[i, 7], params[i, 8], params[i, 9], params[i, 10]
+        p = params[i]
+        a, b, c, d = p[0], p[1], p[2], p[3]
+        br, u, v = p[4], p[5], p[6]
+        dx, dy, rocker, rod = p[7], p[8], p[9], p[10]
         # the crank turns: the diagonal A–B0 sweeps [|d − a|, d + a] inside (|b − c|, b + c)
         if not (abs(b - c) < abs(d - a) and d + a < b + c and min(min(a, b), min(c, d)) > 0):
             return False

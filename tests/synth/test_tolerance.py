@@ -13,7 +13,16 @@ import synth.mechanism.tolerance as tolerance_module
 from synth.mechanism import dwell_ends_kernel, tolerance_kernel
 from synth.mechanism.figures import sixbar_figures
 from synth.mechanism.output_range import output_deviation
-from synth.mechanism.sixbar import ExactOutput, OutputDyad, SixBar, crank_grid, simulate
+from synth.mechanism.sixbar import (
+    PIN_ON_PIVOT_EPS,
+    ExactOutput,
+    OutputDyad,
+    SixBar,
+    crank_grid,
+    kernel_inputs,
+    simulate,
+)
+from synth.mechanism.sixbar_kernel import output_angles
 from synth.mechanism.tolerance import (
     DRAWS,
     PERCENTILE,
@@ -239,6 +248,56 @@ def test_samples_bounds_hold_where_the_dwell_is_not_whole_grid_steps(monkeypatch
     every = deviation_draws(RPR, tol, centres, length, draws=64, seed=seed)
     assert np.all(samples_lo <= every) and np.all(every <= samples_hi)
     assert value == float(np.percentile(every, PERCENTILE))
+
+
+@pytest.mark.parametrize("sb, dwell_deg", [(RRR, 60.0), (RPR_LONG, 135.0)])
+def test_window_samples_are_the_position_kernels_psi(sb, dwell_deg):
+    # ψ alone (two closing triangles, the angle from the dwell middle's direction, an odd
+    # series near it) against the position kernel's ψ (every joint, atan2 steps summed), over
+    # a whole turn of 2° samples of 32 draws: the rest and the swing both
+    batch, _ = perturbed(sb, 0.05 / 40, unit_draws(32))
+    params, rpr = kernel_inputs(batch)
+    phi = crank_grid(180)
+    n, mid = len(params), round(_centres(sb, math.radians(dwell_deg))[0] / (2 * math.pi / 180))
+    slab, start, width, whole = tolerance_kernel.window_samples(
+        params, rpr, phi, np.full(n, mid), np.full(n, mid - 30), np.full(n, mid), 30, 10_000, 4
+    )
+    psi = output_angles(params, rpr, phi[None, :], PIN_ON_PIVOT_EPS)
+    assert whole.all() and np.isfinite(slab).all()
+    # the two differ by a whole number of turns at most (each starts on its own branch)
+    offset = np.round((psi[:, mid] - slab[:, mid]) / (2 * math.pi)) * 2 * math.pi
+    np.testing.assert_allclose(slab + offset[:, None], psi, rtol=0, atol=1e-13)
+    # both ways of taking the angle are held: the rest within 1/32 rad of the middle's
+    # direction (the series), the swing beyond it (atan2)
+    near = np.abs(slab - slab[:, mid : mid + 1]) < 1 / 32
+    assert np.all(near.sum(axis=1) > 20) and np.all((~near).sum(axis=1) > 20)
+    # the best start: the window of 31 samples with the least range, the first of equals
+    ranges = np.array([[np.ptp(row[s : s + 31]) for s in range(mid - 30, mid + 1)] for row in slab])
+    np.testing.assert_array_equal(start + 1, mid - 30 + np.argmin(ranges, axis=1))
+    np.testing.assert_array_equal(width, ranges.min(axis=1))
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.lists(st.floats(-1.0, 1.0), min_size=4, max_size=40),
+    st.integers(0, 39),
+    st.integers(0, 39),
+    st.integers(1, 12),
+)
+def test_best_start_is_the_window_of_least_range(values, first, count, nL):
+    # every window of nL + 1 samples from a start in [first, first + count]: one pass of
+    # suffix and prefix extremes where the starts lie within a window, each window read whole
+    # where they do not
+    row = np.array([values])
+    last = min(first + count, len(values) - 1 - nL)
+    top, bottom = np.empty(len(values)), np.empty(len(values))
+    start, width = tolerance_kernel._best_start(row, 0, first, last, nL, top, bottom)
+    if last < first:
+        assert (start, width) == (-1, math.inf)
+        return
+    ranges = [np.ptp(row[0, s : s + nL + 1]) for s in range(first, last + 1)]
+    assert start == first + int(np.argmin(ranges))
+    assert width == min(ranges)
 
 
 def test_moved_ground_pivots_turn_the_frame():
