@@ -24,17 +24,17 @@ depend on the band. The search therefore measures bands, it does not probe them:
 2. **Stiller** (with refinement on; :func:`~synth.query.refine.stiller`): the :data:`STILLER`
    stillest distinct six-bars of the pool moved to the stillest rest a search finds near each
    (the deviation over the requested dwell minimised, every other constraint held); measured
-   as in 1. A rest moved to its stillest is as a rule too long at the band it needs (its
-   output stays within that band for more than ``dwell + dwell_tol``), and the stillest rests
-   need different bands, so three seldom meet the request at one band. Each is therefore
+   as in 1. A rest moved to its stillest meets the request on a narrow range of bands (its
+   dwell grows past ``dwell + dwell_tol`` soon above the band it needs), and the stillest
+   rests' ranges seldom overlap, so three seldom meet the request at one band. Each is therefore
    **detuned** (:func:`detuned`): moved back along the straight line of dimensions to the
    six-bar it came from, to the point whose rest is the request's length at a chosen band —
    for each band of a ladder from the one the third stillest rest needs upwards
    (:func:`detune_bands`). Along that line the rest's bands move from the stiller six-bar's
    to the fit's, so a band between them is met somewhere on it; a few dozen simulations find
    where, where a search toward each band would take thousands.
-3. **The sweep** (:func:`sweep`): the candidate bands — every six-bar's own band and a ladder
-   of :data:`LADDER` per decade, tightest first — at which enough six-bars' bands cover them
+3. **The sweep** (:func:`sweep`): the candidate bands — every six-bar's own band, a ladder
+   of :data:`LADDER` per decade and the detuning's bands, tightest first — at which enough six-bars' bands cover them
    (:func:`covered_bands`) are checked in turn with the exact figures of those six-bars
    (:func:`~synth.query.evaluate.meets`), until one holds enough.
 
@@ -199,7 +199,8 @@ class BandAnswer:
     pooled : int
         Six-bars the pool fitted.
     stiller : int
-        Six-bars moved to a stiller rest that then met every band-free constraint.
+        Six-bars moved to a stiller rest, or detuned from one, that then met every band-free
+        constraint.
     """
 
     result: QueryResult
