@@ -22,13 +22,19 @@ depend on the band. The search therefore measures bands, it does not probe them:
    figures at its own band — those that meet every band-free constraint stay
    (:func:`~synth.query.evaluate.meets_but_dwells`).
 2. **Stiller** (with refinement on; :func:`~synth.query.refine.stiller`): the :data:`STILLER`
-   stillest distinct six-bars of the pool moved to the stillest rest a local search finds near
-   each, every other constraint held; measured as in 1. Rests moved to their stillest are as a
-   rule too long at one another's bands, so the same six-bars (each in its stiller version)
-   are then refined toward one band (:func:`~synth.query.refine.refine`, its reach), the one
-   at which :func:`needed` of the stiller rests stand; those that meet it there are measured.
-3. **The sweep** (:func:`sweep`): the candidate bands — every six-bar's own band and a ladder
-   of :data:`LADDER` per decade, tightest first — at which enough six-bars' bands cover them
+   stillest distinct six-bars of the pool moved to the stillest rest a search finds near each
+   (the deviation over the requested dwell minimised, every other constraint held); measured
+   as in 1. A rest moved to its stillest meets the request on a narrow range of bands (its
+   dwell grows past ``dwell + dwell_tol`` soon above the band it needs), and the stillest
+   rests' ranges seldom overlap, so three seldom meet the request at one band. Each is therefore
+   **detuned** (:func:`detuned`): moved back along the straight line of dimensions to the
+   six-bar it came from, to the point whose rest is the request's length at a chosen band —
+   for each band of a ladder from the one the third stillest rest needs upwards
+   (:func:`detune_bands`). Along that line the rest's bands move from the stiller six-bar's
+   to the fit's, so a band between them is met somewhere on it; a few dozen simulations find
+   where, where a search toward each band would take thousands.
+3. **The sweep** (:func:`sweep`): the candidate bands — every six-bar's own band, a ladder
+   of :data:`LADDER` per decade and the detuning's bands, tightest first — at which enough six-bars' bands cover them
    (:func:`covered_bands`) are checked in turn with the exact figures of those six-bars
    (:func:`~synth.query.evaluate.meets`), until one holds enough.
 
@@ -52,14 +58,17 @@ from synth.mechanism.figures import SixBarFigures, sixbar_figures
 from synth.mechanism.output_range import least_bands
 from synth.mechanism.sixbar import SixBar, SixBars, crank_grid, output_angle
 from synth.query import QueryResult, SegmentSource, answer
-from synth.query.candidate_ids import with_dimensions
+from synth.query.candidate_ids import dimension_vector, round_dimensions, sixbar_like, with_dimensions
 from synth.query.candidates import SAMPLES, Candidate, Request
 from synth.query.evaluate import candidate_of, distinct, figures_of, meets, meets_but_dwells, rest_position
 from synth.query.fitting import Fitted, fit
-from synth.query.refine import refine, stiller
+from synth.query.refine import stiller
 from synth.query.windows import PER_LEVEL, kinds_for, select
 
 __all__ = [
+    "DETUNE_PER_DECADE",
+    "DETUNE_POINTS",
+    "DETUNE_SPAN",
     "FLOOR",
     "LADDER",
     "MEET",
@@ -72,6 +81,8 @@ __all__ = [
     "StillSixBar",
     "answer_tightest",
     "covered_bands",
+    "detune_bands",
+    "detuned",
     "dwell_bands",
     "ladder",
     "needed",
@@ -98,11 +109,13 @@ LADDER = 6
 STILLER = 8
 #: Bands the sweep checks with exact figures at most.
 CHECKS = 40
-#: Rounds of refinement toward a tighter band, the first step down (a factor) and the factor
-#: between a band missed and one met at which the rounds stop.
-ROUNDS = 3
-STEP = 2.5
-RESOLUTION = 1.5
+#: The detuning (:func:`detuned`): points measured on each line from a fit to its stiller
+#: six-bar (the ends left out: both are measured already), and the bands it detunes to,
+#: :data:`DETUNE_PER_DECADE` per decade from the band the third stillest rest needs up to
+#: :data:`DETUNE_SPAN` times it.
+DETUNE_POINTS = 32
+DETUNE_PER_DECADE = 12
+DETUNE_SPAN = 10.0
 #: The band every candidate's dwell is also reported at (rad): the query's default, 0.1°.
 REFERENCE_BAND = math.radians(0.1)
 #: A six-bar's own band is checked this much wider (a fraction) than measured on the grid: ψ
@@ -186,7 +199,8 @@ class BandAnswer:
     pooled : int
         Six-bars the pool fitted.
     stiller : int
-        Six-bars moved to a stiller rest that then met every band-free constraint.
+        Six-bars moved to a stiller rest, or detuned from one, that then met every band-free
+        constraint.
     """
 
     result: QueryResult
@@ -278,31 +292,38 @@ def _stillest(still: Sequence[StillSixBar], n: int) -> list[int]:
 
 
 def covered_bands(
-    lowest: np.ndarray, highest: np.ndarray, need: int, ceiling: float, floor: float = FLOOR
+    lowest: np.ndarray,
+    highest: np.ndarray,
+    need: int,
+    ceiling: float,
+    floor: float = FLOOR,
+    extra: Sequence[float] = (),
 ) -> Iterator[tuple[float, np.ndarray]]:
     """The bands worth checking, tightest first, with the six-bars that may meet there: of the
-    six-bars' own bands (``lowest`` widened by the margin) and the :func:`ladder` from
-    ``ceiling`` to ``floor`` (rad), clipped to [``floor``, ``ceiling``], those covered by
-    ``need`` or more of the intervals [``lowest``, ``highest``) — (band, their indices)."""
+    six-bars' own bands (``lowest`` widened by the margin), the :func:`ladder` from ``ceiling``
+    to ``floor`` (rad) and the ``extra`` bands, clipped to [``floor``, ``ceiling``], those
+    covered by ``need`` or more of the intervals [``lowest``, ``highest``) — (band, their
+    indices)."""
     own = np.clip(lowest * (1 + _OWN_BAND_MARGIN), floor, ceiling)
-    for band in np.unique(np.concatenate([own, ladder(ceiling, min(floor, ceiling))])).tolist():
+    more = np.clip(np.asarray(extra, float), floor, ceiling)
+    for band in np.unique(np.concatenate([own, ladder(ceiling, min(floor, ceiling)), more])).tolist():
         live = np.flatnonzero((lowest <= band) & (band < highest))
         if len(live) >= need:
             yield band, live
 
 
 def sweep(
-    request: Request, still: Sequence[StillSixBar], floor: float = FLOOR
+    request: Request, still: Sequence[StillSixBar], floor: float = FLOOR, extra: Sequence[float] = ()
 ) -> tuple[float | None, list[Candidate], tuple[BandProbe, ...]]:
     """The tightest band (rad) in [``floor``, ``request.band``] at which :func:`needed`
     distinct six-bars of ``still`` meet ``request`` (exact figures), the candidates that meet
-    it there, and the bands checked: those of :func:`covered_bands`, in turn, :data:`CHECKS`
-    at most."""
+    it there, and the bands checked: those of :func:`covered_bands` (with the ``extra``
+    bands), in turn, :data:`CHECKS` at most."""
     need = needed(request)
     lowest = np.array([s.lowest for s in still])
     highest = np.array([s.highest for s in still])
     probes: list[BandProbe] = []
-    for band, live in itertools.islice(covered_bands(lowest, highest, need, request.band, floor), CHECKS):
+    for band, live in itertools.islice(covered_bands(lowest, highest, need, request.band, floor, extra), CHECKS):
         at = dataclasses.replace(request, band=band)
         figures = figures_of(at, [still[i].sixbar for i in live], footprint=True)
         met = distinct([still[i].candidate(at, f) for i, f in zip(live.tolist(), figures) if meets(at, f)])
@@ -333,13 +354,17 @@ def answer_tightest(
     fitted = pool(request, source, floor)
     still, figures = still_six_bars(request, fitted)
     chosen = _stillest(still, STILLER) if request.refine else []
+    moved: list[StillSixBar] = []
+    bands = np.empty(0)
     if chosen:
         tell("band auto: moving the stillest rests stiller")
-    moved = _made_stiller(request, [still[i] for i in chosen], [figures[i] for i in chosen])
-    band, met, probes = sweep(request, [*still, *moved], floor)
-    if chosen:
-        band, met, more, moved = _descend(request, still, moved, band, met, floor, tell)
-        probes += more
+        pairs = _made_stiller(request, [still[i] for i in chosen], [figures[i] for i in chosen])
+        moved = [m for _, m in pairs]
+        bands = detune_bands(request, [*still, *moved], floor)
+        if len(bands) and pairs:
+            tell("band auto: detuning the stiller rests to one band")
+            moved += detuned(request, pairs, bands)
+    band, met, probes = sweep(request, [*still, *moved], floor, bands)
     final = request if band is None else dataclasses.replace(request, band=band)
     tell(f"band auto: answering at {math.degrees(final.band):.3g}°")
     respond = answer_at or (lambda r, seeded=(): answer(r, source, seeded=seeded))
@@ -351,94 +376,69 @@ def answer_tightest(
 
 def _made_stiller(
     request: Request, chosen: Sequence[StillSixBar], figures: Sequence[SixBarFigures]
-) -> list[StillSixBar]:
+) -> list[tuple[StillSixBar, StillSixBar]]:
     """The six-bars ``chosen`` (with their ``figures`` at their own bands) moved to the stillest
     rests near them (:func:`~synth.query.refine.stiller`) that still meet every band-free
-    constraint, measured (:func:`still_six_bars`)."""
+    constraint, measured (:func:`still_six_bars`): (the six-bar chosen, its stiller version)."""
     if not chosen:
         return []
     # the search's objective is in units of a band: the chosen six-bars' own, as measured
     at = dataclasses.replace(request, band=float(np.median([s.lowest for s in chosen])))
     found = stiller(at, [s.sixbar for s in chosen], figures)
-    changed = [(s.fitted, sb) for s, sb in zip(chosen, found) if sb is not s.sixbar]
+    changed = [(s, sb) for s, sb in zip(chosen, found) if sb is not s.sixbar]
     if not changed:
         return []
-    return still_six_bars(request, [f for f, _ in changed], [sb for _, sb in changed], moved=True)[0]
+    origin = {s.fitted.key: s for s, _ in changed}
+    kept = still_six_bars(request, [s.fitted for s, _ in changed], [sb for _, sb in changed], moved=True)[0]
+    return [(origin[m.fitted.key], m) for m in kept]
 
 
-def _descend(
-    request: Request,
-    still: list[StillSixBar],
-    moved: list[StillSixBar],
-    band: float | None,
-    met: list[Candidate],
-    floor: float,
-    tell: Callable[[str], None],
-) -> tuple[float | None, list[Candidate], tuple[BandProbe, ...], list[StillSixBar]]:
-    """At most :data:`ROUNDS` rounds of the :data:`STILLER` stillest distinct six-bars found so
-    far (each in its stillest version) refined toward a target band below ``band`` (the one
-    reached, rad; None: none yet), each round followed by a sweep of everything found: the
-    first target is the tighter of the band the stiller rests show (:func:`_target`) and
-    ``band`` / :data:`STEP`; a target met is stepped below again, one missed is bisected (on a
-    log scale) with the band reached. Returns the band reached, the six-bars met there, the
-    bands checked and every six-bar moved; ``tell`` is told each round's target."""
-    probes: tuple[BandProbe, ...] = ()
-    ceiling = request.band if band is None else band
-    target = min(_target(request, [*still, *moved], floor) or ceiling, ceiling / STEP)
-    missed = None
-    for _ in range(ROUNDS):
-        if target < floor or (missed is not None and ceiling / missed < RESOLUTION):
-            break
-        tell(f"band auto: refining the stillest toward {math.degrees(target):.3g}°")
-        starts = _stillest_versions(still, moved)
-        reached = _reached(request, target, starts)
-        moved = [*moved, *reached]
-        tighter, meeting, more = sweep(request, [*still, *moved], floor)
-        probes += more
-        if tighter is not None and (band is None or tighter < band):
-            band, met = tighter, meeting
-        if band is not None and band <= target * (1 + _OWN_BAND_MARGIN):
-            ceiling = band
-            target = ceiling / STEP if missed is None else math.sqrt(missed * ceiling)
-        else:
-            missed = target
-            target = math.sqrt(missed * ceiling)
-    return band, met, probes, moved
-
-
-def _target(request: Request, still: Sequence[StillSixBar], floor: float) -> float | None:
-    """The band (rad) the :func:`needed`-th stillest distinct six-bar of ``still`` rests within
-    (its own band and the margin), not below ``floor``; None if there are fewer."""
+def detune_bands(request: Request, still: Sequence[StillSixBar], floor: float = FLOOR) -> np.ndarray:
+    """The bands (rad) :func:`detuned` moves six-bars to: from the band the :func:`needed`-th
+    stillest distinct six-bar of ``still`` needs (its own band and the margin) up to
+    :data:`DETUNE_SPAN` times it, :data:`DETUNE_PER_DECADE` per decade, those below
+    ``request.band``; none if ``still`` holds too few distinct six-bars."""
     chosen = _stillest(still, needed(request))
     if len(chosen) < needed(request):
-        return None
-    return max(floor, max(still[i].lowest for i in chosen) * (1 + _OWN_BAND_MARGIN))
+        return np.empty(0)
+    first = max(floor, max(still[i].lowest for i in chosen) * (1 + _OWN_BAND_MARGIN))
+    bands = first * np.geomspace(1.0, DETUNE_SPAN, round(DETUNE_PER_DECADE * math.log10(DETUNE_SPAN)) + 1)
+    return bands[bands < request.band]
 
 
-def _stillest_versions(still: Sequence[StillSixBar], moved: Sequence[StillSixBar]) -> list[StillSixBar]:
-    """The :data:`STILLER` stillest distinct six-bars among ``still`` and ``moved`` (one per fit:
-    the stillest of its versions)."""
-    best: dict[tuple, StillSixBar] = {}
-    for s in [*still, *moved]:
-        if s.fitted.key not in best or s.lowest < best[s.fitted.key].lowest:
-            best[s.fitted.key] = s
-    versions = list(best.values())
-    return [versions[i] for i in _stillest(versions, STILLER)]
-
-
-def _reached(request: Request, target: float, starts: Sequence[StillSixBar]) -> list[StillSixBar]:
-    """``starts`` refined toward ``request`` at the band ``target`` (rad; the refinement's reach
-    for those that miss it there, :func:`~synth.query.refine.refine`), those that now meet it,
-    measured (:func:`still_six_bars`)."""
-    if not starts:
+def detuned(request: Request, pairs: Sequence[tuple[StillSixBar, StillSixBar]], bands: np.ndarray) -> list[StillSixBar]:
+    """Per pair (a six-bar, its stiller version) and per band of ``bands`` (rad), the six-bar on
+    the straight line of dimensions between the two whose rest meets ``request`` at that band
+    with the most room — of :data:`DETUNE_POINTS` points inside the line, the one whose bands
+    [lowest, highest) (:func:`dwell_bands`) hold the band with the largest
+    min(ln(band / lowest), ln(highest / band)) — rounded as an id holds it and measured
+    (:func:`still_six_bars`: those that meet every band-free constraint)."""
+    t = np.linspace(0.0, 1.0, DETUNE_POINTS + 2)[1:-1]
+    points, origin = [], []
+    for k, (start, end) in enumerate(pairs):
+        p0, p1 = np.array(dimension_vector(start.sixbar)), np.array(dimension_vector(end.sixbar))
+        for p in p0 + t[:, None] * (p1 - p0):
+            try:
+                points.append(sixbar_like(p, end.sixbar))
+            except ValueError:  # a point between two six-bars may not assemble: skipped
+                continue
+            origin.append(k)
+    if not points:
         return []
-    at = dataclasses.replace(request, band=target)
-    sixbars = [s.sixbar for s in starts]
-    found = refine(at, sixbars, figures_of(at, sixbars, footprint=False), reach=True)
-    kept = [(s.fitted, r.sixbar) for s, r in zip(starts, found) if r.refined]
-    if not kept:
+    lowest, highest = dwell_bands(request, points)
+    lowest, highest, origin = lowest[:, None], highest[:, None], np.array(origin)[:, None]
+    room = np.minimum(np.log(bands / lowest), np.log(highest / bands))  # (points, bands)
+    room = np.where((lowest <= bands) & (bands < highest), room, -np.inf)
+    chosen: dict[int, int] = {}  # point → its pair, once however many bands chose it
+    for k in range(len(pairs)):
+        best = np.argmax(np.where(origin == k, room, -np.inf), axis=0)
+        for b, j in enumerate(best.tolist()):
+            if np.isfinite(room[j, b]):
+                chosen[j] = k
+    if not chosen:
         return []
-    return still_six_bars(request, [f for f, _ in kept], [sb for _, sb in kept], moved=True)[0]
+    fits = [pairs[k][1].fitted for k in chosen.values()]
+    return still_six_bars(request, fits, [round_dimensions(points[j]) for j in chosen], moved=True)[0]
 
 
 def probe(request: Request, source: SegmentSource, band: float) -> BandProbe:

@@ -26,6 +26,7 @@ __all__ = [
     "parse_candidate_id",
     "round_dimensions",
     "sixbar_from_vector",
+    "sixbar_like",
     "with_dimensions",
 ]
 
@@ -136,6 +137,12 @@ def sixbar_from_vector(p, branch: int, dyad_branch: int, rrr: bool) -> SixBar:
     pivot = complex(p[5], p[6])
     dyad = OutputDyad.rrr(pivot, p[7], p[8], dyad_branch) if rrr else OutputDyad.rpr(pivot)
     return SixBar(1.0, p[0], p[1], p[2], branch, p[3], p[4], dyad)
+
+
+def sixbar_like(p, like: SixBar) -> SixBar:
+    """The crank-normalised six-bar of :func:`dimension_vector` ``p`` on the branches and with
+    the output dyad kind of ``like`` (ValueError if it is no six-bar)."""
+    return sixbar_from_vector([float(x) for x in p], like.branch, like.dyad.branch, like.dyad.kind is OutputKind.RRR)
 
 
 def round_dimensions(sixbar: SixBar) -> SixBar:

@@ -24,9 +24,10 @@ refined by the reach first (``reach=True``, :func:`_reach`): a CMA-ES per candid
 adapted covariance follows the narrow valleys along which a miss comes to meet the request.
 
 For ``--band auto`` (:mod:`synth.query.band_search`), :func:`stiller` runs the reach's search
-with no band holding the dwell: the deviation over the requested dwell minimised for itself,
-every other constraint held as for a near miss, from a small first step (a still rest is lost
-to a relative change of 1e-5 in one length); the band search measures and checks the result.
+in the reach's box with no band holding the dwell: the deviation over the requested dwell
+minimised for itself, every other constraint held as for a near miss, from a small first step
+(a still rest is lost to a relative change of 1e-5 in one length); the band search measures
+and checks the result.
 
 Objective (on the grid, cheap): the deviation g(D) / band, g(L) the smallest peak-to-peak of ψ
 over a crank window of length L containing the retrieved dwell's middle
@@ -62,7 +63,7 @@ from synth.kinds import OutputKind
 from synth.mechanism.figures import SixBarFigures, sixbar_figures
 from synth.mechanism.sixbar import SixBar, SixBars, crank_grid
 from synth.query.batched_cma import cma_es
-from synth.query.candidate_ids import dimension_vector, round_dimensions, sixbar_from_vector
+from synth.query.candidate_ids import dimension_vector, round_dimensions, sixbar_like
 from synth.query.candidates import Request
 from synth.query.evaluate import meets
 from synth.query.refine_objective import WORST, better_or_equal, hold_bounds, request_bounds, trial_objective
@@ -97,12 +98,15 @@ REACH_ITERATIONS = 160
 #: over the requested dwell inside the band); the polish takes it on.
 REACHED = 1.0
 #: The search for the stillest rest (:func:`stiller`, the reach's population): its box, first
-#: step (a fraction of the box) and iterations. A rest of a few thousandths of a degree is
-#: lost to a relative change of 1e-5 in one length alone: the first step is small, and CMA-ES
-#: learns the directions along which the rest stays.
-STILL_RADIUS = 0.05
-STILL_SIGMA = 0.01
-STILL_ITERATIONS = 150
+#: step (a fraction of the box) and iterations. The reach's box: a long rest is made stiller
+#: only by moving the four-bar and the dyad together, and far (``--band auto`` on ``standard``
+#: reaches 0.027° for RPR 135°/15° in a box of 0.05, 0.0104° in one of 0.2). A first step of a
+#: twentieth of it: a rest of a few thousandths of a degree is lost to a relative change of
+#: 1e-5 in one length alone, and CMA-ES learns the directions along which the rest stays. It
+#: takes most of 300 iterations to learn them: 150 reach 0.021° there, 450 no more than 300.
+STILL_RADIUS = 0.2
+STILL_SIGMA = 0.05
+STILL_ITERATIONS = 300
 
 
 @dataclass(frozen=True, slots=True)
@@ -132,10 +136,6 @@ class Refinement:
     refined: bool
     meets: bool
     evaluations: int
-
-
-def _sixbar(p: np.ndarray, like: SixBar) -> SixBar:
-    return sixbar_from_vector([float(x) for x in p], like.branch, like.dyad.branch, like.dyad.kind is OutputKind.RRR)
 
 
 #: evaluate(x, who): the objective of steps x (len(who), T, 9) of the candidates ``who``.
@@ -366,7 +366,7 @@ def refine(
     moved = [k for k in range(K) if np.any(p[k] != p0[k])]
     if not moved:
         return out
-    refined = [round_dimensions(_sixbar(p[k], sixbars[rows[k]])) for k in moved]
+    refined = [round_dimensions(sixbar_like(p[k], sixbars[rows[k]])) for k in moved]
     figures = sixbar_figures(
         SixBars.from_sixbars(refined),
         band=request.band,
@@ -420,5 +420,5 @@ def stiller(
     p, _, _ = trials.steps(_reach, p0, np.arange(len(rows)), radius, iterations, population, seed, -np.inf, STILL_SIGMA)
     for k, i in enumerate(rows):
         if np.any(p[k] != p0[k]):
-            out[i] = round_dimensions(_sixbar(p[k], sixbars[i]))
+            out[i] = round_dimensions(sixbar_like(p[k], sixbars[i]))
     return out

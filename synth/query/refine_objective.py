@@ -143,23 +143,23 @@ def _objective_rows(
 
     band = request.band
     longest = 2 * math.pi - 2 * h
-    lengths = np.stack(
-        [
-            np.clip(request.dwell - margin, 2 * h, longest),
-            np.full(R, min(request.dwell, longest)),
-            np.minimum(request.dwell + margin, longest),
-        ],
-        axis=1,
-    )  # (R, 3)
-    C = centres.shape[1]
+    dwell = np.full(R, min(request.dwell, longest))
+    if stillest:  # the band follows the rest: the deviation over the dwell alone is wanted
+        lengths = dwell[:, None]
+    else:  # the dwell's bounds too: g(D − margin) and g(D + margin) against the band
+        lengths = np.stack(
+            [np.clip(request.dwell - margin, 2 * h, longest), dwell, np.minimum(request.dwell + margin, longest)],
+            axis=1,
+        )  # (R, 3)
+    C, W = centres.shape[1], lengths.shape[1]
     dev, _ = output_deviation(
         phi,
-        np.broadcast_to(psi[:, None, None, :], (R, C, 3, M)),
-        np.broadcast_to(centres[:, :, None], (R, C, 3)),
-        np.broadcast_to(lengths[:, None, :], (R, C, 3)),
+        np.broadcast_to(psi[:, None, None, :], (R, C, W, M)),
+        np.broadcast_to(centres[:, :, None], (R, C, W)),
+        np.broadcast_to(lengths[:, None, :], (R, C, W)),
     )
-    objective = dev[:, :, 1].max(axis=1) / band
-    if stillest:  # the band follows the rest: whatever it is, the dwell is measured at it
+    objective = dev[:, :, W // 2].max(axis=1) / band
+    if stillest:
         excess = np.zeros(R)
     else:
         excess = np.maximum(0.0, dev[:, :, 0] - (band * (1 - band_margin))[:, None]).sum(axis=1) / band

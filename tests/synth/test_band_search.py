@@ -20,11 +20,14 @@ from synth.mechanism.output_range import least_bands
 from synth.mechanism.sixbar import SixBars
 from synth.query import answer, rebuild
 from synth.query.band_search import (
+    DETUNE_PER_DECADE,
     FLOOR,
     MEET,
     REFERENCE_BAND,
     answer_tightest,
     covered_bands,
+    detune_bands,
+    detuned,
     dwell_bands,
     ladder,
     needed,
@@ -79,18 +82,26 @@ def test_leastdwell_bands_an_output_that_revolves_is_infinite():
 @given(
     intervals=st.lists(st.tuples(st.floats(-6.5, -1.0), st.floats(0.0, 3.0)), max_size=12),
     need=st.integers(1, 4),
+    extra=st.lists(st.floats(-7.0, -0.5), max_size=4),
 )
-def test_covered_bands_are_every_band_enough_intervals_cover(intervals, need):
+def test_covered_bands_are_every_band_enough_intervals_cover(intervals, need, extra):
     """The bands yielded, tightest first, are exactly the candidate bands (the six-bars' own,
-    widened by the margin, and the ladder) at which ≥ need of the intervals [lo, hi) are live,
-    each with those intervals."""
+    widened by the margin, the ladder and the extra bands, clipped to [floor, ceiling]) at
+    which ≥ need of the intervals [lo, hi) are live, each with those intervals."""
     ceiling = math.radians(0.1)
     lo = np.array([10.0**x for x, _ in intervals])
     hi = np.array([10.0 ** (x + w) for x, w in intervals])
-    got = list(covered_bands(lo, hi, need, ceiling))
+    more = [10.0**x for x in extra]
+    got = list(covered_bands(lo, hi, need, ceiling, extra=more))
     bands = [b for b, _ in got]
     assert bands == sorted(set(bands))
-    candidates = sorted({*np.clip(lo * 1.01, FLOOR, ceiling).tolist(), *ladder(ceiling, FLOOR).tolist()})
+    candidates = sorted(
+        {
+            *np.clip(lo * 1.01, FLOOR, ceiling).tolist(),
+            *ladder(ceiling, FLOOR).tolist(),
+            *np.clip(more, FLOOR, ceiling).tolist(),
+        }
+    )
     expected = [b for b in candidates if np.count_nonzero((lo <= b) & (b < hi)) >= need]
     assert bands == pytest.approx(expected, rel=1e-12)
     for b, live in got:
@@ -161,16 +172,23 @@ def test_a_probe_counts_what_the_query_answers(source, band_deg):
     assert band_deg != 0.0001 or (not full.candidates and full.nearest != (None, None))
 
 
-def test_stiller_rests_are_stiller_and_keep_every_other_constraint(source):
-    """The search's stillest-rest step (``refine.stiller``) on the pool's four stillest
-    six-bars: every six-bar it moves still meets every band-free constraint and its rest needs
-    a band no wider than before (a run of dwell − tol on the grid); most get markedly stiller."""
+@pytest.fixture(scope="module")
+def stiller_rests(source):
+    """The request, its pool's still six-bars, and the four stillest with their stiller
+    versions (``refine.stiller``): (request, still, [(six-bar, its stiller SixBar)])."""
     request = dataclasses.replace(RPR_60, refine=True)
     still, figures = still_six_bars(request, pool(request, source))
     order = sorted(range(len(still)), key=lambda i: still[i].lowest)[:4]
     at = dataclasses.replace(request, band=still[order[0]].lowest)
     moved = stiller(at, [still[i].sixbar for i in order], [figures[i] for i in order])
-    changed = [(still[i], sb) for i, sb in zip(order, moved) if sb is not still[i].sixbar]
+    return request, still, [(still[i], sb) for i, sb in zip(order, moved) if sb is not still[i].sixbar]
+
+
+def test_stiller_rests_are_stiller_and_keep_every_other_constraint(source, stiller_rests):
+    """The search's stillest-rest step (``refine.stiller``) on the pool's four stillest
+    six-bars: every six-bar it moves still meets every band-free constraint and its rest needs
+    a band no wider than before (a run of dwell − tol on the grid); most get markedly stiller."""
+    request, _, changed = stiller_rests
     assert len(changed) >= 3
     kept, _ = still_six_bars(request, [s.fitted for s, _ in changed], [sb for _, sb in changed], moved=True)
     assert len(kept) == len(changed)
@@ -183,3 +201,28 @@ def test_stiller_rests_are_stiller_and_keep_every_other_constraint(source):
     (back,) = rebuild([c.id], source, at)
     assert back.id == c.id and c.sixbar.scaled(1.0) == kept[0].sixbar
     assert np.allclose(dimension_vector(back.sixbar), dimension_vector(kept[0].sixbar), rtol=0, atol=1e-12)
+
+
+def test_detuned_rests_lie_between_a_fit_and_its_stiller_version_and_meet_at_their_bands(stiller_rests):
+    """Each six-bar the detuning returns lies on the straight line of dimensions from a fit to
+    its stiller version (to the float32 of an id), strictly between them, and its own bands
+    (a fresh run of the grid's measure) hold one of the bands it was detuned to; the bands run
+    from the one the third stillest rest needs (with the margin), twelve per decade, below the
+    request's band."""
+    request, still, changed = stiller_rests
+    moved, _ = still_six_bars(request, [s.fitted for s, _ in changed], [sb for _, sb in changed], moved=True)
+    pairs = [(s, m) for s, _ in changed for m in moved if m.fitted.key == s.fitted.key]
+    bands = detune_bands(request, [*still, *moved])
+    third = sorted(s.lowest for s in distinct(sorted([*still, *moved], key=lambda s: s.lowest)))[2]
+    assert bands[0] == pytest.approx(third * 1.01, rel=1e-12) and np.all(bands < request.band)
+    assert np.allclose(np.diff(np.log10(bands)), 1 / DETUNE_PER_DECADE)
+    found = detuned(request, pairs, bands)
+    assert len(found) >= len(pairs)
+    lowest, highest = dwell_bands(request, [f.sixbar for f in found])
+    for f, lo, hi in zip(found, lowest, highest):
+        start, end = next((s, m) for s, m in pairs if m.fitted.key == f.fitted.key)
+        p0, p1, p = (np.array(dimension_vector(x.sixbar)) for x in (start, end, f))
+        t = np.dot(p - p0, p1 - p0) / np.dot(p1 - p0, p1 - p0)
+        assert 0 < t < 1 and np.allclose(p, p0 + t * (p1 - p0), rtol=1e-6, atol=1e-6)
+        assert f.moved and (f.lowest, f.highest) == (lo, hi)
+        assert np.any((lo <= bands) & (bands < hi))
