@@ -313,17 +313,22 @@ def covered_bands(
 
 
 def sweep(
-    request: Request, still: Sequence[StillSixBar], floor: float = FLOOR, extra: Sequence[float] = ()
+    request: Request,
+    still: Sequence[StillSixBar],
+    floor: float = FLOOR,
+    extra: Sequence[float] = (),
+    below: float = math.inf,
 ) -> tuple[float | None, list[Candidate], tuple[BandProbe, ...]]:
-    """The tightest band (rad) in [``floor``, ``request.band``] at which :func:`needed`
-    distinct six-bars of ``still`` meet ``request`` (exact figures), the candidates that meet
-    it there, and the bands checked: those of :func:`covered_bands` (with the ``extra``
-    bands), in turn, :data:`CHECKS` at most."""
+    """The tightest band (rad) in [``floor``, ``request.band``] and below ``below`` at which
+    :func:`needed` distinct six-bars of ``still`` meet ``request`` (exact figures), the
+    candidates that meet it there, and the bands checked: those of :func:`covered_bands` (with
+    the ``extra`` bands), in turn, :data:`CHECKS` at most."""
     need = needed(request)
     lowest = np.array([s.lowest for s in still])
     highest = np.array([s.highest for s in still])
     probes: list[BandProbe] = []
-    for band, live in itertools.islice(covered_bands(lowest, highest, need, request.band, floor, extra), CHECKS):
+    bands = covered_bands(lowest, highest, need, request.band, floor, extra)
+    for band, live in itertools.islice(itertools.takewhile(lambda b: b[0] < below, bands), CHECKS):
         at = dataclasses.replace(request, band=band)
         figures = figures_of(at, [still[i].sixbar for i in live], footprint=True)
         met = distinct([still[i].candidate(at, f) for i, f in zip(live.tolist(), figures) if meets(at, f)])
@@ -354,17 +359,23 @@ def answer_tightest(
     fitted = pool(request, source, floor)
     still, figures = still_six_bars(request, fitted)
     chosen = _stillest(still, STILLER) if request.refine else []
-    moved: list[StillSixBar] = []
-    bands = np.empty(0)
+    pairs = []
     if chosen:
         tell("band auto: moving the stillest rests stiller")
         pairs = _made_stiller(request, [still[i] for i in chosen], [figures[i] for i in chosen])
-        moved = [m for _, m in pairs]
-        bands = detune_bands(request, [*still, *moved], floor)
-        if len(bands) and pairs:
-            tell("band auto: detuning the stiller rests to one band")
-            moved += detuned(request, pairs, bands)
-    band, met, probes = sweep(request, [*still, *moved], floor, bands)
+    moved = [m for _, m in pairs]
+    band, met, probes = sweep(request, [*still, *moved], floor)
+    bands = detune_bands(request, [*still, *moved], floor) if pairs else np.empty(0)
+    if len(bands):
+        # a sweep of its own, below the band reached: the detuned rests add many bands to
+        # check, and a double dwell's own bands (its stillest rest's) are only lower bounds
+        tell("band auto: detuning the stiller rests to one band")
+        found = detuned(request, pairs, bands)
+        moved += found
+        tighter, meeting, more = sweep(request, [*still, *moved], floor, bands, math.inf if band is None else band)
+        probes += more
+        if tighter is not None:
+            band, met = tighter, meeting
     final = request if band is None else dataclasses.replace(request, band=band)
     tell(f"band auto: answering at {math.degrees(final.band):.3g}°")
     respond = answer_at or (lambda r, seeded=(): answer(r, source, seeded=seeded))
