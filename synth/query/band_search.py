@@ -36,7 +36,8 @@ depend on the band. The search therefore measures bands, it does not probe them:
 3. **The sweep** (:func:`sweep`): the candidate bands — every six-bar's own band, a ladder
    of :data:`LADDER` per decade and the detuning's bands, tightest first — at which enough six-bars' bands cover them
    (:func:`covered_bands`) are checked in turn with the exact figures of those six-bars
-   (:func:`~synth.query.evaluate.meets`), until one holds enough.
+   (:func:`~synth.query.evaluate.meets`), until one holds enough: first the pool and the
+   stiller rests, then, below the band they reach, with the detuned ones.
 
 The request is then answered at the band reached as any request is (its sample, refinement
 and ``complete`` setting), with the six-bars that met there joining its candidates
