@@ -33,7 +33,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import brentq, minimize
 
 from kinematics.fourbar import check_lengths, crank_range, fourbar_motion
 from kinematics.status import AssemblyError, Status
@@ -117,6 +116,8 @@ def speed_profile(
 
 
 def _turn(a: float, b: float, c: float, d: float, branch: int, phases: int, clutch: str, grid: int = _GRID) -> _Turn:
+    from scipy.optimize import brentq  # ~1 s to import: on first use, not at every command's start
+
     if crank_range(a, b, c, d) != [(-np.pi, np.pi)]:
         return _Turn(0.0, 0.0, 0.0, 0.0, int(Status.NOT_ASSEMBLABLE))
     if clutch == "none":
@@ -260,6 +261,8 @@ def minimise_cv(
     picks the start; Powell's method (bounded) refines it. Raises :class:`AssemblyError` if no
     linkage in the box lets the crank turn fully with a non-zero mean output speed.
     """
+    from scipy.optimize import minimize  # ~1 s to import: on first use, not at every command's start
+
     _check_clutch(clutch, phases)
     names = [k for k in ("a", "b", "c", "d") if k in bounds]
     unknown = set(bounds) - {"a", "b", "c", "d"}

@@ -28,7 +28,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import brentq
 
 from kinematics.assur.model import Linkage, Output, PrismaticPair
 from kinematics.assur.positions import Assembly, assemble
@@ -143,6 +142,8 @@ def limit_positions(
     stay at the start's values. Raises :class:`AssemblyError` if the configuration does not
     assemble or is singular somewhere on the range (no limit can be trusted across that).
     """
+    from scipy.optimize import brentq  # ~1 s to import: on first use, not at every command's start
+
     if not linkage.inputs:
         raise AssemblyError("limit positions need an input to vary")
     x0 = float(start.inputs[0, 0])
