@@ -23,7 +23,7 @@ import numpy as np
 from kinematics.fourbar import FourBarMotion
 from kinematics.loop import sampled_extreme
 from kinematics.status import Status
-from synth.mechanism.buildability import Buildability, buildability
+from synth.mechanism.buildability import Buildability, buildability, clearances
 from synth.mechanism.link_ratio import link_ratio, segment_links
 from synth.mechanism.output_range import (
     REST_LEAVE,
@@ -37,7 +37,7 @@ from synth.mechanism.output_range import (
 from synth.mechanism.sixbar import ExactOutput, SixBar, SixBarMotion, SixBars, as_batch, crank_grid, simulate
 from synth.types import C128, F64
 
-__all__ = ["SixBarFigures", "figures_with_dwell_bounds", "footprints", "sixbar_figures"]
+__all__ = ["DwellBoundFigures", "SixBarFigures", "figures_with_dwell_bounds", "footprints", "sixbar_figures"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -190,17 +190,78 @@ def sixbar_figures(
     return out[0] if single else out
 
 
+@dataclass(frozen=True, slots=True)
+class DwellBoundFigures:
+    """Per row of a batch of six-bars, as arrays of shape ``(N,)``: the figures a request's
+    limits are checked on, each exactly as :func:`sixbar_figures` computes it, and bounds on
+    the single dwell's angle from the grid (:func:`figures_with_dwell_bounds`).
+
+    Attributes
+    ----------
+    swing, turns, transmission_fourbar, transmission_output, link_ratio, status :
+        As in :class:`SixBarFigures` (rad, count, rad, rad, ratio, flags).
+    rpr : bool
+        Which rows are RPR (their torque arm is defined).
+    arm : float
+        RPR: :attr:`Buildability.arm`, the smallest |P − D| (length); the RRR rows' entries
+        mean nothing.
+    clearance : float
+        :attr:`Buildability.clearance` (length).
+    peak_accel : float
+        max |ψ″| over the turn (rad/rad², :attr:`Buildability.peak_rates` [1]); zeros unless
+        asked for.
+    dwell_low, dwell_high : float
+        Bounds on the dwell's angle (rad, :func:`~synth.mechanism.output_range.dwell_angle_bounds`).
+    """
+
+    swing: F64
+    turns: np.ndarray
+    transmission_fourbar: F64
+    transmission_output: F64
+    link_ratio: F64
+    status: np.ndarray
+    rpr: np.ndarray
+    arm: F64
+    clearance: F64
+    peak_accel: F64
+    dwell_low: F64
+    dwell_high: F64
+
+    @property
+    def acceptable(self) -> np.ndarray:
+        """:attr:`SixBarFigures.acceptable` per row."""
+        return (self.status == 0) & (self.turns == 0)
+
+
 def figures_with_dwell_bounds(
-    sixbars: SixBars, *, band: float, samples: int = 720
-) -> tuple[list[SixBarFigures], F64, F64]:
-    """What :func:`sixbar_figures` gives for a single dwell without refining the dwell's ends:
-    every figure but the dwell (``dwells`` and ``deviations`` empty; no footprint) — each
-    exactly as :func:`sixbar_figures` computes it — and bounds (low, high) on the dwell's angle
-    (rad, :func:`~synth.mechanism.output_range.dwell_angle_bounds`). Enough to decide most constraints of
-    a six-bar far from a request at a fraction of the cost (the no-match diagnosis)."""
+    sixbars: SixBars, *, band: float, samples: int = 720, accel: bool = False
+) -> DwellBoundFigures:
+    """What :func:`sixbar_figures` gives for a single dwell without refining the dwell's ends,
+    as arrays: the figures a request's limits are checked on — each exactly as
+    :func:`sixbar_figures` computes it; the peak output acceleration only with ``accel`` —
+    and bounds (low, high) on the dwell's angle (rad,
+    :func:`~synth.mechanism.output_range.dwell_angle_bounds`). Enough to decide most constraints of
+    a six-bar far from a request at a fraction of the cost (the no-match diagnosis); no
+    object per row, no bounding box, footprint or jerk."""
     batch, _, phi, motion, psi_at = _simulated(sixbars, samples, None)
     low, high = dwell_angle_bounds(phi, motion.psi, band, dpsi1=motion.dpsi[0])
-    return _figures_but_dwells(batch, phi, motion, psi_at, footprint=False), low, high
+    swing, turns = output_swing(phi, motion.psi, dpsi=motion.dpsi, psi_at=psi_at)
+    assembled = np.all(motion.assembled, axis=1)
+    reach, clearance, _, rpr = clearances(batch, motion)
+    return DwellBoundFigures(
+        swing=swing,
+        turns=turns,
+        transmission_fourbar=np.where(assembled, _refined_min(motion.transmission_fourbar), 0.0),
+        transmission_output=np.where(assembled, _refined_min(motion.transmission_output), 0.0),
+        link_ratio=link_ratios(batch, motion),
+        status=np.bitwise_or.reduce(motion.status, axis=1),
+        rpr=rpr,
+        arm=reach.min(axis=1),
+        clearance=clearance,
+        peak_accel=np.abs(motion.dpsi[1]).max(axis=1) if accel else np.zeros(len(batch)),
+        dwell_low=low,
+        dwell_high=high,
+    )
 
 
 def _simulated(sixbar: SixBar | SixBars, samples: int, motion: SixBarMotion | None):

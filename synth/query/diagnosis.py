@@ -11,16 +11,16 @@ import dataclasses
 import math
 from collections.abc import Sequence
 
+import numpy as np
+
 from synth.kinds import SegmentKind
-from synth.mechanism.figures import SixBarFigures, figures_with_dwell_bounds, footprints
-from synth.mechanism.output_range import Dwell
+from synth.mechanism.figures import DwellBoundFigures, SixBarFigures, figures_with_dwell_bounds, footprints
 from synth.mechanism.sixbar import SixBars
 from synth.query.candidates import Request
 from synth.query.contract import SegmentSource
 from synth.query.evaluate import (
     SAMPLES,
     candidate_of,
-    dwell_excess,
     figures_of,
     scaled_figures,
     total_excess,
@@ -189,7 +189,13 @@ def diagnose_by_bounds(
     gets its exact figures when the bounds leave open whether it misses the dwell, or when
     its least possible total excess is not above the smallest total known to be reachable —
     until no six-bar not simulated exactly can be nearer (or as near: ties go to the fit
-    order, as in :func:`diagnose`). ``known``: figures at hand by :attr:`~synth.query.fitting.Fitted.key`."""
+    order, as in :func:`diagnose`). ``known``: figures at hand by :attr:`~synth.query.fitting.Fitted.key`.
+
+    The six-bars left open and those within the first reachable total are simulated exactly
+    in one batch: the smallest reachable total only falls as exact figures replace bounds, so
+    the six-bars it then leaves open are among them (the loop after it finds none left, but
+    stays, as the rule's statement), and those beyond it have a least total above the nearest
+    one's, so the nearest is the same."""
     known = dict(known or {})
     if request.dwells != 1 or not fitted:
         return diagnose(request, fitted, misses_of(request, fitted, known))
@@ -203,18 +209,18 @@ def diagnose_by_bounds(
     undecided: list[int] = []
     bound: dict[int, dict[str, float]] = {}  # excesses of the decided ones (dwell: its lower bound)
     if rest:
-        rough, low, high = figures_with_dwell_bounds(
-            SixBars.from_sixbars([fitted[k].sixbar() for k in rest]), band=request.band, samples=SAMPLES
+        rough = figures_with_dwell_bounds(
+            SixBars.from_sixbars([fitted[k].sixbar() for k in rest]),
+            band=request.band,
+            samples=SAMPLES,
+            accel=request.max_accel is not None,
         )
-        for j, k in enumerate(rest):
-            nearest = min(max(request.dwell, low[j]), high[j])  # the excess is convex in the angle
-            least = violations(request, dataclasses.replace(rough[j], dwells=(Dwell(0.0, nearest, nearest),)))
-            most = max(dwell_excess(request, low[j]), dwell_excess(request, high[j]))
-            low_total[k] = total_excess(least)
-            high_total[k] = total_excess(dict(least, dwell=most))
-            if (least["dwell"] > 0) != (most > 0):
+        least, most, lows, highs = bounded_excess(request, rough)
+        rows = [dict(zip(CONSTRAINTS, values)) for values in zip(*(least[c] for c in CONSTRAINTS))]
+        for k, row, lo, hi, worst in zip(rest, rows, lows, highs, most):
+            low_total[k], high_total[k], bound[k] = lo, hi, row
+            if (row["dwell"] > 0) != (worst > 0):
                 undecided.append(k)
-            bound[k] = least
 
     def exact(ks: list[int]) -> None:
         if not ks:
@@ -225,7 +231,9 @@ def diagnose_by_bounds(
 
     for k in excess:
         low_total[k] = high_total[k] = total_excess(excess[k])
-    exact(undecided)
+    reach = min(high_total.values())
+    near = {k for k in rest if low_total[k] <= reach and low_total[k] < math.inf}
+    exact(sorted(near.union(undecided)))
     while True:
         reach = min(high_total.values())
         need = [k for k in rest if k not in excess and low_total[k] <= reach and low_total[k] < math.inf]
@@ -239,6 +247,50 @@ def diagnose_by_bounds(
     totals = [(low_total[k], k) for k in excess]
     best_total, best = min(totals)
     return _no_match(request, len(fitted), rejected, None if best_total == math.inf else (fitted[best], figures[best]))
+
+
+def bounded_excess(
+    request: Request, rough: DwellBoundFigures
+) -> tuple[dict[str, list[float]], list[float], list[float], list[float]]:
+    """Per row of ``rough``: the excesses :func:`violations` gives with the dwell at the angle
+    of its bounds nearest the request (the least dwell excess: convex in the angle), the most
+    dwell excess the bounds allow, and the least and most total excess (:func:`total_excess`,
+    inf where the six-bar is not acceptable) — the same floats as those functions give row by
+    row (the same operations in the same order), for a whole batch at once."""
+    n = rough.swing.shape[0]
+    zero = np.zeros(n)
+
+    def dwell_excess_of(angle: np.ndarray) -> np.ndarray:
+        return np.maximum(0.0, np.degrees(np.abs(angle - request.dwell) - request.dwell_tol))
+
+    ok = rough.acceptable
+    least = {c: zero for c in CONSTRAINTS}
+    least["dwell"] = dwell_excess_of(np.minimum(np.maximum(request.dwell, rough.dwell_low), rough.dwell_high))
+    if request.swing is not None:
+        least["swing"] = np.maximum(0.0, np.degrees(np.abs(rough.swing - request.swing) - request.swing_tol))
+    mu = np.minimum(rough.transmission_fourbar, rough.transmission_output)
+    least["transmission"] = np.maximum(0.0, np.degrees(request.min_transmission - mu))
+    least["link_ratio"] = np.maximum(0.0, 100.0 * (rough.link_ratio / request.max_link_ratio - 1.0))
+    least["arm"] = np.where(rough.rpr, np.maximum(0.0, request.min_arm - rough.arm), 0.0)
+    least["clearance"] = np.maximum(0.0, request.min_clearance - rough.clearance)
+    if request.max_accel is not None:
+        w = 2.0 * math.pi * request.rpm / 60.0  # as Buildability.dynamics
+        least["acceleration"] = np.maximum(0.0, rough.peak_accel * w * w - request.max_accel)
+    # a six-bar that is not acceptable misses on assembly alone (violations measures nothing else)
+    least = {c: np.where(ok, x, 0.0) for c, x in least.items()}
+    least["assembly"] = np.where(ok, 0.0, 1.0)
+    most = np.maximum(dwell_excess_of(rough.dwell_low), dwell_excess_of(rough.dwell_high))
+    low = high = np.zeros(n)
+    for c in CONSTRAINTS:  # summed in the order of total_excess's sum over the dict
+        low = low + least[c]
+        high = high + (most if c == "dwell" else least[c])
+    inf = np.full(n, math.inf)
+    return (
+        {c: x.tolist() for c, x in least.items()},
+        most.tolist(),
+        np.where(ok, low, inf).tolist(),
+        np.where(ok, high, inf).tolist(),
+    )
 
 
 def either_no_match(request: Request, diagnoses: Sequence[NoMatch | None]) -> NoMatch | None:

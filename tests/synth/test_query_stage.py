@@ -9,8 +9,9 @@ import math
 import numpy as np
 import pytest
 
+from synth.kinds import OutputKind
 from synth.mechanism.figures import sixbar_figures
-from synth.mechanism.sixbar import SixBars
+from synth.mechanism.sixbar import SixBar, SixBars
 from synth.mechanism.sixbar import simulate as simulate_motion
 from synth.query import (
     CONSTRAINTS,
@@ -287,6 +288,60 @@ def test_no_match_diagnosis_by_bounds_is_the_full_diagnosis(source, monkeypatch)
     assert cases >= 20
     print(f"{cases} no-matches; single dwells: {refined_rows_single} of {fitted_rows} six-bars refined")
     assert refined_rows_single < 0.5 * fitted_rows
+
+
+def test_bounded_excess_is_violations_row_by_row(source):
+    """The diagnosis's excesses from bounds, for a whole batch at once (``bounded_excess`` of
+    ``figures_with_dwell_bounds``), are the very floats ``violations`` and ``total_excess`` give
+    row by row on the full figures with the dwell at its bounds (the least excess: at the
+    bound nearest the request) — every limit binding somewhere (arm, clearance, acceleration,
+    link ratio, transmission, swing), six-bars that do not assemble or revolve among them."""
+    from synth.mechanism.figures import figures_with_dwell_bounds
+    from synth.mechanism.output_range import Dwell
+    from synth.query.diagnosis import bounded_excess
+    from synth.query.evaluate import dwell_excess, total_excess
+
+    sixbars = []
+    for output, dwell, swing in (("rpr", 45, 40), ("rrr", 60, 30), ("rpr", 90, 20), ("rrr", 30, 15)):
+        req = Request(dwell=dwell * DEG, dwell_tol=10 * DEG, swing=swing * DEG, output=output, max_link_ratio=30)
+        sixbars += [f.sixbar() for kind in kinds_for(req) for f in fit(req, select(source, req, (kind,)), kind)]
+    # broken on purpose: RRR rockers too short to close the loop, slots pivoted inside the
+    # coupler curve (the output revolves)
+    rrr = [sb for sb in sixbars if sb.dyad.kind == OutputKind.RRR][:20]
+    rpr = [sb for sb in sixbars if sb.dyad.kind == OutputKind.RPR][:20]
+    sixbars += [SixBar.of(sb.fourbar, dataclasses.replace(sb.dyad, rocker=0.2 * sb.dyad.rocker)) for sb in rrr]
+    centres = simulate_motion(SixBars.from_sixbars(rpr), np.linspace(0, 2 * math.pi, 72), order=0).z[0].mean(axis=1)
+    sixbars += [SixBar.of(sb.fourbar, dataclasses.replace(sb.dyad, pivot=complex(c))) for sb, c in zip(rpr, centres)]
+    batch = SixBars.from_sixbars(sixbars)
+    full = sixbar_figures(batch, band=0.1 * DEG, samples=720, footprint=False)
+    assert len(full) >= 100 and 0 < sum(f.acceptable for f in full) < len(full)
+    for request in (
+        Request(dwell=60 * DEG, swing=30 * DEG, min_transmission=40 * DEG, max_link_ratio=6, refine=False),
+        Request(
+            dwell=45 * DEG,
+            swing=40 * DEG,
+            min_transmission=40 * DEG,
+            max_link_ratio=6,
+            min_arm=1.0,
+            min_clearance=0.5,
+            max_accel=20.0,
+            refine=False,
+        ),
+    ):
+        rough = figures_with_dwell_bounds(batch, band=0.1 * DEG, samples=720, accel=request.max_accel is not None)
+        least, most, low, high = bounded_excess(request, rough)
+        nearest = np.minimum(np.maximum(request.dwell, rough.dwell_low), rough.dwell_high).tolist()
+        binding = dict.fromkeys(CONSTRAINTS, 0)
+        for k, f in enumerate(full):
+            want = violations(request, dataclasses.replace(f, dwells=(Dwell(0.0, nearest[k], nearest[k]),)))
+            assert {c: least[c][k] for c in CONSTRAINTS} == want, k
+            worst = max(dwell_excess(request, rough.dwell_low[k]), dwell_excess(request, rough.dwell_high[k]))
+            assert (most[k], low[k], high[k]) == (worst, total_excess(want), total_excess(dict(want, dwell=worst)))
+            for c in CONSTRAINTS:
+                binding[c] += want[c] > 0
+        limits = ("assembly", "dwell", "swing", "transmission", "link_ratio")
+        extra = ("arm", "clearance", "acceleration") if request.max_accel is not None else ()
+        assert all(binding[c] > 0 for c in limits + extra), binding
 
 
 def test_dwell_angle_bounds_hold_the_refined_dwell(source):
