@@ -166,17 +166,16 @@ def _read_answers(paths: tuple[str, ...]) -> list[tuple[str, SixBar, list[float]
 
 def _answers(answers: list[tuple[str, SixBar, list[float], float]], tolerance: float, draws: int, repeat: int) -> dict:
     """Each candidate of ``answers`` (:func:`_read_answers`): its toleranced deviation
-    (``tolerance`` cranks; its CPU time, the median of ``repeat`` runs) against the whole-turn
-    path's (one run's CPU time), summarised over all and per file."""
+    (``tolerance`` cranks; its CPU and wall time, each the median of ``repeat`` runs after one
+    untimed) against the whole-turn path's (one run's CPU time), summarised over all and per
+    file."""
     from synth.mechanism.tolerance import clear_of_limits, deviation_draws, toleranced_deviation
 
     rows = []
     for path, sb, centres, length in answers:
         t = tolerance * sb.a
-        value, seconds = _timed_value(lambda: toleranced_deviation(sb, t, centres, length, draws=draws))
-        if repeat > 1:
-            cpu, _ = _timed(lambda: toleranced_deviation(sb, t, centres, length, draws=draws), repeat)
-            seconds = float(np.median(cpu))
+        value = toleranced_deviation(sb, t, centres, length, draws=draws)
+        cpu, wall = _timed(lambda: toleranced_deviation(sb, t, centres, length, draws=draws), repeat)
         turn, turn_seconds = _timed_value(lambda: deviation_draws(sb, t, centres, length, draws=draws, whole_turn=True))
         reference = float(np.percentile(turn, 95.0)) if np.isfinite(turn).all() else None
         both = value is not None and reference is not None
@@ -185,7 +184,8 @@ def _answers(answers: list[tuple[str, SixBar, list[float], float]], tolerance: f
                 "file": path,
                 "dwell_deg": math.degrees(length),
                 "windows": clear_of_limits(sb, t),
-                "cpu": seconds,
+                "cpu": float(np.median(cpu)),
+                "wall": float(np.median(wall)),
                 "turn_cpu": turn_seconds,
                 "diff": abs(math.degrees(value - reference)) if both else None,
                 "rel": abs(value - reference) / reference if both else None,
@@ -211,6 +211,7 @@ def _summary(rows: list[dict]) -> dict:
         "median_difference_deg": float(np.median(diff)) if diff else None,
         "largest_relative_difference": max(rel, default=None),
         "cpu_ms_per_candidate": _spread([r["cpu"] for r in rows]) if rows else None,
+        "wall_ms_per_candidate": _spread([r["wall"] for r in rows]) if rows else None,
         "whole_turn_cpu_ms_per_candidate": _spread([r["turn_cpu"] for r in rows]) if rows else None,
     }
 

@@ -158,6 +158,38 @@ def test_windows_sampled_near_the_first_draws_best_are_those_sampled_whole(monke
     np.testing.assert_array_equal(whole_grid["narrow"], whole_grid["whole"])
 
 
+@pytest.mark.parametrize("sb, dwell_deg", [(RRR, 60.0), (RPR_LONG, 135.0)])
+def test_a_candidates_draws_stay_on_one_thread_until_a_split_pays(monkeypatch, sb, dwell_deg):
+    # with two threads to hand: a candidate's 256 draws (every column for the RRR, the zone
+    # for the long RPR) are sampled in the caller's thread, where they cost the least CPU;
+    # 2 048 draws (estimated over the split threshold) are split, with bitwise the figures of
+    # the same draws on one thread
+    import threading
+
+    from synth import parallel_rows
+
+    length = math.radians(dwell_deg)
+    centres = _centres(sb, length)
+    threads_used, real = set(), tolerance_kernel._sample_rows
+
+    def spy(*args):
+        threads_used.add(threading.get_ident())
+        return real(*args)
+
+    monkeypatch.setattr(tolerance_kernel, "_sample_rows", spy)
+    monkeypatch.setattr(parallel_rows, "threads", lambda: 2)
+    deviation_draws(sb, 0.05 / 40, centres, length, draws=DRAWS)
+    assert threads_used == {threading.get_ident()}
+    split = deviation_draws(sb, 0.05 / 40, centres, length, draws=2048)
+    assert len(threads_used) == 2
+    monkeypatch.setattr(tolerance_kernel, "_SPLIT_NS", math.inf)
+    threads_used.clear()
+    one = deviation_draws(sb, 0.05 / 40, centres, length, draws=2048)
+    assert threads_used == {threading.get_ident()}
+    np.testing.assert_array_equal(split, one)
+    assert np.all(np.isfinite(one)) and one.std() > 0
+
+
 def test_zero_tolerance_is_the_nominal_deviation():
     length = math.radians(60.0)
     nominal = max(sixbar_figures(RRR, band=BAND, dwell_length=length).deviations)
