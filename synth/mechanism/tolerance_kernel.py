@@ -113,7 +113,8 @@ def window_samples(
     holds ((nL + 1) // step of them from the first at or after it); a draw where one is not is
     sampled whole, as the first is, and its best start taken among all. Where that would save
     less than a fifth of the samples, every draw is sampled whole. Columns not sampled (never
-    read) are NaN."""
+    read) are NaN. The draws are split over threads only from :data:`_SPLIT_NS` of estimated
+    work (a candidate's 256 draws run in the caller's thread); the values do not depend on it."""
     n, G = params.shape[0], len(phi)
     cosg, sing = np.cos(phi), np.sin(phi)
     ref = np.clip(np.asarray(ref, dtype=np.int64), 0, G - 1)
@@ -175,10 +176,12 @@ def window_samples(
 #: eight requests' first answer; RPR the cheaper) against the full kernel's ~85.
 _POINT_NS = 50
 #: Estimated work (ns) below which a candidate's draws are sampled in the caller's thread,
-#: whatever :func:`synth.parallel_rows.threads` says. A split adds CPU time: 0.1–0.35 ms a
-#: candidate measured (256 draws, two threads against one, the 2-core machine shared), where
-#: a 1–2 ms sampling pass gained no wall time, the other core being busy. From 4 ms (1 024
-#: draws and more) a split adds under a tenth to the CPU and can halve the wall time.
+#: whatever :func:`synth.parallel_rows.threads` says. A split's hand-off costs CPU time in both
+#: threads (Python's share of the pool, a second dispatch of the kernel, cold caches):
+#: 0.1–1 ms a candidate more than one thread (256 draws, their 0.5–2 ms sampling pass, the
+#: 2-core machine shared), against the ≤ 5 ms a candidate must cost, and a wall time no
+#: better (the other core busy). From 4 ms of work (1 024 draws and more) the hand-off is
+#: within the noise of the CPU time (±5 % measured) and a free core can take half the work.
 _SPLIT_NS = 4_000_000
 
 
