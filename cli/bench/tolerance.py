@@ -166,36 +166,79 @@ def _read_answers(paths: tuple[str, ...]) -> list[tuple[str, SixBar, list[float]
 
 def _answers(answers: list[tuple[str, SixBar, list[float], float]], tolerance: float, draws: int, repeat: int) -> dict:
     """Each candidate of ``answers`` (:func:`_read_answers`): its toleranced deviation
-    (``tolerance`` cranks; its CPU time, the median of ``repeat`` runs) against the whole-turn
-    path's (one run's CPU time), summarised over all and per file."""
+    (``tolerance`` cranks; its CPU and wall time, each the median of ``repeat`` runs after one
+    untimed) against the whole-turn path's (one run's CPU time), summarised over all and per
+    file; and each file's candidates in one :func:`~synth.mechanism.tolerance.toleranced_deviations`
+    call, as a query takes them (``batch``: CPU and wall time per candidate, the median of
+    ``repeat`` runs, and whether its figures are the one-by-one ones)."""
     from synth.mechanism.tolerance import clear_of_limits, deviation_draws, toleranced_deviation
 
     rows = []
+    values = []
     for path, sb, centres, length in answers:
         t = tolerance * sb.a
-        value, seconds = _timed_value(lambda: toleranced_deviation(sb, t, centres, length, draws=draws))
-        if repeat > 1:
-            cpu, _ = _timed(lambda: toleranced_deviation(sb, t, centres, length, draws=draws), repeat)
-            seconds = float(np.median(cpu))
+        value = toleranced_deviation(sb, t, centres, length, draws=draws)
+        cpu, wall = _timed(lambda: toleranced_deviation(sb, t, centres, length, draws=draws), repeat)
         turn, turn_seconds = _timed_value(lambda: deviation_draws(sb, t, centres, length, draws=draws, whole_turn=True))
         reference = float(np.percentile(turn, 95.0)) if np.isfinite(turn).all() else None
         both = value is not None and reference is not None
+        values.append(value)
         rows.append(
             {
                 "file": path,
                 "dwell_deg": math.degrees(length),
                 "windows": clear_of_limits(sb, t),
-                "cpu": seconds,
+                "cpu": float(np.median(cpu)),
+                "wall": float(np.median(wall)),
                 "turn_cpu": turn_seconds,
                 "diff": abs(math.degrees(value - reference)) if both else None,
                 "rel": abs(value - reference) / reference if both else None,
             }
         )
+    batches = _batches(answers, values, tolerance, draws, repeat)
+    files = list(dict.fromkeys(r["file"] for r in rows))
     return {
         **_summary(rows),
+        "batch": _batch_summary(list(batches.values())),
         "per_file": [
-            {"file": f, **_summary([r for r in rows if r["file"] == f])} for f in dict.fromkeys(r["file"] for r in rows)
+            {"file": f, **_summary([r for r in rows if r["file"] == f]), "batch": _batch_summary([batches[f]])}
+            for f in files
         ],
+    }
+
+
+def _batches(
+    answers: list[tuple[str, SixBar, list[float], float]],
+    values: list[float | None],
+    tolerance: float,
+    draws: int,
+    repeat: int,
+) -> dict[str, tuple[int, float, float, bool]]:
+    """Per answers file: (candidates, median CPU s, median wall s of ``repeat`` runs after one
+    untimed, whether the figures are ``values``') of one
+    :func:`~synth.mechanism.tolerance.toleranced_deviations` call over its candidates (the
+    file's crank: its first candidate's)."""
+    from synth.mechanism.tolerance import toleranced_deviations
+
+    out = {}
+    for path in dict.fromkeys(a[0] for a in answers):
+        k = [i for i, a in enumerate(answers) if a[0] == path]
+        sixbars, centres = [answers[i][1] for i in k], [answers[i][2] for i in k]
+        t, length = tolerance * sixbars[0].a, answers[k[0]][3]
+        got = toleranced_deviations(sixbars, t, centres, length, draws=draws)
+        cpu, wall = _timed(lambda: toleranced_deviations(sixbars, t, centres, length, draws=draws), repeat)
+        out[path] = (len(k), float(np.median(cpu)), float(np.median(wall)), got == [values[i] for i in k])
+    return out
+
+
+def _batch_summary(batches: list[tuple[int, float, float, bool]]) -> dict:
+    """CPU and wall ms per candidate over :func:`_batches`' files, and whether every figure is
+    the one-by-one one."""
+    n = sum(b[0] for b in batches)
+    return {
+        "cpu_ms_per_candidate": 1e3 * sum(b[1] for b in batches) / n,
+        "wall_ms_per_candidate": 1e3 * sum(b[2] for b in batches) / n,
+        "same_figures": all(b[3] for b in batches),
     }
 
 
@@ -211,6 +254,7 @@ def _summary(rows: list[dict]) -> dict:
         "median_difference_deg": float(np.median(diff)) if diff else None,
         "largest_relative_difference": max(rel, default=None),
         "cpu_ms_per_candidate": _spread([r["cpu"] for r in rows]) if rows else None,
+        "wall_ms_per_candidate": _spread([r["wall"] for r in rows]) if rows else None,
         "whole_turn_cpu_ms_per_candidate": _spread([r["turn_cpu"] for r in rows]) if rows else None,
     }
 

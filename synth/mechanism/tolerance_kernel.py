@@ -33,6 +33,7 @@ one loop, 0.2 ms for 256 draws, and both bounds are taken for every draw.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numba
 import numpy as np
@@ -112,7 +113,8 @@ def window_samples(
     holds ((nL + 1) // step of them from the first at or after it); a draw where one is not is
     sampled whole, as the first is, and its best start taken among all. Where that would save
     less than a fifth of the samples, every draw is sampled whole. Columns not sampled (never
-    read) are NaN."""
+    read) are NaN. The draws are split over threads only from :data:`_SPLIT_NS` of estimated
+    work (a candidate's 256 draws run in the caller's thread); the values do not depend on it."""
     n, G = params.shape[0], len(phi)
     cosg, sing = np.cos(phi), np.sin(phi)
     ref = np.clip(np.asarray(ref, dtype=np.int64), 0, G - 1)
@@ -150,13 +152,13 @@ def window_samples(
 
     fine = 2 * zone + nL + 12  # columns sampled every step
     if fine + (G - fine) / step > 0.8 * G:  # little to save: every column
-        over_rows(n, rows_whole, _POINT_NS * n * G)
+        _over_draws(n, rows_whole, _POINT_NS * n * G)
         return slab, start - 1, width, whole
     rows_whole(0, 1)
     zs, ze = int(start[0]) - zone, int(start[0]) + zone
     fine_lo, fine_hi = zs - 5, ze + nL + 6
     if start[0] < 0 or fine_lo < 0 or fine_hi >= G:  # the zone runs off the samples
-        over_rows(n - 1, lambda lo, hi: rows_whole(lo + 1, hi + 1), _POINT_NS * (n - 1) * G)
+        _over_draws(n - 1, lambda lo, hi: rows_whole(lo + 1, hi + 1), _POINT_NS * (n - 1) * G)
         return slab, start - 1, width, whole
     l0 = fine_lo % step
     taken = np.zeros(G, bool)
@@ -164,13 +166,33 @@ def window_samples(
     taken[fine_lo : fine_hi + 1] = True
     cols = np.flatnonzero(taken)
 
-    over_rows(n - 1, lambda lo, hi: rows(lo + 1, hi + 1, cols, zs, ze, l0), _POINT_NS * (n - 1) * len(cols))
+    _over_draws(n - 1, lambda lo, hi: rows(lo + 1, hi + 1, cols, zs, ze, l0), _POINT_NS * (n - 1) * len(cols))
     return slab, start - 1, width, whole
 
 
 #: Cost of one sample of :func:`window_samples` (ns, the 2-core machine): the four-bar's and
-#: the dyad's closing triangles and the angle, ~30–40 ns against the full kernel's ~85.
-_POINT_NS = 40
+#: the dyad's closing triangles and the angle, with the zone's test and the best starts,
+#: 30–68 ns (a whole call over the sampled columns of 256 draws, one thread, on each of the
+#: eight requests' first answer; RPR the cheaper) against the full kernel's ~85.
+_POINT_NS = 50
+#: Estimated work (ns) below which a candidate's draws are sampled in the caller's thread,
+#: whatever :func:`synth.parallel_rows.threads` says. A split's hand-off costs CPU time in both
+#: threads (Python's share of the pool, a second dispatch of the kernel, cold caches):
+#: 0.1–1 ms a candidate more than one thread (256 draws, their 0.5–2 ms sampling pass, the
+#: 2-core machine shared), against the ≤ 5 ms a candidate must cost, and a wall time no
+#: better (the other core busy). From 4 ms of work (1 024 draws and more) the hand-off is
+#: within the noise of the CPU time (±5 % measured) and a free core can take half the work.
+_SPLIT_NS = 4_000_000
+
+
+def _over_draws(rows: int, work: Callable[[int, int], None], cost_ns: float) -> None:
+    """:func:`synth.parallel_rows.over_rows` for batches of an estimated ``cost_ns`` (ns) from
+    :data:`_SPLIT_NS` on; a smaller batch (a candidate's 256 draws) runs as one block in this
+    thread, where it costs the least CPU time."""
+    if cost_ns < _SPLIT_NS:
+        work(0, rows)
+    else:
+        over_rows(rows, work, cost_ns)
 
 
 def limits_clear(params: F64, rpr: np.ndarray, phi: F64, pin_eps: float) -> bool:

@@ -156,6 +156,10 @@ def test_bench_tolerance_holds_query_answers_to_the_whole_turn(capsys, tmp_path)
     assert answers["candidates"] == 1 and answers["dwell_windows_only"] == 1
     assert 0 < answers["largest_difference_deg"] < 2e-3  # the figure is not the whole turn's code
     assert answers["whole_turn_cpu_ms_per_candidate"]["min"] > 0
+    cpu, wall = answers["cpu_ms_per_candidate"], answers["wall_ms_per_candidate"]
+    assert 0 < cpu["min"] == cpu["max"] < 60_000 and 0 < wall["min"] == wall["max"] < 60_000  # one candidate
+    batch = answers["batch"]  # the file's candidates in one call: the same figure
+    assert batch["same_figures"] is True and 0 < batch["cpu_ms_per_candidate"] < 60_000
     (per_file,) = answers["per_file"]  # one file: its figures are the whole's
     assert per_file["file"] == str(path) and abs(per_file["dwell_deg"][0] - dwell) < 1e-9
     assert per_file["largest_difference_deg"] == answers["largest_difference_deg"]

@@ -158,6 +158,67 @@ def test_windows_sampled_near_the_first_draws_best_are_those_sampled_whole(monke
     np.testing.assert_array_equal(whole_grid["narrow"], whole_grid["whole"])
 
 
+@pytest.mark.parametrize("sb, dwell_deg", [(RRR, 60.0), (RPR_LONG, 135.0)])
+def test_a_candidates_draws_stay_on_one_thread_until_a_split_pays(monkeypatch, sb, dwell_deg):
+    # with two threads to hand: a candidate's 256 draws (every column for the RRR, the zone
+    # for the long RPR) are sampled in the caller's thread, where they cost the least CPU;
+    # 2 048 draws (estimated over the split threshold) are split, with bitwise the figures of
+    # the same draws on one thread
+    import threading
+
+    from synth import parallel_rows
+
+    length = math.radians(dwell_deg)
+    centres = _centres(sb, length)
+    threads_used, real = set(), tolerance_kernel._sample_rows
+
+    def spy(*args):
+        threads_used.add(threading.get_ident())
+        return real(*args)
+
+    monkeypatch.setattr(tolerance_kernel, "_sample_rows", spy)
+    monkeypatch.setattr(parallel_rows, "threads", lambda: 2)
+    deviation_draws(sb, 0.05 / 40, centres, length, draws=DRAWS)
+    assert threads_used == {threading.get_ident()}
+    split = deviation_draws(sb, 0.05 / 40, centres, length, draws=2048)
+    assert len(threads_used) == 2
+    monkeypatch.setattr(tolerance_kernel, "_SPLIT_NS", math.inf)
+    threads_used.clear()
+    one = deviation_draws(sb, 0.05 / 40, centres, length, draws=2048)
+    assert threads_used == {threading.get_ident()}
+    np.testing.assert_array_equal(split, one)
+    assert np.all(np.isfinite(one)) and one.std() > 0
+
+
+def test_six_bars_split_over_threads_give_each_ones_figure(monkeypatch):
+    # a query's candidates in one call: split over two threads (each six-bar's draws on one),
+    # bitwise the figures of one call per six-bar; a bad tolerance or centres: one clear error
+    import threading
+
+    from synth import parallel_rows
+
+    sixbars = [RRR, RPR, RPR_LONG, RRR_LONG]
+    lengths = {id(RRR): 60.0, id(RPR): 45.0, id(RPR_LONG): 135.0, id(RRR_LONG): 120.0}
+    length = math.radians(50.0)  # one request: every six-bar's window that long
+    centres = [_centres(sb, math.radians(lengths[id(sb)])) for sb in sixbars]
+    threads_used, real = set(), tolerance_module.toleranced_deviation
+
+    def spy(*args, **kwargs):
+        threads_used.add(threading.get_ident())
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(parallel_rows, "threads", lambda: 2)
+    monkeypatch.setattr(tolerance_module, "toleranced_deviation", spy)
+    split = tolerance_module.toleranced_deviations(sixbars, 0.05 / 40, centres, length, draws=64)
+    assert len(threads_used) == 2
+    one = [real(sb, 0.05 / 40, c, length, draws=64) for sb, c in zip(sixbars, centres)]
+    assert split == one and all(x is not None and x > 0 for x in one) and len(set(one)) == 4
+    with pytest.raises(ValueError, match="tolerance"):
+        tolerance_module.toleranced_deviations(sixbars, -1.0, centres, length)
+    with pytest.raises(ValueError, match="centres"):
+        tolerance_module.toleranced_deviations(sixbars, 0.01, centres[:2], length)
+
+
 def test_zero_tolerance_is_the_nominal_deviation():
     length = math.radians(60.0)
     nominal = max(sixbar_figures(RRR, band=BAND, dwell_length=length).deviations)
