@@ -189,14 +189,18 @@ def rest_position(sixbar: SixBar, f: SixBarFigures) -> complex | None:
 def toleranced(request: Request, candidates: list[Candidate]) -> list[Candidate]:
     """With ``request.tolerance``: each candidate with its toleranced deviation
     (:func:`synth.mechanism.tolerance.toleranced_deviation` over the middles of its dwells, the request's
-    dwell length), worked out afresh (a refined six-bar is another six-bar); else as they are."""
+    dwell length; the candidates split over threads, :func:`~synth.mechanism.tolerance.toleranced_deviations`),
+    worked out afresh (a refined six-bar is another six-bar); else as they are."""
     if request.tolerance <= 0:
         return candidates
-    from synth.mechanism.tolerance import toleranced_deviation
+    from synth.mechanism.tolerance import toleranced_deviations
 
-    out = []
-    for c in candidates:
-        centres = [0.5 * (d.start + d.end) for d in c.figures.dwells[: request.dwells]]
-        value = toleranced_deviation(c.sixbar, request.tolerance, centres, request.dwell) if centres else None
-        out.append(dataclasses.replace(c, toleranced_deviation=value))
-    return out
+    centres = [[0.5 * (d.start + d.end) for d in c.figures.dwells[: request.dwells]] for c in candidates]
+    resting = [k for k, cs in enumerate(centres) if cs]  # a candidate without a dwell has no figure
+    values: list[float | None] = [None] * len(candidates)
+    found = toleranced_deviations(
+        [candidates[k].sixbar for k in resting], request.tolerance, [centres[k] for k in resting], request.dwell
+    )
+    for k, value in zip(resting, found):
+        values[k] = value
+    return [dataclasses.replace(c, toleranced_deviation=v) for c, v in zip(candidates, values)]
