@@ -439,8 +439,9 @@ def detuned(request: Request, pairs: Sequence[tuple[StillSixBar, StillSixBar]], 
         return []
     lowest, highest = dwell_bands(request, points)
     lowest, highest, origin = lowest[:, None], highest[:, None], np.array(origin)[:, None]
-    room = np.minimum(np.log(bands / lowest), np.log(highest / bands))  # (points, bands)
-    room = np.where((lowest <= bands) & (bands < highest), room, -np.inf)
+    with np.errstate(divide="ignore", invalid="ignore"):  # a band of 0 or inf: outside, below
+        room = np.minimum(np.log(bands / lowest), np.log(highest / bands))  # (points, bands)
+    room = np.where((lowest <= bands) & (bands < highest) & np.isfinite(lowest), room, -np.inf)
     chosen: dict[int, int] = {}  # point → its pair, once however many bands chose it
     for k in range(len(pairs)):
         best = np.argmax(np.where(origin == k, room, -np.inf), axis=0)
