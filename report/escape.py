@@ -15,7 +15,8 @@ this is the second line of defence, for text from anywhere else (an atlas, a typ
 - :func:`text` — element content and quoted attribute values in HTML and SVG (XML): ``& < > " '``
   become character references, so a value can neither close its element nor its attribute.
 - :func:`plot_text` — text for matplotlib (titles, labels, annotations, legend entries): a
-  ``$`` would start mathtext, and an unbalanced formula raises while the figure is drawn.
+  ``$`` would start mathtext, and an unbalanced formula raises while the figure is drawn; a
+  character the font cannot draw becomes U+FFFD.
 - :func:`script_json` — a JSON value written inside ``<script>`` (executable or
   ``type="application/json"``): ``< > &`` and U+2028/U+2029 become ``\\uXXXX`` escapes, so
   ``</script>`` or ``<!--`` can never appear and end or confuse the block; the result parses as
@@ -24,8 +25,10 @@ this is the second line of defence, for text from anywhere else (an atlas, a typ
 
 from __future__ import annotations
 
+import functools
 import html
 import json
+from collections.abc import Callable
 
 __all__ = ["CONTROLS", "plot_text", "script_json", "terminal", "text"]
 
@@ -63,8 +66,24 @@ def text(value: object) -> str:
 
 def plot_text(value: object) -> str:
     """``value`` as literal matplotlib text: every ``$`` escaped, so no mathtext is parsed
-    (matplotlib's SVG writer escapes markup characters itself)."""
-    return terminal(value).replace("$", r"\$")
+    (matplotlib's SVG writer escapes markup characters itself), and every character the
+    plotting font has no glyph for shown as U+FFFD (matplotlib would draw an empty box and warn
+    on the user's terminal for each one, e.g. for a ``--units`` name in another script)."""
+    shown = terminal(value).replace("$", r"\$")
+    if shown.isascii():
+        return shown
+    drawable = _plot_font_has()
+    return "".join(ch if drawable(ch) else "\ufffd" for ch in shown)
+
+
+@functools.cache
+def _plot_font_has() -> Callable[[str], bool]:
+    """Whether the default matplotlib font (the one the reports draw with) has a glyph for a
+    character."""
+    from matplotlib import font_manager, ft2font
+
+    font = ft2font.FT2Font(font_manager.findfont(font_manager.FontProperties()))
+    return lambda ch: font.get_char_index(ord(ch)) != 0
 
 
 def script_json(value: object, *, indent: int | None = None) -> str:

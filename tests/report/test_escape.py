@@ -109,6 +109,32 @@ def test_plot_text_is_literal_in_matplotlib(tmp_path):
     assert plot_text("a$b") == "a\\$b"
 
 
+def test_plot_text_draws_a_character_the_font_lacks_as_a_replacement_without_a_warning(tmp_path):
+    """A name in a script the plotting font lacks (found by the fuzz test: ``--units`` of
+    U+1698C, a Bamum letter) is drawn as U+FFFD, so matplotlib draws no empty box and prints
+    no warning; what the font has stays, and plain ASCII is returned as it is."""
+    import warnings
+
+    import matplotlib
+
+    from report.escape import plot_text
+
+    matplotlib.use("Agg")
+    from matplotlib.figure import Figure
+
+    name = "x [\U0001698c mm \u00b0 \u03c8]"
+    shown = plot_text(name)
+    assert shown == "x [\ufffd mm \u00b0 \u03c8]" and plot_text("a b") == "a b"
+    fig = Figure()
+    fig.subplots().set_xlabel(shown)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        fig.savefig(tmp_path / "t.png")
+    fig.subplots().set_ylabel(name)
+    with pytest.warns(UserWarning, match="missing from font"):  # what plot_text spares the user
+        fig.savefig(tmp_path / "u.png")
+
+
 @pytest.mark.parametrize("name", HOSTILE)
 def test_report_page_svgs_and_files_with_a_hostile_candidate_id(tmp_path, candidates, name):
     """`dwell report`'s page: the scripts it has (two of its own and one JSON block per
