@@ -21,7 +21,9 @@ from synth.query.contract import SegmentSource
 from synth.query.evaluate import (
     SAMPLES,
     candidate_of,
+    dwell_excess,
     figures_of,
+    limit_excesses,
     scaled_figures,
     total_excess,
     violations,
@@ -258,28 +260,25 @@ def bounded_excess(
     inf where the six-bar is not acceptable) — the same floats as those functions give row by
     row (the same operations in the same order), for a whole batch at once."""
     n = rough.swing.shape[0]
-    zero = np.zeros(n)
-
-    def dwell_excess_of(angle: np.ndarray) -> np.ndarray:
-        return np.maximum(0.0, np.degrees(np.abs(angle - request.dwell) - request.dwell_tol))
-
     ok = rough.acceptable
-    least = {c: zero for c in CONSTRAINTS}
-    least["dwell"] = dwell_excess_of(np.minimum(np.maximum(request.dwell, rough.dwell_low), rough.dwell_high))
-    if request.swing is not None:
-        least["swing"] = np.maximum(0.0, np.degrees(np.abs(rough.swing - request.swing) - request.swing_tol))
-    mu = np.minimum(rough.transmission_fourbar, rough.transmission_output)
-    least["transmission"] = np.maximum(0.0, np.degrees(request.min_transmission - mu))
-    least["link_ratio"] = np.maximum(0.0, 100.0 * (rough.link_ratio / request.max_link_ratio - 1.0))
-    least["arm"] = np.where(rough.rpr, np.maximum(0.0, request.min_arm - rough.arm), 0.0)
-    least["clearance"] = np.maximum(0.0, request.min_clearance - rough.clearance)
-    if request.max_accel is not None:
-        w = 2.0 * math.pi * request.rpm / 60.0  # as Buildability.dynamics
-        least["acceleration"] = np.maximum(0.0, rough.peak_accel * w * w - request.max_accel)
+    w = 2.0 * math.pi * request.rpm / 60.0  # as Buildability.dynamics
+    least = dict.fromkeys(CONSTRAINTS, np.zeros(n))
+    least["dwell"] = dwell_excess(request, np.minimum(np.maximum(request.dwell, rough.dwell_low), rough.dwell_high))
+    least.update(
+        limit_excesses(
+            request,
+            swing=rough.swing,
+            transmission=np.minimum(rough.transmission_fourbar, rough.transmission_output),
+            link_ratio=rough.link_ratio,
+            arm=np.where(rough.rpr, rough.arm, math.inf),
+            clearance=rough.clearance,
+            accel=rough.peak_accel * w * w,
+        )
+    )
     # a six-bar that is not acceptable misses on assembly alone (violations measures nothing else)
     least = {c: np.where(ok, x, 0.0) for c, x in least.items()}
     least["assembly"] = np.where(ok, 0.0, 1.0)
-    most = np.maximum(dwell_excess_of(rough.dwell_low), dwell_excess_of(rough.dwell_high))
+    most = np.maximum(dwell_excess(request, rough.dwell_low), dwell_excess(request, rough.dwell_high))
     low = high = np.zeros(n)
     for c in CONSTRAINTS:  # summed in the order of total_excess's sum over the dict
         low = low + least[c]

@@ -32,22 +32,42 @@ def violations(request: Request, f: SixBarFigures) -> dict[str, float]:
     if not f.acceptable or _missing_dwell(request, f):
         out["assembly"] = 1.0
         return out
-    out["dwell"] = max(dwell_excess(request, d.angle) for d in f.dwells[: request.dwells])
-    if request.swing is not None:
-        out["swing"] = max(0.0, math.degrees(abs(f.swing - request.swing) - request.swing_tol))
+    out["dwell"] = float(max(dwell_excess(request, d.angle) for d in f.dwells[: request.dwells]))
     if request.step is not None:
         out["step"] = max(0.0, math.degrees(abs(f.step - request.step) - request.swing_tol))
-    out["transmission"] = max(
-        0.0, math.degrees(request.min_transmission - min(f.transmission_fourbar, f.transmission_output))
+    b = f.build  # without it (no buildability figures) the arm, clearance and acceleration are not measured
+    limits = limit_excesses(
+        request,
+        swing=f.swing,
+        transmission=min(f.transmission_fourbar, f.transmission_output),
+        link_ratio=f.link_ratio,
+        arm=math.inf if b is None or b.arm is None else b.arm,
+        clearance=math.inf if b is None else b.clearance,
+        accel=-math.inf if b is None else b.dynamics(request.rpm)[1],
     )
-    out["link_ratio"] = max(0.0, 100.0 * (f.link_ratio / request.max_link_ratio - 1.0))
-    b = f.build
-    if b is not None:
-        # shortfalls in crank lengths (the figures are crank-normalised), excess in rad/s²
-        out["arm"] = 0.0 if b.arm is None else max(0.0, request.min_arm - b.arm)
-        out["clearance"] = max(0.0, request.min_clearance - b.clearance)
-        if request.max_accel is not None:
-            out["acceleration"] = max(0.0, b.dynamics(request.rpm)[1] - request.max_accel)
+    out.update((c, float(x)) for c, x in limits.items())
+    return out
+
+
+def limit_excesses(request: Request, *, swing, transmission, link_ratio, arm, clearance, accel) -> dict:
+    """The excesses of :func:`violations` but the dwell's, the step's and the assembly's, of
+    figures given one at a time (floats) or as arrays of a batch — the one statement of these
+    formulas (:func:`synth.query.diagnosis.bounded_excess` gives them for a batch): ``swing``
+    (rad), ``transmission`` the worse of the two transmission angles (rad), ``link_ratio``,
+    ``arm`` and ``clearance`` (crank lengths: the figures are crank-normalised; +inf where
+    there is none, as an RRR has no torque arm), ``accel`` the peak output acceleration
+    (rad/s², −inf where not measured). Angles' excesses in degrees, the link ratio's in percent
+    of the limit, the shortfalls in crank lengths, the acceleration's in rad/s²; only the
+    constraints ``request`` sets (the swing and the acceleration are optional)."""
+    out = {}
+    if request.swing is not None:
+        out["swing"] = np.maximum(0.0, np.degrees(np.abs(swing - request.swing) - request.swing_tol))
+    out["transmission"] = np.maximum(0.0, np.degrees(request.min_transmission - transmission))
+    out["link_ratio"] = np.maximum(0.0, 100.0 * (link_ratio / request.max_link_ratio - 1.0))
+    out["arm"] = np.maximum(0.0, request.min_arm - arm)
+    out["clearance"] = np.maximum(0.0, request.min_clearance - clearance)
+    if request.max_accel is not None:
+        out["acceleration"] = np.maximum(0.0, accel - request.max_accel)
     return out
 
 
@@ -59,9 +79,10 @@ def _missing_dwell(request: Request, f: SixBarFigures) -> bool:
     return request.dwells == 2 and not f.rests_apart(request.swing_tol)
 
 
-def dwell_excess(request: Request, angle: float) -> float:
-    """How far (°) a dwell of ``angle`` (rad) is outside the request's dwell ± tolerance."""
-    return max(0.0, math.degrees(abs(angle - request.dwell) - request.dwell_tol))
+def dwell_excess(request: Request, angle):
+    """How far (°) a dwell of ``angle`` (rad; a float or an array) is outside the request's
+    dwell ± tolerance."""
+    return np.maximum(0.0, np.degrees(np.abs(angle - request.dwell) - request.dwell_tol))
 
 
 def meets(request: Request, f: SixBarFigures) -> bool:
