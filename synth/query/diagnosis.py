@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -197,7 +197,8 @@ def diagnose_by_bounds(
     in one batch: the smallest reachable total only falls as exact figures replace bounds, so
     the six-bars it then leaves open are among them (the loop after it finds none left, but
     stays, as the rule's statement), and those beyond it have a least total above the nearest
-    one's, so the nearest is the same."""
+    one's, so the nearest is the same. The constraint in the way (:attr:`NoMatch.reach`) is
+    found the same way (:func:`_alone_misses`)."""
     known = dict(known or {})
     if request.dwells != 1 or not fitted:
         return diagnose(request, fitted, misses_of(request, fitted, known))
@@ -248,7 +249,52 @@ def diagnose_by_bounds(
             rejected[key] += x > 0
     totals = [(low_total[k], k) for k in excess]
     best_total, best = min(totals)
-    return _no_match(request, len(fitted), rejected, None if best_total == math.inf else (fitted[best], figures[best]))
+    found = _no_match(request, len(fitted), rejected, None if best_total == math.inf else (fitted[best], figures[best]))
+    return dataclasses.replace(
+        found, reach=_reach(request, _alone_misses(fitted, figures, excess, bound, (low_total, high_total), exact))
+    )
+
+
+def _alone_misses(
+    fitted: Sequence[Fitted],
+    figures: dict[int, SixBarFigures],
+    excess: dict[int, dict[str, float]],
+    bound: dict[int, dict[str, float]],
+    totals: tuple[dict[int, float], dict[int, float]],
+    exact: Callable[[list[int]], None],
+) -> list[tuple[float, Fitted, SixBarFigures, dict]]:
+    """What :func:`_reach` reads of the full diagnosis's misses, from :func:`diagnose_by_bounds`'s
+    state (``figures``, ``excess``: the six-bars with exact figures, which ``exact`` adds to;
+    ``bound``: the excesses of the others, the dwell's its least; ``totals``: the least and
+    most total excess of each): the six-bars that miss one constraint alone, nearest first,
+    with exact figures wherever one can decide the figure shown.
+
+    Which six-bars miss one constraint alone is known from the bounds: every figure but the
+    dwell is exact there, and whether the dwell is missed is decided. A six-bar that misses
+    only the dwell gets exact figures while its least total could make it the nearest of
+    them; after that none left can be the nearest, nor hold a rest nearer the request when
+    the nearest misses the dwell (the dwell's excess grows with the distance). When the
+    nearest misses another constraint, every six-bar missing that one alone gets exact
+    figures: the best figure on it is read from all of them."""
+    low, high = totals
+
+    def misses(k: int) -> dict[str, float]:
+        return excess[k] if k in excess else bound[k]
+
+    alone = [k for k in low if low[k] < math.inf and sum(x > 0 for x in misses(k).values()) == 1]
+    if not alone:
+        return []
+    while True:
+        reach = min(high[k] for k in alone)
+        need = [k for k in alone if k not in excess and misses(k)["dwell"] > 0 and low[k] <= reach]
+        if not need:
+            break
+        exact(need)
+    nearest = min((low[k], k) for k in alone if k in excess or misses(k)["dwell"] == 0)[1]
+    key = next(c for c, x in misses(nearest).items() if x > 0)
+    if key != "dwell":
+        exact([k for k in alone if k not in excess and misses(k)[key] > 0])
+    return [(low[k], fitted[k], figures[k], excess[k]) for k in sorted(excess, key=lambda k: (low[k], k))]
 
 
 def bounded_excess(

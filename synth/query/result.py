@@ -41,8 +41,7 @@ class NoMatch:
     #: dwell, swing and step: the value nearest the request's (°); transmission: the largest
     #: (°); link ratio, acceleration: the smallest; arm, clearance: the largest (crank
     #: lengths) — against the request's ``limit`` (the requested value for dwell, swing and
-    #: step). None when no fitted six-bar misses one constraint alone (or the diagnosis was
-    #: made from bounds, :func:`diagnose_by_bounds`). With nothing fitted: the transmission
+    #: step). None when no fitted six-bar misses one constraint alone. With nothing fitted: the transmission
     #: angle, if the sample without its limit holds segments, and the best four-bar's among
     #: them (:func:`unfitted_reach`).
     reach: tuple[str, float, float] | None = None

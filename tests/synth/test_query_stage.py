@@ -246,7 +246,7 @@ def test_no_match_diagnosis_by_bounds_is_the_full_diagnosis(source, monkeypatch)
     import synth.query as q
     from synth.query import diagnosis, evaluate, pipeline, refinement
 
-    refined_rows, fitted_rows, refined_rows_single, cases = 0, 0, 0, 0
+    refined_rows, fitted_rows, refined_rows_single, cases, reaches = 0, 0, 0, 0, 0
     real_figures = evaluate.figures_of
     users = (evaluate, diagnosis, refinement)  # the modules that compute figures
 
@@ -273,6 +273,11 @@ def test_no_match_diagnosis_by_bounds_is_the_full_diagnosis(source, monkeypatch)
         a, b = fast.no_match, full.no_match
         assert (a.fitted, a.rejected, a.would_meet) == (b.fitted, b.rejected, b.would_meet), request
         assert (a.nearest is None) == (b.nearest is None)
+        # the constraint in the way and its figure (computed in another batch: to rounding)
+        assert (a.reach is None) == (b.reach is None), request
+        if a.reach is not None:
+            reaches += 1
+            assert a.reach[0] == b.reach[0] and a.reach[1:] == pytest.approx(b.reach[1:], rel=1e-12), request
         if a.nearest is not None:
             assert a.nearest.id == b.nearest.id
             # figures computed in another batch: equal to the last bits but for float rounding
@@ -285,8 +290,10 @@ def test_no_match_diagnosis_by_bounds_is_the_full_diagnosis(source, monkeypatch)
         if request.dwells == 1:
             fitted_rows += a.fitted
             refined_rows_single += refined_fast
-    assert cases >= 20
-    print(f"{cases} no-matches; single dwells: {refined_rows_single} of {fitted_rows} six-bars refined")
+    assert cases >= 20 and reaches >= 10
+    print(
+        f"{cases} no-matches ({reaches} with a constraint in the way); single dwells: {refined_rows_single} of {fitted_rows} six-bars refined"
+    )
     assert refined_rows_single < 0.5 * fitted_rows
 
 
