@@ -19,7 +19,7 @@ import numpy as np
 
 from synth.parallel_rows import over_rows
 
-__all__ = ["joint_clearances", "pair_clearances", "slot_clearances"]
+__all__ = ["clearance_rows", "pair_clearances"]
 
 #: Pairs (of CLEARANCE_PAIRS) an RRR has, and those an RPR has (its slot's two).
 _RRR_PAIRS, _RPR_PAIRS = 14, 2
@@ -41,43 +41,8 @@ def _segment_distance2(px, py, ax, ay, bx, by):
 
 
 @numba.njit(cache=True, nogil=True)
-def joint_clearances(best, ax, ay, bx, by, px, py, qx, qy, b0, dx, dy, rrr):
-    """One sample's pairs 0–13 of ``CLEARANCE_PAIRS`` folded into ``best`` (16,) (squared
-    distances, the smallest so far): joints A, B, P, Q, the fixed pivots A0 = 0, B0 = (b0, 0)
-    and D = (dx, dy), and, for an RRR (``rrr``), its rod P–Q and rocker D–Q. Returns |P − D|²."""
-    reach2 = _squared(px - dx, py - dy)
-    # joints to the fixed pivots they are not pinned to
-    best[0] = min(best[0], _squared(ax - b0, ay))
-    best[1] = min(best[1], _squared(ax - dx, ay - dy))
-    best[2] = min(best[2], _squared(bx, by))
-    best[3] = min(best[3], _squared(bx - dx, by - dy))
-    best[4] = min(best[4], _squared(px, py))
-    best[5] = min(best[5], _squared(px - b0, py))
-    if rrr:
-        best[6] = min(best[6], reach2)
-        best[7] = min(best[7], _squared(qx, qy))
-        best[8] = min(best[8], _squared(qx - b0, qy))
-        # the rod P–Q and the rocker D–Q to the pivots off them
-        best[9] = min(best[9], _segment_distance2(0.0, 0.0, px, py, qx, qy))
-        best[10] = min(best[10], _segment_distance2(b0, 0.0, px, py, qx, qy))
-        best[11] = min(best[11], _segment_distance2(dx, dy, px, py, qx, qy))
-        best[12] = min(best[12], _segment_distance2(0.0, 0.0, dx, dy, qx, qy))
-        best[13] = min(best[13], _segment_distance2(b0, 0.0, dx, dy, qx, qy))
-    return reach2
-
-
-@numba.njit(cache=True, nogil=True)
-def slot_clearances(best, dx, dy, length, psi, b0):
-    """An RPR's slot at one sample, from D = (dx, dy) ``length`` along the output angle ``psi``
-    (rad), to A0 and B0 = (b0, 0): pairs 14 and 15 of ``CLEARANCE_PAIRS`` folded into ``best``
-    (squared)."""
-    ex, ey = dx + length * math.cos(psi), dy + length * math.sin(psi)
-    best[14] = min(best[14], _segment_distance2(0.0, 0.0, dx, dy, ex, ey))
-    best[15] = min(best[15], _segment_distance2(b0, 0.0, dx, dy, ex, ey))
-
-
-@numba.njit(cache=True, nogil=True)
-def _clearances(A, B, P, Q, psi, d, pivot, rpr, every, reach, smallest):
+def clearance_rows(A, B, P, Q, psi, d, pivot, rpr, every, reach, smallest):
+    """:func:`pair_clearances` into ``reach`` and ``smallest``, for compiled callers too."""
     N, M = psi.shape
     for n in range(N):
         b0 = d[n]
@@ -87,27 +52,35 @@ def _clearances(A, B, P, Q, psi, d, pivot, rpr, every, reach, smallest):
         rmax = -np.inf
         for j in range(reach.shape[1]):
             k = j * every
-            qx, qy = (0.0, 0.0) if rpr[n] else (Q[n, k].real, Q[n, k].imag)
-            reach2 = joint_clearances(
-                best,
-                A[n, k].real,
-                A[n, k].imag,
-                B[n, k].real,
-                B[n, k].imag,
-                P[n, k].real,
-                P[n, k].imag,
-                qx,
-                qy,
-                b0,
-                dx,
-                dy,
-                not rpr[n],
-            )
+            px, py = P[n, k].real, P[n, k].imag
+            reach2 = _squared(px - dx, py - dy)
             reach[n, j] = math.sqrt(reach2)
             rmax = max(rmax, reach[n, j])
+            ax, ay, bx, by = A[n, k].real, A[n, k].imag, B[n, k].real, B[n, k].imag
+            # joints to the fixed pivots they are not pinned to
+            best[0] = min(best[0], _squared(ax - b0, ay))
+            best[1] = min(best[1], _squared(ax - dx, ay - dy))
+            best[2] = min(best[2], _squared(bx, by))
+            best[3] = min(best[3], _squared(bx - dx, by - dy))
+            best[4] = min(best[4], _squared(px, py))
+            best[5] = min(best[5], _squared(px - b0, py))
+            if not rpr[n]:
+                qx, qy = Q[n, k].real, Q[n, k].imag
+                best[6] = min(best[6], reach2)
+                best[7] = min(best[7], _squared(qx, qy))
+                best[8] = min(best[8], _squared(qx - b0, qy))
+                # the rod P–Q and the rocker D–Q to the pivots off them
+                best[9] = min(best[9], _segment_distance2(0.0, 0.0, px, py, qx, qy))
+                best[10] = min(best[10], _segment_distance2(b0, 0.0, px, py, qx, qy))
+                best[11] = min(best[11], _segment_distance2(dx, dy, px, py, qx, qy))
+                best[12] = min(best[12], _segment_distance2(0.0, 0.0, dx, dy, qx, qy))
+                best[13] = min(best[13], _segment_distance2(b0, 0.0, dx, dy, qx, qy))
         if rpr[n]:  # the slot, from D to its far end along ψ, to A0 and B0
             for j in range(reach.shape[1]):
-                slot_clearances(best, dx, dy, rmax, psi[n, j * every], b0)
+                k = j * every
+                ex, ey = dx + rmax * math.cos(psi[n, k]), dy + rmax * math.sin(psi[n, k])
+                best[14] = min(best[14], _segment_distance2(0.0, 0.0, dx, dy, ex, ey))
+                best[15] = min(best[15], _segment_distance2(b0, 0.0, dx, dy, ex, ey))
         for p in range(16):
             best[p] = math.sqrt(best[p])
 
@@ -125,7 +98,7 @@ def pair_clearances(A, B, P, Q, psi, d, pivot, rpr, every: int):
     d, pivot, rpr = np.ascontiguousarray(d, float), np.asarray(pivot, complex), np.asarray(rpr, np.bool_)
 
     def block(lo: int, hi: int) -> None:
-        _clearances(
+        clearance_rows(
             A[lo:hi],
             B[lo:hi],
             P[lo:hi],

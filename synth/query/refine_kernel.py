@@ -12,8 +12,9 @@ row of scratch, the extremes of the rest) and reads ψ once more for its deviati
 
 The same operations as the numpy path, from the same compiled functions: the position of a
 sample from :mod:`synth.mechanism.sixbar_kernel` (its closing triangles, coupler point, slot,
-transmission cosine and the order-0 unwrap of ψ), the clearance pairs from
-:mod:`synth.mechanism.clearance_kernel` on every ``every``-th sample, the deviation windows as
+transmission cosine and the order-0 unwrap of ψ), the clearances by
+:func:`synth.mechanism.clearance_kernel.clearance_rows` on the joints of every ``every``-th
+sample (kept in a row of scratch), the deviation windows as
 :func:`~synth.mechanism.output_range.output_deviation` places them on the grid, their extremes
 by :func:`synth.mechanism.sample_ranges.sliding_rows`. Two differences, neither changing a
 value: a six-bar's folded transmission angle is taken once from the largest and smallest
@@ -30,7 +31,7 @@ import math
 import numba
 import numpy as np
 
-from synth.mechanism.clearance_kernel import joint_clearances, slot_clearances
+from synth.mechanism.clearance_kernel import clearance_rows
 from synth.mechanism.sample_ranges import sliding_rows
 from synth.mechanism.sixbar_kernel import (
     closing_point,
@@ -52,12 +53,11 @@ FIGURES = ("swing", "transmission", "reach", "arm", "clearance")
 
 _TWO_PI = 2.0 * math.pi
 
-# the per-sample functions inlined into the loop (numba IR): their order-1 rate factors, never
-# read here, are then dropped, and no array crosses a call (no reference counting per sample)
+# the position's functions inlined into the loop (numba IR): their order-1 rate factors, never
+# read here, are then dropped
 _closing_point = numba.njit(inline="always", error_model="numpy")(closing_point.py_func)
 _coupler_point = numba.njit(inline="always", error_model="numpy")(coupler_point.py_func)
 _slot_phasor = numba.njit(inline="always", error_model="numpy")(slot_phasor.py_func)
-_joint_clearances = numba.njit(inline="always")(joint_clearances.py_func)
 _HALF_PI = 0.5 * math.pi  # an RPR output's transmission angle (synth.mechanism.sixbar.RPR_TRANSMISSION)
 
 
@@ -101,7 +101,12 @@ def _trial_rows(params, rpr, phi, pin_eps, every, centres, lengths, good, deviat
     for j in range(m):
         cos_phi[j], sin_phi[j] = math.cos(phi[j]), math.sin(phi[j])
     psi = np.empty(m)
-    best = np.empty(16)
+    # the clearances' samples (every ``every``-th) and the row, as clearance_rows reads them
+    held = (m + every - 1) // every
+    at_a, at_b = np.empty((1, held), np.complex128), np.empty((1, held), np.complex128)
+    at_p, at_q = np.empty((1, held), np.complex128), np.empty((1, held), np.complex128)
+    at_psi, at_reach, smallest = np.empty((1, held)), np.empty((1, held)), np.empty((1, 16))
+    ground, pivot, kind = np.empty(1), np.empty(1, np.complex128), np.empty(1, np.bool_)
     slab, hi, lo = np.empty((1, 2 * m + 8)), np.empty((1, 2 * m + 8)), np.empty((1, 2 * m + 8))
     width = np.empty(1, np.int64)
     for i in range(n):
@@ -117,12 +122,11 @@ def _trial_rows(params, rpr, phi, pin_eps, every, centres, lengths, good, deviat
         dx, dy, rocker, rod, dyad_branch = params[i, 7], params[i, 8], params[i, 9], params[i, 10], params[i, 11]
         size = pin_size(a, b, c, d, dx, dy)
         slotted = rpr[i]
-        best[:] = np.inf
         flagged = 0
         base0 = acc = 0.0
         px, py = 1.0, 0.0
         fb_hi, fb_lo, out_hi, out_lo = -np.inf, np.inf, -np.inf, np.inf
-        reach_hi, reach_lo, every_hi = -np.inf, np.inf, -np.inf
+        reach_hi, reach_lo = -np.inf, np.inf
         next_clearance = 0
         for j in range(m):
             ct, st, _, _, fb, _, _, ax, ay, _, _, zx, zy = _coupler_point(a, b, c, d, br, u, v, cos_phi[j], sin_phi[j])
@@ -150,23 +154,22 @@ def _trial_rows(params, rpr, phi, pin_eps, every, centres, lengths, good, deviat
             reach2 = (zx - dx) * (zx - dx) + (zy - dy) * (zy - dy)
             reach_hi, reach_lo = max(reach_hi, reach2), min(reach_lo, reach2)
             if j == next_clearance:
+                k = j // every  # once every ``every`` samples
                 next_clearance += every
-                reach2 = _joint_clearances(
-                    best, ax, ay, ax + b * ct, ay + b * st, zx, zy, qx, qy, d, dx, dy, not slotted
-                )
-                every_hi = max(every_hi, math.sqrt(reach2))
+                at_a[0, k], at_b[0, k] = complex(ax, ay), complex(ax + b * ct, ay + b * st)
+                at_p[0, k], at_q[0, k] = complex(zx, zy), complex(qx, qy)
+                at_psi[0, k] = psi[j]
         if flagged or not abs(psi[m - 1] - psi[0]) < math.pi:
             good[i] = False
             deviation[i] = 0.0
             figures[i] = 0.0
             continue
         good[i] = True
-        if slotted:  # the slot, as long as the farthest reach on those samples
-            for j in range(0, m, every):
-                slot_clearances(best, dx, dy, every_hi, psi[j], d)
+        ground[0], pivot[0], kind[0] = d, complex(dx, dy), slotted
+        clearance_rows(at_a, at_b, at_p, at_q, at_psi, ground, pivot, kind, 1, at_reach, smallest)
         clearance = math.inf
         for p in range(16):
-            clearance = min(clearance, math.sqrt(best[p]))
+            clearance = min(clearance, smallest[0, p])
         mu = min(fold_transmission(fb_hi), fold_transmission(fb_lo))
         mu = min(mu, _HALF_PI) if slotted else min(mu, min(fold_transmission(out_hi), fold_transmission(out_lo)))
         top, bottom = psi[0], psi[0]
