@@ -110,16 +110,7 @@ def _trial_rows(params, rpr, phi, pin_eps, every, centres, lengths, good, deviat
     slab, hi, lo = np.empty((1, 2 * m + 8)), np.empty((1, 2 * m + 8)), np.empty((1, 2 * m + 8))
     width = np.empty(1, np.int64)
     for i in range(n):
-        a, b, c, d, br, u, v = (
-            params[i, 0],
-            params[i, 1],
-            params[i, 2],
-            params[i, 3],
-            params[i, 4],
-            params[i, 5],
-            params[i, 6],
-        )
-        dx, dy, rocker, rod, dyad_branch = params[i, 7], params[i, 8], params[i, 9], params[i, 10], params[i, 11]
+        a, b, c, d, br, u, v, dx, dy, rocker, rod, dyad_branch = params[i]  # kernel_inputs' columns
         size = pin_size(a, b, c, d, dx, dy)
         slotted = rpr[i]
         flagged = 0
