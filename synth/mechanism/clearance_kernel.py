@@ -19,7 +19,7 @@ import numpy as np
 
 from synth.parallel_rows import over_rows
 
-__all__ = ["pair_clearances"]
+__all__ = ["clearance_rows", "pair_clearances"]
 
 #: Pairs (of CLEARANCE_PAIRS) an RRR has, and those an RPR has (its slot's two).
 _RRR_PAIRS, _RPR_PAIRS = 14, 2
@@ -41,7 +41,8 @@ def _segment_distance2(px, py, ax, ay, bx, by):
 
 
 @numba.njit(cache=True, nogil=True)
-def _clearances(A, B, P, Q, psi, d, pivot, rpr, every, reach, smallest):
+def clearance_rows(A, B, P, Q, psi, d, pivot, rpr, every, reach, smallest):
+    """:func:`pair_clearances` into ``reach`` and ``smallest``, for compiled callers too."""
     N, M = psi.shape
     for n in range(N):
         b0 = d[n]
@@ -97,7 +98,7 @@ def pair_clearances(A, B, P, Q, psi, d, pivot, rpr, every: int):
     d, pivot, rpr = np.ascontiguousarray(d, float), np.asarray(pivot, complex), np.asarray(rpr, np.bool_)
 
     def block(lo: int, hi: int) -> None:
-        _clearances(
+        clearance_rows(
             A[lo:hi],
             B[lo:hi],
             P[lo:hi],

@@ -327,7 +327,12 @@ def link_ratios(batch: SixBars, motion: SixBarMotion) -> F64:
     of the crank, coupler plate (b, |AP|, |BP|), rocker, ground and the output dyad's links —
     an RRR's rocker and rod, an RPR's slot as its longest reach |P − D| over ``motion``'s
     samples (any order: positions only)."""
-    reach = np.max(np.abs(motion.z[0] - motion.pivot), axis=1)
+    return link_ratios_at(batch, np.max(np.abs(motion.z[0] - motion.pivot), axis=1))
+
+
+def link_ratios_at(batch: SixBars, reach: F64) -> F64:
+    """:func:`link_ratios` with each row's longest reach |P − D| over the turn given (length,
+    (N,)): what an RPR's slot is as long as."""
     fixed = segment_links(batch.a, batch.b, batch.c, batch.d, batch.u, batch.v)
     dyad = np.stack([np.where(batch.rpr, reach, batch.rocker), np.where(batch.rpr, reach, batch.rod)], axis=1)
     return link_ratio(np.concatenate([fixed, dyad], axis=1))

@@ -24,7 +24,14 @@ from numpy.typing import ArrayLike
 from synth.parallel_rows import over_rows
 from synth.types import F64
 
-__all__ = ["parabola_rise", "range_extremes", "range_max_min", "sliding_extremes", "vertex_bounds"]
+__all__ = [
+    "parabola_rise",
+    "range_extremes",
+    "range_max_min",
+    "sliding_extremes",
+    "sliding_rows",
+    "vertex_bounds",
+]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -60,7 +67,9 @@ def _extremes(upper, lower, start, count, hi, lo):
 
 
 @numba.njit(cache=True, nogil=True)
-def _sliding(values, first, count, width, hi, lo):
+def sliding_rows(values, first, count, width, hi, lo):
+    """:func:`sliding_extremes` into ``hi`` and ``lo`` (``(R, ≥ count)``): row r's windows of
+    ``width[r]`` samples of ``values`` ``(R, T)`` from ``first + j``, j < ``count``."""
     R, T = values.shape
     top, bottom = np.empty(T, np.int64), np.empty(T, np.int64)  # indices, values monotone
     for r in range(R):
@@ -98,7 +107,7 @@ def sliding_extremes(values: F64, first: int, count: int, width: ArrayLike) -> t
     R = values.shape[0]
     w = np.ascontiguousarray(np.broadcast_to(np.asarray(width, np.int64), (R,)))
     hi, lo = np.empty((R, count)), np.empty((R, count))
-    _sliding(values, int(first), int(count), w, hi, lo)
+    sliding_rows(values, int(first), int(count), w, hi, lo)
     return hi, lo
 
 

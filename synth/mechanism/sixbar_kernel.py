@@ -30,7 +30,18 @@ from kinematics.loop import COINCIDENT_EPS, HERON_SAFE, TOGGLE_EPS
 from kinematics.status import Status
 from synth.parallel_rows import one_signature, over_rows
 
-__all__ = ["closing_point", "output_angles", "output_phasor", "sixbar_positions"]
+__all__ = [
+    "closing_point",
+    "coupler_point",
+    "coupler_rocker_cos",
+    "fold_transmission",
+    "output_angles",
+    "output_phasor",
+    "phasor_step",
+    "pin_size",
+    "sixbar_positions",
+    "slot_phasor",
+]
 
 _NA = int(Status.NOT_ASSEMBLABLE)
 _TOGGLE = int(Status.TOGGLE)
@@ -103,20 +114,37 @@ def _divide(ax, ay, bx, by):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _fold(cos_mu):
+def fold_transmission(cos_mu):
     """:func:`kinematics.loop.transmission_fold` of the relative phasor's real part."""
     mu = math.acos(min(max(cos_mu, -1.0), 1.0))
     return min(mu, math.pi - mu)
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _size(a, b, c, d, dx, dy):
+def coupler_rocker_cos(ax, ay, ct, st, b, c, d):
+    """cos μ of the four-bar's transmission at B: Re(e^{iθ}·conj(e^{iγ})), e^{iγ} = (A + b·e^{iθ}
+    − d)/c, from A = (ax, ay) and e^{iθ} = (ct, st) (fold it with :func:`fold_transmission`)."""
+    inv_c = 1.0 / c
+    gx = ((ax + b * ct) - d) * inv_c
+    gy = (ay + b * st) * inv_c
+    return ct * gx + st * gy
+
+
+@numba.njit(cache=True, error_model="numpy")
+def phasor_step(ex, ey, px, py):
+    """The angle (rad, in (−π, π]) from the unit phasor (px, py) to (ex, ey): the output's step
+    between two samples before its 2π branch is chosen."""
+    return math.atan2(-(ex * py) + ey * px, ex * px + ey * py)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def pin_size(a, b, c, d, dx, dy):
     """The six-bar's size for the pin test: its longest four-bar link or |D|."""
     return max(max(max(a, b), max(c, d)), math.hypot(dx, dy))
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _coupler_point(a, b, c, d, branch, u, v, cphi, sphi):
+def coupler_point(a, b, c, d, branch, u, v, cphi, sphi):
     """The four-bar at crank angle φ (cos φ, sin φ): circles about A (radius b) and B0 (radius
     c), R = B0 − A. Returns :func:`closing_point`'s seven values (e^{iθ}, e^{iγ}, status, rate
     factors), A = (ax, ay), w = e^{iθ}(u + iv) and the coupler point P = A + w."""
@@ -127,7 +155,7 @@ def _coupler_point(a, b, c, d, branch, u, v, cphi, sphi):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _slot_phasor(zx, zy, dx, dy, pin_eps, size):
+def slot_phasor(zx, zy, dx, dy, pin_eps, size):
     """The RPR slot's direction e^{iψ} = W/|W|, W = P − D, as numpy's complex ÷ real computes
     it ((W + 0i)·(1/|W|), zeros' signs included), its status (NOT_ASSEMBLABLE and a +x
     placeholder where P is within ``pin_eps`` of the size of D) and W."""
@@ -155,10 +183,10 @@ def output_phasor(params, rpr, i, phi, pin_eps):
         params[i, 6],
     )
     dxi, dyi, li, rhoi, dbri = params[i, 7], params[i, 8], params[i, 9], params[i, 10], params[i, 11]
-    out = _coupler_point(ai, bi, ci, di, bri, ui, vi, math.cos(phi), math.sin(phi))
+    out = coupler_point(ai, bi, ci, di, bri, ui, vi, math.cos(phi), math.sin(phi))
     fb, zx, zy = out[4], out[11], out[12]
     if rpr[i]:
-        ex, ey, st_dyad, _, _ = _slot_phasor(zx, zy, dxi, dyi, pin_eps, _size(ai, bi, ci, di, dxi, dyi))
+        ex, ey, st_dyad, _, _ = slot_phasor(zx, zy, dxi, dyi, pin_eps, pin_size(ai, bi, ci, di, dxi, dyi))
     else:
         _, _, ex, ey, st_dyad, _, _ = closing_point(dxi - zx, dyi - zy, rhoi, li, dbri)
     return ex, ey, fb | st_dyad
@@ -192,7 +220,7 @@ def _positions(params, rpr, phi, pin_eps, order, full, points, angles, derivs, s
             params[i, 6],
         )
         dxi, dyi, li, rhoi, dbri = params[i, 7], params[i, 8], params[i, 9], params[i, 10], params[i, 11]
-        size = _size(ai, bi, ci, di, dxi, dyi)
+        size = pin_size(ai, bi, ci, di, dxi, dyi)
         base0 = 0.0
         acc = 0.0
         px, py, prev_p1 = 1.0, 0.0, 0.0  # e^{iψ} and ψ′ at the previous sample
@@ -202,7 +230,7 @@ def _positions(params, rpr, phi, pin_eps, order, full, points, angles, derivs, s
                 cphi, sphi = cos_phi[j], sin_phi[j]
             else:
                 cphi, sphi = math.cos(phi[row, j]), math.sin(phi[row, j])
-            ct, st, cg, sg, fb, fk1, fk2, ax, ay, wx, wy, zx, zy = _coupler_point(
+            ct, st, cg, sg, fb, fk1, fk2, ax, ay, wx, wy, zx, zy = coupler_point(
                 ai, bi, ci, di, bri, ui, vi, cphi, sphi
             )
             status_fourbar[i, j] = fb
@@ -210,11 +238,7 @@ def _positions(params, rpr, phi, pin_eps, order, full, points, angles, derivs, s
             if full:
                 e_theta[i, j] = complex(ct, st)
                 z[i, j] = complex(zx, zy)
-                # transmission at B: e^{iθ}·conj(e^{iγ}), e^{iγ} = (A + b·e^{iθ} − d)/c
-                inv_c = 1.0 / ci
-                gx = ((ax + bi * ct) - di) * inv_c
-                gy = (ay + bi * st) * inv_c
-                mu_fourbar[i, j] = _fold(ct * gx + st * gy)
+                mu_fourbar[i, j] = fold_transmission(coupler_rocker_cos(ax, ay, ct, st, bi, ci, di))
             t1 = g1 = t2 = g2 = 0.0
             z1x = z1y = z2x = z2y = 0.0
             if order >= 1:
@@ -234,7 +258,7 @@ def _positions(params, rpr, phi, pin_eps, order, full, points, angles, derivs, s
                     points[4, i, j] = complex(z2x, z2y)
             p1 = p2 = 0.0
             if rpr[i]:
-                ex, ey, st_dyad, rx, ry = _slot_phasor(zx, zy, dxi, dyi, pin_eps, size)
+                ex, ey, st_dyad, rx, ry = slot_phasor(zx, zy, dxi, dyi, pin_eps, size)
                 if not st_dyad:
                     if order >= 1:  # ψ′ = Im(P′/W), ψ″ = Im(P″/W − (P′/W)²), W = P − D
                         f1x, f1y = _divide(z1x, z1y, rx, ry)
@@ -249,7 +273,7 @@ def _positions(params, rpr, phi, pin_eps, order, full, points, angles, derivs, s
                 cx, cy, ex, ey, st_dyad, dk1, dk2 = closing_point(dxi - zx, dyi - zy, rhoi, li, dbri)
                 if full:
                     moving_pivot[i, j] = complex(dxi + li * ex, dyi + li * ey)
-                    mu_output[i, j] = 0.0 if st_dyad & _NA else _fold(cx * ex + cy * ey)
+                    mu_output[i, j] = 0.0 if st_dyad & _NA else fold_transmission(cx * ex + cy * ey)
                 # (χ′, ψ′) from q = −P′, then ψ″ from q = −P″ + ρχ′²e^{iχ} − Lψ′²e^{iψ}
                 if order >= 1:
                     c1 = (-z1x * ex - z1y * ey) * dk1
@@ -272,7 +296,7 @@ def _positions(params, rpr, phi, pin_eps, order, full, points, angles, derivs, s
                 base0 = math.atan2(ey, ex)
                 psi[i, j] = base0
             else:
-                step = math.atan2(-(ex * py) + ey * px, ex * px + ey * py)
+                step = phasor_step(ex, ey, px, py)
                 if order >= 1:
                     pred = 0.5 * (p1 + prev_p1) * (phi[row, j] - phi[row, j - 1])
                     step = pred + ((step - pred + math.pi) % two_pi - math.pi)
