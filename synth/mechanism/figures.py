@@ -245,16 +245,15 @@ def figures_with_dwell_bounds(
     object per row, no bounding box, footprint or jerk."""
     batch, _, phi, motion, psi_at = _simulated(sixbars, samples, None)
     low, high = dwell_angle_bounds(phi, motion.psi, band, dpsi1=motion.dpsi[0])
-    swing, turns = output_swing(phi, motion.psi, dpsi=motion.dpsi, psi_at=psi_at)
-    assembled = np.all(motion.assembled, axis=1)
+    swing, turns, mu_fb, mu_out, status, ratio = _limit_figures(batch, phi, motion, psi_at)
     reach, clearance, _, rpr = clearances(batch, motion)
     return DwellBoundFigures(
         swing=swing,
         turns=turns,
-        transmission_fourbar=np.where(assembled, _refined_min(motion.transmission_fourbar), 0.0),
-        transmission_output=np.where(assembled, _refined_min(motion.transmission_output), 0.0),
-        link_ratio=link_ratios(batch, motion),
-        status=np.bitwise_or.reduce(motion.status, axis=1),
+        transmission_fourbar=mu_fb,
+        transmission_output=mu_out,
+        link_ratio=ratio,
+        status=status,
         rpr=rpr,
         arm=reach.min(axis=1),
         clearance=clearance,
@@ -280,17 +279,23 @@ def _simulated(sixbar: SixBar | SixBars, samples: int, motion: SixBarMotion | No
     return batch, single, phi, motion, ExactOutput(batch)
 
 
-def _figures_but_dwells(batch: SixBars, phi: F64, motion: SixBarMotion, psi_at, footprint: bool) -> list[SixBarFigures]:
-    """Per row, the figures that do not depend on the dwell band (dwells, deviations empty)."""
-    N = len(batch)
+def _limit_figures(batch: SixBars, phi: F64, motion: SixBarMotion, psi_at) -> tuple[F64, ...]:
+    """Per row, the band-free figures a request's limits read besides the buildability's:
+    swing and turns (:func:`output_swing`), the smallest transmission angles of the four-bar
+    and the output (refined between samples; 0 where the loop does not assemble), the status
+    flags over the turn and the link ratio."""
     swing, turns = output_swing(phi, motion.psi, dpsi=motion.dpsi, psi_at=psi_at)
     assembled = np.all(motion.assembled, axis=1)
     mu_fb = np.where(assembled, _refined_min(motion.transmission_fourbar), 0.0)
     mu_out = np.where(assembled, _refined_min(motion.transmission_output), 0.0)
     status = np.bitwise_or.reduce(motion.status, axis=1)
+    return swing, turns, mu_fb, mu_out, status, link_ratios(batch, motion)
 
-    ratio = link_ratios(batch, motion)
 
+def _figures_but_dwells(batch: SixBars, phi: F64, motion: SixBarMotion, psi_at, footprint: bool) -> list[SixBarFigures]:
+    """Per row, the figures that do not depend on the dwell band (dwells, deviations empty)."""
+    N = len(batch)
+    swing, turns, mu_fb, mu_out, status, ratio = _limit_figures(batch, phi, motion, psi_at)
     boxes = _bounding_boxes(batch, motion)
     area = _footprints(batch, motion) if footprint else np.zeros(N)
     build = buildability(batch, motion)
