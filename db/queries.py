@@ -149,6 +149,10 @@ def scan_segments(
             Dwell.kind == SegmentKind(kind).code,
             Dwell.level == level,
             *_filters(length, ratio),
+            # the key's bound alone is what a b-tree seeks on (an OR of the two is read from
+            # the start of the level on every page: quadratic in the pages); the OR then
+            # breaks ties on the key by id
+            Dwell.dwell_key >= bindparam("key"),
             or_(
                 Dwell.dwell_key > bindparam("key"),
                 and_(Dwell.dwell_key == bindparam("key"), Dwell.segment_id > bindparam("sid")),

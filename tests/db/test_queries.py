@@ -12,7 +12,7 @@ import pytest
 from hypothesis import example, given
 from hypothesis import strategies as st
 from shards import shard_rows, with_rows
-from sqlalchemy import insert, inspect
+from sqlalchemy import event, insert, inspect
 
 from db import SCHEMA_VERSION, Build, open_atlas
 from db.engine import AtlasError
@@ -110,6 +110,39 @@ def test_a_linkage_exactly_at_every_limit_is_walked(atlas_url):
     assert AtlasSource(engine).count_segments("arc", 0, **limits) == 1
     stricter = {**limits, "min_transmission": math.radians(33.333333 + 0.02)}
     assert select_segments(engine, ("arc",), window, **stricter) == []
+    engine.dispose()
+
+
+def test_the_complete_walk_pages_through_ties_once_each_and_seeks_its_key(atlas_url):
+    """Segments sharing dwell keys, read 3 rows a page: every row once, in (key, id) order, so
+    a page starts where the last ended; on SQLite the page's plan seeks the b-tree on the key
+    (an OR of the keyset's two conditions alone is read from the start of the level on every
+    page, so the walk was quadratic in its pages)."""
+    rows = shard_rows(0)
+    segment, dwell = rows.segments.rows()[0], rows.dwells.rows()[0]
+    keys = [0.5, 0.25, 0.5, 0.75, 0.5, 0.25, 1.0, 0.5]
+    sids = [segment["id"] + k for k in range(len(keys))]
+    engine = _atlas(
+        atlas_url,
+        with_rows(
+            rows,
+            segments=[{**segment, "id": sid} for sid in sids],
+            dwells=[{**dwell, "segment_id": sid, "dwell_key": key} for sid, key in zip(sids, keys)],
+        ),
+    )
+    pages = [[r.segment_id for r in batch] for batch in scan_segments(engine, "arc", 0, batch=3)]
+    assert [len(p) for p in pages] == [3, 3, 2]
+    assert sum(pages, []) == [sid for _, sid in sorted(zip(keys, sids))]
+    if engine.dialect.name == "sqlite":
+        plans: list[str] = []
+
+        @event.listens_for(engine, "before_cursor_execute")
+        def plan(conn, cursor, statement, parameters, context, executemany):
+            if statement.lstrip().startswith("SELECT dwell.segment_id"):
+                plans.extend(r[-1] for r in cursor.execute("EXPLAIN QUERY PLAN " + statement, parameters).fetchall())
+
+        list(scan_segments(engine, "arc", 0, batch=3))
+        assert plans and all("dwell_key>?" in p for p in plans if p.startswith("SEARCH dwell"))
     engine.dispose()
 
 
