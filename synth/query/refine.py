@@ -27,9 +27,14 @@ For ``--band auto`` (:mod:`synth.query.band_search`), :func:`stiller` runs the r
 in the reach's box with no band holding the dwell: the deviation over the requested dwell
 minimised for itself, every other constraint held as for a near miss, from a small first step
 (a still rest is lost to a relative change of 1e-5 in one length); the band search measures
-and checks the result. Its ~35 000 trial six-bars per request are judged by the compiled loop
-figures (:mod:`synth.query.refine_kernel`: one pass per six-bar, the numpy path's objective
-to ~1e-12), where the numpy path spent two thirds of its time re-reading the motion.
+and checks the result (~35 000 trial six-bars per request).
+
+The reach's CMA-ES (the near misses' and the stillest rest's: thousands of trial six-bars a
+candidate) judges its trials by the compiled loop figures (:mod:`synth.query.refine_kernel`:
+one pass per six-bar, the numpy path's objective to ~1e-12), where the numpy path spent two
+thirds of its time re-reading the motion; a request with ``--max-accel`` takes the numpy path,
+which has ψ″. The polish keeps the numpy path: its few hundred trials a candidate are not
+worth the kernel's compilation on a first run (``dwell demo`` only polishes).
 
 Objective (on the grid, cheap): the deviation g(D) / band, g(L) the smallest peak-to-peak of ψ
 over a crank window of length L containing the retrieved dwell's middle
@@ -225,8 +230,8 @@ class _Trials:
     """What every trial six-bar of one refinement is simulated and judged with: the request,
     per candidate its kinds of link (RPR or RRR, assembly branches), the crank angles its
     dwells sit around (rad, (K, C)) and its bounds (:func:`hold_bounds`), the loop's crank grid
-    and the objective (``stillest``: :func:`~synth.query.refine_objective.trial_objective`'s,
-    from its compiled loop figures)."""
+    and the objective (``stillest``: :func:`~synth.query.refine_objective.trial_objective`'s
+    stillest rest); the reach's trials are judged from the compiled loop figures."""
 
     request: Request
     rpr: np.ndarray
@@ -289,7 +294,7 @@ class _Trials:
                 rep(self.bounds),
                 self.phi,
                 stillest=self.stillest,
-                compiled=self.stillest,
+                compiled=search is _reach,  # the polish: see the module docstring
             )
             return f.reshape(len(who), T)
 

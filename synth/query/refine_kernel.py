@@ -2,11 +2,13 @@
 :func:`synth.query.refine_objective.trial_objective` judges a trial six-bar by, in one pass
 over each one's crank samples.
 
-A search of the stillest rest (:func:`synth.query.refine.stiller`) simulates ~35 000 trial
-six-bars per request on the loop's 360-sample grid. The numpy path simulates them
-(:func:`synth.mechanism.sixbar.simulate`), then reads the motion again for every figure — the
-deviation windows, the swing, the transmission angles, |P − D|, the clearances — through a
-dozen whole-array temporaries: about two thirds of an objective evaluation were that glue.
+The refinement's reach (:mod:`synth.query.refine`: a near miss's CMA-ES and the stillest
+rest's) judges its trial six-bars by these figures; a search of the stillest rest
+(:func:`synth.query.refine.stiller`) simulates ~35 000 per request on the loop's 360-sample
+grid. The numpy path simulates them (:func:`synth.mechanism.sixbar.simulate`), then reads the
+motion again for every figure — the deviation windows, the swing, the transmission angles,
+|P − D|, the clearances — through a dozen whole-array temporaries: about two thirds of an
+objective evaluation were that glue.
 Here each six-bar is one loop over its samples that keeps what the objective needs (ψ in a
 row of scratch, the extremes of the rest) and reads ψ once more for its deviation windows.
 
