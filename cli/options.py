@@ -425,10 +425,12 @@ def probe_folder(path: Path, option: str) -> None:
 
 def _unit_name(ctx, param, value: str | None) -> str | None:
     """``--units`` is a label in every table, drawing and file: plain text, as a linkage file's
-    names (a control character would reach the terminal, the TOML and the SVG)."""
-    from kinematics.assur.linkage_file import plain_text_problem
+    names (a control character would reach the terminal, the TOML and the SVG). The default
+    is plain: only a name given is checked (the check's module takes ~80 ms to import, which
+    every command with lengths would otherwise pay)."""
+    if value is not None and ctx.get_parameter_source(param.name) is not click.core.ParameterSource.DEFAULT:
+        from kinematics.assur.linkage_file import plain_text_problem
 
-    if value is not None:
         problem = plain_text_problem(value)
         if problem:
             raise click.BadParameter(problem, param_hint="--units")

@@ -22,6 +22,7 @@ import numpy as np
 from synth.kinds import OutputTag
 from synth.mechanism.buildability import clearances
 from synth.mechanism.figures import SixBarFigures, link_ratios
+from synth.mechanism.sample_ranges import sliding_extremes
 from synth.mechanism.sixbar import SixBar, SixBars, crank_grid, simulate
 from synth.query.pareto import pareto_layers
 
@@ -221,11 +222,11 @@ def screen(request: Request, sixbars: SixBars, samples: int = 720) -> np.ndarray
 
 def within_band(psi: np.ndarray, length: int, band: np.ndarray | float) -> np.ndarray:
     """Per row of ``psi`` (n, M), on a uniform full-turn grid: some run of ``length``
-    consecutive samples lies within ``band`` (cyclic: ψ of a rocker is periodic)."""
-    from scipy.ndimage import maximum_filter1d, minimum_filter1d
-
-    spread = maximum_filter1d(psi, length, axis=1, mode="wrap") - minimum_filter1d(psi, length, axis=1, mode="wrap")
-    return np.any(spread <= np.reshape(band, (-1, 1)), axis=1)
+    consecutive samples lies within ``band`` (cyclic: ψ of a rocker is periodic): every
+    window of the turn, read from the samples followed by the first ``length`` − 1 again."""
+    turn = psi.shape[1]
+    hi, lo = sliding_extremes(np.concatenate([psi, psi[:, : length - 1]], axis=1), 0, turn, length)
+    return np.any(hi - lo <= np.reshape(band, (-1, 1)), axis=1)
 
 
 def _stray(psi: np.ndarray) -> np.ndarray:
