@@ -91,6 +91,10 @@ NEWTON = 12
 #: The largest move of the coupler point (× b) for the pair to count as the same pair.
 MOVE = 0.25
 CURVES = 6000  # coupler curves per block of the vertex search
+#: Steps (× b) along the level set r1 = r2 from each pair that passes the branch condition.
+WALK = (-0.08, -0.04, 0.04, 0.08)
+#: Six-bars shown per filled cell.
+SHOWN = 5
 #: Rounds that correct the step between the rests where a six-bar swings more than asked.
 CORRECTIONS = 2
 
@@ -270,6 +274,7 @@ def evaluate(sixbars: SixBars, cols: dict[str, np.ndarray]) -> dict[str, np.ndar
     }
     rows |= {f"cell {dw}": [] for dw in DWELLS}
     best: dict = {S: (0.0, None, None) for S in SWINGS}
+    shown: dict = {key: [] for key in REQUESTS}
     for lo in range(0, len(sixbars), BLOCK):
         s = slice(lo, lo + BLOCK)
         batch = rows_of(sixbars, s)
@@ -288,11 +293,18 @@ def evaluate(sixbars: SixBars, cols: dict[str, np.ndarray]) -> dict[str, np.ndar
             ):
                 rows[name].append(x)
             for dw in DWELLS:
-                rows[f"cell {dw}"].append(meets(REQUESTS[(S, dw)], f))
+                hit = meets(REQUESTS[(S, dw)], f)
+                rows[f"cell {dw}"].append(hit)
+                if hit:
+                    # the cell's six-bars, best transmission first, to check by hand
+                    mu = min(f.transmission_fourbar, f.transmission_output)
+                    shown[(S, dw)] = sorted(
+                        [*shown[(S, dw)], (mu, lo + q, f, rows_of(batch, [q])[0])], key=lambda t: -t[0]
+                    )[:SHOWN]
             if two and within and rests[0] > best[S][0]:
                 best[S] = (rests[0], f, rows_of(batch, [q])[0])
     out = {name: np.array(x) for name, x in rows.items()}
-    out["best"] = best
+    out["best"], out["shown"] = best, shown
     return out
 
 
@@ -314,10 +326,12 @@ def summary(cols: dict[str, np.ndarray], res: dict[str, np.ndarray]) -> dict:
         }
         two = mine & nominal & res["two"]
         short = np.degrees(res["shorter"][two])
-        out[f"swing {S}: nominal placements; with two separated rests; shorter rest (deg) median, 90th pct, max"] = [
+        out[
+            f"swing {S}: nominal placements; with two separated rests; shorter rest (deg) min, 10th pct, median, 90th pct, max"
+        ] = [
             int((mine & nominal).sum()),
             int(two.sum()),
-            [round(float(np.percentile(short, p)), 2) for p in (50, 90, 100)] if short.size else None,
+            [round(float(np.percentile(short, p)), 2) for p in (0, 10, 50, 90, 100)] if short.size else None,
         ]
         real = mine & res["two"] & (res["shorter"] >= math.radians(5.0))
         out[f"swing {S}: six-bars with two separated rests >= 5 deg: first limit (but the dwell) missed"] = dict(
@@ -326,13 +340,22 @@ def summary(cols: dict[str, np.ndarray], res: dict[str, np.ndarray]) -> dict:
         ok = real & res["within"]
         if ok.any():
             gap = np.degrees(res["longer"][ok] - res["shorter"][ok])
-            out[f"swing {S}: within every limit but the dwell: six-bars, longer - shorter rest (deg) median, min"] = [
+            out[
+                f"swing {S}: within every limit but the dwell: six-bars; shorter rest (deg) min, max; longer - shorter (deg) median, min"
+            ] = [
                 int(ok.sum()),
+                round(float(np.degrees(res["shorter"][ok].min())), 2),
+                round(float(np.degrees(res["shorter"][ok].max())), 2),
                 round(float(np.median(gap)), 2),
                 round(float(gap.min()), 2),
             ]
         _, f, sb = res["best"][S]
         out[f"swing {S}: longest pair of separated rests within every limit but the dwell (deg)"] = described(f, sb)
+        for dw in DWELLS:
+            if res["shown"][(S, dw)]:
+                out[f"swing {S}, dwell {dw}: six-bars, best transmission first"] = [
+                    described(f, sb) for _, _, f, sb in res["shown"][(S, dw)]
+                ]
     return out
 
 
@@ -370,19 +393,12 @@ def failure(request, f) -> str:
     return "none"
 
 
-def main() -> None:
-    b, c, d = fourbars(DB)
-    out: dict = {"four-bars": int(b.size)}
-    pairs = vertex_pairs(b, c, d)
-    out["coupler curves (grid points, plate link ratio <= 10)"] = int(pairs.pop("curves"))
-    out["vertices (radius 0.2-8)"] = int(pairs.pop("vertices"))
-    out[f"vertex pairs, radii within {PAIR_RADIUS:.0%}"] = int(pairs["curve"].size)
-    phi = np.arange(SAMPLES) * (2 * math.pi / SAMPLES)
-    fb = pairs["fourbar"]
-    conv, u, v, a1, a2, r1, r2, C1, C2, P1, P2, steps = equalise(
-        b[fb], c[fb], d[fb], pairs["u"], pairs["v"], phi[pairs["k1"]], phi[pairs["k2"]]
-    )
-    moved = np.hypot(u - pairs["u"], v - pairs["v"]) / b[fb]
+def equal(b, c, d, fb, u0, v0, phi1, phi2, out: dict, label: str) -> dict[str, np.ndarray]:
+    """Equalise the vertex pairs starting at coupler points (``u0``, ``v0``) of four-bars ``fb``
+    with vertices near ``phi1``, ``phi2``; the counts go to ``out`` under ``label``. Returns the
+    surviving equal pairs (four-bar, point, vertices' angles, radii, centres and path points)."""
+    conv, u, v, a1, a2, r1, r2, C1, C2, P1, P2, steps = equalise(b[fb], c[fb], d[fb], u0, v0, phi1, phi2)
+    moved = np.hypot(u - u0, v - v0) / b[fb]
     gap = np.abs(np.angle(np.exp(1j * (a1 - a2))))
     survive = (
         conv
@@ -393,20 +409,29 @@ def main() -> None:
         & (gap >= PAIR_GAP)
         & (segment_link_ratio(1.0, b[fb], c[fb], d[fb], u, v) <= 10.0)
     )
-    out["equalising: converged"] = int(conv.sum())
-    out["equalising: surviving (moved <= 0.25 b, still a pair)"] = int(survive.sum())
+    out[f"{label}: pairs; converged; surviving (moved <= {MOVE} b, still a pair)"] = [
+        int(u0.size),
+        int(conv.sum()),
+        int(survive.sum()),
+    ]
     if survive.any():
-        out["equalising: point moved (x b): median, max; Newton steps: median, max"] = [
+        out[f"{label}: point moved (x b): median, max; Newton steps: median, max; max |r1 - r2| / r"] = [
             round(float(np.median(moved[survive])), 4),
             round(float(moved[survive].max()), 4),
             int(np.median(steps[survive])),
             int(steps[survive].max()),
+            float((np.abs(r1 - r2) / r1)[survive].max()),
         ]
-        out["equalising: max |r1 - r2| / r"] = float((np.abs(r1 - r2) / r1)[survive].max())
     eq = {"fourbar": fb, "u": u, "v": v, "phi1": a1, "phi2": a2, "r1": r1, "r2": r2}
     eq |= {"C1": C1, "C2": C2, "P1": P1, "P2": P2}
-    eq = {name: x[survive] for name, x in eq.items()}
-    n = int(survive.sum())
+    return {name: x[survive] for name, x in eq.items()}
+
+
+def rounds(eq: dict[str, np.ndarray], b, c, d, out: dict, label: str) -> tuple[dict, dict]:
+    """Place, simulate and test every equal pair of ``eq`` at both swings and sides, then correct
+    the step where a nominal six-bar with two rests misses its swing. Returns the columns and
+    the figures of every six-bar (:func:`placements`, :func:`evaluate`)."""
+    n = eq["u"].size
     # round 0: the step between the rests is the requested swing; rounds 1..: where a nominal
     # six-bar with two rests swings more or less than asked (the output overshoots a rest),
     # the step corrected by the miss (a secant step with slope 1)
@@ -417,7 +442,7 @@ def main() -> None:
     every_cols, every_res = [], []
     for round_ in range(1 + CORRECTIONS):
         sixbars, cols, passed = placements(eq, b, c, d, pair, swing, side, step)
-        out[f"round {round_}: placements; passing the branch condition"] = [int(pair.size), passed]
+        out[f"{label}, round {round_}: placements; passing the branch condition"] = [int(pair.size), passed]
         res = evaluate(sixbars, cols)
         every_cols.append(cols)
         every_res.append(res)
@@ -428,10 +453,61 @@ def main() -> None:
         pair, swing, side, step = pair[ok], swing[ok], side[ok], step[ok]
         if pair.size == 0:
             break
+    return joined(every_cols, every_res)
+
+
+def joined(every_cols: list[dict], every_res: list[dict], offsets=None) -> tuple[dict, dict]:
+    """The columns and figures of several batches as one (pair ids shifted by ``offsets``)."""
+    offsets = offsets or [0] * len(every_cols)
     cols = {name: np.concatenate([x[name] for x in every_cols]) for name in every_cols[0]}
-    res = {name: np.concatenate([x[name] for x in every_res]) for name in every_res[0] if name != "best"}
+    cols["pair"] = np.concatenate([x["pair"] + o for x, o in zip(every_cols, offsets)])
+    res = {name: np.concatenate([x[name] for x in every_res]) for name in every_res[0] if name not in ("best", "shown")}
     res["best"] = {S: max((x["best"][S] for x in every_res), key=lambda t: t[0]) for S in SWINGS}
-    out["equal pairs"] = summary(cols, res)
+    res["shown"] = {
+        key: sorted((t for x in every_res for t in x["shown"][key]), key=lambda t: -t[0])[:SHOWN] for key in REQUESTS
+    }
+    return cols, res
+
+
+def walked(eq: dict[str, np.ndarray], cols: dict, b, c, d) -> tuple[np.ndarray, ...]:
+    """Starts along the level set r1 = r2 of the pairs with a placement that passes the branch
+    condition: their coupler point moved by τ·b, τ in ``WALK``, along the tangent of the level
+    set (⊥ ∇(r1 − r2), finite differences). Returns (four-bar, u, v, phi1, phi2)."""
+    i = np.unique(cols["pair"])
+    fb, u, v, phi1, phi2 = (eq[name][i] for name in ("fourbar", "u", "v", "phi1", "phi2"))
+    h = 1e-6 * b[fb]
+    args = (b[fb], c[fb], d[fb])
+
+    def g(du, dv):
+        return vertex(*args, u + du, v + dv, phi1)[2] - vertex(*args, u + du, v + dv, phi2)[2]
+
+    g0 = g(0.0, 0.0)
+    gu, gv = (g(h, 0.0) - g0) / h, (g(0.0, h) - g0) / h
+    norm = np.hypot(gu, gv)
+    tu, tv = -gv / norm, gu / norm
+    tau = np.repeat(np.array(WALK), i.size)
+    rep = np.tile(np.arange(i.size), len(WALK))
+    scale = tau * b[fb][rep]
+    return fb[rep], u[rep] + scale * tu[rep], v[rep] + scale * tv[rep], phi1[rep], phi2[rep]
+
+
+def main() -> None:
+    b, c, d = fourbars(DB)
+    out: dict = {"four-bars": int(b.size)}
+    pairs = vertex_pairs(b, c, d)
+    out["coupler curves (grid points, plate link ratio <= 10)"] = int(pairs.pop("curves"))
+    out["vertices (radius 0.2-8)"] = int(pairs.pop("vertices"))
+    out[f"vertex pairs, radii within {PAIR_RADIUS:.0%}"] = int(pairs["curve"].size)
+    phi = np.arange(SAMPLES) * (2 * math.pi / SAMPLES)
+    eq = equal(b, c, d, pairs["fourbar"], pairs["u"], pairs["v"], phi[pairs["k1"]], phi[pairs["k2"]], out, "grid")
+    cols, res = rounds(eq, b, c, d, out, "grid")
+    out["grid pairs"] = summary(cols, res)
+    # the level set r1 = r2 through the pairs that pass the branch condition, walked
+    eq2 = equal(b, c, d, *walked(eq, cols, b, c, d), out, "walk")
+    cols2, res2 = rounds(eq2, b, c, d, out, "walk")
+    out["walked pairs"] = summary(cols2, res2)
+    both = joined([cols, cols2], [res, res2], [0, eq["u"].size])
+    out["grid and walked pairs"] = summary(*both)
     print(json.dumps(out, indent=1))
 
 
