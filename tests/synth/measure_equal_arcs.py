@@ -38,14 +38,17 @@ pair of arcs fails exactly this: measure_symmetric_double.py).
 6. The level set r1 = r2 walked: from every pair with a placement that passes the branch
    condition, the coupler point moved by ``WALK`` × b along the level set's tangent, equalised
    again, and 4–5 repeated on those pairs ("walked pairs"; "grid and walked pairs" is both).
+7. Per cell, the ``NEAR`` six-bars within every limit but the dwell whose rests are nearest d,
+   refined toward the cell's request as the query refines its nearest misses
+   (:func:`synth.query.refine.refine`, ``reach=True``): how many then meet it.
 
 Prints one JSON object: the counts of each stage, where Q sits at the two vertices, per cell the
-six-bars meeting every default limit (and the distinct coupler curves among them), the rests of
-the nominal placements, and the longest pair of separated rests at each swing within every
-limit but the dwell.
+six-bars meeting every default limit (and the distinct coupler curves among them) as placed and
+refined, the best of each filled cell, the rests of the nominal placements, and the longest
+pair of separated rests at each swing within every limit but the dwell.
 
-    .venv/bin/python tests/synth/measure_equal_arcs.py std.sqlite          # 6 157 four-bars: 5 min 15 s, 2-core VM (shared)
-    .venv/bin/python tests/synth/measure_equal_arcs.py std.sqlite --quick  # 154 four-bars, 13 s
+    .venv/bin/python tests/synth/measure_equal_arcs.py std.sqlite          # 6 157 four-bars: 7 min, 2-core VM (shared)
+    .venv/bin/python tests/synth/measure_equal_arcs.py std.sqlite --quick  # 154 four-bars, 2 min
 """
 
 import json
@@ -76,7 +79,9 @@ from synth.curvature.pole import pole
 from synth.mechanism.figures import sixbar_figures
 from synth.mechanism.link_ratio import segment_link_ratio
 from synth.mechanism.sixbar import SixBars, simulate
+from synth.query.candidate_ids import dimension_vector
 from synth.query.evaluate import meets, meets_but_dwells
+from synth.query.refine import refine
 
 QUICK = "--quick" in sys.argv
 DB = next((x for x in sys.argv[1:] if not x.startswith("--")), "std.sqlite")
@@ -97,6 +102,8 @@ MOVE = 0.25
 CURVES = 6000  # coupler curves per block of the vertex search
 #: Steps (× b) along the level set r1 = r2 from each pair that passes the branch condition.
 WALK = (-0.08, -0.04, 0.04, 0.08)
+#: Six-bars refined toward each cell: those within every limit but the dwell nearest it.
+NEAR = 30
 #: Six-bars shown per filled cell.
 SHOWN = 5
 #: Rounds that correct the step between the rests where a six-bar swings more than asked.
@@ -265,6 +272,7 @@ def placements(
     sixbars = SixBars(**fourbar, rpr=np.zeros(fb.size, bool), **dyad)
     for name in ("phi1", "phi2", "C1", "C2"):
         cols[name] = pairs[name][cols["pair"]]
+    cols |= {name: x for name, x in fourbar.items() if name in ("b", "c", "d", "u", "v")}
     return sixbars, cols, int(idx.size)
 
 
@@ -379,6 +387,55 @@ def described(f, sb) -> dict | None:
     out["link ratio"] = round(f.link_ratio, 3)
     dims = (sb.b, sb.c, sb.d, sb.u, sb.v, dyad.pivot.real, dyad.pivot.imag, dyad.rocker, dyad.rod)
     out["six-bar (b, c, d, u, v; pivot x, y, rocker, rod, branch)"] = [round(float(x), 6) for x in dims] + [dyad.branch]
+    return out
+
+
+def refined(cols: dict[str, np.ndarray], res: dict[str, np.ndarray]) -> dict:
+    """Per cell, the ``NEAR`` six-bars within every limit but the dwell whose two rests are
+    nearest d (the larger of |rest − d|), refined toward the cell's request as the query refines
+    its nearest misses (:func:`synth.query.refine.refine`, ``reach=True``): how many then meet
+    it, from how many distinct coupler curves, the best (highest smallest transmission angle)."""
+    out: dict = {}
+    for S in SWINGS:
+        ok = np.flatnonzero((cols["swing"] == S) & res["two"] & res["within"])
+        for dw in DWELLS:
+            request = REQUESTS[(S, dw)]
+            off = np.maximum(np.abs(res["shorter"][ok] - request.dwell), np.abs(res["longer"][ok] - request.dwell))
+            near = ok[np.argsort(off, kind="stable")[:NEAR]]
+            if near.size == 0:
+                continue
+            batch = SixBars(
+                **{
+                    name: cols[name][near]
+                    for name in ("b", "c", "d", "u", "v", "pivot", "rocker", "rod", "dyad_branch")
+                },
+                a=np.ones(near.size),
+                branch=np.ones(near.size),
+                rpr=np.zeros(near.size, bool),
+            )
+            sixbars = [batch[k] for k in range(near.size)]
+            before = sixbar_figures(
+                batch, band=BAND, dwell_length=request.dwell, dwells=2, leave=LEAVE, footprint=False
+            )
+            after = refine(request, sixbars, before, reach=True)
+            hit = [k for k, r in enumerate(after) if r.meets]
+            best = max(
+                hit,
+                key=lambda k: min(after[k].figures.transmission_fourbar, after[k].figures.transmission_output),
+                default=None,
+            )
+            out[f"swing {S}, dwell {dw}"] = {
+                "started from; nearest start's rests (deg)": [
+                    int(near.size),
+                    np.round(np.degrees([res["shorter"][near[0]], res["longer"][near[0]]]), 2).tolist(),
+                ],
+                "meeting the request after refinement; from distinct coupler curves; distinct to 1e-3": [
+                    len(hit),
+                    int(np.unique(cols["pair"][near[hit]]).size),
+                    len({tuple(np.round(dimension_vector(after[k].sixbar), 3)) for k in hit}),
+                ],
+                "best": None if best is None else described(after[best].figures, after[best].sixbar),
+            }
     return out
 
 
@@ -512,6 +569,7 @@ def main() -> None:
     out["walked pairs"] = summary(cols2, res2)
     both = joined([cols, cols2], [res, res2], [0, eq["u"].size])
     out["grid and walked pairs"] = summary(*both)
+    out["refined toward each cell"] = refined(*both)
     print(json.dumps(out, indent=1))
 
 
