@@ -269,11 +269,13 @@ class _Trials:
         start: np.ndarray,
         only: np.ndarray,
         *args,
+        compiled: bool = False,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``search`` run (``*args`` then its seed last) for the candidates ``only`` from their
         dimension rows in ``start`` (K, 9), in the space scaled at them: every candidate's rows
         after it (the others as they were), its objective there (inf for the others) and the
-        six-bars it simulated."""
+        six-bars it simulated. ``compiled``: its trials judged from the compiled loop figures
+        (the reach's; see the module docstring for why not the polish's)."""
         K = len(start)
         scale = np.where(_LENGTHS, np.abs(start), np.maximum(np.abs(start), 1.0))
         scale[self.rpr, 7:] = 0.0  # an RPR has no rocker or rod
@@ -294,7 +296,7 @@ class _Trials:
                 rep(self.bounds),
                 self.phi,
                 stillest=self.stillest,
-                compiled=search is _reach,  # the polish: see the module docstring
+                compiled=compiled,
             )
             return f.reshape(len(who), T)
 
@@ -366,7 +368,7 @@ def refine(
     p, f, count = trials.steps(descend, p0, np.arange(K), radius, iterations, population, seed)
     short = np.flatnonzero(f >= REACHED)
     if reach and len(short):
-        p, _, n = trials.steps(_reach, p, short, REACH_RADIUS, REACH_ITERATIONS, REACH_POPULATION, seed)
+        p, _, n = trials.steps(_reach, p, short, REACH_RADIUS, REACH_ITERATIONS, REACH_POPULATION, seed, compiled=True)
         count += n
         p, _, n = trials.steps(descend, p, short, radius, iterations, population, seed)
         count += n
@@ -426,7 +428,9 @@ def stiller(
         return out
     p0 = np.array([dimension_vector(sixbars[k]) for k in rows])
     trials = _Trials.of(request, [sixbars[k] for k in rows], [before[k] for k in rows], samples, stillest=True)
-    p, _, _ = trials.steps(_reach, p0, np.arange(len(rows)), radius, iterations, population, seed, -np.inf, STILL_SIGMA)
+    p, _, _ = trials.steps(
+        _reach, p0, np.arange(len(rows)), radius, iterations, population, seed, -np.inf, STILL_SIGMA, compiled=True
+    )
     for k, i in enumerate(rows):
         if np.any(p[k] != p0[k]):
             out[i] = round_dimensions(sixbar_like(p[k], sixbars[i]))

@@ -41,9 +41,9 @@ class NoMatch:
     #: dwell, swing and step: the value nearest the request's (°); transmission: the largest
     #: (°); link ratio, acceleration: the smallest; arm, clearance: the largest (crank
     #: lengths) — against the request's ``limit`` (the requested value for dwell, swing and
-    #: step). None when no fitted six-bar misses one constraint alone. With nothing fitted: the transmission
-    #: angle, if the sample without its limit holds segments, and the best four-bar's among
-    #: them (:func:`unfitted_reach`).
+    #: step). None when no fitted six-bar misses one constraint alone. With nothing fitted:
+    #: the transmission angle, if the sample without its limit holds segments, and the best
+    #: four-bar's among them (:func:`unfitted_reach`).
     reach: tuple[str, float, float] | None = None
 
     @property
