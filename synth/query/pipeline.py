@@ -27,7 +27,7 @@ from synth.query.fitting import Fitted, fit, fit_arrays, fits_of, prescreen, res
 from synth.query.refinement import no_worse_than_fits, refined_candidates, refined_misses, with_origins
 from synth.query.result import NoMatch, QueryResult
 from synth.query.segment_rows import SegmentRow
-from synth.query.windows import PER_LEVEL, kinds_for, select
+from synth.query.windows import LONG_REACHES, PER_LEVEL, kinds_for, select
 
 #: An answer with fewer candidates than this (or than ``--top``) is topped up from the
 #: nearest misses, refined to meet the request (with refinement on).
@@ -147,8 +147,9 @@ class Answering:
         The full figures (no footprint) of every screened fit, by :attr:`Fitted.key`: a
         diagnosis reuses them.
     longer_fits : list of Fitted
-        Fits to rests ``RESEAT_LONGER[0]`` times the requested dwell (:func:`_moved_pivots`),
-        refined as near misses with the others.
+        Fits to rests ``RESEAT_LONGER[0]`` times the requested dwell (:func:`_moved_pivots`)
+        and to the lines a far slot pivot predicts (:func:`_far_slot_fits`), refined as near
+        misses with the others.
     moved_ids : set of str
         Ids of the fits whose answer is a six-bar with a moved output pivot.
     simulated : int
@@ -267,6 +268,29 @@ def _from_sample(state: Answering, seeded: Sequence[Candidate] = ()) -> list[Can
     return candidates
 
 
+def _far_slot_fits(state: Answering) -> list[Fitted]:
+    """Fits of the lines (single or double) the sample did not read whose stored dwells predict
+    the rest for a slot pivot far from the stretch (:data:`~synth.query.windows.LONG_REACHES`
+    within the link ratio, WIDER × PER_LEVEL per window): near misses of a sparse answer,
+    refined with the others. Not candidates themselves: a long rest's six-bars are refined
+    from them (RPR 180° at a 20° or 30° swing on ``standard``: 0–1 six-bars without them, 3
+    with), but more candidates would stop the fill from the near misses sooner (RPR 120° at
+    20°: 10 six-bars from the near misses, 3 with these as candidates)."""
+    kinds = tuple(k for k in state.kinds if k != SegmentKind.ARC)
+    if not kinds:
+        return []
+    request, had = state.request, state.read()
+    reaches = tuple(r for r in LONG_REACHES if r <= request.max_link_ratio)  # the slot is a link
+    rows = [
+        r
+        for r in select(state.source, request, kinds, WIDER * PER_LEVEL, reaches)
+        if (r.segment_id, r.level) not in had
+    ]
+    fits = [f for kind in kinds for f in fit(request, [r for r in rows if r.kind == kind], kind)]
+    known = {f.key for f in state.longer_fits}
+    return [f for f in fits if f.key not in known]
+
+
 def _ranked(request: Request, candidates: list[Candidate]) -> list[Candidate]:
     """The best ``request.top`` distinct ``candidates``, numbered from 1."""
     ranked = distinct(rank(request, candidates))[: request.top]
@@ -297,6 +321,9 @@ def _fill_from_misses(state: Answering, top: list[Candidate], refined: tuple[int
         no_match = diagnose(request, state.fitted, misses)
     # the diagnosis simulates the fits the screen dropped: simulation time of this answer
     state.add_time("simulate", t)
+    t = time.perf_counter()
+    state.longer_fits.extend(_far_slot_fits(state))
+    state.add_time("fit", t)
     if state.longer_fits:
         # a short rest's own sample can hold no fit (RRR 10° on ``standard``: the arcs
         # whose stored rests predict it are all near-toggle four-bars, transmission < 10°,

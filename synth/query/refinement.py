@@ -22,7 +22,7 @@ from synth.query.refine_objective import better_or_equal
 #: time (nearest first), for at most MISS_ROUNDS rounds while the answer still holds fewer.
 MISSES = 16
 
-MISS_ROUNDS = 2
+MISS_ROUNDS = 4
 
 
 def no_worse_than_fits(request: Request, moved: list[Candidate], answered: list[Candidate]) -> list[Candidate]:

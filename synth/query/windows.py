@@ -20,6 +20,14 @@ PER_LEVEL = 10
 #: Output link lengths (crank lengths) tried in the band conversion of ``_select``.
 REACHES = (0.8, 1.5, 3.0)
 
+#: The slot reaches whose lines a sparse answer also refines as near misses (those within the
+#: link ratio; synth.query.pipeline): a long rest lies along a long stretch of the coupler
+#: path, so the slot's pivot sits far from it and the output's band is a wide path band there
+#: — the stored dwell that predicts the rest is shorter than REACHES alone target (RPR 180° at
+#: a 30° swing on ``standard``: its six-bars lie on stretches that store 180°–221° at 0.01
+#: crank, below the targets of 252°–350° the short reaches set at that level).
+LONG_REACHES = (*REACHES, 6.0, 10.0)
+
 
 def kinds_for(request: Request) -> tuple[SegmentKind, ...]:
     """Segment kinds a request draws on."""
@@ -33,15 +41,23 @@ def kinds_for(request: Request) -> tuple[SegmentKind, ...]:
 
 
 def select(
-    source: SegmentSource, request: Request, kinds: tuple[SegmentKind, ...], per_level: int = PER_LEVEL
+    source: SegmentSource,
+    request: Request,
+    kinds: tuple[SegmentKind, ...],
+    per_level: int = PER_LEVEL,
+    reaches: tuple[float, ...] = REACHES,
 ) -> list[SegmentRow]:
     """Segments worth fitting, per kind and tolerance level (each kind's rows in the order of
-    its windows, :func:`_line_windows` and :func:`_arc_windows`). Only constraints the four-bar
-    alone decides are applied here (crank = 1, the shortest link); an arc's radius becomes the
-    rod, which must not be the link that breaks the ratio."""
+    its windows, :func:`_line_windows` (for the slot ``reaches``) and :func:`_arc_windows`). Only constraints the four-bar alone decides are applied here
+    (crank = 1, the shortest link); an arc's radius becomes the rod, which must not be the link
+    that breaks the ratio."""
     rows = []
     for kind in kinds:
-        windows = (_arc_windows if kind == SegmentKind.ARC else _line_windows)(source, request, per_level)
+        windows = (
+            _arc_windows(source, request, per_level)
+            if kind == SegmentKind.ARC
+            else _line_windows(source, request, per_level, reaches)
+        )
         rows += source.select_segments(
             (kind,),
             windows,
@@ -52,7 +68,9 @@ def select(
     return rows
 
 
-def _line_windows(source: SegmentSource, request: Request, per_level: int) -> list[DwellWindow]:
+def _line_windows(
+    source: SegmentSource, request: Request, per_level: int, reaches: tuple[float, ...] = REACHES
+) -> list[DwellWindow]:
     """Stored dwells of lines (and double lines) worth fitting.
 
     A six-bar's dwell is measured with an output band (an angle), a segment's with a path band
@@ -60,11 +78,11 @@ def _line_windows(source: SegmentSource, request: Request, per_level: int) -> li
     ε* = R·band/2 of the segment's line, R the slot's reach, a few cranks. Dwells grow like
     ε^¼ (four-point contact), so at level ε_ℓ the segment dwell that gives the requested
     six-bar dwell is about dwell·(ε_ℓ/ε*)^¼; each level is searched around its own target for
-    each of :data:`REACHES`, generously — the simulation decides. ``per_level`` segments are
+    each of ``reaches``, generously — the simulation decides. ``per_level`` segments are
     taken per level and target (twice that closest to the request itself)."""
     width = request.dwell_tol + math.radians(10.0)
     windows = [DwellWindow(None, request.dwell - width, request.dwell + width, request.dwell, 2 * per_level)]
-    for (level, eps), reach in itertools.product(source.tolerance_levels(), REACHES):
+    for (level, eps), reach in itertools.product(source.tolerance_levels(), reaches):
         target = request.dwell * (eps / (reach * request.band / 2)) ** 0.25
         width = request.dwell_tol + 0.2 * target
         windows.append(DwellWindow(level, target - width, target + width, target, per_level))

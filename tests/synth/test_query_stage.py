@@ -549,13 +549,16 @@ def test_a_sparse_answer_is_the_same_every_time(source):
     assert len(answers) == 1
 
 
-@pytest.mark.parametrize("met_per_round, wanted, rounds", [((2, 1), 3, 2), ((3, 0), 3, 1), ((0, 0), 1, 2)])
+@pytest.mark.parametrize("met_per_round, wanted, rounds", [((2, 1), 3, 2), ((3, 0), 3, 1), ((0, 0, 0, 0), 1, None)])
 def test_nearest_misses_are_refined_a_round_at_a_time_until_enough_meet(monkeypatch, met_per_round, wanted, rounds):
-    """The nearest misses go to refinement MISSES at a time, nearest first, and a second
-    round runs only while fewer than ``wanted`` distinct six-bars meet the request."""
+    """The nearest misses go to refinement MISSES at a time, nearest first, and another
+    round runs only while fewer than ``wanted`` distinct six-bars meet the request, for at
+    most MISS_ROUNDS rounds (``rounds`` None)."""
     import synth.query.refinement as Q
 
-    pool = [_fake_candidate(i) for i in range(2 * Q.MISSES + 5)]
+    rounds = Q.MISS_ROUNDS if rounds is None else rounds
+    met_per_round = (*met_per_round, *(0,) * Q.MISS_ROUNDS)
+    pool = [_fake_candidate(i) for i in range(Q.MISS_ROUNDS * Q.MISSES + 5)]
     monkeypatch.setattr(Q, "miss_pool", lambda request, misses, taken, n: (pool[:n], [None] * min(n, len(pool))))
     calls = []
 
