@@ -10,6 +10,7 @@ import dataclasses
 import math
 from collections.abc import Sequence
 
+from synth.kinds import OutputTag
 from synth.mechanism.figures import SixBarFigures
 from synth.query.candidate_ids import REFINED_MARK, candidate_id, with_dimensions
 from synth.query.candidates import Candidate, Request
@@ -22,7 +23,15 @@ from synth.query.refine_objective import better_or_equal
 #: time (nearest first), for at most MISS_ROUNDS rounds while the answer still holds fewer.
 MISSES = 16
 
+#: Four rounds for lines (RPR, one dwell or two): the misses nearest by their excess are not
+#: the ones that refine best — on ``standard`` RPR 180° at a 90° swing meets its first
+#: six-bars in the 3rd and 4th rounds, two 20° ± 5° rests at a 45° swing in the 4th — at ~3 s
+#: more for a request nothing meets.
 MISS_ROUNDS = 4
+
+#: Two for arcs (RRR, one dwell): on ``standard``'s coverage grid the 3rd and 4th rounds met no
+#: RRR request the first two had not (its eight cells short of 3 stayed empty, ~3 s more each).
+ARC_MISS_ROUNDS = 2
 
 
 def no_worse_than_fits(request: Request, moved: list[Candidate], answered: list[Candidate]) -> list[Candidate]:
@@ -105,9 +114,11 @@ def refined_misses(
 ) -> tuple[list[Candidate], int, int]:
     """The nearest distinct misses (:func:`miss_pool`, not one of the ``taken`` ids) refined
     toward ``request``, ``MISSES`` at a time, nearest first, until ``wanted`` distinct six-bars
-    meet it or ``MISS_ROUNDS`` rounds are done: (those that now meet it, how many were tried,
-    how many came out refined). The first round is what one round always was."""
-    pool, figures = miss_pool(request, misses, taken, MISSES * MISS_ROUNDS)
+    meet it or ``MISS_ROUNDS`` rounds are done (``ARC_MISS_ROUNDS`` for an RRR output): (those
+    that now meet it, how many were tried, how many came out refined). The first round is what
+    one round always was."""
+    rounds = ARC_MISS_ROUNDS if request.output == OutputTag.RRR and request.dwells == 1 else MISS_ROUNDS
+    pool, figures = miss_pool(request, misses, taken, MISSES * rounds)
     met: list[Candidate] = []
     better = tried = 0
     for start in range(0, len(pool), MISSES):

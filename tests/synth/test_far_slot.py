@@ -11,9 +11,23 @@ import pytest
 from synth.kinds import SegmentKind
 from synth.query import Request, answer
 from synth.query.fitting import fit
-from synth.query.windows import LONG_REACHES, PER_LEVEL, REACHES, _line_windows, select
+from synth.query.windows import LONG_REACHES, PER_LEVEL, REACHES, select
 
 DEG = math.pi / 180
+
+
+class _Recording:
+    """``source`` that records the windows :func:`select` asks it for."""
+
+    def __init__(self, source):
+        self.source, self.windows = source, []
+
+    def tolerance_levels(self):
+        return self.source.tolerance_levels()
+
+    def select_segments(self, kinds, windows, **limits):
+        self.windows += list(windows)
+        return self.source.select_segments(kinds, windows, **limits)
 
 
 def test_a_longer_slot_targets_a_shorter_stored_dwell(source):
@@ -21,7 +35,9 @@ def test_a_longer_slot_targets_a_shorter_stored_dwell(source):
     dwell·(ε/(R·band/2))^¼ (the output's band is a path band R·band/2 wide at the stretch):
     the longer slots of LONG_REACHES target shorter stored dwells than REACHES' longest."""
     request = Request(dwell=180 * DEG, swing=30 * DEG, output="rpr")
-    windows = _line_windows(source, request, PER_LEVEL, LONG_REACHES)[1:]  # the first: the request's own
+    recording = _Recording(source)
+    select(recording, request, (SegmentKind.LINE,), PER_LEVEL, LONG_REACHES)
+    windows = recording.windows[1:]  # the first: the request's own
     levels = source.tolerance_levels()
     assert len(windows) == len(levels) * len(LONG_REACHES)
     for w, ((level, eps), reach) in zip(windows, [(lv, r) for lv in levels for r in LONG_REACHES]):

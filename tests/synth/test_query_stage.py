@@ -549,14 +549,21 @@ def test_a_sparse_answer_is_the_same_every_time(source):
     assert len(answers) == 1
 
 
-@pytest.mark.parametrize("met_per_round, wanted, rounds", [((2, 1), 3, 2), ((3, 0), 3, 1), ((0, 0, 0, 0), 1, None)])
-def test_nearest_misses_are_refined_a_round_at_a_time_until_enough_meet(monkeypatch, met_per_round, wanted, rounds):
+@pytest.mark.parametrize(
+    "met_per_round, wanted, rounds, output",
+    [((2, 1), 3, 2, "any"), ((3, 0), 3, 1, "any"), ((0,), 1, "all", "rpr"), ((0,), 1, "all", "rrr")],
+)
+def test_nearest_misses_are_refined_a_round_at_a_time_until_enough_meet(
+    monkeypatch, met_per_round, wanted, rounds, output
+):
     """The nearest misses go to refinement MISSES at a time, nearest first, and another
     round runs only while fewer than ``wanted`` distinct six-bars meet the request, for at
-    most MISS_ROUNDS rounds (``rounds`` None)."""
+    most MISS_ROUNDS rounds, ARC_MISS_ROUNDS for an RRR output (``rounds`` "all")."""
     import synth.query.refinement as Q
 
-    rounds = Q.MISS_ROUNDS if rounds is None else rounds
+    if rounds == "all":
+        rounds = Q.ARC_MISS_ROUNDS if output == "rrr" else Q.MISS_ROUNDS
+        assert Q.ARC_MISS_ROUNDS < Q.MISS_ROUNDS
     met_per_round = (*met_per_round, *(0,) * Q.MISS_ROUNDS)
     pool = [_fake_candidate(i) for i in range(Q.MISS_ROUNDS * Q.MISSES + 5)]
     monkeypatch.setattr(Q, "miss_pool", lambda request, misses, taken, n: (pool[:n], [None] * min(n, len(pool))))
@@ -568,7 +575,7 @@ def test_nearest_misses_are_refined_a_round_at_a_time_until_enough_meet(monkeypa
         return [dataclasses.replace(c, refined_from=() if j < k else None) for j, c in enumerate(part)], k
 
     monkeypatch.setattr(Q, "refined_candidates", refined)
-    met, tried, better = Q.refined_misses(Request(dwell=60 * DEG, swing=30 * DEG), [], set(), wanted)
+    met, tried, better = Q.refined_misses(Request(dwell=60 * DEG, swing=30 * DEG, output=output), [], set(), wanted)
     assert len(calls) == rounds and tried == rounds * Q.MISSES and better == sum(met_per_round[:rounds])
     assert calls == [[c.id for c in pool[r * Q.MISSES : (r + 1) * Q.MISSES]] for r in range(rounds)]  # nearest first
     assert [c.id for c in met] == [
