@@ -48,9 +48,9 @@ def select(
     reaches: tuple[float, ...] = REACHES,
 ) -> list[SegmentRow]:
     """Segments worth fitting, per kind and tolerance level (each kind's rows in the order of
-    its windows, :func:`_line_windows` (for the slot ``reaches``) and :func:`_arc_windows`). Only constraints the four-bar alone decides are applied here
-    (crank = 1, the shortest link); an arc's radius becomes the rod, which must not be the link
-    that breaks the ratio."""
+    its windows, :func:`_line_windows` (for the slot ``reaches``) and :func:`_arc_windows`).
+    Only constraints the four-bar alone decides are applied here (crank = 1, the shortest
+    link); an arc's radius becomes the rod, which must not be the link that breaks the ratio."""
     rows = []
     for kind in kinds:
         windows = (
