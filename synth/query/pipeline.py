@@ -147,9 +147,8 @@ class Answering:
         The full figures (no footprint) of every screened fit, by :attr:`Fitted.key`: a
         diagnosis reuses them.
     longer_fits : list of Fitted
-        Fits to rests ``RESEAT_LONGER[0]`` times the requested dwell (:func:`_moved_pivots`)
-        and to the lines a far slot pivot predicts (:func:`_far_slot_fits`), refined as near
-        misses with the others.
+        Fits to rests ``RESEAT_LONGER[0]`` times the requested dwell (:func:`_moved_pivots`),
+        refined as near misses with the others.
     moved_ids : set of str
         Ids of the fits whose answer is a six-bar with a moved output pivot.
     simulated : int
@@ -322,14 +321,16 @@ def _fill_from_misses(state: Answering, top: list[Candidate], refined: tuple[int
     # the diagnosis simulates the fits the screen dropped: simulation time of this answer
     state.add_time("simulate", t)
     t = time.perf_counter()
-    state.longer_fits.extend(_far_slot_fits(state))
+    # a short rest's own sample can hold no fit (RRR 10° on ``standard``: the arcs whose
+    # stored rests predict it are all near-toggle four-bars, transmission < 10°, as the atlas
+    # keeps rests ≥ 20° at its widest tolerance); the fits to rests twice as long miss it by a
+    # few degrees, and a long rest's lie on the far slots' lines: both are refined with the others
+    more = [*state.longer_fits, *_far_slot_fits(state)]
     state.add_time("fit", t)
-    if state.longer_fits:
-        # a short rest's own sample can hold no fit (RRR 10° on ``standard``: the arcs
-        # whose stored rests predict it are all near-toggle four-bars, transmission < 10°,
-        # as the atlas keeps rests ≥ 20° at its widest tolerance); the fits to rests twice
-        # as long miss it by a few degrees and are refined toward it with the others
-        misses = sorted([*misses, *misses_of(request, state.longer_fits, state.known)], key=lambda m: m[0])
+    if more:
+        t = time.perf_counter()
+        misses = sorted([*misses, *misses_of(request, more, state.known)], key=lambda m: m[0])
+        state.add_time("simulate", t)
     t = time.perf_counter()
     found, tried, better = refined_misses(
         request, misses, {c.id.split(REFINED_MARK)[0] for c in top}, min(FILL, request.top) - len(top)

@@ -29,7 +29,7 @@ MISSES = 16
 #: more for a request nothing meets.
 MISS_ROUNDS = 4
 
-#: Two for arcs (RRR, one dwell): on ``standard``'s coverage grid the 3rd and 4th rounds met no
+#: Two for arcs (RRR): on ``standard``'s coverage grid the 3rd and 4th rounds met no
 #: RRR request the first two had not (its eight cells short of 3 stayed empty, ~3 s more each).
 ARC_MISS_ROUNDS = 2
 
@@ -117,7 +117,7 @@ def refined_misses(
     meet it or ``MISS_ROUNDS`` rounds are done (``ARC_MISS_ROUNDS`` for an RRR output): (those
     that now meet it, how many were tried, how many came out refined). The first round is what
     one round always was."""
-    rounds = ARC_MISS_ROUNDS if request.output == OutputTag.RRR and request.dwells == 1 else MISS_ROUNDS
+    rounds = ARC_MISS_ROUNDS if request.output == OutputTag.RRR else MISS_ROUNDS  # two dwells are RPR
     pool, figures = miss_pool(request, misses, taken, MISSES * rounds)
     met: list[Candidate] = []
     better = tried = 0
