@@ -27,6 +27,7 @@ from synth.query.fitting import Fitted, fit, fit_arrays, fits_of, prescreen, res
 from synth.query.refinement import no_worse_than_fits, refined_candidates, refined_misses, with_origins
 from synth.query.result import NoMatch, QueryResult
 from synth.query.segment_rows import SegmentRow
+from synth.query.support_fits import support_fits
 from synth.query.windows import LONG_REACHES, PER_LEVEL, kinds_for, select
 
 #: An answer with fewer candidates than this (or than ``--top``) is topped up from the
@@ -324,8 +325,10 @@ def _fill_from_misses(state: Answering, top: list[Candidate], refined: tuple[int
     # a short rest's own sample can hold no fit (RRR 10° on ``standard``: the arcs whose
     # stored rests predict it are all near-toggle four-bars, transmission < 10°, as the atlas
     # keeps rests ≥ 20° at its widest tolerance); the fits to rests twice as long miss it by a
-    # few degrees, and a long rest's lie on the far slots' lines: both are refined with the others
-    more = [*state.longer_fits, *_far_slot_fits(state)]
+    # few degrees, and a long rest's lie on the far slots' lines; a rest shorter than a harmonic
+    # output's of the swing lies at a support point of a curve (RPR 10° at a 10° or 20° swing):
+    # all are refined with the others
+    more = [*state.longer_fits, *_far_slot_fits(state), *support_fits(request, state.source)]
     state.add_time("fit", t)
     if more:
         t = time.perf_counter()
