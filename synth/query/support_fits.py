@@ -4,24 +4,30 @@ answer for a rest shorter than a harmonic output of the requested swing would gi
 
 A short rest at a small swing (RPR 10° at a 10° or 20° swing) lies at no stored straight
 stretch: the output must turn sharply at its extremes and move evenly between them
-(:mod:`synth.mechanism.support_rest`). Every line of the atlas's first level lends its
-coupler point (its four-bar within the request's transmission and link limits); the paths
-whose support point in some slot direction passes the far-field test get a slot pivot on the
-support tangent each way (its longest reach within the link ratio, its swing within 10 %
-of the request's), and an even spread of
-them (:data:`SUPPORT_FITS` at most) are returned as fits whose ids carry their dimensions, for the near-miss refinement to move onto the request.
+(:mod:`synth.mechanism.support_rest`). The paths tested are those of every atlas line's
+coupler point (the line's four-bar within the request's transmission and link limits) and of
+a grid of coupler points on every eighth of those four-bars; the pairs of a path and a slot
+direction that pass the far-field test get a slot pivot on the support tangent each way (its
+longest reach within the link ratio, its swing within 10 % of the request's). An even spread
+of them are returned as fits on the row of a line of their four-bar, moved: their ids carry
+their dimensions, the coupler point with them, and the near-miss refinement moves them onto
+the request.
 """
 
 from __future__ import annotations
 
+import dataclasses
+from dataclasses import dataclass
+
 import numpy as np
 
+from kinematics.fourbar import fourbar_motion
 from synth.kinds import OutputTag, SegmentKind
 from synth.mechanism.sixbar import OutputDyad, crank_grid
 from synth.mechanism.support_rest import harmonic_rest, slot_pivots, support_points
 from synth.query.candidates import Request
 from synth.query.contract import SegmentSource
-from synth.query.fitting import Fitted, coupler_paths
+from synth.query.fitting import Fitted
 from synth.query.segment_rows import SegmentBatch, SegmentRow
 
 __all__ = ["SUPPORT_FITS", "support_fits", "wants_support_fits"]
@@ -35,6 +41,12 @@ SWING_SLACK = 0.1
 SAMPLES = 360
 #: Rows of the atlas read per batch.
 BATCH = 8000
+#: Coupler points tried on every GRID_STRIDE-th four-bar besides its lines' own (cranks, the
+#: coupler's frame): a line's point has a straight stretch, a slow one for the output, and
+#: seldom rests short (RPR 10°/10° on ``standard``: 1 of 64 refined lines' fits met it, 7–10
+#: of 64 of the grid's).
+GRID_POINTS = (np.linspace(-1.0, 2.5, 6)[None, :] + 1j * np.linspace(-2.0, 2.0, 6)[:, None]).ravel()
+GRID_STRIDE = 8
 
 
 def wants_support_fits(request: Request) -> bool:
@@ -50,14 +62,17 @@ def wants_support_fits(request: Request) -> bool:
 
 
 def support_fits(request: Request, source: SegmentSource) -> list[Fitted]:
-    """Up to :data:`SUPPORT_FITS` RPR fits with the slot pivot on a support tangent of the
-    coupler curve of an atlas line (module docstring), in the atlas's scan order; [] unless
-    :func:`wants_support_fits`."""
+    """RPR fits with the slot pivot on a support tangent of a coupler curve (module docstring):
+    up to :data:`SUPPORT_FITS` / 2 passing (path, direction) pairs of the atlas lines' own
+    coupler points and as many of :data:`GRID_POINTS` on every :data:`GRID_STRIDE`-th four-bar,
+    each an even spread in the atlas's scan order; [] unless :func:`wants_support_fits`."""
     if not wants_support_fits(request):
         return []
     level = source.tolerance_levels()[0][0]  # every line has a row at every level
     phi = crank_grid(SAMPLES)
-    found: list[tuple[SegmentBatch, np.ndarray, np.ndarray, np.ndarray]] = []  # (batch, rows, k, sample)
+    own: list[_Passing] = []
+    grid: list[_Passing] = []
+    seen: set[tuple[float, float, float, int]] = set()
     for batch in source.scan_segments(
         SegmentKind.LINE,
         level,
@@ -66,32 +81,76 @@ def support_fits(request: Request, source: SegmentSource) -> list[Fitted]:
         min_radius_ratio=1.0 / request.max_link_ratio,
         batch=BATCH,
     ):
-        support = support_points(
-            coupler_paths(batch, phi),
-            dwell=request.dwell,
-            dwell_tol=request.dwell_tol,
-            swing=request.swing,
-            band=request.band,
-        )
-        rows, k = np.nonzero(support >= 0)
-        found.append((batch, rows, k, support[rows, k]))
-    total = sum(len(rows) for _, rows, _, _ in found)
-    # a small swing passes up to ~10⁵ (path, direction) pairs: an even spread of them, in scan order
-    chosen = np.unique(np.linspace(0, total - 1, min(total, SUPPORT_FITS // 2)).round().astype(np.int64))
+        rows = np.arange(len(batch))
+        own.append(_passing(request, batch, rows, batch.coupler_point(), phi))
+        fb = batch.fourbar
+        first = []  # the first row of each four-bar not met before, every GRID_STRIDE-th of them
+        for i, key in enumerate(zip(fb.b.tolist(), fb.c.tolist(), fb.d.tolist(), fb.branch.tolist())):
+            if key not in seen:
+                if len(seen) % GRID_STRIDE == 0:
+                    first.append(i)
+                seen.add(key)
+        rows = np.repeat(np.array(first, np.int64), GRID_POINTS.size)
+        grid.append(_passing(request, batch, rows, np.tile(GRID_POINTS, len(first)), phi))
+    return [*_pivot_fits(request, own, SUPPORT_FITS // 4, phi), *_pivot_fits(request, grid, SUPPORT_FITS // 4, phi)]
+
+
+@dataclass(frozen=True, slots=True)
+class _Passing:
+    """The passing (path, direction) pairs of one batch: the path's row and coupler point,
+    the slot normal's index and the support point's sample."""
+
+    batch: SegmentBatch
+    rows: np.ndarray
+    points: np.ndarray
+    direction: np.ndarray
+    sample: np.ndarray
+
+
+def _paths(batch: SegmentBatch, rows: np.ndarray, points: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """The paths of the coupler ``points`` (u + iv) of the four-bars of ``batch``'s ``rows``."""
+    fb = batch.fourbar
+    b, c, d, branch = (np.asarray(x)[rows, None] for x in (fb.b, fb.c, fb.d, fb.branch))
+    motion = fourbar_motion(1.0, b, c, d, phi, branch, order=0)
+    return motion.A + motion.e_theta * points[:, None]
+
+
+def _passing(request: Request, batch: SegmentBatch, rows: np.ndarray, points: np.ndarray, phi: np.ndarray) -> _Passing:
+    support = support_points(
+        _paths(batch, rows, points, phi),
+        dwell=request.dwell,
+        dwell_tol=request.dwell_tol,
+        swing=request.swing,
+        band=request.band,
+    )
+    path, k = np.nonzero(support >= 0)
+    return _Passing(batch, rows[path], points[path], k, support[path, k])
+
+
+def _pivot_fits(request: Request, found: list[_Passing], n: int, phi: np.ndarray) -> list[Fitted]:
+    """Slot pivots (each way) of an even spread of ``n`` of the ``found`` pairs, those within
+    the link ratio and :data:`SWING_SLACK` of the swing, as fits on their line's row with the
+    pair's coupler point (the id carries it: the fits are moved)."""
+    total = sum(len(f.rows) for f in found)
+    # a small swing passes up to ~10⁵ pairs: an even spread of them, in scan order
+    chosen = np.unique(np.linspace(0, total - 1, min(total, n)).round().astype(np.int64))
     picked: list[SegmentRow] = []
-    direction, sample = [], []
+    paths, direction, sample = [], [], []
     start = 0
-    for batch, rows, k, at in found:
-        mine = chosen[(chosen >= start) & (chosen < start + len(rows))] - start
-        picked += [batch[int(r)] for r in rows[mine]]
-        direction.append(k[mine])
-        sample.append(at[mine])
-        start += len(rows)
+    for f in found:
+        mine = chosen[(chosen >= start) & (chosen < start + len(f.rows))] - start
+        start += len(f.rows)
+        if not mine.size:
+            continue
+        picked += [_with_point(f.batch[int(r)], p) for r, p in zip(f.rows[mine], f.points[mine])]
+        paths.append(_paths(f.batch, f.rows[mine], f.points[mine], phi))
+        direction.append(f.direction[mine])
+        sample.append(f.sample[mine])
     if not picked:
         return []
-    paths = coupler_paths(picked, phi)
-    hits, pivots, swung = slot_pivots(paths, np.concatenate(direction), np.concatenate(sample), swing=request.swing)
-    reach = np.abs(paths[hits] - pivots[:, None]).max(axis=1)
+    path = np.concatenate(paths)
+    hits, pivots, swung = slot_pivots(path, np.concatenate(direction), np.concatenate(sample), swing=request.swing)
+    reach = np.abs(path[hits] - pivots[:, None]).max(axis=1)
     keep = (
         np.isfinite(pivots)
         & (reach <= request.max_link_ratio)  # the slot is a link (crank = 1)
@@ -101,3 +160,11 @@ def support_fits(request: Request, source: SegmentSource) -> list[Fitted]:
         Fitted(picked[h], OutputTag.RPR, 0, OutputDyad.rpr(complex(p)), moved=True)
         for h, p in zip(hits[keep], pivots[keep])
     ]
+
+
+def _with_point(row: SegmentRow, point: complex) -> SegmentRow:
+    """``row`` with the coupler point ``point`` (its four-bar's; the row's own for a line's)."""
+    if point == complex(row.fourbar.u, row.fourbar.v):
+        return row
+    fourbar = dataclasses.replace(row.fourbar, u=float(point.real), v=float(point.imag))
+    return dataclasses.replace(row, fourbar=fourbar)

@@ -9,8 +9,9 @@ import math
 import numpy as np
 
 from synth.query import Request
-from synth.query.evaluate import figures_of
-from synth.query.support_fits import support_fits, wants_support_fits
+from synth.query.candidate_ids import candidate_dimensions
+from synth.query.evaluate import candidate_of, figures_of
+from synth.query.support_fits import GRID_POINTS, support_fits, wants_support_fits
 
 DEG = math.pi / 180
 
@@ -31,6 +32,8 @@ def test_fits_swing_as_asked_and_rest_short(source):
     fits = support_fits(request, source)
     assert fits, "the test atlas's lines give support-point fits"
     assert {f.row.kind for f in fits} == {"line"} and all(f.moved for f in fits)
+    on_grid = [f for f in fits if np.isclose(GRID_POINTS, complex(f.row.fourbar.u, f.row.fourbar.v)).any()]
+    assert on_grid, "the grid's coupler points give fits too"
     figures = figures_of(request, [f.sixbar() for f in fits], footprint=False)
     ok = [f for f in figures if f.acceptable and f.dwells]
     assert len(ok) >= 0.9 * len(fits)
@@ -40,3 +43,25 @@ def test_fits_swing_as_asked_and_rest_short(source):
     # the far-field test is first order: the exact rests are short, not the ~23° a harmonic
     # output of that swing has, for most
     assert np.median(rest) < 23 * DEG
+
+
+def test_a_grid_fit_is_its_id(source):
+    """A fit at a grid point sits on a line's row of its four-bar with the grid's coupler point:
+    the candidate's id carries that point, so the six-bar rebuilt from the id is the fit's."""
+    request = Request(dwell=10 * DEG, swing=10 * DEG, output="rpr")
+    fits = [
+        f
+        for f in support_fits(request, source)
+        if np.isclose(GRID_POINTS, complex(f.row.fourbar.u, f.row.fourbar.v)).any()
+    ]
+    fit_ = fits[0]
+    (figures,) = figures_of(request, [fit_.sixbar()], footprint=False)
+    rebuilt = candidate_dimensions(candidate_of(request, fit_, figures).id)
+    sixbar = fit_.sixbar()
+    assert rebuilt is not None
+    assert np.allclose(
+        [rebuilt.u, rebuilt.v, rebuilt.b, rebuilt.c, rebuilt.d],
+        [sixbar.u, sixbar.v, sixbar.b, sixbar.c, sixbar.d],
+        rtol=1e-6,
+    )
+    assert abs(rebuilt.dyad.pivot - sixbar.dyad.pivot) < 1e-5 * abs(sixbar.dyad.pivot)
