@@ -4,14 +4,13 @@ answer for a rest shorter than a harmonic output of the requested swing would gi
 
 A short rest at a small swing (RPR 10° at a 10° or 20° swing) lies at no stored straight
 stretch: the output must turn sharply at its extremes and move evenly between them
-(:mod:`synth.mechanism.support_rest`). The paths tested are those of every atlas line's
-coupler point (the line's four-bar within the request's transmission and link limits) and of
-a grid of coupler points on every eighth of those four-bars; the pairs of a path and a slot
-direction that pass the far-field test get a slot pivot on the support tangent each way (its
-longest reach within the link ratio, its swing within 10 % of the request's). An even spread
-of them are returned as fits on the row of a line of their four-bar, moved: their ids carry
-their dimensions, the coupler point with them, and the near-miss refinement moves them onto
-the request.
+(:mod:`synth.mechanism.support_rest`). The paths tested are those of a grid of coupler points
+on every eighth four-bar of the atlas's lines (within the request's transmission and link
+limits); an even spread of the pairs of a path and a slot direction that pass the far-field
+test get a slot pivot on the support tangent each way (its longest reach within the link
+ratio, its swing within 10 % of the request's). They are returned as fits on the row of a
+line of their four-bar, moved: their ids carry their dimensions, the coupler point with
+them, and the near-miss refinement moves them onto the request.
 """
 
 from __future__ import annotations
@@ -30,10 +29,11 @@ from synth.query.contract import SegmentSource
 from synth.query.fitting import Fitted
 from synth.query.segment_rows import SegmentBatch, SegmentRow
 
-__all__ = ["SUPPORT_FITS", "support_fits", "wants_support_fits"]
+__all__ = ["GRID_POINTS", "GRID_STRIDE", "PAIRS", "support_fits", "wants_support_fits"]
 
-#: Fits returned at most (the near-miss refinement takes the nearest of them).
-SUPPORT_FITS = 2048
+#: Passing (path, direction) pairs taken at most: each gives two fits (a slot pivot each way),
+#: which the near misses' order sorts.
+PAIRS = 512
 #: How far (a fraction of the request's) a fit's swing may stay from it: the refinement moves
 #: a near miss a little, and near the curve the reach may find no pivot that swings as asked.
 SWING_SLACK = 0.1
@@ -41,10 +41,10 @@ SWING_SLACK = 0.1
 SAMPLES = 360
 #: Rows of the atlas read per batch.
 BATCH = 8000
-#: Coupler points tried on every GRID_STRIDE-th four-bar besides its lines' own (cranks, the
-#: coupler's frame): a line's point has a straight stretch, a slow one for the output, and
-#: seldom rests short (RPR 10°/10° on ``standard``: 1 of 64 refined lines' fits met it, 7–10
-#: of 64 of the grid's).
+#: Coupler points tried on every GRID_STRIDE-th four-bar (cranks, the coupler's frame), not
+#: the lines' own: a line's point has a straight stretch, where the output is slow. On
+#: ``standard``, 64 near misses refined from each: RPR 10°/10° 1 meets from the lines' points,
+#: 7 from the grid's; 10°/20° 10 and 17; the two pooled by their excess, 7 and 2.
 GRID_POINTS = (np.linspace(-1.0, 2.5, 6)[None, :] + 1j * np.linspace(-2.0, 2.0, 6)[:, None]).ravel()
 GRID_STRIDE = 8
 
@@ -63,15 +63,14 @@ def wants_support_fits(request: Request) -> bool:
 
 def support_fits(request: Request, source: SegmentSource) -> list[Fitted]:
     """RPR fits with the slot pivot on a support tangent of a coupler curve (module docstring):
-    up to :data:`SUPPORT_FITS` / 2 passing (path, direction) pairs of the atlas lines' own
-    coupler points and as many of :data:`GRID_POINTS` on every :data:`GRID_STRIDE`-th four-bar,
-    each an even spread in the atlas's scan order; [] unless :func:`wants_support_fits`."""
+    of :data:`GRID_POINTS` on every :data:`GRID_STRIDE`-th four-bar of the atlas's lines, up
+    to :data:`PAIRS` passing (path, direction) pairs, an even spread in the atlas's scan
+    order; [] unless :func:`wants_support_fits`."""
     if not wants_support_fits(request):
         return []
     level = source.tolerance_levels()[0][0]  # every line has a row at every level
     phi = crank_grid(SAMPLES)
-    own: list[_Passing] = []
-    grid: list[_Passing] = []
+    found: list[_Passing] = []
     seen: set[tuple[float, float, float, int]] = set()
     for batch in source.scan_segments(
         SegmentKind.LINE,
@@ -81,8 +80,6 @@ def support_fits(request: Request, source: SegmentSource) -> list[Fitted]:
         min_radius_ratio=1.0 / request.max_link_ratio,
         batch=BATCH,
     ):
-        rows = np.arange(len(batch))
-        own.append(_passing(request, batch, rows, batch.coupler_point(), phi))
         fb = batch.fourbar
         first = []  # the first row of each four-bar not met before, every GRID_STRIDE-th of them
         for i, key in enumerate(zip(fb.b.tolist(), fb.c.tolist(), fb.d.tolist(), fb.branch.tolist())):
@@ -91,8 +88,8 @@ def support_fits(request: Request, source: SegmentSource) -> list[Fitted]:
                     first.append(i)
                 seen.add(key)
         rows = np.repeat(np.array(first, np.int64), GRID_POINTS.size)
-        grid.append(_passing(request, batch, rows, np.tile(GRID_POINTS, len(first)), phi))
-    return [*_pivot_fits(request, own, SUPPORT_FITS // 4, phi), *_pivot_fits(request, grid, SUPPORT_FITS // 4, phi)]
+        found.append(_passing(request, batch, rows, np.tile(GRID_POINTS, len(first)), phi))
+    return _pivot_fits(request, found, PAIRS, phi)
 
 
 @dataclass(frozen=True, slots=True)
