@@ -79,9 +79,17 @@ def _stop(executor: ProcessPoolExecutor) -> None:
     worker is gone, closing it ends that read (end of file): the pool counts itself broken,
     fails the futures nobody waits for, and its thread ends. The futures are cancelled by the
     pool's own thread (``cancel_futures``), never here: a broken pool fails every future it
-    still holds, and failing one cancelled from outside would raise in that thread."""
+    still holds, and failing one cancelled from outside would raise in that thread.
+
+    That thread is joined here before returning: it closes its wake-up pipe as it ends, and
+    the interpreter's exit hook (``concurrent.futures.process._python_exit``, Python 3.11)
+    writes to that pipe after checking, without a lock, that it is open — a thread closing it
+    at the same moment made the exit print an ignored "Bad file descriptor" (found by a
+    random-seed run of ``tests/atlas/test_pool.py``)."""
     processes = list((getattr(executor, "_processes", None) or {}).values())
-    results = getattr(executor, "_result_queue", None)  # shutdown() drops the reference
+    # shutdown() drops these references
+    results = getattr(executor, "_result_queue", None)
+    manager = getattr(executor, "_executor_manager_thread", None)
     executor.shutdown(wait=False, cancel_futures=True)
     for p in processes:
         if p.is_alive():
@@ -93,6 +101,8 @@ def _stop(executor: ProcessPoolExecutor) -> None:
             p.join(timeout=5)
     if results is not None and not any(p.is_alive() for p in processes):
         results._writer.close()
+    if manager is not None and manager is not threading.current_thread():
+        manager.join(timeout=5)
 
 
 def pool_map(
