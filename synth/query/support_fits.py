@@ -23,7 +23,7 @@ import numpy as np
 from kinematics.fourbar import fourbar_motion
 from synth.kinds import OutputTag, SegmentKind
 from synth.mechanism.sixbar import OutputDyad, crank_grid
-from synth.mechanism.support_rest import harmonic_rest, slot_pivots, support_points
+from synth.mechanism.support_rest import DIRECTIONS, harmonic_rest, slot_pivots, support_points
 from synth.query.candidates import Request
 from synth.query.contract import SegmentSource
 from synth.query.fitting import Fitted
@@ -39,8 +39,9 @@ PAIRS = 512
 SWING_SLACK = 0.1
 #: Crank samples of the far-field test (1°: a 10° rest is ten of them).
 SAMPLES = 360
-#: Rows of the atlas read per batch.
+#: Rows of the atlas read per batch, and paths tested at a time.
 BATCH = 8000
+PATHS = 4096
 #: Coupler points tried on every GRID_STRIDE-th four-bar (cranks, the coupler's frame), not
 #: the lines' own: a line's point has a straight stretch, where the output is slow. On
 #: ``standard``, 64 near misses refined from each: RPR 10°/10° 1 meets from the lines' points,
@@ -113,13 +114,17 @@ def _paths(batch: SegmentBatch, rows: np.ndarray, points: np.ndarray, phi: np.nd
 
 
 def _passing(request: Request, batch: SegmentBatch, rows: np.ndarray, points: np.ndarray, phi: np.ndarray) -> _Passing:
-    support = support_points(
-        _paths(batch, rows, points, phi),
-        dwell=request.dwell,
-        dwell_tol=request.dwell_tol,
-        swing=request.swing,
-        band=request.band,
-    )
+    """The pairs of the paths of ``rows`` and ``points`` that pass, :data:`PATHS` paths at a time
+    (a batch's new four-bars can be thousands, 36 paths each: ~6 kB a path and its motion)."""
+    support = np.empty((len(rows), DIRECTIONS), np.int64)
+    for lo in range(0, len(rows), PATHS):
+        support[lo : lo + PATHS] = support_points(
+            _paths(batch, rows[lo : lo + PATHS], points[lo : lo + PATHS], phi),
+            dwell=request.dwell,
+            dwell_tol=request.dwell_tol,
+            swing=request.swing,
+            band=request.band,
+        )
     path, k = np.nonzero(support >= 0)
     return _Passing(batch, rows[path], points[path], k, support[path, k])
 
