@@ -12,13 +12,14 @@ within (β/S)·W of its support line to last the dwell (± its tolerance), the r
 opposite support point to last no longer, and no other stretch of the turn to spread less
 than (β/S)·W over more than the dwell — a small swing leaves the output slow everywhere, and
 a slow stretch anywhere is a rest. A harmonic output of swing S rests 2·arccos(1 − 2β/S)
-(:func:`harmonic_rest`: 23.0° at 10°): a short rest at a small swing needs a curve that turns sharply at its support
-points and moves evenly between them, which no stored straight stretch predicts.
+(:func:`harmonic_rest`: 23.0° at 10°): a short rest at a small swing needs a curve that
+turns sharply at its support points and moves evenly between them, which no stored straight
+stretch predicts.
 
 :func:`support_points` tests every direction of a grid on every path; a six-bar with its
-slot pivot on the support tangent at R = W/S (:func:`slot_pivots`) is a near miss the query's
-refinement moves onto the request (the far-field test is first order: the exact rests are
-longer by up to ~2×).
+slot pivot on the support tangent at the reach that swings the output as asked (≈ W/S far
+from the curve; :func:`slot_pivots`) is a near miss the query's refinement moves onto the
+request (the far-field test is first order: the exact rests are longer, up to ~2×).
 """
 
 from __future__ import annotations
