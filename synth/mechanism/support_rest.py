@@ -158,15 +158,16 @@ def slot_pivots(
     p0 = np.concatenate([p0, p0])
     tangent = np.concatenate([-1j * n, 1j * n])
     reach = np.concatenate([reach, reach])
+    each_way = paths[rows]
     # near the curve the swing is not ≈ W/R: the nearest of a ladder of reaches first
     ladder = reach[:, None] * REACH_LADDER[None, :]
-    swung = np.stack([_swing(paths[rows], p0 + r * tangent) for r in ladder.T], axis=1)
+    swung = np.stack([_swing(each_way, p0 + r * tangent) for r in ladder.T], axis=1)
     reach = ladder[np.arange(len(rows)), np.argmin(np.abs(swung - swing), axis=1)]
     for _ in range(SWING_STEPS):
-        swung = _swing(paths[rows], p0 + reach * tangent)
+        swung = _swing(each_way, p0 + reach * tangent)
         reach = reach * np.where(swung > 0, swung / swing, 1.0)
     pivots = p0 + reach * tangent
-    return rows, pivots, _swing(paths[rows], pivots)
+    return rows, pivots, _swing(each_way, pivots)
 
 
 def _swing(paths: np.ndarray, pivots: np.ndarray) -> np.ndarray:

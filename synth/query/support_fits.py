@@ -109,8 +109,10 @@ def _paths(batch: SegmentBatch, rows: np.ndarray, points: np.ndarray, phi: np.nd
     """The paths of the coupler ``points`` (u + iv) of the four-bars of ``batch``'s ``rows``."""
     fb = batch.fourbar
     b, c, d, branch = (np.asarray(x)[rows, None] for x in (fb.b, fb.c, fb.d, fb.branch))
-    motion = fourbar_motion(1.0, b, c, d, phi, branch, order=0)
-    return motion.A + motion.e_theta * points[:, None]
+    (path,) = fourbar_motion(1.0, b, c, d, phi, branch, order=0).coupler_point(
+        points.real[:, None], points.imag[:, None]
+    )
+    return path
 
 
 def _passing(request: Request, batch: SegmentBatch, rows: np.ndarray, points: np.ndarray, phi: np.ndarray) -> _Passing:
@@ -165,8 +167,6 @@ def _pivot_fits(request: Request, found: list[_Passing], n: int, phi: np.ndarray
 
 
 def _with_point(row: SegmentRow, point: complex) -> SegmentRow:
-    """``row`` with the coupler point ``point`` (its four-bar's; the row's own for a line's)."""
-    if point == complex(row.fourbar.u, row.fourbar.v):
-        return row
+    """``row`` (a line of the four-bar) with the grid's coupler point ``point``."""
     fourbar = dataclasses.replace(row.fourbar, u=float(point.real), v=float(point.imag))
     return dataclasses.replace(row, fourbar=fourbar)

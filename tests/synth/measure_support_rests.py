@@ -47,10 +47,12 @@ def main() -> None:
     paths_n = 0
     for lo in range(0, len(rows), 500):
         part = rows[lo : lo + 500]
-        m = fourbar_motion(1.0, part[:, :1], part[:, 1:2], part[:, 2:3], phi[None], part[:, 3:4], order=0)
-        whole = (m.status == 0).all(axis=1)
-        part, e_theta = part[whole], m.e_theta[whole]
-        paths = (np.exp(1j * phi)[None, None] + e_theta[:, None] * points[None, :, None]).reshape(-1, phi.size)
+        b, c, d, branch = (part[:, j, None, None] for j in range(4))  # (four-bar, point, φ)
+        m = fourbar_motion(1.0, b, c, d, phi[None, None], branch, order=0)
+        whole = (m.status == 0).all(axis=(1, 2))
+        part = part[whole]
+        (paths,) = m.coupler_point(points.real[None, :, None], points.imag[None, :, None])
+        paths = paths[whole].reshape(-1, phi.size)
         paths_n += len(paths)
         support = support_points(
             paths, dwell=request.dwell, dwell_tol=request.dwell_tol, swing=request.swing, band=request.band
