@@ -23,13 +23,19 @@ from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wai
 from multiprocessing.connection import Connection
 from typing import Any, TypeVar
 
-__all__ = ["TICK_SECONDS", "default_workers", "pool_map"]
+__all__ = ["MAX_WORKERS", "TICK_SECONDS", "default_workers", "pool_map"]
 
 #: While waiting on workers, ``tick`` is called at least this often (seconds).
 TICK_SECONDS = 10.0
 
 T = TypeVar("T")
 R = TypeVar("R")
+
+
+#: The most worker processes a pool takes (``--workers``): far beyond any machine's cores, and
+#: within what the pool's queues can count (``--workers 99999999999999999999`` overflowed the
+#: size of the pool's call queue, a C int, found by a random-seed run of the CLI fuzz test).
+MAX_WORKERS = 256
 
 
 def default_workers() -> int:

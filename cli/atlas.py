@@ -12,7 +12,7 @@ from typing import Any
 
 import click
 
-from atlas.pool import default_workers
+from atlas.pool import MAX_WORKERS, default_workers
 from atlas.sweep import PRESETS, SAMPLES_RANGE, SHARD_SIZE_RANGE, SWEEP_BYTES_PER_SAMPLE
 from cli.budget import check_memory
 from cli.options import PROPORTION, RAYS, SEARCH_STEP_DEG, SEED, Bounded, Count, check_engine, db_option, engine_options
@@ -121,7 +121,7 @@ def parse_tolerances(text: str | None) -> tuple[float, ...] | None:
 @click.option("--all-linkages", is_flag=True, help="Keep every proportion, not only crank-rockers.")
 @click.option(
     "--workers",
-    type=click.IntRange(min=1),
+    type=click.IntRange(1, MAX_WORKERS),
     default=None,
     help=f"Worker processes of the local engine (default: all CPUs, here {default_workers()}); "
     "ignored with --engine dask, where the cluster's workers decide.",

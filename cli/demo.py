@@ -14,6 +14,7 @@ from pathlib import Path
 
 import click
 
+from atlas.pool import MAX_WORKERS
 from cli.options import db_option, probe_folder
 from cli.progress import Progress
 
@@ -47,7 +48,9 @@ TOP = 3
     help="Atlas to build or reuse [default: OUT/demo-atlas.sqlite]. $DWELL_ATLAS is not read here: the "
     "demo builds its own small atlas and must not write into yours.",
 )
-@click.option("--workers", type=click.IntRange(1, 256), default=None, help="Build processes [default: all CPUs].")
+@click.option(
+    "--workers", type=click.IntRange(1, MAX_WORKERS), default=None, help="Build processes [default: all CPUs]."
+)
 def demo(out_dir: str, target: str | None, workers: int | None) -> None:
     """Build the demo atlas, answer an RRR, an RPR and a double-dwell request, write reports."""
     from report.folder import check_report_folder

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 import click
 from click.core import ParameterSource
 
-from atlas.pool import default_workers
+from atlas.pool import MAX_WORKERS, default_workers
 from cli.errors import InputError
 from cli.options import (
     AUTO,
@@ -118,7 +118,7 @@ def batch_map(workers: int, cluster: DaskCluster | None = None):
 #: ``--workers`` of the complete search (``dwell query``, ``dwell bench coverage``).
 workers_option = click.option(
     "--workers",
-    type=click.IntRange(min=1),
+    type=click.IntRange(1, MAX_WORKERS),
     default=None,
     help=f"Worker processes of a complete search (default: all CPUs, here {default_workers()}); "
     "the sampled query runs in one; ignored with --engine dask, where the cluster's workers decide.",

@@ -30,6 +30,7 @@ from pathlib import Path
 import click
 import numpy as np
 
+from atlas.pool import MAX_WORKERS
 from atlas.sweep import PRESETS, sweep_linkages
 from cli.bench.machine import machine_facts
 from cli.budget import check_time
@@ -155,7 +156,7 @@ def _best(found, n_links: int, levels: int) -> np.ndarray:
 )
 @click.option(
     "--workers",
-    type=click.IntRange(1, 256),
+    type=click.IntRange(1, MAX_WORKERS),
     default=2,
     show_default=True,
     help="Workers of the timed build (and of computing --ingest's shards).",

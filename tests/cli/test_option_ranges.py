@@ -126,3 +126,37 @@ def test_request_errors_name_the_options():
     with pytest.raises(InputError, match=r"^--min-transmission must be in \[0, 90\) degrees, got 95$"):
         with request_errors():
             Request.from_degrees(dwell=60.0, swing=30.0, min_transmission=95.0)
+
+
+@pytest.mark.parametrize(
+    "path, argv",
+    [
+        # found by a random-seed run of test_fuzz: the pool's call queue overflowed a C int
+        (
+            ("query",),
+            [
+                "--db",
+                "atlas.sqlite",
+                "--dwell",
+                "40",
+                "--swing",
+                "20",
+                "--dwell-tol",
+                "10",
+                "--swing-tol",
+                "5",
+                "--complete",
+                "--workers",
+                "99999999999999999999",
+            ],
+        ),
+        (("atlas", "build"), ["--db", "new.sqlite", "--preset", "demo", "--workers", "257"]),
+    ],
+)
+def test_more_workers_than_a_pool_takes_is_bad_input(small_atlas, path, argv):  # noqa: F811 - the fixture
+    """``--workers`` beyond atlas.pool.MAX_WORKERS: one line naming the option, exit 2,
+    nothing written (no traceback from the pool)."""
+    with world_for(small_atlas) as world:
+        rc, _, err = run_and_check(world, path, argv)
+    assert rc == 2
+    assert "--workers" in err and "256" in err
