@@ -67,7 +67,7 @@ def coupler_paths(rows: SegmentBatch | Sequence[SegmentRow], phi: np.ndarray) ->
         b, c, d, branch = (np.array([getattr(r.fourbar, name) for r in rows]) for name in ("b", "c", "d", "branch"))
         uv = np.array([complex(r.fourbar.u, r.fourbar.v) for r in rows])
     motion = fourbar_motion(1.0, b[:, None], c[:, None], d[:, None], phi, branch[:, None], order=0)
-    return motion.A + motion.e_theta * uv[:, None]
+    return motion.coupler_point(uv.real[:, None], uv.imag[:, None])[0]
 
 
 def fit(request: Request, rows: Sequence[SegmentRow], kind: SegmentKind | str) -> list[Fitted]:
