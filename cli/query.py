@@ -460,18 +460,23 @@ def no_match_message(result: QueryResult) -> str:
     )
 
 
+#: How the no-match's line names the six-bars its figure is the best of (``NoMatch.reach_among``).
+_REACH_AMONG = {
+    "fitted": "the fitted six-bars meeting every other limit",
+    "fitted without the limit": "the six-bars fitted to the segments near the request without that limit",
+    "four-bars": "the stored four-bars near the request",
+}
+
+
 def _in_the_way(nm) -> list[str]:
     """The no-match's line on the one constraint in its way (``synth.query.NoMatch.reach``), if any."""
     if nm is None or nm.reach is None:
         return []
     key, best, limit = nm.reach
     unit = {"link_ratio": "", "acceleration": " rad/s²", "arm": " cranks", "clearance": " cranks"}.get(key, "°")
-    where = (
-        "the stored four-bars near the request" if not nm.fitted else "the fitted six-bars meeting every other limit"
-    )
     return [
-        f"  in the way: the {_CONSTRAINT_NAMES[key]} alone; the best of {where} is {best:.4g}{unit} "
-        f"(asked {limit:.4g}{unit})"
+        f"  in the way: the {_CONSTRAINT_NAMES[key]} alone; the best of {_REACH_AMONG[nm.reach_among]} is "
+        f"{best:.4g}{unit} (asked {limit:.4g}{unit})"
     ]
 
 
@@ -492,7 +497,11 @@ def no_match_json(result: QueryResult, units: str = "mm") -> dict:
     if nm is not None and nm.nearest is not None:
         doc["nearest"] = candidate_json(nm.nearest, result.request.rpm, units)
         doc["would_meet"] = request_json(nm.would_meet, units)
-    doc["in_the_way"] = None if nm is None or nm.reach is None else dict(zip(("constraint", "best", "asked"), nm.reach))
+    doc["in_the_way"] = (
+        None
+        if nm is None or nm.reach is None
+        else {**dict(zip(("constraint", "best", "asked"), nm.reach)), "among": nm.reach_among}
+    )
     return doc
 
 

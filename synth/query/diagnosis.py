@@ -28,8 +28,9 @@ from synth.query.evaluate import (
     total_excess,
     violations,
 )
-from synth.query.fitting import Fitted
+from synth.query.fitting import Fitted, fit
 from synth.query.result import CONSTRAINTS, NoMatch
+from synth.query.segment_rows import SegmentRow
 from synth.query.windows import select
 
 
@@ -107,23 +108,41 @@ def diagnose(
     return dataclasses.replace(found, reach=_reach(request, misses))
 
 
+#: The transmission limit (rad) the sample's output dyads are fitted at when none meets the
+#: request's: how far from it they reach (:func:`unfitted_reach`; ``fit_rrr`` needs one > 0).
+LOOSE_TRANSMISSION = math.radians(0.5)
+
+
 def unfitted_reach(
-    request: Request, source: SegmentSource, kinds: tuple[SegmentKind, ...]
-) -> tuple[str, float, float] | None:
-    """:attr:`NoMatch.reach` of a request whose sample held no segment: the four-bars'
-    transmission angle, when the sample without that limit holds segments — with the largest
-    smallest transmission angle (°) among their four-bars (RRR 10° at a 30° swing on
-    ``standard``: the 49 arcs whose keys predict it all belong to four-bars below 10°)."""
+    request: Request, source: SegmentSource, kinds: tuple[SegmentKind, ...], rows: Sequence[SegmentRow] = ()
+) -> tuple[tuple[str, float, float], str] | None:
+    """:attr:`NoMatch.reach` and :attr:`~NoMatch.reach_among` of a request that fitted no six-bar: the transmission angle, with
+    the largest smallest transmission angle (°) within reach, when that is below the request's
+    limit — of the six-bars the sample's ``rows`` give with their output dyads fitted down to
+    :data:`LOOSE_TRANSMISSION` (RRR 90° at a 120° swing on ``standard``: rows of that dwell,
+    no rocker that swings 120° transmits at 30°), or, when the sample held no row, of the
+    four-bars the sample without the limit holds (RRR 10° at a 30° swing: the 49 arcs whose
+    keys predict it all belong to four-bars below 10°). None when that figure is not below the
+    limit: the transmission angle is then not what is in the way."""
+    among = "fitted without the limit" if rows else "four-bars"
     if request.min_transmission <= 0:
         return None
-    rows = select(source, dataclasses.replace(request, min_transmission=0.0), kinds)
-    if not rows:
-        return None
-    return (
-        "transmission",
-        math.degrees(max(r.fourbar_transmission_min for r in rows)),
-        math.degrees(request.min_transmission),
-    )
+    limit = math.degrees(request.min_transmission)
+    if rows:
+        loose = dataclasses.replace(request, min_transmission=min(LOOSE_TRANSMISSION, request.min_transmission))
+        fits = [f for kind in kinds for f in fit(loose, [r for r in rows if r.kind == kind], kind)]
+        if not fits:  # an RPR's fit has no transmission limit: the swing or clearance is in the way
+            return None
+        figures = [f for f in figures_of(loose, [f.sixbar() for f in fits], footprint=False) if f.acceptable]
+        if not figures:
+            return None
+        best = math.degrees(max(min(f.transmission_fourbar, f.transmission_output) for f in figures))
+    else:
+        rows = select(source, dataclasses.replace(request, min_transmission=0.0), kinds)
+        if not rows:
+            return None
+        best = math.degrees(max(r.fourbar_transmission_min for r in rows))
+    return (("transmission", best, limit), among) if best < limit else None
 
 
 def _reach(
@@ -353,10 +372,14 @@ def either_no_match(request: Request, diagnoses: Sequence[NoMatch | None]) -> No
 
     near = [d for d in known if d.nearest is not None]
     best = min(near, key=total) if near else None
-    reaches = [d.reach for d in known if d.reach is not None]
-    reach = (best.reach if best is not None and best.reach is not None else None) or next(iter(reaches), None)
-    if reach is not None:  # the best figure of both types on that constraint
-        mine = [r[1] for r in reaches if r[0] == reach[0]]
+    reaches = [(d.reach, d.reach_among) for d in known if d.reach is not None]
+    reach, among = (
+        (best.reach, best.reach_among)
+        if best is not None and best.reach is not None
+        else next(iter(reaches), (None, ""))
+    )
+    if reach is not None:  # the best figure of both types on that constraint, among the same kind of six-bars
+        mine = [r[1] for r, a in reaches if r[0] == reach[0] and a == among]
         pick = {"transmission": max, "arm": max, "clearance": max, "link_ratio": min, "acceleration": min}.get(
             reach[0], lambda xs: min(xs, key=lambda x: abs(x - reach[2]))
         )
@@ -367,4 +390,5 @@ def either_no_match(request: Request, diagnoses: Sequence[NoMatch | None]) -> No
         None if best is None else best.nearest,
         None if best is None else dataclasses.replace(best.would_meet, output=request.output),
         reach,
+        among or "fitted",
     )

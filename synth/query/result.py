@@ -12,6 +12,13 @@ from synth.query.candidates import Candidate, Request
 CONSTRAINTS = ("assembly", "dwell", "swing", "step", "transmission", "link_ratio", "arm", "clearance", "acceleration")
 
 
+#: What a :attr:`NoMatch.reach` figure is the best of: the fitted six-bars meeting every other
+#: limit; the six-bars the sample's segments give with their output dyads fitted without the
+#: limit (nothing was fitted within it); the stored four-bars near the request (the sample
+#: held no segment within the limit).
+REACH_AMONG = ("fitted", "fitted without the limit", "four-bars")
+
+
 @dataclass(frozen=True, slots=True)
 class NoMatch:
     """Why nothing met a request.
@@ -42,9 +49,11 @@ class NoMatch:
     #: (°); link ratio, acceleration: the smallest; arm, clearance: the largest (crank
     #: lengths) — against the request's ``limit`` (the requested value for dwell, swing and
     #: step). None when no fitted six-bar misses one constraint alone. With nothing fitted:
-    #: the transmission angle, if the sample without its limit holds segments, and the best
-    #: four-bar's among them (:func:`unfitted_reach`).
+    #: the transmission angle when the best figure within reach is below its limit
+    #: (:func:`~synth.query.diagnosis.unfitted_reach`).
     reach: tuple[str, float, float] | None = None
+    #: Whose figure ``reach`` gives: one of :data:`REACH_AMONG`.
+    reach_among: str = "fitted"
 
     @property
     def failed(self) -> str | None:
