@@ -337,7 +337,7 @@ def band_search_json(searched) -> dict:
 
 def band_search_text(searched) -> str:
     """The lines under the table with ``--band auto``: the band reached and how, then each
-    candidate's dwell at that band and at the reference band."""
+    candidate's dwell at that band and at the reference band (not when the two are one)."""
     from synth.query.band_search import REFERENCE_BAND, needed
 
     req = searched.result.request
@@ -354,6 +354,8 @@ def band_search_text(searched) -> str:
             f"answered at {math.degrees(searched.band):g}°"
         )
     lines = [head]
+    if math.isclose(req.band, REFERENCE_BAND):  # answered at the reference band: the table's dwells
+        return head
     for c, dwells in zip(searched.result.candidates, searched.reference_dwells):
         here = "/".join(f"{math.degrees(d.angle):.2f}°" for d in c.figures.dwells[: req.dwells])
         there = "/".join(f"{math.degrees(x):.2f}°" for x in dwells) or "none"

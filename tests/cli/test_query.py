@@ -842,6 +842,38 @@ def test_band_auto_json_carries_the_band_reached(capsys, atlas_path):
     assert f"band auto: {search['band_deg']:.3g}°, the tightest" in out
 
 
+def test_band_auto_lines_name_each_dwell_at_two_bands_only_when_they_differ():
+    """Under the table, each candidate's dwell at the band reached and at the 0.1° reference;
+    when no band held three six-bars the answer is at 0.1° itself, and the lines would only
+    repeat the table's dwell twice over: the head line alone then."""
+    from types import SimpleNamespace as NS
+
+    from cli.query import band_search_text
+
+    def searched(band_deg, settled):
+        dwell = NS(angle=math.radians(46.13))
+        candidate = NS(rank=1, figures=NS(dwells=(dwell, dwell)))
+        request = NS(band=math.radians(band_deg), dwells=2, top=3)
+        result = NS(request=request, candidates=[candidate])
+        return NS(
+            result=result,
+            reference_dwells=[(math.radians(50.0), math.radians(49.0))],
+            settled=settled,
+            band=request.band,
+            pooled=1377,
+            stiller=0,
+        )
+
+    text = band_search_text(searched(0.1, False))
+    assert text.splitlines() == [
+        "band auto: no band down to 1e-4° holds 3 six-bars (1377 six-bars fitted, 0 moved to stiller rests); "
+        "answered at 0.1°"
+    ]
+    lines = band_search_text(searched(0.002, True)).splitlines()
+    assert lines[0].startswith("band auto: 0.002°, the tightest at which 3 six-bars meet the request")
+    assert lines[1:] == ["    1 dwell 46.13°/46.13° at 0.002°, 50.00°/49.00° at 0.1°"]
+
+
 def test_default_band_names_a_tighter_band(capsys, atlas_path):
     """Without --band, a request that a 0.01° band also answers (3 six-bars of the unrefined
     sample) gets one line on stderr naming it; with --band given, none."""
