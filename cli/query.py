@@ -40,6 +40,7 @@ from report.query_table import legend_lines, short_table
 from synth.kinds import OutputKind
 from synth.query import QueryResult, RebuildError
 from synth.query.candidates import OUTPUTS, Request
+from synth.query.result import REACH_AMONG
 
 if TYPE_CHECKING:
     from atlas.dask_cluster import DaskCluster
@@ -462,12 +463,19 @@ def no_match_message(result: QueryResult) -> str:
     )
 
 
-#: How the no-match's line names the six-bars its figure is the best of (``NoMatch.reach_among``).
-_REACH_AMONG = {
-    "fitted": "the fitted six-bars meeting every other limit",
-    "fitted without the limit": "the six-bars fitted to the segments near the request without that limit",
-    "four-bars": "the stored four-bars near the request",
-}
+#: How the no-match's line names the six-bars its figure is the best of, per
+#: ``synth.query.result.REACH_AMONG`` (``NoMatch.reach_among``).
+_REACH_AMONG = dict(
+    zip(
+        REACH_AMONG,
+        (
+            "the fitted six-bars meeting every other limit",
+            "the six-bars fitted to the segments near the request without that limit",
+            "the stored four-bars near the request",
+        ),
+        strict=True,
+    )
+)
 
 
 def _in_the_way(nm) -> list[str]:

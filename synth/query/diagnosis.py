@@ -116,11 +116,12 @@ LOOSE_TRANSMISSION = math.radians(0.5)
 def unfitted_reach(
     request: Request, source: SegmentSource, kinds: tuple[SegmentKind, ...], rows: Sequence[SegmentRow] = ()
 ) -> tuple[tuple[str, float, float], str] | None:
-    """:attr:`NoMatch.reach` and :attr:`~NoMatch.reach_among` of a request that fitted no six-bar: the transmission angle, with
-    the largest smallest transmission angle (°) within reach, when that is below the request's
-    limit — of the six-bars the sample's ``rows`` give with their output dyads fitted down to
-    :data:`LOOSE_TRANSMISSION` (RRR 90° at a 120° swing on ``standard``: rows of that dwell,
-    no rocker that swings 120° transmits at 30°), or, when the sample held no row, of the
+    """:attr:`NoMatch.reach` and :attr:`~NoMatch.reach_among` of a request that fitted no
+    six-bar: the transmission angle, with the largest smallest transmission angle (°) within
+    reach, when that is below the request's limit — of the six-bars the sample's ``rows`` give
+    with their output dyads fitted down to :data:`LOOSE_TRANSMISSION` (RRR 90° at a 120° swing
+    on ``standard``: rows of that dwell, but no rocker that swings 120° transmits at 30°, the
+    best 23.2°), or, when the sample held no row, of the
     four-bars the sample without the limit holds (RRR 10° at a 30° swing: the 49 arcs whose
     keys predict it all belong to four-bars below 10°). None when that figure is not below the
     limit: the transmission angle is then not what is in the way."""
