@@ -2,8 +2,10 @@
 
 .venv/bin/python tests/cli/measure_first_run.py compile [DWELL ARGS ...]
     runs ``dwell DWELL ARGS`` in this process under a listener of numba's compile events
-    and prints the CPU in all, the atlas build's share, and every top-level compile (CPU,
-    wall, kernel, signature); point NUMBA_CACHE_DIR at an empty folder for a first run.
+    and prints the CPU in all, the atlas build's share, every top-level compile (CPU,
+    wall, kernel, signature) and every function compiled, callees and numpy's own
+    implementations included (inclusive CPU); point NUMBA_CACHE_DIR at an empty folder for a
+    first run.
 .venv/bin/python tests/cli/measure_first_run.py session COMMAND [ARGS ...]
     runs COMMAND in a session of its own and prints its wall time and the CPU of every
     process of that session, polled from /proc every 0.1 s: the build's forkserver and
@@ -22,22 +24,26 @@ def compile_split(argv):
     from numba.core import event
 
     compiles = []
+    every: dict[str, float] = {}  # CPU per compiled function, callees (numpy's too) included
 
     class Compiles(event.Listener):
         def __init__(self):
-            self.depth, self.start = 0, (0.0, 0.0)
+            self.depth, self.start, self.nested = 0, (0.0, 0.0), []
 
         def on_start(self, ev):
             self.depth += 1
+            self.nested.append(time.process_time())
             if self.depth == 1:  # a kernel's callees compile inside its event: counted once
                 self.start = (time.process_time(), time.perf_counter())
 
         def on_end(self, ev):
             self.depth -= 1
+            f = ev.data["dispatcher"].py_func
+            name = f"{f.__module__}.{f.__qualname__}"
+            every[name] = every.get(name, 0.0) + time.process_time() - self.nested.pop()
             if self.depth == 0:
-                f = ev.data["dispatcher"].py_func
                 cpu, wall = time.process_time() - self.start[0], time.perf_counter() - self.start[1]
-                compiles.append((cpu, wall, f"{f.__module__}.{f.__qualname__}", str(ev.data["args"])))
+                compiles.append((cpu, wall, name, str(ev.data["args"])))
 
     event.register("numba:compile", Compiles())
     import atlas.build
@@ -75,6 +81,9 @@ def compile_split(argv):
     )
     for c in sorted(compiles, key=lambda c: -c[0]):
         print("  %6.2f %6.2f  %s  %s" % (c[0], c[1], c[2], c[3][:160]), file=out)
+    print("every compiled function, its callees included (CPU s; numpy's own functions too):", file=out)
+    for name, cpu in sorted(every.items(), key=lambda kv: -kv[1])[:30]:
+        print("  %6.2f  %s" % (cpu, name), file=out)
 
 
 def session_cpu(argv):
