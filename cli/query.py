@@ -777,6 +777,7 @@ def query(
         click.get_current_context().exit(NONE_FOUND)  # a script tells "none" from "some" (as grep)
     if report_dir is not None and result.candidates:
         from cli.progress import Progress
+        from cli.report_pool import report_pool
         from report.export import write_report
 
         with Progress("query") as shown:  # a line on a terminal once it runs past a second
@@ -786,6 +787,7 @@ def query(
                 Path(report_dir),
                 units=units,
                 on_candidate=shown.counter("writing the report", "candidates"),
+                map_candidates=report_pool(len(result.candidates)),
             )
         click.echo(f"report: {len(written)} files in {report_dir}", err=True)
     if tighter is not None and not as_json:  # last: an answer whose report failed says only why

@@ -150,6 +150,7 @@ def _report(target, names: list[str], request, out: Path, units: str, crank: flo
     """The candidates ``names`` rebuilt from the atlas ``target`` and the files of their report
     written into ``out``, the progress shown on ``shown`` (:class:`cli.progress.Progress`)."""
     from cli.query import rebuild
+    from cli.report_pool import report_pool
     from db.engine import damaged, open_atlas
     from db.summary import quick_check
     from kinematics.assur import LinkageFileError
@@ -182,5 +183,6 @@ def _report(target, names: list[str], request, out: Path, units: str, crank: flo
         option="--out",
         units=units,  # all files or none (report/folder.py)
         on_candidate=shown.counter("writing the report", "candidates"),
+        map_candidates=report_pool(len(candidates)),
     )
     return candidates, written

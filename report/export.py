@@ -348,6 +348,7 @@ def write_report(
     option: str = "report folder",
     units: str = "",
     on_candidate: Callable[[int, int], None] | None = None,
+    map_candidates: Callable | None = None,
 ) -> list[Path]:
     """Write the report of ``candidates`` (ranked, in the user's units) for ``request`` into
     ``out_dir``: written into a temporary sibling folder that replaces ``out_dir`` when
@@ -371,6 +372,11 @@ def write_report(
     on_candidate : callable, optional
         ``on_candidate(done, total)`` after each candidate's files (its plots take most of a
         report's time), for a progress display.
+    map_candidates : callable, optional
+        ``map_candidates(fn, jobs)`` yields ``fn(job)`` for every job, in any order: how the
+        candidates' files are written (:func:`report.candidate_files.candidate_files`; default
+        the built-in :func:`map`, in this process; the ``dwell`` commands pass a process pool
+        for a report of several candidates). The files are the same either way.
 
     Returns
     -------
@@ -386,12 +392,11 @@ def write_report(
     report.folder.ReportFolderError
         ``out_dir`` holds other files, or writing failed (disk full …): ``out_dir`` is as before.
     """
-    from report.dxf import write_dxf
+    from report.candidate_files import CandidateJob, candidate_files
     from report.folder import MARKER, check_report_folder, staged_folder
     from report.html_page import PageEntry, render_page
     from report.linkage_toml import linkage_toml
-    from report.sixbar_drawing import draw_sixbar, sixbar_geometry
-    from report.sixbar_plots import plot_candidate
+    from report.sixbar_drawing import sixbar_geometry
 
     if not candidates:
         raise ValueError("no candidates to report")
@@ -418,24 +423,37 @@ def write_report(
             (out / name).write_text(text, encoding="utf-8")
             written.append(out / name)
 
-        entries = []
-        for c, cyc, stem in zip(candidates, cycles, stems):
-            geom = sixbar_geometry(c, cyc, units=units)
-            plots = plot_candidate(c, cyc, geom, out / stem, min_transmission=request.min_transmission)
-            drawing = draw_sixbar(geom, out / f"{stem}-drawing.svg")
-            dxf = write_dxf(geom, out / f"{stem}-drawing.dxf")
-            toml = out / f"{stem}.toml"
-            toml.write_text(
+        jobs = [
+            CandidateJob(
+                k,
+                c,
+                cyc,
+                sixbar_geometry(c, cyc, units=units),
+                out,
+                stem,
+                request.min_transmission,
                 linkage_toml(c, units, band=request.band, dwells=request.dwells, leave=request.swing_tol),
-                encoding="utf-8",
             )
-            files = [p for pf in plots.values() for p in (pf.png, pf.svg)] + [drawing, dxf, toml]
-            written += files
-            entries.append(
-                PageEntry(c, cyc, geom, {k: pf.svg_text for k, pf in plots.items()}, [p.name for p in files])
-            )
+            for k, (c, cyc, stem) in enumerate(zip(candidates, cycles, stems))
+        ]
+        done = {}
+        for made in (map_candidates or map)(candidate_files, jobs):
+            done[made.index] = made
             if on_candidate is not None:
-                on_candidate(len(entries), len(candidates))
+                on_candidate(len(done), len(jobs))
+        entries = []
+        for job in jobs:
+            made = done[job.index]
+            written += made.files
+            entries.append(
+                PageEntry(
+                    job.candidate,
+                    job.cycle,
+                    job.geometry,
+                    {k: pf.svg_text for k, pf in made.plots.items()},
+                    [p.name for p in made.files],
+                )
+            )
         page = out / "index.html"
         page.write_text(render_page(request, entries, units=units), encoding="utf-8")
         written.append(page)

@@ -1,0 +1,54 @@
+"""A report of several candidates drawn on worker processes (``cli.report_pool``) is the report
+drawn in the driver: the same files, the same bytes (plots, drawings, page, data)."""
+
+from __future__ import annotations
+
+import pytest
+
+from atlas.build import build_atlas
+from atlas.sweep import PRESETS
+from cli.query import answer
+from cli.report_pool import PARALLEL_FROM, report_pool
+from db.engine import open_atlas
+from report.export import write_report
+from synth.query.candidates import Request
+
+#: Files whose bytes a report fixes (the PNG's and DXF's carry the time they were made).
+FIXED = {".json", ".csv", ".txt", ".html", ".toml", ".svg"}
+
+
+@pytest.fixture(scope="module")
+def candidates(tmp_path_factory):
+    path = str(tmp_path_factory.mktemp("atlas") / "small.sqlite")
+    build_atlas(path, PRESETS["demo"].replace(samples=256), workers=1)
+    engine = open_atlas(path, readonly=True)
+    request = Request.from_degrees(dwell=45, swing=40, output="rpr", top=5)
+    try:
+        found = answer(engine, request).candidates
+    finally:
+        engine.dispose()
+    assert len(found) >= PARALLEL_FROM
+    return request, found
+
+
+def test_a_report_drawn_on_worker_processes_is_the_one_drawn_in_the_driver(tmp_path, candidates):
+    request, found = candidates
+    pool = report_pool(len(found), workers=2)
+    assert pool is not None
+    here = write_report(found, request, tmp_path / "here")
+    ticks = []
+    there = write_report(
+        found, request, tmp_path / "pool", map_candidates=pool, on_candidate=lambda done, n: ticks.append((done, n))
+    )
+    assert [p.name for p in there] == [p.name for p in here]
+    fixed = [(a, b) for a, b in zip(here, there) if a.suffix in FIXED]
+    assert len(fixed) >= 3 + 4 * len(found)  # the data files, and per candidate three plots' SVG and a drawing
+    for a, b in fixed:
+        assert a.read_bytes() == b.read_bytes(), a.name
+    assert ticks == [(k, len(found)) for k in range(1, len(found) + 1)]
+
+
+def test_a_few_candidates_or_one_core_are_drawn_in_the_driver():
+    assert report_pool(PARALLEL_FROM - 1, workers=8) is None
+    assert report_pool(10, workers=1) is None
+    assert report_pool(PARALLEL_FROM, workers=2) is not None
