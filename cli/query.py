@@ -121,8 +121,9 @@ workers_option = click.option(
     "--workers",
     type=click.IntRange(1, MAX_WORKERS),
     default=None,
-    help=f"Worker processes of a complete search (default: all CPUs, here {default_workers()}); "
-    "the sampled query runs in one; ignored with --engine dask, where the cluster's workers decide.",
+    help=f"Worker processes of a complete search and of a --report of four or more candidates (default: all "
+    f"CPUs, here {default_workers()}); the sampled query runs in one; a complete search ignores it with --engine "
+    "dask, where the cluster's workers decide.",
 )
 
 
@@ -787,7 +788,7 @@ def query(
                 Path(report_dir),
                 units=units,
                 on_candidate=shown.counter("writing the report", "candidates"),
-                map_candidates=report_pool(len(result.candidates)),
+                map_candidates=report_pool(len(result.candidates), workers),
             )
         click.echo(f"report: {len(written)} files in {report_dir}", err=True)
     if tighter is not None and not as_json:  # last: an answer whose report failed says only why
