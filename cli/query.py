@@ -355,9 +355,9 @@ def band_search_text(searched) -> str:
             f"band auto: no band down to 1e-4° holds {needed(req)} six-bars ({searched_}); "
             f"answered at {math.degrees(searched.band):g}°"
         )
-    lines = [head]
     if math.isclose(req.band, REFERENCE_BAND):  # answered at the reference band: the table's dwells
         return head
+    lines = [head]
     for c, dwells in zip(searched.result.candidates, searched.reference_dwells):
         here = "/".join(f"{math.degrees(d.angle):.2f}°" for d in c.figures.dwells[: req.dwells])
         there = "/".join(f"{math.degrees(x):.2f}°" for x in dwells) or "none"

@@ -377,7 +377,7 @@ def either_no_match(request: Request, diagnoses: Sequence[NoMatch | None]) -> No
     reach, among = (
         (best.reach, best.reach_among)
         if best is not None and best.reach is not None
-        else next(iter(reaches), (None, ""))
+        else next(iter(reaches), (None, "fitted"))
     )
     if reach is not None:  # the best figure of both types on that constraint, among the same kind of six-bars
         mine = [r[1] for r, a in reaches if r[0] == reach[0] and a == among]
@@ -391,5 +391,5 @@ def either_no_match(request: Request, diagnoses: Sequence[NoMatch | None]) -> No
         None if best is None else best.nearest,
         None if best is None else dataclasses.replace(best.would_meet, output=request.output),
         reach,
-        among or "fitted",
+        among,
     )

@@ -428,8 +428,6 @@ def _no_match(state: Answering, found: NoMatch | None) -> tuple[NoMatch, tuple[f
         state.add_time("simulate", t)
     if not found.fitted:  # no six-bar to show: the stored dwells the atlas has instead
         nearest = source.nearest_dwell_angles(state.kinds, request.dwell)
-        reach = unfitted_reach(request, source, state.kinds, state.rows)
-        found = dataclasses.replace(
-            found, reach=None if reach is None else reach[0], reach_among=reach[1] if reach else "fitted"
-        )
+        reach, among = unfitted_reach(request, source, state.kinds, state.rows) or (None, "fitted")
+        found = dataclasses.replace(found, reach=reach, reach_among=among)
     return found, nearest

@@ -39,8 +39,9 @@ PAIRS = 512
 SWING_SLACK = 0.1
 #: Crank samples of the far-field test (1°: a 10° rest is ten of them).
 SAMPLES = 360
-#: Rows of the atlas read per batch, and paths tested at a time.
+#: Rows of the atlas read per batch.
 BATCH = 8000
+#: Paths given to the far-field test at a time (~6 kB a path and its motion).
 PATHS = 4096
 #: Coupler points tried on every GRID_STRIDE-th four-bar (cranks, the coupler's frame), not
 #: the lines' own: a line's point has a straight stretch, where the output is slow. On
