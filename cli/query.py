@@ -38,7 +38,7 @@ from cli.options import (
 from report.candidate_json import candidate_json, request_json
 from report.query_table import legend_lines, short_table
 from synth.kinds import OutputKind
-from synth.query import QueryResult, RebuildError
+from synth.query import FILL, QueryResult, RebuildError
 from synth.query.candidates import OUTPUTS, Request
 from synth.query.result import REACH_AMONG
 
@@ -484,11 +484,42 @@ def _in_the_way(nm) -> list[str]:
     if nm is None or nm.reach is None:
         return []
     key, best, limit = nm.reach
-    unit = {"link_ratio": "", "acceleration": " rad/s²", "arm": " cranks", "clearance": " cranks"}.get(key, "°")
     return [
         f"  in the way: the {_CONSTRAINT_NAMES[key]} alone; the best of {_REACH_AMONG[nm.reach_among]} is "
-        f"{best:.4g}{unit} (asked {limit:.4g}{unit})"
+        + _figure(key, best, limit)
     ]
+
+
+def _figure(key: str, best: float, limit: float) -> str:
+    """``135.4° (asked 180°)``: a constraint's best figure against the request's, in its unit."""
+    unit = {"link_ratio": "", "acceleration": " rad/s²", "arm": " cranks", "clearance": " cranks"}.get(key, "°")
+    return f"{best:.4g}{unit} (asked {limit:.4g}{unit})"
+
+
+def short_text(result: QueryResult) -> str | None:
+    """The one line an answer of fewer six-bars than it fills up to (``synth.query.FILL`` or
+    --top) adds: the constraint in the way of more, per output type
+    (``QueryResult.short_of``); None when the answer is not short or nothing is known."""
+    if not result.candidates or not result.short_of:
+        return None
+    wanted = min(FILL, result.request.top)
+    among = "the best of the other fitted six-bars meeting every other limit is"
+    if len(result.short_of) == 1:
+        _, key, best, limit = result.short_of[0]
+        why = f"the {_CONSTRAINT_NAMES[key]} alone: {among} {_figure(key, best, limit)}"
+    else:
+        why = f"per output type, one constraint alone: {among}, " + "; ".join(
+            f"{output.upper()}: {_CONSTRAINT_NAMES[key]} {_figure(key, best, limit)}"
+            for output, key, best, limit in result.short_of
+        )
+    return f"dwell: {len(result.candidates)} six-bar(s) where {wanted} were sought; in the way of more, {why}"
+
+
+def short_json(result: QueryResult) -> list[dict] | None:
+    """``short_of`` of ``--json`` (the facts of :func:`short_text`): None when the answer is not short."""
+    if not result.candidates or not result.short_of:
+        return None
+    return [dict(zip(("output", "constraint", "best", "asked"), s)) for s in result.short_of]
 
 
 def no_match_json(result: QueryResult, units: str = "mm") -> dict:
@@ -764,6 +795,8 @@ def query(
             doc["tighter_band_deg"] = math.degrees(tighter.band)
         if not result.candidates:
             doc["no_match"] = no_match_json(result, units)
+        elif result.short_of:
+            doc["short_of"] = short_json(result)
         click.echo(json.dumps(doc, indent=2, allow_nan=False))
     elif result.candidates:
         click.echo(table(result, units, wide=wide))
@@ -773,6 +806,9 @@ def query(
             remember_shown(result.candidates)
         if searched is not None:
             click.echo(band_search_text(searched))
+        short = short_text(result)
+        if short is not None:
+            click.echo(short, err=True)
     if not result.candidates:
         click.echo(f"dwell: {no_match_message(result)}", err=True)
         click.get_current_context().exit(NONE_FOUND)  # a script tells "none" from "some" (as grep)

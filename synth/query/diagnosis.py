@@ -9,13 +9,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
 
 import numpy as np
 
 from synth.kinds import SegmentKind
 from synth.mechanism.figures import DwellBoundFigures, SixBarFigures, figures_with_dwell_bounds, footprints
 from synth.mechanism.sixbar import SixBars
+from synth.query.candidate_ids import candidate_id
 from synth.query.candidates import Request
 from synth.query.contract import SegmentSource
 from synth.query.evaluate import (
@@ -144,6 +145,22 @@ def unfitted_reach(
             return None
         best = math.degrees(max(r.fourbar_transmission_min for r in rows))
     return (("transmission", best, limit), among) if best < limit else None
+
+
+def reach_beyond(
+    request: Request, misses: list[tuple[float, Fitted, SixBarFigures, dict]], taken: Collection[str]
+) -> tuple[str, float, float] | None:
+    """The one constraint in the way of more six-bars than an answer holds
+    (:attr:`~synth.query.result.QueryResult.short_of`): :attr:`NoMatch.reach` of ``misses``
+    (:func:`misses_of`, nearest first) but those whose candidate id (before any refined
+    dimensions) is one of ``taken`` — the fits the answer's six-bars were refined from."""
+    return _reach(request, [m for m in misses if _base_id(request, m[1]) not in taken])
+
+
+def _base_id(request: Request, fit_: Fitted) -> str:
+    """The candidate id of ``fit_`` before any refined or moved dimensions."""
+    r = fit_.row
+    return candidate_id(r.segment_id, fit_.output, fit_.slot, r.level, request.swing)
 
 
 def _reach(

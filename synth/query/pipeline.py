@@ -21,7 +21,7 @@ from synth.query.candidate_ids import REFINED_MARK
 from synth.query.candidates import Candidate, Request, rank
 from synth.query.complete import SearchCount, search
 from synth.query.contract import BatchMap, SegmentSource
-from synth.query.diagnosis import diagnose, diagnose_by_bounds, misses_of, unfitted_reach
+from synth.query.diagnosis import diagnose, diagnose_by_bounds, misses_of, reach_beyond, unfitted_reach
 from synth.query.evaluate import candidate_of, distinct, meets, screened_figures, toleranced
 from synth.query.fitting import Fitted, fit, fit_arrays, fits_of, prescreen, reseat
 from synth.query.refinement import no_worse_than_fits, refined_candidates, refined_misses, with_origins
@@ -125,7 +125,10 @@ def _best_of_both(
         )
     if not any(p.result.candidates for p in parts):
         parts = [p.diagnosed() for p in parts]
-    return union_of(request, parts)
+    union = union_of(request, parts)
+    if 0 < len(union.candidates) < min(FILL, request.top):  # each type's constraint in the way of more
+        union = dataclasses.replace(union, short_of=tuple(s for p in parts for s in p.result.short_of))
+    return union
 
 
 @dataclass(slots=True)
@@ -305,11 +308,13 @@ class _Filled:
     refined: tuple[int, int]
     miss_ids: frozenset[str]
     no_match: NoMatch | None
+    short_of: tuple[tuple[str, str, float, float], ...] = ()
 
 
 def _fill_from_misses(state: Answering, top: list[Candidate], refined: tuple[int, int]) -> _Filled:
     """An answer with fewer than FILL (or --top) candidates topped up from the nearest misses
-    refined to meet the request; with nothing met, the diagnosis of the misses."""
+    refined to meet the request; with nothing met, the diagnosis of the misses; still short,
+    the constraint in the way of more (:func:`reach_beyond`)."""
     request = state.request
     no_match = None
     miss_ids: frozenset[str] = frozenset()
@@ -343,7 +348,11 @@ def _fill_from_misses(state: Answering, top: list[Candidate], refined: tuple[int
         miss_ids = frozenset(c.id for c in found) & {c.id for c in top}
         no_match = None
     state.add_time("refine", t)
-    return _Filled(top, (refined[0] + tried, refined[1] + better), miss_ids, no_match)
+    short_of: tuple[tuple[str, str, float, float], ...] = ()
+    if len(top) < min(FILL, request.top):
+        beyond = reach_beyond(request, misses, {c.id.split(REFINED_MARK)[0] for c in top})
+        short_of = () if beyond is None else ((request.output, *beyond),)
+    return _Filled(top, (refined[0] + tried, refined[1] + better), miss_ids, no_match, short_of)
 
 
 def _answer_one(
@@ -408,6 +417,7 @@ def _answer_one(
             from_misses=bool(top) and not met_in_atlas,
             misses_met=len(filled.miss_ids),
             reseated=len(reseated),
+            short_of=filled.short_of,
         ),
         filled.miss_ids,
         reseated,

@@ -83,6 +83,12 @@ class QueryResult:
     #: how many of the candidates are six-bars whose output pivot was moved off the fitted one
     #: (:func:`reseat`; their ids carry the dimensions)
     reseated: int = 0
+    #: With refinement, an answer of fewer six-bars than ``synth.query.FILL`` (or ``--top``):
+    #: per output type, ``(output, constraint, best, limit)``, the one constraint in the way of
+    #: more, as :attr:`NoMatch.reach` over the fitted six-bars the answer's were not refined
+    #: from (:func:`~synth.query.diagnosis.reach_beyond`); empty otherwise, or when none of
+    #: them misses a single constraint.
+    short_of: tuple[tuple[str, str, float, float], ...] = ()
 
 
 class RebuildError(ValueError):

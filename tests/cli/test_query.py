@@ -897,3 +897,24 @@ def test_default_band_names_a_tighter_band(capsys, atlas_path):
     assert code == 0 and json.loads(_)["tighter_band_deg"] == pytest.approx(0.01)
     code, out, err = run(capsys, *args, "--band", "0.1")
     assert code == 0 and err == ""
+
+
+def test_a_short_answer_says_what_is_in_the_way_of_more(capsys, atlas_path):
+    """RPR 180° at a 90° swing answers one six-bar where three are sought: one line on stderr
+    names the constraint in the way of more with its figure; --json gives the same facts."""
+    args = ["query", "--db", atlas_path, "--dwell", "180", "--swing", "90", "--output", "rpr"]
+    code, out, err = run(capsys, *args, "--json")
+    doc = json.loads(out)
+    assert code == 0 and len(doc["candidates"]) == 1 and "no_match" not in doc
+    (way,) = doc["short_of"]
+    assert (way["output"], way["constraint"], way["asked"]) == ("rpr", "dwell", pytest.approx(180))
+    assert 90 < way["best"] < 178
+    code, out, err = run(capsys, *args)
+    assert code == 0 and out.startswith("1 six-bar(s)")
+    assert err.strip() == (
+        "dwell: 1 six-bar(s) where 3 were sought; in the way of more, the dwell angle alone: the best of the "
+        f"other fitted six-bars meeting every other limit is {way['best']:.4g}° (asked 180°)"
+    )
+    # an answer that is not short adds no line and no key
+    code, out, err = run(capsys, *args, "--top", "1", "--json")
+    assert code == 0 and "short_of" not in json.loads(out)
