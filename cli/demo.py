@@ -76,7 +76,7 @@ def _demo(out: Path, made: list[Path], target: str, workers: int | None, progres
     from atlas.sweep import PRESETS
     from cli.progress import BuildBar
     from cli.query import answer, no_match_message, table
-    from cli.shown_ids import remember_shown
+    from cli.shown_ids import remember_shown, report_settings
     from db.engine import display_target, open_atlas
     from report.export import write_report
     from synth.query.candidates import Request
@@ -116,7 +116,7 @@ def _demo(out: Path, made: list[Path], target: str, workers: int | None, progres
                 continue
             progress.stage("")  # the terminal's line ends before the table
             click.echo(table(result))
-            remember_shown(result.candidates)
+            remember_shown(result.candidates, report_settings(result.request, "mm"))
             best = result.candidates[0]
             dwell = " and ".join(f"{math.degrees(d.angle):.2f}°" for d in best.figures.dwells[: request.dwells])
             click.echo(

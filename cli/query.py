@@ -801,9 +801,9 @@ def query(
     elif result.candidates:
         click.echo(table(result, units, wide=wide))
         if not wide:
-            from cli.shown_ids import remember_shown
+            from cli.shown_ids import remember_shown, report_settings
 
-            remember_shown(result.candidates)
+            remember_shown(result.candidates, report_settings(request, units))
         if searched is not None:
             click.echo(band_search_text(searched))
         short = short_text(result)

@@ -7,6 +7,7 @@ import re
 from pathlib import Path
 
 import click
+from click.core import ParameterSource
 
 from cli.errors import InputError
 from cli.options import LENGTH, RPM, db_option, probe_folder, request_errors, units_option
@@ -29,7 +30,8 @@ def canonical_id(text: str) -> str:
     from cli.shown_ids import resolve
     from synth.query.candidate_ids import REFINED_MARK, candidate_id, parse_candidate_id
 
-    text = resolve(text) or text
+    shown = resolve(text)
+    text = text if shown is None else shown.full
     if len(text) > 200 or not _ID.fullmatch(text):
         raise InputError(
             f"--candidates: {terminal(repr(text[:80]))} is not a candidate id as `dwell query` prints "
@@ -89,11 +91,18 @@ def canonical_id(text: str) -> str:
 @click.argument("more_ids", nargs=-1)
 def report(target, ids, out_dir, dwell, band, crank, min_transmission, rpm, tolerance, units, more_ids):
     """Write JSON, CSV, plots, drawings, DXF and an animated HTML page for the candidates."""
+    from cli.shown_ids import resolve
     from report.folder import ReportFolderError, check_report_folder
 
-    names = [canonical_id(t) for item in (*ids, *more_ids) for t in item.replace(",", " ").split()]
-    if not names:
+    texts = [t for item in (*ids, *more_ids) for t in item.replace(",", " ").split()]
+    if not texts:
         raise InputError("--candidates: give at least one candidate id")
+    looked = [resolve(t) for t in texts]
+    names = [canonical_id(t if s is None else s.full) for t, s in zip(texts, looked)]
+    taken = as_shown(click.get_current_context(), looked)
+    dwell, band, crank = taken.get("dwell", dwell), taken.get("band", band), taken.get("crank", crank)
+    min_transmission, rpm = taken.get("min_transmission", min_transmission), taken.get("rpm", rpm)
+    tolerance, units = taken.get("tolerance", tolerance), taken.get("units", units)
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise InputError(f"--out {out_dir!r} is a file, not a folder")
@@ -104,6 +113,14 @@ def report(target, ids, out_dir, dwell, band, crank, min_transmission, rpm, tole
     except ReportFolderError as exc:
         raise InputError(str(exc)) from None
     probe_folder(out, "--out")
+    shown = lambda v: f"{v:g}" if isinstance(v, float | int) else terminal(v)  # noqa: E731
+    changed = [  # as shown: a min-transmission of 29.999999999999996° is the default 30°
+        f"--{k.replace('_', '-')} {shown(v)}"
+        for k, v in taken.items()
+        if v is not None and (k not in _DEFAULTS or shown(v) != shown(_DEFAULTS[k]))
+    ]
+    if changed:
+        click.echo(f"dwell: as the query that showed them: {' '.join(changed)} (an option given here wins)", err=True)
     # the deviation window: the requested dwell, or the rebuilt six-bar's own dwell
     # (a swing to make it a whole request, and no link-ratio limit: the ids name the six-bars)
     with request_errors():
@@ -134,6 +151,46 @@ def report(target, ids, out_dir, dwell, band, crank, min_transmission, rpm, tole
             f"{c.rank}. {c.id}: {c.sixbar.dyad.kind}, dwell {dw}, swing {math.degrees(c.figures.swing):.2f}°{tol}"
         )
     click.echo(f"wrote {len(written)} files to {out.resolve()} (open index.html)")
+
+
+#: ``dwell report``'s defaults of the options a short id's query settings may set (shown only
+#: where they differ).
+_DEFAULTS = {"band": 0.1, "crank": 1.0, "min_transmission": 30.0, "rpm": 60.0, "units": "mm"}
+
+
+def as_shown(ctx: click.Context, looked: list) -> dict:
+    """The report options not given on the command line, set as the query that showed the
+    ids did (``cli.shown_ids.Shown.settings``, by option name): only when every id is a short
+    id whose table kept its settings (a full id is reported at the report's own options). Ids
+    shown at different values of an option are one line (exit 2) asking for it; settings that
+    are not the options' values (a hand-edited file) count as none."""
+    from cli.shown_ids import REPORT_SETTINGS
+    from kinematics.assur.linkage_file import plain_text_problem
+
+    if not looked or any(s is None or s.settings is None for s in looked):
+        return {}
+    params = {p.name: p for p in ctx.command.params}
+    taken = {}
+    for name in REPORT_SETTINGS:
+        if ctx.get_parameter_source(name) is not ParameterSource.DEFAULT:
+            continue  # the user's own option wins
+        values = {repr(s.settings[name]) for s in looked}
+        if len(values) > 1:
+            raise InputError(
+                f"--{name.replace('_', '-')}: the ids were shown by queries at different values of it "
+                f"({', '.join(sorted(values))}); give --{name.replace('_', '-')}"
+            )
+        value = looked[0].settings[name]
+        try:
+            if name == "units":
+                if plain_text_problem(value):
+                    return {}
+            elif value is not None:
+                value = params[name].type.convert(value, params[name], ctx)
+        except click.BadParameter:
+            return {}
+        taken[name] = value
+    return taken
 
 
 def _toleranced(request, candidates: list) -> list:

@@ -121,18 +121,39 @@ def test_wide_shows_every_column_and_the_full_ids(answers):
 
 
 def test_report_takes_a_short_id_as_the_full_one(answers, atlas_path, tmp_path, capsys, monkeypatch):
-    """The same report, file for file, from the short id as from the full id (the DXFs differ
-    only in the creation stamps ezdxf writes, so their entities are compared); an unknown or
+    """A short id reports its six-bar as the query's table showed it: the same report, file for
+    file, as the full id given the query's options (the DXFs differ only in the creation stamps
+    ezdxf writes, so their entities are compared), with one line naming the options taken; an
+    option given wins; ids shown at different values of one are refused; an unknown or
     ambiguous short id is one line and exit 2, nothing written."""
     monkeypatch.setenv("DWELL_CACHE_DIR", str(answers["ids_file"].parent))
-    full = json.loads(answers["json"])["candidates"][1]["id"]
+    cands = json.loads(answers["json"])["candidates"]
+    full = cands[1]["id"]
     short = short_id(full)
-    assert f"{short}\t{full}\n" in answers["shown"]
+    line = next(x for x in answers["shown"].splitlines() if x.startswith(f"{short}\t{full}\t"))
+    settings = json.loads(line.split("\t")[2])
+    assert settings == {
+        "dwell": pytest.approx(45),
+        "band": pytest.approx(0.1),
+        "crank": 40,
+        "min_transmission": pytest.approx(30),
+        "rpm": 60,
+        "tolerance": 0.05,
+        "units": "in",
+    }
+    code, out_short, err = run(
+        capsys, "report", "--db", atlas_path, "--candidates", short, "--out", str(tmp_path / "s")
+    )
+    assert code == 0, err
+    assert err.strip() == (
+        "dwell: as the query that showed them: --dwell 45 --crank 40 --tolerance 0.05 --units in "
+        "(an option given here wins)"
+    )
     common = ["--db", atlas_path, "--dwell", "45", "--units", "in", "--crank", "40"]
-    code, out_short, err = run(capsys, "report", *common, "--candidates", short, "--out", str(tmp_path / "s"))
-    assert code == 0, err
-    code, out_full, err = run(capsys, "report", *common, "--candidates", full, "--out", str(tmp_path / "f"))
-    assert code == 0, err
+    code, out_full, err = run(
+        capsys, "report", *common, "--tolerance", "0.05", "--candidates", full, "--out", str(tmp_path / "f")
+    )
+    assert code == 0 and err == "", err
     assert out_short.replace(str(tmp_path / "s"), "") == out_full.replace(str(tmp_path / "f"), "")
     names = sorted(p.name for p in (tmp_path / "s").iterdir())
     assert names == sorted(p.name for p in (tmp_path / "f").iterdir()) and len(names) > 5
@@ -142,6 +163,23 @@ def test_report_takes_a_short_id_as_the_full_one(answers, atlas_path, tmp_path, 
             a, b = (_dxf_entities(x) for x in (a, b))
         assert a == b, name
     assert json.loads((tmp_path / "s" / "candidates.json").read_text())["candidates"][0]["id"] == full
+    # an option given wins over the query's
+    code, _, err = run(
+        capsys, "report", "--db", atlas_path, "--band", "0.2", "--candidates", short, "--out", str(tmp_path / "b")
+    )
+    assert code == 0 and "--band" not in err and "--dwell 45" in err
+    assert json.loads((tmp_path / "b" / "candidates.json").read_text())["request"]["band_deg"] == pytest.approx(0.2)
+    # two ids shown by queries at different bands: the report asks which
+    other = cands[0]["id"]
+    with open(ids_file(), "a") as f:
+        f.write(f"{short_id(other)}\t{other}\t{json.dumps({**settings, 'band': 0.01})}\n")
+    both = ["--candidates", short, "--candidates", short_id(other), "--out", str(tmp_path / "x")]
+    code, out, err = run(capsys, "report", "--db", atlas_path, *both)
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1
+    assert "--band: the ids were shown by queries at different values" in err and "give --band" in err
+    assert not (tmp_path / "x").exists()
+    code, _, err = run(capsys, "report", "--db", atlas_path, "--band", "0.1", *both[:-1], str(tmp_path / "y"))
+    assert code == 0, err
 
     unknown = short[:-5] + ("aaaaa" if not short.endswith("aaaaa") else "bbbbb")
     code, out, err = run(capsys, "report", *common, "--candidates", unknown, "--out", str(tmp_path / "x"))
