@@ -113,14 +113,9 @@ def report(target, ids, out_dir, dwell, band, crank, min_transmission, rpm, tole
     except ReportFolderError as exc:
         raise InputError(str(exc)) from None
     probe_folder(out, "--out")
-    shown = lambda v: f"{v:g}" if isinstance(v, float | int) else terminal(v)  # noqa: E731
-    changed = [  # as shown: a min-transmission of 29.999999999999996° is the default 30°
-        f"--{k.replace('_', '-')} {shown(v)}"
-        for k, v in taken.items()
-        if v is not None and (k not in _DEFAULTS or shown(v) != shown(_DEFAULTS[k]))
-    ]
-    if changed:
-        click.echo(f"dwell: as the query that showed them: {' '.join(changed)} (an option given here wins)", err=True)
+    line = taken_text(click.get_current_context(), taken)
+    if line:
+        click.echo(f"dwell: {line}", err=True)
     # the deviation window: the requested dwell, or the rebuilt six-bar's own dwell
     # (a swing to make it a whole request, and no link-ratio limit: the ids name the six-bars)
     with request_errors():
@@ -153,11 +148,6 @@ def report(target, ids, out_dir, dwell, band, crank, min_transmission, rpm, tole
     click.echo(f"wrote {len(written)} files to {out.resolve()} (open index.html)")
 
 
-#: ``dwell report``'s defaults of the options a short id's query settings may set (shown only
-#: where they differ).
-_DEFAULTS = {"band": 0.1, "crank": 1.0, "min_transmission": 30.0, "rpm": 60.0, "units": "mm"}
-
-
 def as_shown(ctx: click.Context, looked: list) -> dict:
     """The report options not given on the command line, set as the query that showed the
     ids did (``cli.shown_ids.Shown.settings``, by option name): only when every id is a short
@@ -174,7 +164,7 @@ def as_shown(ctx: click.Context, looked: list) -> dict:
     for name in REPORT_SETTINGS:
         if ctx.get_parameter_source(name) is not ParameterSource.DEFAULT:
             continue  # the user's own option wins
-        values = {repr(s.settings[name]) for s in looked}
+        values = {_option_value(s.settings[name]) for s in looked}
         if len(values) > 1:
             raise InputError(
                 f"--{name.replace('_', '-')}: the ids were shown by queries at different values of it "
@@ -191,6 +181,23 @@ def as_shown(ctx: click.Context, looked: list) -> dict:
             return {}
         taken[name] = value
     return taken
+
+
+def _option_value(value) -> str:
+    """An option's value as the command line would give it (29.999999999999996° is 30)."""
+    return f"{value:g}" if isinstance(value, float | int) else terminal(str(value))
+
+
+def taken_text(ctx: click.Context, taken: dict) -> str | None:
+    """The line naming the options :func:`as_shown` took that differ from the report's
+    defaults (None if none does)."""
+    params = {p.name: p for p in ctx.command.params}
+    changed = [
+        f"--{k.replace('_', '-')} {_option_value(v)}"
+        for k, v in taken.items()
+        if v is not None and (params[k].default is None or _option_value(v) != _option_value(params[k].default))
+    ]
+    return f"as the query that showed them: {' '.join(changed)} (an option given here wins)" if changed else None
 
 
 def _toleranced(request, candidates: list) -> list:

@@ -87,6 +87,10 @@ def _row(cell: Cell, result, seconds: float, top: int) -> dict:
         "in_the_way": None
         if result.no_match is None or result.no_match.reach is None
         else [result.no_match.reach[0], round(result.no_match.reach[1], 4), round(result.no_match.reach[2], 4)],
+        # a cell answered short of FILL: the one constraint in the way of more (QueryResult.short_of)
+        "short_of": None
+        if not shown or not result.short_of
+        else [[k, round(best, 4), round(limit, 4)] for _, k, best, limit in result.short_of],
         "refined": sum(c.refined_from is not None for c in shown),
         "ms": round(1000 * seconds, 1),
     }

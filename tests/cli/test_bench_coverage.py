@@ -123,6 +123,7 @@ def test_coverage_table_and_bad_input(capsys, coverage_atlas, tmp_path):
         ("rrr", d, s) for d in (10, 180) for s in SWINGS
     ]
     assert all(c["in_the_way"] is None or c["in_the_way"][0] in CONSTRAINTS for c in rows)
+    assert all(c["short_of"] is None for c in rows)  # named by the fill, which --no-refine skips
     code, out, err = run(capsys, "bench", "coverage", "--db", coverage_atlas, "--dwell", "11")
     assert code == 2 and out == "" and len(err.strip().splitlines()) == 1 and "--dwell" in err
 
