@@ -1,9 +1,10 @@
 """A bounded process pool: a function over a stream of items on worker processes, results in
 completion order, with the few items in flight that keep the workers busy.
 
-The atlas build runs its shards on it (:func:`atlas.build.run_shards`) and the complete query
-its batches of segments (``dwell query --complete --workers N``). Items are read lazily, so
-memory stays bounded whatever the stream's length.
+The atlas build runs its shards on it (:func:`atlas.build.run_shards`), the complete query
+its batches of segments (``dwell query --complete --workers N``) and a report its candidates;
+:class:`WorkerPool` keeps the workers for several maps (``dwell demo``'s three reports). Items
+are read lazily, so memory stays bounded whatever the stream's length.
 
 Processes start from a forkserver where there is one (no fork of a driver that holds
 threads or database connections), preloaded with the modules the work needs. Workers ignore
@@ -23,7 +24,7 @@ from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wai
 from multiprocessing.connection import Connection
 from typing import Any, TypeVar
 
-__all__ = ["MAX_WORKERS", "TICK_SECONDS", "default_workers", "pool_map"]
+__all__ = ["MAX_WORKERS", "TICK_SECONDS", "WorkerPool", "default_workers", "pool_map"]
 
 #: While waiting on workers, ``tick`` is called at least this often (seconds).
 TICK_SECONDS = 10.0
@@ -126,43 +127,80 @@ def pool_map(
     module-level function); ``initializer(*initargs)`` runs once in each worker. ``tick`` is
     called at least every :data:`TICK_SECONDS` while waiting. Closing the iterator (or an
     exception, Ctrl-C included) stops the workers."""
-    todo = iter(items)
-    ctx = _mp_context(preload)
-    # only the driver ever holds the sending end: it closes when the driver dies, however
-    lifeline_r, lifeline_w = ctx.Pipe(duplex=False)
-    executor = ProcessPoolExecutor(
-        max_workers=workers,
-        mp_context=ctx,
-        initializer=_init_worker,
-        initargs=(lifeline_r, initializer, initargs, workers),
-    )
-    pending: set[Future] = set()
-    clean = False
-    try:
-        for item in todo:
-            pending.add(executor.submit(fn, item))
-            if len(pending) >= 2 * workers:
-                break
-        while pending:
-            done, pending = wait(pending, timeout=TICK_SECONDS, return_when=FIRST_COMPLETED)
-            if not done:
-                if tick is not None:
-                    tick()
-                continue
-            for future in done:
-                result = future.result()
-                nxt = next(todo, _END)
-                if nxt is not _END:  # keep the workers busy while the driver takes the result
-                    pending.add(executor.submit(fn, nxt))
-                yield result
-        clean = True
-    finally:
-        if clean:
-            executor.shutdown(wait=True)
-        else:
-            _stop(executor)
-        lifeline_w.close()
-        lifeline_r.close()
+    with WorkerPool(workers, initializer=initializer, initargs=initargs, preload=preload) as pool:
+        yield from pool.map(fn, items, tick=tick)
+
+
+class WorkerPool:
+    """Worker processes that outlive one :meth:`map`: several maps (three reports of three
+    candidates each) pay the workers' start and imports once. A context manager; its
+    :meth:`map` is :func:`pool_map`'s, and a map that ends early (an error, Ctrl-C, an
+    iterator closed) stops the workers, after which the pool takes no more work."""
+
+    def __init__(
+        self,
+        workers: int,
+        *,
+        initializer: Callable[..., None] | None = None,
+        initargs: tuple[Any, ...] = (),
+        preload: Sequence[str] = (),
+    ) -> None:
+        ctx = _mp_context(preload)
+        # only the driver ever holds the sending end: it closes when the driver dies, however
+        self._lifeline_r, self._lifeline_w = ctx.Pipe(duplex=False)
+        self.workers = workers
+        self._executor = ProcessPoolExecutor(
+            max_workers=workers,
+            mp_context=ctx,
+            initializer=_init_worker,
+            initargs=(self._lifeline_r, initializer, initargs, workers),
+        )
+        self._stopped = False
+
+    def __enter__(self) -> WorkerPool:
+        return self
+
+    def __exit__(self, kind, value, traceback) -> None:
+        try:
+            if kind is None and not self._stopped:
+                self._executor.shutdown(wait=True)
+            elif not self._stopped:
+                _stop(self._executor)
+        finally:
+            self._stopped = True
+            self._lifeline_w.close()
+            self._lifeline_r.close()
+
+    def map(self, fn: Callable[[T], R], items: Iterable[T], tick: Callable[[], None] | None = None) -> Iterator[R]:
+        """:func:`pool_map` on these workers (see there)."""
+        if self._stopped:
+            raise RuntimeError("the worker pool was stopped")
+        todo = iter(items)
+        executor, workers = self._executor, self.workers
+        pending: set[Future] = set()
+        clean = False
+        try:
+            for item in todo:
+                pending.add(executor.submit(fn, item))
+                if len(pending) >= 2 * workers:
+                    break
+            while pending:
+                done, pending = wait(pending, timeout=TICK_SECONDS, return_when=FIRST_COMPLETED)
+                if not done:
+                    if tick is not None:
+                        tick()
+                    continue
+                for future in done:
+                    result = future.result()
+                    nxt = next(todo, _END)
+                    if nxt is not _END:  # keep the workers busy while the driver takes the result
+                        pending.add(executor.submit(fn, nxt))
+                    yield result
+            clean = True
+        finally:
+            if not clean:  # what is in flight must not run on: stop now, not at the pool's exit
+                self._stopped = True
+                _stop(executor)
 
 
 _END = object()

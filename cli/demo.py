@@ -49,7 +49,10 @@ TOP = 3
     "demo builds its own small atlas and must not write into yours.",
 )
 @click.option(
-    "--workers", type=click.IntRange(1, MAX_WORKERS), default=None, help="Build processes [default: all CPUs]."
+    "--workers",
+    type=click.IntRange(1, MAX_WORKERS),
+    default=None,
+    help="Processes of the atlas build and of the reports' drawings [default: all CPUs].",
 )
 def demo(out_dir: str, target: str | None, workers: int | None) -> None:
     """Build the demo atlas, answer an RRR, an RPR and a double-dwell request, write reports."""
@@ -76,6 +79,7 @@ def _demo(out: Path, made: list[Path], target: str, workers: int | None, progres
     from atlas.sweep import PRESETS
     from cli.progress import BuildBar
     from cli.query import answer, no_match_message, table
+    from cli.report_pool import reports_pool
     from cli.shown_ids import remember_shown, report_settings
     from db.engine import display_target, open_atlas
     from report.export import write_report
@@ -102,37 +106,40 @@ def _demo(out: Path, made: list[Path], target: str, workers: int | None, progres
     engine = open_atlas(target, readonly=True)
     written = []
     try:
-        for name, opts in DEMO_REQUESTS.items():
-            args = " ".join(
-                f"--{k.replace('_', '-')} {v:g}" if isinstance(v, float) else f"--{k.replace('_', '-')} {v}"
-                for k, v in opts.items()
-            )
-            click.echo(f"\n$ dwell query --db {shown} {args} --top {TOP}")
-            request = Request.from_degrees(**opts, top=TOP)
-            progress.stage(f"answering the {name} request")
-            result = answer(engine, request)
-            if not result.candidates:
-                click.echo(no_match_message(result))
-                continue
-            progress.stage("")  # the terminal's line ends before the table
-            click.echo(table(result))
-            remember_shown(result.candidates, report_settings(result.request, "mm"))
-            best = result.candidates[0]
-            dwell = " and ".join(f"{math.degrees(d.angle):.2f}°" for d in best.figures.dwells[: request.dwells])
-            click.echo(
-                f"best: {best.id}: {best.sixbar.dyad.kind} output, dwell {dwell}, "
-                f"swing {math.degrees(best.figures.swing):.2f}°"
-            )
-            folder = out / name
-            write_report(
-                result.candidates,
-                request,
-                folder,
-                option="--out",
-                on_candidate=progress.counter(f"writing the {name} report", "candidates"),
-            )
-            progress.stage("")
-            written.append(folder / "index.html")
+        # the three reports' candidates are drawn on one set of worker processes, started once
+        with reports_pool(TOP * len(DEMO_REQUESTS), workers) as draw:
+            for name, opts in DEMO_REQUESTS.items():
+                args = " ".join(
+                    f"--{k.replace('_', '-')} {v:g}" if isinstance(v, float) else f"--{k.replace('_', '-')} {v}"
+                    for k, v in opts.items()
+                )
+                click.echo(f"\n$ dwell query --db {shown} {args} --top {TOP}")
+                request = Request.from_degrees(**opts, top=TOP)
+                progress.stage(f"answering the {name} request")
+                result = answer(engine, request)
+                if not result.candidates:
+                    click.echo(no_match_message(result))
+                    continue
+                progress.stage("")  # the terminal's line ends before the table
+                click.echo(table(result))
+                remember_shown(result.candidates, report_settings(result.request, "mm"))
+                best = result.candidates[0]
+                dwell = " and ".join(f"{math.degrees(d.angle):.2f}°" for d in best.figures.dwells[: request.dwells])
+                click.echo(
+                    f"best: {best.id}: {best.sixbar.dyad.kind} output, dwell {dwell}, "
+                    f"swing {math.degrees(best.figures.swing):.2f}°"
+                )
+                folder = out / name
+                write_report(
+                    result.candidates,
+                    request,
+                    folder,
+                    option="--out",
+                    on_candidate=progress.counter(f"writing the {name} report", "candidates"),
+                    map_candidates=draw,
+                )
+                progress.stage("")
+                written.append(folder / "index.html")
     finally:
         engine.dispose()
     click.echo(f"\nreports: {', '.join(str(p) for p in written)} ({time.perf_counter() - start:.1f} s in all)")

@@ -11,12 +11,16 @@ its default ``--top 10`` on two cores writes the ten in about half the time.
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 
-__all__ = ["PARALLEL_FROM", "report_pool"]
+__all__ = ["PARALLEL_FROM", "report_pool", "reports_pool"]
 
 #: Candidates from which a report is drawn on worker processes.
 PARALLEL_FROM = 4
+
+#: What the workers import before their first candidate (their forkserver preloads it).
+PRELOAD = ("report.candidate_files",)
 
 
 def report_pool(count: int, workers: int | None = None) -> Callable | None:
@@ -28,4 +32,21 @@ def report_pool(count: int, workers: int | None = None) -> Callable | None:
     n = min(count, workers or default_workers())
     if count < PARALLEL_FROM or n < 2:
         return None
-    return functools.partial(pool_map, workers=n, preload=("report.candidate_files",))
+    return functools.partial(pool_map, workers=n, preload=PRELOAD)
+
+
+@contextmanager
+def reports_pool(count: int, workers: int | None = None) -> Iterator[Callable | None]:
+    """One ``map_candidates`` for several reports of ``count`` candidates in all (``dwell demo``'s
+    three of three): the map of one :class:`atlas.pool.WorkerPool` of min(``count``, ``workers``
+    or every CPU) processes, started once for all of them (their imports are paid once, and
+    every report's candidates are drawn side by side), or None (in this process) as
+    :func:`report_pool` decides for ``count`` candidates."""
+    from atlas.pool import WorkerPool, default_workers
+
+    n = min(count, workers or default_workers())
+    if count < PARALLEL_FROM or n < 2:
+        yield None
+        return
+    with WorkerPool(n, preload=PRELOAD) as pool:
+        yield pool.map

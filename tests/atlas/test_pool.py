@@ -83,3 +83,40 @@ def test_the_stopped_pool_s_manager_thread_has_ended():
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout == "stopped []\n"
     assert proc.stderr == ""
+
+
+# Two maps on one WorkerPool: the same processes; a map whose item fails stops the pool.
+REUSED = """
+import atlas.pool as pool
+from harness.pool_faults import fail_on_two, worker_pid
+
+with pool.WorkerPool(2) as workers:
+    first = set(workers.map(worker_pid, range(8)))
+    second = set(workers.map(worker_pid, range(8)))
+    print(1 <= len(first) <= 2, second <= first, flush=True)
+    try:
+        list(workers.map(fail_on_two, range(4)))
+    except ValueError as exc:
+        print("failed:", exc, flush=True)
+    try:
+        list(workers.map(worker_pid, range(2)))
+    except RuntimeError as exc:
+        print("then:", exc, flush=True)
+print(sorted(pool.pool_map(fail_on_two, [0, 1, 3], 2)), flush=True)
+"""
+
+
+def test_a_worker_pool_runs_several_maps_on_the_same_processes_until_one_fails():
+    """``dwell demo`` draws its three reports on one WorkerPool: the second map runs on the
+    processes of the first (no second start-up); a map whose item raises re-raises it in the
+    driver and stops the workers, and the pool then refuses work in one clear error;
+    ``pool_map`` is one map on a pool of its own."""
+    proc = _driver(REUSED)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.splitlines() == [
+        "True True",
+        "failed: item 2 fails",
+        "then: the worker pool was stopped",
+        "[0, 1, 3]",
+    ]
+    assert proc.stderr == ""

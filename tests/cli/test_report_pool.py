@@ -8,7 +8,7 @@ import pytest
 from atlas.build import build_atlas
 from atlas.sweep import PRESETS
 from cli.query import answer
-from cli.report_pool import PARALLEL_FROM, report_pool
+from cli.report_pool import PARALLEL_FROM, report_pool, reports_pool
 from db.engine import open_atlas
 from report.export import write_report
 from synth.query.candidates import Request
@@ -52,3 +52,25 @@ def test_a_few_candidates_or_one_core_are_drawn_in_the_driver():
     assert report_pool(PARALLEL_FROM - 1, workers=8) is None
     assert report_pool(10, workers=1) is None
     assert report_pool(PARALLEL_FROM, workers=2) is not None
+
+
+def test_several_reports_drawn_on_one_pool_are_the_ones_drawn_in_the_driver(tmp_path, candidates):
+    """``dwell demo``'s three reports share one pool (``reports_pool``): two reports of part of
+    the candidates each, drawn on it, equal those drawn in the driver."""
+    request, found = candidates
+    halves = [[*found[:2]], [*found[2:4]]]
+    with reports_pool(4, workers=2) as draw:
+        assert draw is not None
+        there = [
+            write_report(part, request, tmp_path / f"pool{k}", map_candidates=draw) for k, part in enumerate(halves)
+        ]
+    for k, (part, files) in enumerate(zip(halves, there)):
+        here = write_report(part, request, tmp_path / f"here{k}")
+        assert [p.name for p in files] == [p.name for p in here]
+        for a, b in zip(here, files):
+            if a.suffix in FIXED:
+                assert a.read_bytes() == b.read_bytes(), a.name
+    with reports_pool(PARALLEL_FROM - 1, workers=8) as draw:
+        assert draw is None
+    with reports_pool(9, workers=1) as draw:
+        assert draw is None

@@ -4,6 +4,7 @@ workers of ``tests/atlas/test_pool.py``, whose driver process gets ``tests/`` on
 
 from __future__ import annotations
 
+import os
 import struct
 import sys
 import time
@@ -18,3 +19,17 @@ def send_half_a_result(_item: object) -> None:
         frame = frame.f_back
     frame.f_locals["result_queue"]._writer._send(struct.pack("!i", 1 << 20) + b"x" * 10)
     time.sleep(120)
+
+
+def worker_pid(_item: object) -> int:
+    """The worker's process id (which processes a pool's maps ran on), after a short wait that
+    lets every worker take items."""
+    time.sleep(0.05)
+    return os.getpid()
+
+
+def fail_on_two(item: int) -> int:
+    """``item``, or a ValueError for 2: a work item that fails."""
+    if item == 2:
+        raise ValueError("item 2 fails")
+    return item
