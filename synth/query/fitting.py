@@ -58,16 +58,23 @@ class Fitted:
 
 def coupler_paths(rows: SegmentBatch | Sequence[SegmentRow], phi: np.ndarray) -> np.ndarray:
     """The coupler-point paths of ``rows`` (a batch, or rows of any kinds) on the crank grid ``phi``."""
-    from kinematics.fourbar import fourbar_motion
-
     if isinstance(rows, SegmentBatch):
         fb = rows.fourbar
-        b, c, d, branch, uv = fb.b, fb.c, fb.d, fb.branch, rows.coupler_point()
-    else:
-        b, c, d, branch = (np.array([getattr(r.fourbar, name) for r in rows]) for name in ("b", "c", "d", "branch"))
-        uv = np.array([complex(r.fourbar.u, r.fourbar.v) for r in rows])
+        return paths_of(fb.b, fb.c, fb.d, fb.branch, rows.coupler_point(), phi)
+    b, c, d, branch = (np.array([getattr(r.fourbar, name) for r in rows]) for name in ("b", "c", "d", "branch"))
+    return paths_of(b, c, d, branch, np.array([complex(r.fourbar.u, r.fourbar.v) for r in rows]), phi)
+
+
+def paths_of(
+    b: np.ndarray, c: np.ndarray, d: np.ndarray, branch: np.ndarray, points: np.ndarray, phi: np.ndarray
+) -> np.ndarray:
+    """(len(b), len(phi)) complex: the path of coupler point ``points[k]`` (u + iv, coupler
+    frame) of the crank-normalised four-bar ``k`` (b, c, d, branch) on the crank grid ``phi``
+    (:meth:`~kinematics.fourbar.FourBarMotion.coupler_point`, the formula's one home)."""
+    from kinematics.fourbar import fourbar_motion
+
     motion = fourbar_motion(1.0, b[:, None], c[:, None], d[:, None], phi, branch[:, None], order=0)
-    return motion.coupler_point(uv.real[:, None], uv.imag[:, None])[0]
+    return motion.coupler_point(points.real[:, None], points.imag[:, None])[0]
 
 
 def fit(request: Request, rows: Sequence[SegmentRow], kind: SegmentKind | str) -> list[Fitted]:

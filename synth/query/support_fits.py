@@ -20,13 +20,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinematics.fourbar import fourbar_motion
 from synth.kinds import OutputTag, SegmentKind
 from synth.mechanism.sixbar import OutputDyad, crank_grid
 from synth.mechanism.support_rest import DIRECTIONS, harmonic_rest, slot_pivots, support_points
 from synth.query.candidates import Request
 from synth.query.contract import SegmentSource
-from synth.query.fitting import Fitted
+from synth.query.fitting import Fitted, paths_of
 from synth.query.segment_rows import SegmentBatch, SegmentRow
 
 __all__ = ["GRID_POINTS", "GRID_STRIDE", "PAIRS", "support_fits", "wants_support_fits"]
@@ -109,11 +108,7 @@ class _Passing:
 def _paths(batch: SegmentBatch, rows: np.ndarray, points: np.ndarray, phi: np.ndarray) -> np.ndarray:
     """The paths of the coupler ``points`` (u + iv) of the four-bars of ``batch``'s ``rows``."""
     fb = batch.fourbar
-    b, c, d, branch = (np.asarray(x)[rows, None] for x in (fb.b, fb.c, fb.d, fb.branch))
-    (path,) = fourbar_motion(1.0, b, c, d, phi, branch, order=0).coupler_point(
-        points.real[:, None], points.imag[:, None]
-    )
-    return path
+    return paths_of(*(np.asarray(x)[rows] for x in (fb.b, fb.c, fb.d, fb.branch)), points, phi)
 
 
 def _passing(request: Request, batch: SegmentBatch, rows: np.ndarray, points: np.ndarray, phi: np.ndarray) -> _Passing:
