@@ -27,12 +27,19 @@ def report_pool(count: int, workers: int | None = None) -> Callable | None:
     """``map_candidates`` for a report of ``count`` candidates: :func:`atlas.pool.pool_map` on
     min(``count``, ``workers`` or every CPU) processes, or None (in this process) below
     :data:`PARALLEL_FROM` candidates or with one CPU."""
-    from atlas.pool import default_workers, pool_map
+    from atlas.pool import pool_map
+
+    n = _processes(count, workers)
+    return None if n is None else functools.partial(pool_map, workers=n, preload=PRELOAD)
+
+
+def _processes(count: int, workers: int | None) -> int | None:
+    """Processes to draw ``count`` candidates on: min(``count``, ``workers`` or every CPU), or
+    None (in this process) below :data:`PARALLEL_FROM` candidates or with one."""
+    from atlas.pool import default_workers
 
     n = min(count, workers or default_workers())
-    if count < PARALLEL_FROM or n < 2:
-        return None
-    return functools.partial(pool_map, workers=n, preload=PRELOAD)
+    return None if count < PARALLEL_FROM or n < 2 else n
 
 
 @contextmanager
@@ -42,10 +49,10 @@ def reports_pool(count: int, workers: int | None = None) -> Iterator[Callable | 
     or every CPU) processes, started once for all of them (their imports are paid once, and
     every report's candidates are drawn side by side), or None (in this process) as
     :func:`report_pool` decides for ``count`` candidates."""
-    from atlas.pool import WorkerPool, default_workers
+    from atlas.pool import WorkerPool
 
-    n = min(count, workers or default_workers())
-    if count < PARALLEL_FROM or n < 2:
+    n = _processes(count, workers)
+    if n is None:
         yield None
         return
     with WorkerPool(n, preload=PRELOAD) as pool:

@@ -16,7 +16,6 @@ import numpy as np
 from synth.kinds import SegmentKind
 from synth.mechanism.figures import DwellBoundFigures, SixBarFigures, figures_with_dwell_bounds, footprints
 from synth.mechanism.sixbar import SixBars
-from synth.query.candidate_ids import candidate_id
 from synth.query.candidates import Request
 from synth.query.contract import SegmentSource
 from synth.query.evaluate import (
@@ -154,13 +153,7 @@ def reach_beyond(
     (:attr:`~synth.query.result.QueryResult.short_of`): :attr:`NoMatch.reach` of ``misses``
     (:func:`misses_of`, nearest first) but those whose candidate id (before any refined
     dimensions) is one of ``taken`` — the fits the answer's six-bars were refined from."""
-    return _reach(request, [m for m in misses if _base_id(request, m[1]) not in taken])
-
-
-def _base_id(request: Request, fit_: Fitted) -> str:
-    """The candidate id of ``fit_`` before any refined or moved dimensions."""
-    r = fit_.row
-    return candidate_id(r.segment_id, fit_.output, fit_.slot, r.level, request.swing)
+    return _reach(request, [m for m in misses if m[1].candidate_id(request.swing, dimensions=False) not in taken])
 
 
 def _reach(

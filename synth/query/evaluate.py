@@ -16,7 +16,6 @@ from synth.kinds import OutputKind
 from synth.mechanism.figures import SixBarFigures, footprints, sixbar_figures
 from synth.mechanism.sixbar import SixBar, SixBars
 from synth.mechanism.sixbar import simulate as simulate_motion
-from synth.query.candidate_ids import candidate_id
 from synth.query.candidates import SAMPLES, Candidate, Request, screen
 from synth.query.fitting import Fitted
 from synth.query.result import CONSTRAINTS
@@ -134,9 +133,7 @@ def scaled_figures(f: SixBarFigures, scale: float) -> SixBarFigures:
 def candidate_of(request: Request, fitted: Fitted, f: SixBarFigures) -> Candidate:
     r = fitted.row
     return Candidate(
-        id=candidate_id(
-            r.segment_id, fitted.output, fitted.slot, r.level, request.swing, fitted.sixbar() if fitted.moved else None
-        ),
+        id=fitted.candidate_id(request.swing),
         segment_id=r.segment_id,
         sixbar=fitted.sixbar().scaled(request.crank),
         figures=scaled_figures(f, request.crank),

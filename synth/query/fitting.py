@@ -13,7 +13,7 @@ import numpy as np
 
 from synth.kinds import OutputKind, OutputTag, SegmentKind
 from synth.mechanism.sixbar import OutputDyad, SixBar, crank_grid
-from synth.query.candidate_ids import round_dimensions
+from synth.query.candidate_ids import candidate_id, round_dimensions
 from synth.query.candidates import Request, dwell_runs
 from synth.query.segment_rows import SegmentBatch, SegmentRow
 
@@ -47,6 +47,13 @@ class Fitted:
 
     def sixbar(self) -> SixBar:
         return SixBar.of(self.row.fourbar, self.dyad)
+
+    def candidate_id(self, swing: float | None, *, dimensions: bool = True) -> str:
+        """Its candidate id for a request of ``swing`` (rad), with a moved dyad's dimensions
+        unless not ``dimensions`` (the id of the fit it was moved from)."""
+        r = self.row
+        moved = self.sixbar() if self.moved and dimensions else None
+        return candidate_id(r.segment_id, self.output, self.slot, r.level, swing, moved)
 
     @property
     def key(self) -> tuple:

@@ -12,7 +12,7 @@ from collections.abc import Sequence
 
 from synth.kinds import OutputTag
 from synth.mechanism.figures import SixBarFigures
-from synth.query.candidate_ids import REFINED_MARK, candidate_id, with_dimensions
+from synth.query.candidate_ids import REFINED_MARK, with_dimensions
 from synth.query.candidates import Candidate, Request
 from synth.query.evaluate import candidate_of, distinct, figures_of, rest_position, scaled_figures
 from synth.query.fitting import Fitted
@@ -56,7 +56,7 @@ def with_origins(
     RRR's ``dwell_position`` from its simulation."""
     if not found:
         return []
-    base = {candidate_id(f.row.segment_id, f.output, f.slot, f.row.level, request.swing): f for f in fitted}
+    base = {f.candidate_id(request.swing, dimensions=False): f for f in fitted}
     origins = {c.id.split(REFINED_MARK)[0] for c in found}
     todo = [base[k] for k in origins if base[k].key not in known]
     if todo:
